@@ -1,0 +1,101 @@
+"""The `lumenlink` command: one subcommand per job, each importing its package only when run.
+
+Importing the CAD stack or numba costs seconds, so `lumenlink --help` imports neither.
+"""
+
+from __future__ import annotations
+
+import importlib
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+app = typer.Typer(
+    help="LumenLink: keep a light simulation in step with a CAD model.",
+    no_args_is_help=True,
+    add_completion=False,
+)
+
+
+def _call(module: str, function: str, issue: int, **kwargs: Any) -> Any:
+    """Run `module.function(**kwargs)`, or say clearly which part is not built yet."""
+    try:
+        mod = importlib.import_module(module)
+        fn = getattr(mod, function)
+    except (ImportError, AttributeError) as exc:
+        typer.echo(f"lumenlink: {module}.{function} is not built yet (issue {issue}): {exc}", err=True)
+        raise typer.Exit(2) from exc
+    return fn(**kwargs)
+
+
+@app.command()
+def serve(
+    host: Annotated[str, typer.Option(envvar="LUMENLINK_HOST", help="Address to listen on.")] = "127.0.0.1",
+    port: Annotated[int, typer.Option(envvar="LUMENLINK_PORT", help="TCP port.")] = 8000,
+    data_dir: Annotated[
+        Path, typer.Option(envvar="LUMENLINK_DATA_DIR", help="SQLite file, meshes and BLAS cache.")
+    ] = Path("./var"),
+) -> None:
+    """Start the REST service (uvicorn)."""
+    _call("service.server", "run", 5, host=host, port=port, data_dir=data_dir)
+
+
+@app.command()
+def push(
+    file: Annotated[Path, typer.Argument(help="STEP file to read.", exists=False)],
+    scene: Annotated[str, typer.Option(help="Scene name; created if no scene has it.")],
+    server: Annotated[str, typer.Option(envvar="LUMENLINK_SERVER", help="Service URL.")] = "http://127.0.0.1:8000",
+    linear: Annotated[float | None, typer.Option(help="Linear deflection (document units).")] = None,
+    angular: Annotated[float | None, typer.Option(help="Angular deflection (radians).")] = None,
+    relative: Annotated[bool, typer.Option(help="Linear deflection relative to each part's size.")] = False,
+    json_out: Annotated[bool, typer.Option("--json", help="Print the service's answer as JSON.")] = False,
+) -> None:
+    """Read a CAD document, upload missing meshes and push its tree to a scene."""
+    code = _call(
+        "cad_adapter.cli", "push", 4, file=file, scene=scene, server=server, linear=linear,
+        angular=angular, relative=relative, json_out=json_out,
+    )
+    raise typer.Exit(code or 0)
+
+
+@app.command()
+def watch(
+    file: Annotated[Path, typer.Argument(help="STEP file to watch.")],
+    scene: Annotated[str, typer.Option(help="Scene name; created if no scene has it.")],
+    server: Annotated[str, typer.Option(envvar="LUMENLINK_SERVER", help="Service URL.")] = "http://127.0.0.1:8000",
+    linear: Annotated[float | None, typer.Option(help="Linear deflection (document units).")] = None,
+    angular: Annotated[float | None, typer.Option(help="Angular deflection (radians).")] = None,
+    relative: Annotated[bool, typer.Option(help="Linear deflection relative to each part's size.")] = False,
+    debounce: Annotated[float, typer.Option(help="Seconds the file must stay unchanged.")] = 0.5,
+) -> None:
+    """Push the document again whenever the file changes (a live link)."""
+    code = _call(
+        "cad_adapter.cli", "watch", 4, file=file, scene=scene, server=server, linear=linear,
+        angular=angular, relative=relative, debounce=debounce,
+    )
+    raise typer.Exit(code or 0)
+
+
+@app.command()
+def demo(
+    out_dir: Annotated[Path, typer.Option(help="Where the maps and the STEP files go.")] = Path("demo-output"),
+    photons: Annotated[int, typer.Option(help="Photon budget per query.")] = 2_000_000,
+) -> None:
+    """The main job end to end: CAD model, push, lights, illuminance, edit, push again."""
+    code = _call("lumenlink.demo", "run", 7, out_dir=out_dir, photons=photons)
+    raise typer.Exit(code or 0)
+
+
+@app.command()
+def bench(
+    only: Annotated[list[str] | None, typer.Option(help="Run only these benchmarks (module names).")] = None,
+    quick: Annotated[bool, typer.Option(help="Smaller cases, for a smoke run.")] = False,
+) -> None:
+    """Run the benchmarks; results go to bench/results/*.json and bench/results/REPORT.md."""
+    code = _call("bench.run", "main", 2, only=only or [], quick=quick)
+    raise typer.Exit(code or 0)
+
+
+if __name__ == "__main__":
+    app()

@@ -1,0 +1,53 @@
+"""The package split of DESIGN.md: who may import whom, and the command line's subcommands."""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+FORBIDDEN = {
+    "tracer": {"service", "cad_adapter", "fastapi", "sqlalchemy", "cadquery", "OCP", "httpx", "trimesh"},
+    "service": {"cadquery", "OCP", "cad_adapter"},
+    "cad_adapter": {"service"},
+}
+
+
+def imported_top_levels(path: Path) -> set[str]:
+    tree = ast.parse(path.read_text(), filename=str(path))
+    names: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names.update(a.name.split(".")[0] for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            names.add(node.module.split(".")[0])
+    return names
+
+
+@pytest.mark.parametrize("package", sorted(FORBIDDEN))
+def test_import_rules(package: str) -> None:
+    offenders = {}
+    for path in (ROOT / package).rglob("*.py"):
+        bad = imported_top_levels(path) & FORBIDDEN[package]
+        if bad:
+            offenders[str(path.relative_to(ROOT))] = sorted(bad)
+    assert not offenders, f"{package}/ imports what DESIGN.md forbids: {offenders}"
+
+
+def test_cli_lists_subcommands() -> None:
+    out = subprocess.run([sys.executable, "-m", "lumenlink.cli", "--help"], capture_output=True, text=True,
+                         check=True).stdout
+    for command in ("serve", "push", "watch", "demo", "bench"):
+        assert command in out, f"`lumenlink --help` does not list {command}"
+
+
+def test_cli_help_does_not_import_heavy_stacks() -> None:
+    code = ("import sys, lumenlink.cli; heavy = [m for m in ('numba', 'cadquery', 'OCP', 'fastapi') "
+            "if m in sys.modules]; print(','.join(heavy))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
+    assert out == "", f"`lumenlink --help` imports {out}"
