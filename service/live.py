@@ -1,0 +1,81 @@
+"""The live view of a scene that the simulation routes read (docs/CONTRACTS.md, "service core → simulation routes").
+
+`LiveScene` is a snapshot of one scene revision: the committed `tracer.Scene`, world transforms
+of every document node in metres, the effective material of every instance (inheritance
+applied), and the lights and sensors resolved to world metres (attached ones moved with their
+node). `LiveRegistry.get(scene_id)` returns it; the registry is `app.state.live`.
+
+Conventions: every length is in metres, every transform a 4×4 ``world_from_node`` (row-major
+numpy float64) whose linear part is the node's rotation (and any scale the document itself
+carries); coordinates in a node's frame are metres too.
+
+The snapshot is built lazily, at most once per (revision, assignment change), so a push does
+not pay for it. The `tracer` object is shared with the sync service: a later push mutates it
+in place, so a long query should compare `revision` with `LiveRegistry.revision(scene_id)`
+when it ends if it wants to know that its answer is stale.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:  # pragma: no cover
+    import tracer
+
+
+@dataclass
+class LiveScene:
+    """One scene revision as the simulation sees it (all lengths in metres)."""
+
+    scene_id: str
+    revision: int
+    tracer: tracer.Scene  # committed
+    instance_of_node: dict[str, int]  # node uuid (or sim-owned object id) -> instance id
+    node_world: dict[str, np.ndarray]  # node uuid -> 4x4 world_from_node, metres
+    materials: dict[int, dict]  # instance id -> effective material body (inheritance applied)
+    default_material: dict
+    lights: list[dict]  # light bodies with "id", in world metres (attached ones resolved)
+    sensors: list[dict]  # sensor bodies with "id", in world metres
+    extras: dict[str, Any] = field(default_factory=dict)  # room for later additions, never required
+
+
+class LiveRegistry:
+    """`app.state.live`: the live scenes of this process.
+
+    Parameters
+    ----------
+    build : callable(scene_id) -> LiveScene
+        Builds (or returns a cached) snapshot; raises `service.errors.NotFound` for an unknown scene.
+    revision : callable(scene_id) -> int
+        The scene's current revision, cheap (no snapshot built).
+    """
+
+    def __init__(self, build: Callable[[str], LiveScene], revision: Callable[[str], int]) -> None:
+        self._build = build
+        self._revision = revision
+        self._listeners: list[Callable[[str, int], None]] = []
+
+    def get(self, scene_id: str) -> LiveScene:
+        """The scene's current snapshot; raises `service.errors.NotFound` if there is no such scene."""
+        return self._build(scene_id)
+
+    def revision(self, scene_id: str) -> int:
+        """The scene's current revision (raises `service.errors.NotFound`)."""
+        return self._revision(scene_id)
+
+    def subscribe(self, listener: Callable[[str, int], None]) -> None:
+        """Call ``listener(scene_id, new_revision)`` after every change that alters the live view.
+
+        Pushes and assignment changes both notify (an assignment change keeps the revision number but
+        changes what a query sees); a listener may, for example, drop cached results of that scene.
+        """
+        self._listeners.append(listener)
+
+    def notify(self, scene_id: str, revision: int) -> None:
+        """Tell every listener that `scene_id` changed (called by the sync service)."""
+        for listener in list(self._listeners):
+            listener(scene_id, revision)

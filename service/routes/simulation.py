@@ -1,0 +1,5 @@
+"""Placeholder: the simulation helper owns this module (illuminance, sensors, jobs)."""
+
+from fastapi import APIRouter
+
+router = APIRouter()
