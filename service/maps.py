@@ -1,0 +1,309 @@
+"""False-colour illuminance maps of grid sensors, as PNG bytes (the view of the paper's fig. 4).
+
+A grid sensor is a rectangle ``origin + s·u + t·v`` (s, t in [0, 1], metres) split into
+``nu × nv`` cells; its result is an array ``lux`` of shape ``(nv, nu)`` where row ``j``, column
+``i`` is the cell whose centre is ``origin + (i + ½)/nu·u + (j + ½)/nv·v``. The maps draw that
+array in the sensor's own frame: the horizontal axis runs along ``u``, the vertical along ``v``,
+both in metres from ``origin``, so the picture is what you see looking at the sensor's front side
+(``u × v`` towards you).
+
+Figures are built with the object-oriented matplotlib API on an Agg canvas (no ``pyplot``): the
+service renders maps from worker threads, and ``pyplot`` keeps global state that is not thread-safe.
+"""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.colors import Normalize, TwoSlopeNorm
+from matplotlib.figure import Figure
+
+# A change counts as significant where |ΔE| exceeds this many combined standard errors
+# (2σ: about 5 % of unchanged cells of a large grid are flagged by chance, which is why the
+# summary reports the count rather than listing each cell).
+SIGNIFICANCE_SIGMAS = 2.0
+
+# Dots that flag insignificant cells are drawn only on grids up to this many cells; beyond it
+# they would cover the colours.
+_MAX_DOTTED_CELLS = 60 * 60
+
+
+class MapError(ValueError):
+    """The arrays or the sensor frame handed to a map are inconsistent (a programming error upstream)."""
+
+
+@dataclass(frozen=True)
+class ChangeSummary:
+    """Where a grid's illuminance changed between two results.
+
+    Attributes
+    ----------
+    cells : int
+        Number of cells in the grid.
+    significant : int
+        Cells whose change exceeds ``SIGNIFICANCE_SIGMAS`` combined standard errors.
+    increased, decreased : int
+        Significant cells that became brighter, resp. darker.
+    max_increase_lux, max_decrease_lux : float
+        Largest rise and largest fall in lx (0 where there is none), over all cells.
+    max_increase_at, max_decrease_at : tuple of float
+        World position (m) of the centre of the cell with the largest rise, resp. fall.
+    mean_before_lux, mean_after_lux : float
+        Mean illuminance over the grid before and after, lx.
+    """
+
+    cells: int
+    significant: int
+    increased: int
+    decreased: int
+    max_increase_lux: float
+    max_increase_at: tuple[float, float, float]
+    max_decrease_lux: float
+    max_decrease_at: tuple[float, float, float]
+    mean_before_lux: float
+    mean_after_lux: float
+
+
+def _check_frame(origin: object, u: object, v: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    arrays = []
+    for name, value in (("origin", origin), ("u", u), ("v", v)):
+        a = np.asarray(value, dtype=float)
+        if a.shape != (3,) or not np.all(np.isfinite(a)):
+            raise MapError(f"{name} must be 3 finite numbers (metres), got {value!r}")
+        arrays.append(a)
+    o, uu, vv = arrays
+    if np.linalg.norm(uu) == 0.0 or np.linalg.norm(vv) == 0.0:
+        raise MapError("u and v must be non-zero edge vectors of the sensor rectangle")
+    return o, uu, vv
+
+
+def _check_grid(name: str, values: object, shape: tuple[int, ...] | None = None) -> np.ndarray:
+    a = np.asarray(values, dtype=float)
+    if a.ndim != 2 or a.shape[0] < 1 or a.shape[1] < 1:
+        raise MapError(f"{name} must be a 2-d array (nv, nu) with at least one cell, got shape {a.shape}")
+    if shape is not None and a.shape != shape:
+        raise MapError(f"{name} has shape {a.shape}, expected {shape}")
+    if not np.all(np.isfinite(a)):
+        raise MapError(f"{name} contains NaN or infinite values")
+    return a
+
+
+def cell_centres(origin: object, u: object, v: object, nu: int, nv: int) -> np.ndarray:
+    """World positions of the cell centres of a grid sensor.
+
+    Parameters
+    ----------
+    origin, u, v : (3,) float
+        Corner and edge vectors of the sensor rectangle, metres.
+    nu, nv : int
+        Cells along ``u`` and along ``v``.
+
+    Returns
+    -------
+    (nv, nu, 3) float
+        Centre of cell ``(j, i)`` in metres, matching the layout of a grid result.
+    """
+    o, uu, vv = _check_frame(origin, u, v)
+    if nu < 1 or nv < 1:
+        raise MapError(f"nu and nv must be at least 1, got nu={nu}, nv={nv}")
+    s = (np.arange(nu) + 0.5) / nu
+    t = (np.arange(nv) + 0.5) / nv
+    return o + s[None, :, None] * uu + t[:, None, None] * vv
+
+
+def _figure(aspect: float) -> tuple[Figure, object]:
+    # Width fixed, height from the sensor's aspect ratio (clamped so labels stay legible).
+    width = 7.0
+    height = float(np.clip(width * aspect * 0.85 + 1.2, 3.5, 9.0))
+    fig = Figure(figsize=(width, height), dpi=110, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig, fig.add_subplot()
+
+
+def _png(fig: Figure) -> bytes:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    return buf.getvalue()
+
+
+def illuminance_map_png(
+    lux: object,
+    origin: object,
+    u: object,
+    v: object,
+    *,
+    stderr: object | None = None,
+    title: str | None = None,
+    subtitle: str | None = None,
+    vmax: float | None = None,
+) -> bytes:
+    """Render a grid sensor's illuminance as a false-colour map with a labelled lux colour bar.
+
+    Parameters
+    ----------
+    lux : (nv, nu) float
+        Illuminance per cell, lx (row j runs along ``v``, column i along ``u``).
+    origin, u, v : (3,) float
+        The sensor rectangle, metres; only used for the axis extents and the caption.
+    stderr : (nv, nu) float, optional
+        Standard error per cell, lx; its median relative value goes into the caption, so the
+        reader sees how noisy the picture is.
+    title, subtitle : str, optional
+        Heading lines; the subtitle defaults to min / mean / max and the noise figure.
+    vmax : float, optional
+        Top of the colour scale in lx (to show two maps on the same scale); default the maximum.
+
+    Returns
+    -------
+    bytes
+        A PNG image.
+    """
+    e = _check_grid("lux", lux)
+    if np.any(e < 0):
+        raise MapError("lux must be non-negative")
+    se = None if stderr is None else _check_grid("stderr", stderr, e.shape)
+    o, uu, vv = _check_frame(origin, u, v)
+    lu, lv = float(np.linalg.norm(uu)), float(np.linalg.norm(vv))
+    top = float(e.max()) if vmax is None else float(vmax)
+    if not np.isfinite(top) or top < 0:
+        raise MapError(f"vmax must be a non-negative finite number, got {vmax!r}")
+    top = top if top > 0 else 1.0
+
+    fig, ax = _figure(lv / lu)
+    im = ax.imshow(e, origin="lower", extent=(0.0, lu, 0.0, lv), cmap="turbo",
+                   norm=Normalize(0.0, top), interpolation="nearest", aspect="equal")
+    bar = fig.colorbar(im, ax=ax, shrink=0.9)
+    bar.set_label("Illuminance E (lx)")
+    ax.set_xlabel("along u (m)")
+    ax.set_ylabel("along v (m)")
+    nv, nu = e.shape
+    caption = subtitle
+    if caption is None:
+        caption = f"min {e.min():.4g} lx · mean {e.mean():.4g} lx · max {e.max():.4g} lx"
+        if se is not None:
+            positive = e > 0
+            if np.any(positive):
+                rel = np.median(se[positive] / e[positive])
+                caption += f" · median std. error {100 * rel:.2g} %"
+    heading = title or "Illuminance"
+    ax.set_title(f"{heading}\n{caption}", fontsize=9)
+    fig.text(0.01, 0.005, f"grid {nu}×{nv} cells, origin ({o[0]:.3g}, {o[1]:.3g}, {o[2]:.3g}) m",
+             fontsize=7, color="0.35")
+    return _png(fig)
+
+
+def difference_map_png(
+    lux_before: object,
+    lux_after: object,
+    origin: object,
+    u: object,
+    v: object,
+    *,
+    stderr_before: object | None = None,
+    stderr_after: object | None = None,
+    title: str | None = None,
+) -> bytes:
+    """Render ``after − before`` on a diverging scale centred on zero, flagging insignificant cells.
+
+    Parameters
+    ----------
+    lux_before, lux_after : (nv, nu) float
+        Illuminance of the same grid at two revisions, lx.
+    origin, u, v : (3,) float
+        The sensor rectangle, metres.
+    stderr_before, stderr_after : (nv, nu) float, optional
+        Standard errors, lx. Given both, cells whose change is within ``SIGNIFICANCE_SIGMAS``
+        combined standard errors are marked with a grey dot: Monte Carlo noise alone can
+        colour them.
+    title : str, optional
+        Heading line.
+
+    Returns
+    -------
+    bytes
+        A PNG image.
+    """
+    before = _check_grid("lux_before", lux_before)
+    after = _check_grid("lux_after", lux_after, before.shape)
+    o, uu, vv = _check_frame(origin, u, v)
+    sigma = None
+    if stderr_before is not None and stderr_after is not None:
+        sb = _check_grid("stderr_before", stderr_before, before.shape)
+        sa = _check_grid("stderr_after", stderr_after, before.shape)
+        sigma = np.hypot(sb, sa)
+    delta = after - before
+    lu, lv = float(np.linalg.norm(uu)), float(np.linalg.norm(vv))
+    span = float(np.abs(delta).max())
+    span = span if span > 0 else 1.0
+
+    fig, ax = _figure(lv / lu)
+    im = ax.imshow(delta, origin="lower", extent=(0.0, lu, 0.0, lv), cmap="RdBu_r",
+                   norm=TwoSlopeNorm(0.0, -span, span), interpolation="nearest", aspect="equal")
+    bar = fig.colorbar(im, ax=ax, shrink=0.9)
+    bar.set_label("ΔE = after − before (lx)")
+    ax.set_xlabel("along u (m)")
+    ax.set_ylabel("along v (m)")
+    nv, nu = delta.shape
+    caption = f"largest rise {delta.max():+.4g} lx · largest fall {delta.min():+.4g} lx"
+    if sigma is not None:
+        quiet = np.abs(delta) <= SIGNIFICANCE_SIGMAS * sigma
+        caption += f" · {int((~quiet).sum())}/{delta.size} cells changed beyond {SIGNIFICANCE_SIGMAS:g}σ"
+        if delta.size <= _MAX_DOTTED_CELLS and np.any(quiet):
+            jj, ii = np.nonzero(quiet)
+            ax.scatter((ii + 0.5) / nu * lu, (jj + 0.5) / nv * lv, s=2.0, c="0.45", marker=".",
+                       label=f"|ΔE| ≤ {SIGNIFICANCE_SIGMAS:g}σ (noise)")
+            ax.legend(loc="upper right", fontsize=7, framealpha=0.8)
+    ax.set_title(f"{title or 'Change in illuminance'}\n{caption}", fontsize=9)
+    fig.text(0.01, 0.005, f"grid {nu}×{nv} cells, origin ({o[0]:.3g}, {o[1]:.3g}, {o[2]:.3g}) m",
+             fontsize=7, color="0.35")
+    return _png(fig)
+
+
+def summarize_change(
+    lux_before: object,
+    lux_after: object,
+    origin: object,
+    u: object,
+    v: object,
+    *,
+    stderr_before: object,
+    stderr_after: object,
+) -> ChangeSummary:
+    """Say where a grid's illuminance changed beyond noise.
+
+    Parameters
+    ----------
+    lux_before, lux_after, stderr_before, stderr_after : (nv, nu) float
+        Two results of the same grid sensor and their standard errors, lx.
+    origin, u, v : (3,) float
+        The sensor rectangle, metres (to name cell positions in world coordinates).
+
+    Returns
+    -------
+    ChangeSummary
+    """
+    before = _check_grid("lux_before", lux_before)
+    after = _check_grid("lux_after", lux_after, before.shape)
+    sb = _check_grid("stderr_before", stderr_before, before.shape)
+    sa = _check_grid("stderr_after", stderr_after, before.shape)
+    nv, nu = before.shape
+    centres = cell_centres(origin, u, v, nu, nv)
+    delta = after - before
+    significant = np.abs(delta) > SIGNIFICANCE_SIGMAS * np.hypot(sb, sa)
+    j_up, i_up = np.unravel_index(int(np.argmax(delta)), delta.shape)
+    j_dn, i_dn = np.unravel_index(int(np.argmin(delta)), delta.shape)
+    return ChangeSummary(
+        cells=int(delta.size),
+        significant=int(significant.sum()),
+        increased=int((significant & (delta > 0)).sum()),
+        decreased=int((significant & (delta < 0)).sum()),
+        max_increase_lux=max(0.0, float(delta.max())),
+        max_increase_at=tuple(float(x) for x in centres[j_up, i_up]),  # type: ignore[arg-type]
+        max_decrease_lux=max(0.0, float(-delta.min())),
+        max_decrease_at=tuple(float(x) for x in centres[j_dn, i_dn]),  # type: ignore[arg-type]
+        mean_before_lux=float(before.mean()),
+        mean_after_lux=float(after.mean()),
+    )

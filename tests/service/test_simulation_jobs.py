@@ -1,0 +1,171 @@
+"""The in-process job runner: lifecycle, progress, cancellation, bounded queue, time-left estimate.
+
+The work functions here are tiny stand-ins that call the same progress/cancel callbacks as the
+light transport; they exist only inside these tests (the endpoints run the real simulation).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+
+import pytest
+
+from service.jobs import Budget, JobNotFound, JobRunner, JobStatus, QueueFull, estimate_seconds_left
+
+
+def wait_for(runner: JobRunner, job_id: str, predicate, timeout: float = 10.0) -> dict:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        state = runner.get(job_id)
+        if predicate(state):
+            return state
+        time.sleep(0.005)
+    raise AssertionError(f"job {job_id} never reached the expected state: {runner.get(job_id)}")
+
+
+def batches_until_cancelled(gate: threading.Event, reported: threading.Event):
+    """A stand-in for a long query: reports progress per 'batch' until cancelled."""
+
+    def work(progress, cancel):
+        photons = 0
+        while not cancel():
+            photons += 1000
+            progress(photons, 1.0 / math.sqrt(photons), photons * 1e-6)
+            reported.set()
+            gate.wait(0.01)
+        return {"photons": photons, "seconds": photons * 1e-6, "stop_reason": "cancelled"}
+
+    return work
+
+
+@pytest.fixture
+def runner():
+    r = JobRunner(workers=1, max_queued=2, keep_finished=3)
+    yield r
+    r.shutdown(wait=2.0)
+
+
+def test_job_runs_to_success_and_keeps_its_result(runner: JobRunner) -> None:
+    def work(progress, cancel):
+        progress(500, 0.1, 0.5)
+        return {"lux": [1.0], "photons": 1000, "seconds": 1.0}
+
+    job = runner.submit("illuminance", "s1", 3, work)
+    state = wait_for(runner, job.id, lambda s: s["status"] == "succeeded")
+    assert state["result"]["lux"] == [1.0]
+    assert state["progress"]["photons"] == 1000
+    assert state["progress"]["seconds_left"] == 0.0
+    assert state["revision"] == 3 and state["scene_id"] == "s1"
+    assert state["started_at"] <= state["finished_at"]
+
+
+def test_failure_is_reported_not_raised(runner: JobRunner) -> None:
+    def work(progress, cancel):
+        raise ValueError("scene has no light")
+
+    job = runner.submit("illuminance", "s1", 0, work)
+    state = wait_for(runner, job.id, lambda s: s["status"] == "failed")
+    assert "scene has no light" in state["error"] and state["result"] is None
+    # the worker survives a failing job
+    ok = runner.submit("illuminance", "s1", 0, lambda p, c: {"photons": 1, "seconds": 0.0})
+    wait_for(runner, ok.id, lambda s: s["status"] == "succeeded")
+
+
+def test_cancel_running_job_stops_it_between_batches(runner: JobRunner) -> None:
+    gate, reported = threading.Event(), threading.Event()
+    job = runner.submit("grid", "s1", 1, batches_until_cancelled(gate, reported), Budget(max_photons=10**9))
+    assert reported.wait(5.0)
+    running = runner.get(job.id)
+    assert running["status"] == "running" and running["progress"]["photons"] > 0
+    assert running["progress"]["worst_relative_error"] > 0
+    runner.cancel(job.id)
+    state = wait_for(runner, job.id, lambda s: s["status"] == "cancelled")
+    assert state["cancel_requested"] and state["result"]["stop_reason"] == "cancelled"
+
+
+def test_cancel_queued_job_never_starts(runner: JobRunner) -> None:
+    gate, reported = threading.Event(), threading.Event()
+    blocker = runner.submit("grid", "s1", 1, batches_until_cancelled(gate, reported))
+    assert reported.wait(5.0)
+    started = threading.Event()
+
+    def work(progress, cancel):
+        started.set()
+        return {}
+
+    queued = runner.submit("grid", "s1", 1, work)
+    assert runner.get(queued.id)["status"] == "queued"
+    assert runner.cancel(queued.id)["status"] == "cancelled"
+    runner.cancel(blocker.id)
+    wait_for(runner, blocker.id, lambda s: s["status"] == "cancelled")
+    time.sleep(0.05)
+    assert not started.is_set()
+    assert runner.get(queued.id)["status"] == "cancelled"
+
+
+def test_cancel_finished_job_changes_nothing(runner: JobRunner) -> None:
+    job = runner.submit("grid", "s1", 1, lambda p, c: {"photons": 5, "seconds": 0.0})
+    wait_for(runner, job.id, lambda s: s["status"] == "succeeded")
+    assert runner.cancel(job.id)["status"] == "succeeded"
+
+
+def test_queue_is_bounded(runner: JobRunner) -> None:
+    gate, reported = threading.Event(), threading.Event()
+    blocker = runner.submit("grid", "s1", 1, batches_until_cancelled(gate, reported))
+    assert reported.wait(5.0)  # the worker is busy; the queue (max 2) is empty
+    waiting = [runner.submit("grid", "s1", 1, lambda p, c: {}) for _ in range(2)]
+    with pytest.raises(QueueFull):
+        runner.submit("grid", "s1", 1, lambda p, c: {})
+    assert len(runner.jobs()) == 3  # the refused one left no trace
+    runner.cancel(blocker.id)
+    for job in waiting:
+        wait_for(runner, job.id, lambda s: s["status"] == "succeeded")
+
+
+def test_unknown_job_and_forgetting_oldest_finished(runner: JobRunner) -> None:
+    with pytest.raises(JobNotFound):
+        runner.get("nope")
+    with pytest.raises(JobNotFound):
+        runner.cancel("nope")
+    ids = []
+    for _ in range(5):
+        job = runner.submit("grid", "s1", 1, lambda p, c: {})
+        wait_for(runner, job.id, lambda s: s["status"] == "succeeded")
+        ids.append(job.id)
+    kept = [j["id"] for j in runner.jobs()]
+    assert kept == ids[-3:]
+    with pytest.raises(JobNotFound):
+        runner.get(ids[0])
+
+
+def test_shutdown_refuses_new_jobs_and_cancels_running() -> None:
+    r = JobRunner(workers=1, max_queued=1)
+    gate, reported = threading.Event(), threading.Event()
+    job = r.submit("grid", "s1", 1, batches_until_cancelled(gate, reported))
+    assert reported.wait(5.0)
+    r.shutdown(wait=5.0)
+    assert r.get(job.id)["status"] == "cancelled"
+    with pytest.raises(QueueFull):
+        r.submit("grid", "s1", 1, lambda p, c: {})
+
+
+@pytest.mark.parametrize("kwargs", [{"workers": 0}, {"max_queued": 0}, {"keep_finished": -1}, {"workers": 1.5}])
+def test_runner_rejects_bad_sizes(kwargs) -> None:
+    with pytest.raises(ValueError):
+        JobRunner(**kwargs)
+
+
+def test_seconds_left_follows_inverse_square_root_law() -> None:
+    # 1e4 photons in 2 s gave 4 % error; 1 % needs 16× the photons, i.e. 15 × 2 s more.
+    left = estimate_seconds_left(10_000, 0.04, 2.0, Budget(target_relative_error=0.01))
+    assert left == pytest.approx(30.0)
+    # the smallest of the stopping rules wins
+    assert estimate_seconds_left(10_000, 0.04, 2.0, Budget(0.01, max_seconds=12.0)) == pytest.approx(10.0)
+    assert estimate_seconds_left(10_000, 0.04, 2.0, Budget(0.01, max_photons=20_000)) == pytest.approx(2.0)
+    # already below target: nothing left; unknown error and no other rule: no estimate
+    assert estimate_seconds_left(10_000, 0.005, 2.0, Budget(0.01)) == 0.0
+    assert estimate_seconds_left(10_000, math.inf, 2.0, Budget(0.01)) is None
+    assert estimate_seconds_left(0, math.nan, 0.0, Budget(max_seconds=5.0)) == 5.0
+    assert JobStatus.CANCELLED.finished and not JobStatus.RUNNING.finished
