@@ -1,5 +1,281 @@
-"""Placeholder: the simulation helper owns this module (illuminance, sensors, jobs)."""
+"""Simulation routes: illuminance at points, grid sensor simulation and maps, async jobs.
 
-from fastapi import APIRouter
+- ``POST /scenes/{id}/illuminance`` — lux ± standard error at points (``?mode=async`` → 202 + job);
+- ``POST /scenes/{id}/sensors/{sid}/simulate`` — simulate a grid (or disk) sensor (``?mode=async`` too);
+- ``GET /scenes/{id}/sensors/{sid}/map.png`` — the false-colour map of the sensor's latest result;
+- ``GET /jobs/{jid}``, ``DELETE /jobs/{jid}`` — progress and result of a job; cancel it.
 
-router = APIRouter()
+Every answer names the scene revision it was computed at; a push or an assignment makes earlier
+results stale (a job says ``current: false``, a sensor map is gone until simulated again).
+The handlers are plain functions, so FastAPI runs them in worker threads: a query never blocks
+the event loop, and the hub bounds how many run at once.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Any, Literal
+
+import numpy as np
+from fastapi import APIRouter, Query, Request, Response
+from fastapi.responses import JSONResponse
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from service.errors import NotFound, TooLarge
+from service.jobs import JobNotFound, QueueFull
+from service.maps import illuminance_map_png
+from service.simulation import SimulationHub, Unavailable, find_sensor, hub_for, resolve_budget
+
+router = APIRouter(tags=["simulation"])
+
+#: A normal may deviate this much from unit length (clients round); it is renormalised before use.
+UNIT_TOLERANCE = 1e-3
+
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+Vec3 = tuple[FiniteFloat, FiniteFloat, FiniteFloat]
+Mode = Annotated[Literal["sync", "async"], Query(description="`async`: answer 202 at once with a job URL.")]
+EFFECT_NAME = r"^[a-z_]{1,32}$"
+
+
+class _Budget(BaseModel):
+    """Stopping rules and reproducibility options shared by the query bodies."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+    target_relative_error: Annotated[float, Field(gt=0.0, le=1.0)] | None = Field(
+        default=None, description="Stop once every value's standard error is below this fraction of it.")
+    max_seconds: Annotated[float, Field(gt=0.0)] | None = Field(
+        default=None, description="Time budget, s (at most the service's max_seconds).")
+    max_photons: Annotated[int, Field(gt=0)] | None = Field(
+        default=None, description="Photon budget (at most the service's max_photons).")
+    seed: Annotated[int, Field(ge=0, le=2**63 - 1)] = Field(
+        default=0, description="Same seed and revision: bit-identical answer.")
+    estimator: Literal["auto", "forward", "backward"] = Field(
+        default="auto", description="forward photon tracing, backward tracing with next-event estimation, or "
+                                    "the scene's choice.")
+    force_effects: Annotated[list[Annotated[str, Field(pattern=EFFECT_NAME)]], Field(max_length=16)] = Field(
+        default_factory=list, description="Effects to switch on although the scene does not call for them.")
+
+
+class IlluminanceQuery(_Budget):
+    """Body of ``POST /scenes/{id}/illuminance``: receivers at points, facing their normals (metres)."""
+
+    points: Annotated[list[Vec3], Field(min_length=1)]
+    normals: Annotated[list[Vec3], Field(min_length=1)]
+    radius: Annotated[float, Field(gt=0.0)] | None = Field(
+        default=None, description="Radius of each disk receiver, m (default: the transport's small default).")
+
+    @model_validator(mode="after")
+    def _check(self) -> IlluminanceQuery:
+        if len(self.points) != len(self.normals):
+            raise ValueError(f"points and normals must have the same length, got {len(self.points)} points and "
+                             f"{len(self.normals)} normals")
+        for k, n in enumerate(self.normals):
+            length = math.hypot(*n)
+            if length == 0.0:
+                raise ValueError(f"normals[{k}] is the zero vector; each normal must be a unit vector")
+            if abs(length - 1.0) > UNIT_TOLERANCE:
+                raise ValueError(f"normals[{k}] has length {length:.6g}; each normal must be a unit vector "
+                                 f"(length within {UNIT_TOLERANCE:g} of 1)")
+        return self
+
+
+class SensorSimulate(_Budget):
+    """Body of ``POST /scenes/{id}/sensors/{sid}/simulate`` (all optional)."""
+
+
+class IlluminancePublic(BaseModel):
+    """Answer of an illuminance query (lux ± stderr, one value per point)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    lux: list[float] = Field(description="Illuminance on each receiver's front side, lx.")
+    stderr: list[float] = Field(description="Standard error of each value, lx.")
+    photons: int
+    seconds: float
+    effects: list[str] = Field(description="The effect set the kernel was compiled for.")
+    revision: int = Field(description="Scene revision the answer describes.")
+    estimator: str
+    stop_reason: str = Field(description="Which rule stopped the run (target reached, photons, seconds, cancel).")
+
+
+class SensorPublic(BaseModel):
+    """Answer of a sensor simulation: for a grid, ``lux``/``stderr`` are nv rows of nu cells."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    sensor: str
+    type: Literal["grid", "disk"]
+    lux: list[Any]
+    stderr: list[Any]
+    photons: int
+    seconds: float
+    effects: list[str]
+    revision: int
+    estimator: str
+    stop_reason: str
+    min_lux: float
+    mean_lux: float
+    max_lux: float
+    nu: int | None = None
+    nv: int | None = None
+    origin: list[float] | None = None
+    u: list[float] | None = None
+    v: list[float] | None = None
+    map_url: str | None = None
+
+
+class JobAccepted(BaseModel):
+    """Answer 202 to an async request: where to follow the job."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    id: str
+    kind: str
+    status: str
+    scene_id: str
+    revision: int
+    url: str
+
+
+def _hub(request: Request) -> SimulationHub:
+    return hub_for(request.app)
+
+
+def _accepted(request: Request, job: Any) -> JSONResponse:
+    url = str(request.url_for("get_job", job_id=job.id).path)
+    body = JobAccepted(id=job.id, kind=job.kind, status=job.status.value, scene_id=job.scene_id,
+                       revision=job.revision, url=url)
+    return JSONResponse(body.model_dump(), status_code=202, headers={"Location": url})
+
+
+def _submit(hub: SimulationHub, kind: str, scene_id: str, revision: int, work: Any, budget: Any,
+            meta: dict[str, Any]) -> Any:
+    try:
+        return hub.jobs.submit(kind, scene_id, revision, work, budget, meta)
+    except QueueFull as exc:
+        raise Unavailable(f"the job queue is full: {exc}", retry_after_seconds=10) from exc
+
+
+@router.post("/scenes/{scene_id}/illuminance", response_model=IlluminancePublic,
+             responses={202: {"model": JobAccepted}, 413: {}, 503: {}})
+def illuminance(scene_id: str, query: IlluminanceQuery, request: Request, mode: Mode = "sync") -> Any:
+    """Illuminance (lx) with its standard error at each point, for receivers facing `normals`."""
+    hub = _hub(request)
+    if len(query.points) > hub.limits.max_points:
+        raise TooLarge(f"{len(query.points)} points asked; this service answers at most {hub.limits.max_points} "
+                       f"per query", limit=hub.limits.max_points)
+    budget = resolve_budget(hub.limits, query.target_relative_error, query.max_seconds, query.max_photons)
+    points = np.asarray(query.points, dtype=np.float64)
+    normals = np.asarray(query.normals, dtype=np.float64)
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    prepared = hub.prepare(scene_id)
+    effects = tuple(query.force_effects)
+
+    def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
+        payload = hub.run_points(prepared, points, normals, query.radius, budget, query.seed, query.estimator,
+                                 effects, progress=progress, cancel=cancel)
+        payload["current"] = hub.is_current(scene_id, prepared.generation)
+        return payload
+
+    if mode == "async":
+        job = _submit(hub, "illuminance", scene_id, prepared.live.revision, work, budget,
+                      {"generation": prepared.generation, "points": len(points)})
+        return _accepted(request, job)
+    with hub.slot():
+        payload = work()
+    payload.pop("current")
+    return payload
+
+
+@router.post("/scenes/{scene_id}/sensors/{sensor_id}/simulate", response_model=SensorPublic,
+             responses={202: {"model": JobAccepted}, 413: {}, 503: {}})
+def simulate_sensor(scene_id: str, sensor_id: str, request: Request, query: SensorSimulate | None = None,
+                    mode: Mode = "sync") -> Any:
+    """Trace photons for one sensor; a grid's result is kept for `map.png` until the scene changes."""
+    hub = _hub(request)
+    query = query or SensorSimulate()
+    budget = resolve_budget(hub.limits, query.target_relative_error, query.max_seconds, query.max_photons)
+    prepared = hub.prepare(scene_id)
+    sensor = find_sensor(prepared.live, sensor_id)
+    if sensor.get("type") == "grid" and int(sensor["nu"]) * int(sensor["nv"]) > hub.limits.max_points:
+        raise TooLarge(f"sensor {sensor_id!r} has {int(sensor['nu']) * int(sensor['nv'])} cells; this service "
+                       f"answers at most {hub.limits.max_points} points per query", limit=hub.limits.max_points)
+    map_url = str(request.url_for("sensor_map", scene_id=scene_id, sensor_id=sensor_id).path)
+    effects = tuple(query.force_effects)
+
+    def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
+        payload = hub.run_grid(prepared, sensor, budget, query.seed, query.estimator, effects,
+                               progress=progress, cancel=cancel)
+        if payload["type"] == "grid":
+            payload["map_url"] = map_url
+        return payload
+
+    if mode == "async":
+        job = _submit(hub, "sensor", scene_id, prepared.live.revision, work, budget,
+                      {"generation": prepared.generation, "sensor": sensor_id})
+        return _accepted(request, job)
+    with hub.slot():
+        return work()
+
+
+@router.get("/scenes/{scene_id}/sensors/{sensor_id}/map.png", name="sensor_map",
+            response_class=Response, responses={200: {"content": {"image/png": {}}}, 404: {}})
+def sensor_map(scene_id: str, sensor_id: str, request: Request,
+               vmax: Annotated[float | None, Query(gt=0.0, allow_inf_nan=False,
+                                                   description="Top of the colour scale, lx.")] = None) -> Response:
+    """False-colour PNG of the grid sensor's latest result at the scene's current state."""
+    hub = _hub(request)
+    live = hub.live.get(scene_id)
+    sensor = find_sensor(live, sensor_id)
+    if sensor.get("type") != "grid":
+        raise NotFound(f"sensor {sensor_id!r} is a {sensor.get('type')} sensor; maps exist for grid sensors")
+    result = hub.grid_result(scene_id, sensor_id)
+    if result is None:
+        raise NotFound(f"sensor {sensor_id!r} has no result for the scene as it is now (revision {live.revision}); "
+                       f"POST /scenes/{scene_id}/sensors/{sensor_id}/simulate first", revision=live.revision)
+    name = sensor.get("name") or f"sensor {sensor_id}"
+    png = illuminance_map_png(result["lux"], result["origin"], result["u"], result["v"], stderr=result["stderr"],
+                              title=f"{name} — scene revision {result['revision']}, {result['photons']:,} photons",
+                              vmax=vmax)
+    return Response(content=png, media_type="image/png",
+                    headers={"X-Scene-Revision": str(result["revision"]), "Cache-Control": "no-store"})
+
+
+def _job_state(hub: SimulationHub, job_id: str) -> dict[str, Any]:
+    try:
+        state = hub.jobs.get(job_id)
+    except JobNotFound as exc:
+        raise NotFound(str(exc)) from exc
+    return state
+
+
+def _public(hub: SimulationHub, request: Request, state: dict[str, Any]) -> dict[str, Any]:
+    generation = state.pop("generation", None)
+    state["url"] = str(request.url_for("get_job", job_id=state["id"]).path)
+    state["current"] = generation is not None and hub.is_current(state["scene_id"], generation)
+    if state.get("result") is not None:
+        state["result"] = {k: v for k, v in state["result"].items() if k != "current"}
+    return state
+
+
+@router.get("/jobs/{job_id}", name="get_job")
+def get_job(job_id: str, request: Request) -> dict[str, Any]:
+    """A job's status, progress (photons, worst relative error, seconds, seconds left) and result.
+
+    ``current`` is false once the scene changed after the job started: the result still describes
+    the revision it names, not the scene as it is now.
+    """
+    hub = _hub(request)
+    return _public(hub, request, _job_state(hub, job_id))
+
+
+@router.delete("/jobs/{job_id}")
+def cancel_job(job_id: str, request: Request) -> dict[str, Any]:
+    """Cancel a job: a queued one never starts, a running one stops after its current batch."""
+    hub = _hub(request)
+    try:
+        state = hub.jobs.cancel(job_id)
+    except JobNotFound as exc:
+        raise NotFound(str(exc)) from exc
+    return _public(hub, request, state)

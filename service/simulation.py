@@ -1,0 +1,349 @@
+"""The service's side of light transport: a `LiveScene` turned into a `tracer.simulate.Simulation`.
+
+`SimulationHub` (one per app, ``hub_for(app)``) holds what the simulation routes keep between
+requests:
+
+- one `Simulation` per scene, built from the scene's live snapshot on first use and reused while
+  nothing changes. The sync service notifies every change that alters what a query sees (a push,
+  or an assignment, which keeps the revision number); the hub then bumps the scene's
+  *generation* and drops what it holds for that scene. Results carry the revision they were
+  computed at and the hub tells whether they are still current.
+- the latest result of each grid sensor (for ``map.png``), at the generation it was computed at;
+- the `JobRunner` of async queries.
+
+Bounds come from the service settings (``max_points``, ``max_photons``, ``max_seconds``): every
+query runs with a photon and a time budget, so none can run forever; a request beyond a bound is
+refused before any work. Queries in the request threads are limited to
+``MAX_CONCURRENT_QUERIES`` at a time (the kernels already use every core).
+
+The light transport is imported on first use: until `tracer.simulate` exists, queries answer 503
+naming the missing part, never a made-up number.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from service.errors import Invalid, NotFound, ServiceError, TooLarge
+from service.jobs import Budget, JobRunner
+from service.live import LiveRegistry, LiveScene
+
+#: Queries running at once in request threads (sync mode); more wait up to QUEUE_WAIT_SECONDS, then 503.
+MAX_CONCURRENT_QUERIES = 2
+QUEUE_WAIT_SECONDS = 30.0
+#: Async jobs: worker threads and how many may wait.
+JOB_WORKERS = 1
+MAX_QUEUED_JOBS = 16
+#: Budget applied when a request names no time budget (s); the settings' max_seconds caps it.
+DEFAULT_MAX_SECONDS = 60.0
+
+
+class Unavailable(ServiceError):
+    """A part the request needs is not there (the light transport not built, the queue full)."""
+
+    status = 503
+    title = "Service unavailable"
+
+
+def load_transport() -> Any:
+    """The `tracer.simulate` module, or `Unavailable` naming what is missing."""
+    try:
+        import tracer.simulate as simulate
+    except ImportError as exc:
+        raise Unavailable(f"the light transport (tracer.simulate, issue 6) is not available: {exc}") from exc
+    if not hasattr(simulate, "Simulation"):
+        raise Unavailable("tracer.simulate has no Simulation yet (issue 6): the light transport is not built")
+    return simulate
+
+
+def transport_lights(live: LiveScene) -> list[dict]:
+    """The scene's lights as the light transport takes them (docs/CONTRACTS.md).
+
+    The live snapshot already gives positions and directions in world metres; an area light names
+    the node whose surfaces emit, which the transport needs as instance ids.
+    """
+    lights = []
+    for light in live.lights:
+        body = {k: v for k, v in light.items() if k not in ("attached_to", "name")}
+        if body.get("type") == "area" and "instances" not in body:
+            node = body.pop("node", None)
+            if node not in live.instance_of_node:
+                raise Invalid(f"area light {light.get('id')!r} is on node {node!r}, which has no geometry in "
+                              f"revision {live.revision}", light=light.get("id"))
+            body["instances"] = [live.instance_of_node[node]]
+        lights.append(body)
+    return lights
+
+
+def fingerprint(live: LiveScene) -> str:
+    """A digest of everything besides geometry that a `Simulation` is built from.
+
+    The hub rebuilds on every notification anyway; the fingerprint guards the case of a change that
+    did not notify (a snapshot rebuilt from the database after a restart, say).
+    """
+    payload = json.dumps(
+        [live.revision, sorted((int(k), v) for k, v in live.materials.items()), live.default_material, live.lights],
+        sort_keys=True, default=str,
+    )
+    return hashlib.sha256(payload.encode()).hexdigest()
+
+
+@dataclass
+class _Cached:
+    key: tuple[int, int, str]  # (revision, generation, fingerprint)
+    simulation: Any
+    live: LiveScene
+
+
+@dataclass
+class Prepared:
+    """What a query runs on: the snapshot, its simulation, and the generation it belongs to."""
+
+    live: LiveScene
+    simulation: Any
+    generation: int
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Bounds of one query, from the service settings."""
+
+    max_points: int
+    max_photons: int
+    max_seconds: float
+
+    @classmethod
+    def from_settings(cls, settings: Any) -> Limits:
+        return cls(int(settings.max_points), int(settings.max_photons), float(settings.max_seconds))
+
+
+def resolve_budget(limits: Limits, target_relative_error: float | None, max_seconds: float | None,
+                   max_photons: int | None) -> Budget:
+    """The budget a query runs under: what the request asked, checked against the limits.
+
+    A request beyond a limit is refused (422) rather than silently cut, so the caller knows the
+    answer will not be what it asked for; where a request names no budget, the limits apply
+    (seconds: ``DEFAULT_MAX_SECONDS`` capped by the limit).
+    """
+    if max_photons is not None and max_photons > limits.max_photons:
+        raise Invalid(f"max_photons {max_photons} exceeds this service's limit of {limits.max_photons}",
+                      limit=limits.max_photons)
+    if max_seconds is not None and max_seconds > limits.max_seconds:
+        raise Invalid(f"max_seconds {max_seconds:g} exceeds this service's limit of {limits.max_seconds:g} s",
+                      limit=limits.max_seconds)
+    seconds = max_seconds if max_seconds is not None else min(DEFAULT_MAX_SECONDS, limits.max_seconds)
+    photons = max_photons if max_photons is not None else limits.max_photons
+    return Budget(target_relative_error=target_relative_error, max_seconds=seconds, max_photons=photons)
+
+
+def find_sensor(live: LiveScene, sensor_id: str) -> dict:
+    """The live body of sensor ``sensor_id`` (raises `NotFound`)."""
+    for sensor in live.sensors:
+        if str(sensor.get("id")) == sensor_id:
+            return sensor
+    raise NotFound(f"scene {live.scene_id!r} has no sensor {sensor_id!r} in revision {live.revision}")
+
+
+def _finite_list(a: Any) -> list:
+    arr = np.asarray(a, dtype=float)
+    if not np.all(np.isfinite(arr)):
+        # The transport guarantees finite tallies; a NaN here is a bug, never an answer to send.
+        raise RuntimeError("the light transport returned a non-finite value")
+    return arr.tolist()
+
+
+def result_payload(result: Any, revision: int) -> dict[str, Any]:
+    """An `IlluminanceResult` or `GridResult` as the JSON the routes answer with."""
+    return {
+        "lux": _finite_list(result.lux),
+        "stderr": _finite_list(result.stderr),
+        "photons": int(result.photons),
+        "seconds": float(result.seconds),
+        "effects": sorted(str(e) for e in result.effects),
+        "revision": int(revision),
+        "estimator": str(result.estimator),
+        "stop_reason": str(result.stop_reason),
+    }
+
+
+class SimulationHub:
+    """Per-app state of the simulation routes (see the module docstring).
+
+    Parameters
+    ----------
+    live : LiveRegistry
+        ``app.state.live``; the hub subscribes to its change notifications.
+    limits : Limits
+        Bounds of every query.
+    build : callable(LiveScene) -> Simulation, optional
+        How to make a simulation; default `tracer.simulate.Simulation` from the snapshot.
+    """
+
+    def __init__(self, live: LiveRegistry, limits: Limits,
+                 build: Callable[[LiveScene], Any] | None = None) -> None:
+        self.live = live
+        self.limits = limits
+        self.jobs = JobRunner(workers=JOB_WORKERS, max_queued=MAX_QUEUED_JOBS)
+        self._build = build or self._build_default
+        self._lock = threading.Lock()
+        self._scene_locks: dict[str, threading.Lock] = {}
+        self._generation: dict[str, int] = {}
+        self._cache: dict[str, _Cached] = {}
+        self._grids: dict[tuple[str, str], tuple[int, dict[str, Any]]] = {}
+        self._slots = threading.BoundedSemaphore(MAX_CONCURRENT_QUERIES)
+        live.subscribe(self.invalidate)
+
+    # -- change tracking ----------------------------------------------------------------------
+
+    def invalidate(self, scene_id: str, revision: int) -> None:
+        """Listener for `LiveRegistry.notify`: the scene changed, so drop what was computed for it."""
+        with self._lock:
+            self._generation[scene_id] = self._generation.get(scene_id, 0) + 1
+            self._cache.pop(scene_id, None)
+            for key in [k for k in self._grids if k[0] == scene_id]:
+                del self._grids[key]
+
+    def generation(self, scene_id: str) -> int:
+        with self._lock:
+            return self._generation.get(scene_id, 0)
+
+    def is_current(self, scene_id: str, generation: int) -> bool:
+        """Whether a result computed at ``generation`` still describes the scene."""
+        return self.generation(scene_id) == generation
+
+    # -- simulations --------------------------------------------------------------------------
+
+    @staticmethod
+    def _build_default(live: LiveScene) -> Any:
+        simulate = load_transport()
+        materials = {int(k): dict(v) for k, v in live.materials.items()}
+        try:
+            return simulate.Simulation(live.tracer, materials, transport_lights(live),
+                                       default_material=dict(live.default_material))
+        except ServiceError:
+            raise
+        except ValueError as exc:  # the transport refuses a body it cannot simulate, saying why
+            raise Invalid(f"the scene cannot be simulated: {exc}") from exc
+
+    def prepare(self, scene_id: str) -> Prepared:
+        """The scene's current snapshot and its simulation (built once per change); raises `NotFound`."""
+        with self._lock:
+            scene_lock = self._scene_locks.setdefault(scene_id, threading.Lock())
+        with scene_lock:  # two first queries of one scene build it once
+            generation = self.generation(scene_id)
+            live = self.live.get(scene_id)
+            key = (int(live.revision), generation, fingerprint(live))
+            with self._lock:
+                cached = self._cache.get(scene_id)
+            if cached is not None and cached.key == key:
+                return Prepared(cached.live, cached.simulation, generation)
+            simulation = self._build(live)
+            with self._lock:
+                if self._generation.get(scene_id, 0) == generation:
+                    self._cache[scene_id] = _Cached(key, simulation, live)
+            return Prepared(live, simulation, generation)
+
+    def slot(self) -> _Slot:
+        """A context manager holding one of the sync-query slots (503 if none frees up in time)."""
+        return _Slot(self._slots)
+
+    # -- queries ------------------------------------------------------------------------------
+
+    @staticmethod
+    def run_points(prepared: Prepared, points: np.ndarray, normals: np.ndarray, radius: float | None,
+                   budget: Budget, seed: int, estimator: str, force_effects: tuple[str, ...],
+                   progress: Callable | None = None, cancel: Callable | None = None) -> dict[str, Any]:
+        """Illuminance at points; the JSON answer of ``POST /scenes/{id}/illuminance``."""
+        result = prepared.simulation.illuminance(
+            points, normals, radius=radius, target_relative_error=budget.target_relative_error,
+            max_seconds=budget.max_seconds, max_photons=budget.max_photons, seed=seed, estimator=estimator,
+            force_effects=force_effects, progress=progress, cancel=cancel)
+        return result_payload(result, prepared.live.revision)
+
+    def run_grid(self, prepared: Prepared, sensor: dict, budget: Budget, seed: int, estimator: str,
+                 force_effects: tuple[str, ...], progress: Callable | None = None,
+                 cancel: Callable | None = None) -> dict[str, Any]:
+        """Simulate one sensor; keeps a grid's result for ``map.png`` while the scene is unchanged."""
+        scene_id = prepared.live.scene_id
+        common = dict(target_relative_error=budget.target_relative_error, max_seconds=budget.max_seconds,
+                      max_photons=budget.max_photons, seed=seed, estimator=estimator,
+                      force_effects=force_effects, progress=progress, cancel=cancel)
+        if sensor["type"] == "grid":
+            nu, nv = int(sensor["nu"]), int(sensor["nv"])
+            if nu * nv > self.limits.max_points:
+                raise TooLarge(f"sensor {sensor['id']!r} has {nu * nv} cells; this service answers "
+                               f"at most {self.limits.max_points} points per query", limit=self.limits.max_points)
+            result = prepared.simulation.grid(np.asarray(sensor["origin"], float), np.asarray(sensor["u"], float),
+                                              np.asarray(sensor["v"], float), nu, nv, **common)
+            payload = result_payload(result, prepared.live.revision)
+            payload.update(sensor=str(sensor["id"]), type="grid", nu=nu, nv=nv,
+                           origin=list(map(float, sensor["origin"])), u=list(map(float, sensor["u"])),
+                           v=list(map(float, sensor["v"])))
+        elif sensor["type"] == "disk":
+            normal = np.asarray(sensor["normal"], float)
+            normal = normal / np.linalg.norm(normal)
+            result = prepared.simulation.illuminance(np.asarray([sensor["center"]], float), normal[None, :],
+                                                     radius=float(sensor["radius"]), **common)
+            payload = result_payload(result, prepared.live.revision)
+            payload.update(sensor=str(sensor["id"]), type="disk")
+        else:
+            raise Invalid(f"sensor {sensor.get('id')!r} has type {sensor.get('type')!r}, which cannot be simulated")
+        lux = np.asarray(payload["lux"], float)
+        payload.update(min_lux=float(lux.min()), mean_lux=float(lux.mean()), max_lux=float(lux.max()))
+        with self._lock:
+            if self._generation.get(scene_id, 0) == prepared.generation and sensor["type"] == "grid":
+                self._grids[(scene_id, str(sensor["id"]))] = (prepared.generation, payload)
+        return payload
+
+    def grid_result(self, scene_id: str, sensor_id: str) -> dict[str, Any] | None:
+        """The latest result of a grid sensor while the scene is unchanged since, else None."""
+        with self._lock:
+            entry = self._grids.get((scene_id, sensor_id))
+            if entry is None or entry[0] != self._generation.get(scene_id, 0):
+                return None
+            return entry[1]
+
+    def shutdown(self) -> None:
+        self.jobs.shutdown(wait=1.0)
+
+
+class _Slot:
+    def __init__(self, semaphore: threading.BoundedSemaphore) -> None:
+        self._semaphore = semaphore
+
+    def __enter__(self) -> None:
+        if not self._semaphore.acquire(timeout=QUEUE_WAIT_SECONDS):
+            raise Unavailable(f"{MAX_CONCURRENT_QUERIES} queries are running; try again later or use ?mode=async",
+                              retry_after_seconds=5)
+
+    def __exit__(self, *exc: object) -> None:
+        self._semaphore.release()
+
+
+_HUB_LOCK = threading.Lock()
+
+
+def hub_for(app: Any) -> SimulationHub:
+    """The app's `SimulationHub`, made on first use from ``app.state.live`` and ``app.state.settings``."""
+    hub = getattr(app.state, "simulation_hub", None)
+    if hub is not None:
+        return hub
+    with _HUB_LOCK:
+        hub = getattr(app.state, "simulation_hub", None)
+        if hub is None:
+            settings = getattr(app.state, "settings", None)
+            if settings is None:
+                from service.config import Settings
+
+                settings = Settings()
+            hub = SimulationHub(app.state.live, Limits.from_settings(settings))
+            app.state.simulation_hub = hub
+    return hub
+
