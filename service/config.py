@@ -1,0 +1,44 @@
+"""The service's configuration: one pydantic-settings object, read from ``LUMENLINK_*`` variables.
+
+The data directory holds the SQLite file (``lumenlink.sqlite3``), the uploaded meshes
+(``meshes/``) and the BLAS cache (``blas/``). ``database_url`` may name any SQLAlchemy URL
+(e.g. PostgreSQL); by default it is the SQLite file in the data directory.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from pydantic import Field
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+
+class Settings(BaseSettings):
+    """Everything the service can be told; ``LUMENLINK_<NAME>`` sets ``<name>``."""
+
+    model_config = SettingsConfigDict(env_prefix="LUMENLINK_", extra="forbid")
+
+    data_dir: Path = Field(default=Path("./var"), description="SQLite file, meshes and BLAS cache.")
+    database_url: str | None = Field(default=None, description="SQLAlchemy URL; default: SQLite in data_dir.")
+    host: str = "127.0.0.1"
+    port: int = Field(default=8000, ge=0, le=65535)
+    max_body_bytes: int = Field(default=512 * 1024 * 1024, gt=0, description="Larger request bodies get 413.")
+    max_points: int = Field(default=100_000, gt=0, description="Most query points one illuminance request may ask.")
+    max_photons: int = Field(default=1_000_000_000, gt=0, description="Most photons one query may trace.")
+    max_seconds: float = Field(default=600.0, gt=0, description="Longest time budget one query may ask.")
+    max_nodes: int = Field(default=1_000_000, gt=0, description="Most nodes one pushed document may have.")
+    log_requests: bool = Field(default=True, description="Log one line per request (method, path, status, ms).")
+
+    def resolved_database_url(self) -> str:
+        """The SQLAlchemy URL in use."""
+        if self.database_url:
+            return self.database_url
+        return f"sqlite:///{(self.data_dir / 'lumenlink.sqlite3').resolve()}"
+
+    @property
+    def mesh_dir(self) -> Path:
+        return self.data_dir / "meshes"
+
+    @property
+    def blas_dir(self) -> Path:
+        return self.data_dir / "blas"

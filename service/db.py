@@ -1,0 +1,146 @@
+"""Storage schema and engine: SQLAlchemy 2 tables, SQLite in WAL mode by default, Alembic migrations.
+
+Tables (one row per thing, keyed by scene):
+
+- ``scenes``: id, name (unique), current revision, the document's length unit and source.
+- ``revisions``: one row per accepted push that changed something (the diff summary, seconds).
+- ``nodes``: the current tree, one row per node uuid; a push writes only the rows that changed.
+  Transforms are 16 little-endian float64 (exact round trip).
+- ``geometries``: uploaded meshes (the arrays live in content-addressed files under the data dir).
+- ``materials``, ``lights``, ``sensors``, ``sim_objects``: assignments by uuid; they refer to a
+  node uuid by value (no foreign key), so they outlive the node and are orphaned, not deleted.
+
+`open_engine` creates the engine and brings the schema to the latest migration
+(``alembic upgrade head``, run programmatically from the packaged ``service/migrations``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from sqlalchemy import (
+    JSON,
+    Boolean,
+    Column,
+    DateTime,
+    Engine,
+    Float,
+    ForeignKey,
+    Integer,
+    LargeBinary,
+    MetaData,
+    String,
+    Table,
+    create_engine,
+    event,
+    func,
+)
+
+metadata = MetaData()
+
+scenes = Table(
+    "scenes", metadata,
+    Column("id", String(36), primary_key=True),
+    Column("name", String(200), nullable=False, unique=True),
+    Column("revision", Integer, nullable=False, default=0),
+    Column("length_unit", String(8), nullable=True),
+    Column("source", JSON, nullable=True),
+    Column("created_at", DateTime(timezone=True), nullable=False, server_default=func.now()),
+    Column("updated_at", DateTime(timezone=True), nullable=False, server_default=func.now()),
+)
+
+revisions = Table(
+    "revisions", metadata,
+    Column("scene_id", String(36), ForeignKey("scenes.id", ondelete="CASCADE"), primary_key=True),
+    Column("revision", Integer, primary_key=True),
+    Column("created_at", DateTime(timezone=True), nullable=False, server_default=func.now()),
+    Column("summary", JSON, nullable=False),
+)
+
+nodes = Table(
+    "nodes", metadata,
+    Column("scene_id", String(36), ForeignKey("scenes.id", ondelete="CASCADE"), primary_key=True),
+    Column("uuid", String(36), primary_key=True),
+    Column("position", Float, nullable=False),  # document order (a float: appends never renumber)
+    Column("parent", String(36), nullable=True),
+    Column("name", String(500), nullable=False),
+    Column("transform", LargeBinary(128), nullable=False),
+    Column("geometry", String(64), nullable=True),
+    Column("color", JSON, nullable=True),
+)
+
+geometries = Table(
+    "geometries", metadata,
+    Column("id", String(64), primary_key=True),
+    Column("n_vertices", Integer, nullable=False),
+    Column("n_triangles", Integer, nullable=False),
+    Column("has_normals", Boolean, nullable=False),
+    Column("size_bytes", Integer, nullable=False),
+    Column("created_at", DateTime(timezone=True), nullable=False, server_default=func.now()),
+)
+
+materials = Table(
+    "materials", metadata,
+    Column("scene_id", String(36), ForeignKey("scenes.id", ondelete="CASCADE"), primary_key=True),
+    Column("node", String(36), primary_key=True),  # node uuid or sim-object id
+    Column("body", JSON, nullable=False),
+)
+
+lights = Table(
+    "lights", metadata,
+    Column("id", String(36), primary_key=True),
+    Column("scene_id", String(36), ForeignKey("scenes.id", ondelete="CASCADE"), nullable=False, index=True),
+    Column("body", JSON, nullable=False),
+    Column("created_at", DateTime(timezone=True), nullable=False, server_default=func.now()),
+)
+
+sensors = Table(
+    "sensors", metadata,
+    Column("id", String(36), primary_key=True),
+    Column("scene_id", String(36), ForeignKey("scenes.id", ondelete="CASCADE"), nullable=False, index=True),
+    Column("body", JSON, nullable=False),
+    Column("created_at", DateTime(timezone=True), nullable=False, server_default=func.now()),
+)
+
+sim_objects = Table(
+    "sim_objects", metadata,
+    Column("id", String(36), primary_key=True),
+    Column("scene_id", String(36), ForeignKey("scenes.id", ondelete="CASCADE"), nullable=False, index=True),
+    Column("body", JSON, nullable=False),
+    Column("created_at", DateTime(timezone=True), nullable=False, server_default=func.now()),
+)
+
+MIGRATIONS = Path(__file__).resolve().parent / "migrations"
+
+
+def _sqlite_pragmas(dbapi_connection, _record) -> None:  # pragma: no cover - trivial
+    cur = dbapi_connection.cursor()
+    cur.execute("PRAGMA journal_mode=WAL")
+    cur.execute("PRAGMA synchronous=NORMAL")
+    cur.execute("PRAGMA foreign_keys=ON")
+    cur.execute("PRAGMA busy_timeout=10000")
+    cur.close()
+
+
+def open_engine(url: str, migrate: bool = True) -> Engine:
+    """An engine for `url` (SQLite gets WAL, foreign keys, a busy timeout), migrated to the latest schema."""
+    is_sqlite = url.startswith("sqlite")
+    engine = create_engine(url, connect_args={"check_same_thread": False} if is_sqlite else {},
+                           pool_pre_ping=not is_sqlite)
+    if is_sqlite:
+        event.listen(engine, "connect", _sqlite_pragmas)
+    if migrate:
+        upgrade(engine)
+    return engine
+
+
+def upgrade(engine: Engine) -> None:
+    """``alembic upgrade head`` on `engine`, using the migrations packaged with the service."""
+    from alembic import command
+    from alembic.config import Config
+
+    cfg = Config(str(MIGRATIONS / "alembic.ini"))
+    cfg.set_main_option("script_location", str(MIGRATIONS))
+    with engine.begin() as connection:
+        cfg.attributes["connection"] = connection
+        command.upgrade(cfg, "head")

@@ -1,0 +1,108 @@
+"""Domain errors of the service and their one mapping to HTTP (RFC 9457 problem details).
+
+Domain code raises a `ServiceError` subclass; `install_handlers` maps every error the app can
+meet (domain errors, request validation, unknown routes, oversize bodies, bugs) to an
+``application/problem+json`` body with ``type``, ``title``, ``status``, ``detail`` and, where
+useful, extension members (e.g. ``missing``, ``current_revision``, ``errors``).
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from pydantic import ValidationError
+from starlette.exceptions import HTTPException as StarletteHTTPException
+
+log = logging.getLogger("lumenlink.service")
+
+PROBLEM_JSON = "application/problem+json"
+
+
+class ServiceError(ValueError):
+    """Root of the service's domain errors: an HTTP status, a short title, a detail, extensions."""
+
+    status = 400
+    title = "Bad request"
+
+    def __init__(self, detail: str, **extensions: Any) -> None:
+        super().__init__(detail)
+        self.detail = detail
+        self.extensions = extensions
+
+
+class BadRequest(ServiceError):
+    status = 400
+    title = "Bad request"
+
+
+class NotFound(ServiceError):
+    status = 404
+    title = "Not found"
+
+
+class Conflict(ServiceError):
+    status = 409
+    title = "Conflict"
+
+
+class Invalid(ServiceError):
+    """The request is well formed but its content is impossible (422)."""
+
+    status = 422
+    title = "Unprocessable content"
+
+
+class TooLarge(ServiceError):
+    status = 413
+    title = "Content too large"
+
+
+def problem(status: int, title: str, detail: str, **extensions: Any) -> JSONResponse:
+    """An RFC 9457 response; ``type`` is about:blank as the status code says it all."""
+    body = {"type": "about:blank", "title": title, "status": status, "detail": detail}
+    body.update(extensions)
+    return JSONResponse(body, status_code=status, media_type=PROBLEM_JSON)
+
+
+def validation_problem(errors: list[dict[str, Any]]) -> JSONResponse:
+    """Pydantic errors as a 422 (400 when the body is not JSON at all), naming each bad field."""
+    clean = [
+        {"loc": [str(p) for p in e.get("loc", ())], "msg": str(e.get("msg", "")), "type": str(e.get("type", ""))}
+        for e in errors
+    ]
+    if any(e["type"] == "json_invalid" for e in clean):
+        first = next(e for e in clean if e["type"] == "json_invalid")
+        return problem(400, "Malformed JSON", f"the body is not valid JSON: {first['msg']}", errors=clean)
+    shown = "; ".join(f"{'.'.join(e['loc']) or 'body'}: {e['msg']}" for e in clean[:5])
+    more = f" (and {len(clean) - 5} more)" if len(clean) > 5 else ""
+    return problem(422, "Invalid request", shown + more, errors=clean[:100])
+
+
+def install_handlers(app: FastAPI) -> None:
+    """Register the one mapping from exceptions to problem+json responses."""
+
+    @app.exception_handler(ServiceError)
+    async def _domain(_: Request, exc: ServiceError) -> JSONResponse:
+        return problem(exc.status, exc.title, exc.detail, **exc.extensions)
+
+    @app.exception_handler(RequestValidationError)
+    async def _validation(_: Request, exc: RequestValidationError) -> JSONResponse:
+        return validation_problem(list(exc.errors()))
+
+    @app.exception_handler(ValidationError)
+    async def _pydantic(_: Request, exc: ValidationError) -> JSONResponse:
+        return validation_problem(list(exc.errors(include_url=False, include_input=False)))
+
+    @app.exception_handler(StarletteHTTPException)
+    async def _http(_: Request, exc: StarletteHTTPException) -> JSONResponse:
+        titles = {404: "Not found", 405: "Method not allowed", 413: "Content too large"}
+        return problem(exc.status_code, titles.get(exc.status_code, "HTTP error"), str(exc.detail))
+
+    @app.exception_handler(Exception)
+    async def _bug(request: Request, exc: Exception) -> JSONResponse:
+        log.exception("unhandled error on %s %s", request.method, request.url.path)
+        return problem(500, "Internal server error", f"{type(exc).__name__}: {exc}")

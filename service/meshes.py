@@ -1,0 +1,154 @@
+"""Content-addressed mesh files: GLB upload, validation against the geometry id, fast reload.
+
+An uploaded mesh is kept twice under ``<data_dir>/meshes/``: the GLB exactly as received
+(``<gid>.glb``, served back by ``GET /geometries/{gid}``) and its canonical arrays
+(``<gid>.npz``: float32 vertices, uint32 triangles, optional float32 normals) that the service
+loads into `tracer.Scene` without decoding glTF again. File names are built only from ids that
+passed `tracer.geometry_id.is_geometry_id` (64 lowercase hex characters), so no path can escape
+the directory. Files are written to a temporary name and renamed: a reader never sees half a file.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import struct
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from service.errors import BadRequest, Invalid, NotFound
+from tracer.geometry_id import canonical_arrays, geometry_id, is_geometry_id
+
+
+@dataclass
+class Mesh:
+    """Canonical arrays of one geometry: (n,3) float32, (m,3) uint32, (n,3) float32 or None."""
+
+    vertices: np.ndarray
+    triangles: np.ndarray
+    normals: np.ndarray | None
+
+
+def check_id(gid: str) -> str:
+    """`gid` if it is a geometry id (64 lowercase hex characters), else Invalid (422)."""
+    if not is_geometry_id(gid):
+        shown = gid if len(gid) <= 80 else gid[:80] + "…"
+        raise Invalid(f"geometry id must be 64 lowercase hex characters (a SHA-256), got {shown!r}")
+    return gid
+
+
+def _glb_has_normals(data: bytes) -> bool:
+    """Whether the GLB's first mesh primitive carries a NORMAL attribute (read from its JSON chunk)."""
+    if len(data) < 20 or data[:4] != b"glTF":
+        raise Invalid("the body is not a GLB file (it must start with the magic 'glTF')")
+    version, length = struct.unpack_from("<II", data, 4)
+    if version != 2:
+        raise Invalid(f"only glTF 2 binaries are accepted, got version {version}")
+    if length != len(data):
+        raise Invalid(f"GLB header says {length} bytes but the body has {len(data)}")
+    chunk_length, chunk_type = struct.unpack_from("<II", data, 12)
+    if chunk_type != 0x4E4F534A or 20 + chunk_length > len(data):
+        raise Invalid("GLB has no valid JSON chunk")
+    try:
+        gltf = json.loads(data[20:20 + chunk_length])
+        prims = [p for m in gltf.get("meshes", []) for p in m.get("primitives", [])]
+    except (ValueError, AttributeError, TypeError) as exc:
+        raise Invalid(f"GLB JSON chunk is unreadable: {exc}") from exc
+    if len(prims) != 1:
+        raise Invalid(f"a geometry must be exactly one mesh primitive; the GLB has {len(prims)}")
+    return "NORMAL" in (prims[0].get("attributes") or {})
+
+
+def decode_glb(data: bytes) -> Mesh:
+    """Decode a one-mesh GLB into canonical arrays; Invalid (422) for anything that is not a valid mesh."""
+    has_normals = _glb_has_normals(data)
+    import trimesh  # the service may use trimesh; imported here to keep startup light
+
+    try:
+        loaded = trimesh.load(io.BytesIO(data), file_type="glb", process=False)
+    except Exception as exc:  # trimesh raises many kinds on bad input
+        raise Invalid(f"GLB could not be decoded: {type(exc).__name__}: {exc}") from exc
+    if isinstance(loaded, trimesh.Scene):
+        meshes = list(loaded.geometry.values())
+        if len(meshes) != 1:
+            raise Invalid(f"a geometry must be exactly one mesh; the GLB holds {len(meshes)}")
+        mesh = meshes[0]
+    else:
+        mesh = loaded
+    if not isinstance(mesh, trimesh.Trimesh):
+        raise Invalid(f"the GLB holds a {type(mesh).__name__}, not a triangle mesh")
+    vertices = np.asarray(mesh.vertices)
+    faces = np.asarray(mesh.faces)
+    normals = np.asarray(mesh.vertex_normals) if has_normals else None
+    try:
+        v, f, n = canonical_arrays(vertices, faces, normals)
+    except ValueError as exc:
+        raise Invalid(f"invalid mesh: {exc}") from exc
+    if len(f) == 0:
+        raise Invalid("invalid mesh: it has no triangles")
+    return Mesh(v, f, n)
+
+
+class MeshStore:
+    """The mesh files under one directory (content-addressed by geometry id)."""
+
+    def __init__(self, root: Path) -> None:
+        self.root = Path(root)
+        self.root.mkdir(parents=True, exist_ok=True)
+
+    def _path(self, gid: str, suffix: str) -> Path:
+        return self.root / f"{check_id(gid)}{suffix}"
+
+    def has(self, gid: str) -> bool:
+        return self._path(gid, ".npz").exists()
+
+    def validate_upload(self, gid: str, data: bytes) -> Mesh:
+        """Decode `data` and check that it hashes to `gid`: BadRequest (400) if not, Invalid (422) if no mesh."""
+        check_id(gid)
+        mesh = decode_glb(data)
+        plain = geometry_id(mesh.vertices, mesh.triangles)
+        if plain == gid:
+            return Mesh(mesh.vertices, mesh.triangles, None)
+        if mesh.normals is not None and geometry_id(mesh.vertices, mesh.triangles, mesh.normals) == gid:
+            return mesh
+        raise BadRequest(f"the mesh does not hash to the id in the URL: it hashes to {plain}"
+                         + (" (without normals)" if mesh.normals is not None else ""), actual=plain)
+
+    def write(self, gid: str, data: bytes, mesh: Mesh) -> None:
+        """Store the GLB and its arrays (atomically; rewriting an existing id is harmless)."""
+        buf = io.BytesIO()
+        arrays = {"vertices": mesh.vertices, "triangles": mesh.triangles}
+        if mesh.normals is not None:
+            arrays["normals"] = mesh.normals
+        np.savez(buf, **arrays)
+        self._atomic_write(self._path(gid, ".glb"), data)
+        self._atomic_write(self._path(gid, ".npz"), buf.getvalue())
+
+    def _atomic_write(self, path: Path, data: bytes) -> None:
+        fd, tmp = tempfile.mkstemp(dir=self.root, prefix=".tmp-")
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(data)
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+
+    def glb(self, gid: str) -> bytes:
+        path = self._path(gid, ".glb")
+        if not path.exists():
+            raise NotFound(f"no geometry {gid}")
+        return path.read_bytes()
+
+    def load(self, gid: str) -> Mesh:
+        """The canonical arrays of a stored mesh (NotFound if it was never uploaded)."""
+        path = self._path(gid, ".npz")
+        if not path.exists():
+            raise NotFound(f"no geometry {gid}")
+        with np.load(path) as z:
+            normals = z["normals"] if "normals" in z.files else None
+            return Mesh(z["vertices"], z["triangles"], normals)

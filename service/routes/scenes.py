@@ -1,0 +1,60 @@
+"""Scenes and document pushes: ``/scenes``, ``/scenes/{id}``, ``/scenes/{id}/document``, ``/scenes/{id}/nodes``."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi import APIRouter, Request, Response
+from fastapi.responses import JSONResponse
+from starlette.concurrency import run_in_threadpool
+
+from service.routes.deps import Manager
+from service.schemas import DocumentPush, PushPublic, SceneCreate, SceneListItem, ScenePublic
+
+router = APIRouter(tags=["scenes"])
+
+
+@router.post("/scenes", status_code=201, response_model=SceneListItem)
+def create_scene(body: SceneCreate, manager: Manager) -> dict[str, Any]:
+    """Create an empty scene (revision 0); 409 if a scene has that name."""
+    return manager.create_scene(body.name)
+
+
+@router.get("/scenes", response_model=list[SceneListItem])
+def list_scenes(manager: Manager) -> list[dict[str, Any]]:
+    return manager.list_scenes()
+
+
+@router.get("/scenes/{scene_id}", response_model=ScenePublic)
+def get_scene(scene_id: str, manager: Manager) -> dict[str, Any]:
+    """Counts, effect set, orphaned assignments and the default material of one scene."""
+    return manager.summary(scene_id)
+
+
+@router.delete("/scenes/{scene_id}", status_code=204)
+def delete_scene(scene_id: str, manager: Manager) -> Response:
+    manager.delete_scene(scene_id)
+    return Response(status_code=204)
+
+
+@router.get("/scenes/{scene_id}/nodes")
+def get_nodes(scene_id: str, manager: Manager) -> list[dict[str, Any]]:
+    """The current tree: one record per node, with its tracer instance id (null without geometry)."""
+    return manager.nodes(scene_id)
+
+
+@router.put(
+    "/scenes/{scene_id}/document",
+    response_model=PushPublic,
+    openapi_extra={"requestBody": {"required": True, "content": {"application/json": {
+        "schema": DocumentPush.model_json_schema(ref_template="#/components/schemas/{model}")}}}},
+)
+async def push_document(scene_id: str, request: Request, manager: Manager) -> JSONResponse:
+    """Push a CAD tree: validate, diff by UUID, rebuild only what changed, store one revision.
+
+    The body (a `DocumentPush`) is decoded here rather than by FastAPI so that a 20,000-node
+    document is parsed once, straight from bytes.
+    """
+    body = await request.body()
+    answer = await run_in_threadpool(manager.push, scene_id, body)
+    return JSONResponse(answer)

@@ -1,0 +1,375 @@
+"""Wire schemas: one pydantic model per role (``…Create`` what a client sends, ``…Public`` what it gets).
+
+Every model forbids unknown fields (a misspelt field is an error, never silently ignored) and
+accepts finite numbers only. Lengths are metres unless a field says otherwise; a document's
+node transforms are in the document's own ``length_unit``. Checks that need more than one
+field (non-zero directions, reflectance ≤ 1, …) live in validators here; checks that need
+the whole tree (cycles, parents, invertibility) live in `service.tree`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, StringConstraints, model_validator
+
+UUID_PATTERN = r"^[0-9a-fA-F]{8}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{12}$"
+GEOMETRY_PATTERN = r"^[0-9a-f]{64}$"
+
+Uuid = Annotated[str, StringConstraints(pattern=UUID_PATTERN, to_lower=True)]
+GeometryId = Annotated[str, StringConstraints(pattern=GEOMETRY_PATTERN)]
+Vec3 = tuple[float, float, float]
+Matrix16 = Annotated[list[float], Field(min_length=16, max_length=16)]
+Fraction = Annotated[float, Field(ge=0.0, le=1.0)]
+NonNegative = Annotated[float, Field(ge=0.0)]
+Positive = Annotated[float, Field(gt=0.0)]
+
+# metres per unit, for the document's declared length unit
+LENGTH_UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001, "um": 1e-6, "in": 0.0254, "ft": 0.3048}
+LengthUnit = Literal["m", "cm", "mm", "um", "in", "ft"]
+
+
+class Strict(BaseModel):
+    """Base of every wire model: unknown fields rejected, NaN and infinities rejected."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+def _nonzero(name: str, v: Vec3 | None) -> None:
+    if v is not None and math.hypot(*v) == 0.0:
+        raise ValueError(f"{name} must be a non-zero vector")
+
+
+# ---------------------------------------------------------------- scenes
+
+class SceneCreate(Strict):
+    """Body of ``POST /scenes``."""
+
+    name: Annotated[str, StringConstraints(min_length=1, max_length=200, strip_whitespace=True)]
+
+
+class OrphanPublic(Strict):
+    """An assignment whose node a push removed: kept, and live again if the UUID comes back."""
+
+    kind: Literal["material", "light", "sensor", "object"]
+    id: str  # the node uuid for a material, else the light/sensor/object id
+    node: str  # the missing node
+
+
+class ScenePublic(Strict):
+    """What ``GET /scenes/{id}`` answers (DESIGN.md), plus a few counts."""
+
+    id: str
+    name: str
+    revision: int
+    length_unit: str | None
+    nodes: int
+    objects: int  # instances in the tracer scene (document parts and sim-owned objects)
+    triangles: int
+    geometries: int
+    effects: list[str]
+    orphaned: list[OrphanPublic]
+    materials_assigned: int  # explicit assignments (live ones)
+    default_material: dict[str, Any]
+    default_material_instances: int  # instances that fall back to the default material
+    lights: int
+    sensors: int
+    sim_objects: int
+    last_commit: dict[str, Any]  # what the last tracer commit in this process built or loaded
+
+
+class SceneListItem(Strict):
+    id: str
+    name: str
+    revision: int
+
+
+# ---------------------------------------------------------------- the pushed document
+
+class Tessellation(BaseModel):
+    """How the adapter tessellated (informative; stored, not interpreted)."""
+
+    model_config = ConfigDict(extra="allow", allow_inf_nan=False)
+
+
+class Source(Strict):
+    name: str | None = None
+    tessellation: dict[str, float | bool | str | None] | None = None
+
+
+class NodeIn(Strict):
+    """One node of a pushed tree: parent link, local transform (row-major 4×4, document units)."""
+
+    uuid: Uuid
+    parent: Uuid | None = None
+    name: Annotated[str, StringConstraints(max_length=500)] = ""
+    transform: Matrix16
+    geometry: GeometryId | None = None
+    color: tuple[Fraction, Fraction, Fraction] | None = None
+
+
+class DocumentPush(Strict):
+    """Body of ``PUT /scenes/{id}/document``.
+
+    ``base_revision`` is the revision the client's tree is based on: a stale one gets 409
+    (unless the pushed tree equals the current one, which is then a 200 no-op, so a retried
+    push is harmless). Omitted or null: push unconditionally.
+    """
+
+    base_revision: Annotated[int, Field(ge=0)] | None = None
+    length_unit: LengthUnit = "m"
+    source: Source | None = None
+    nodes: list[NodeIn]
+
+
+class StageSeconds(Strict):
+    validate_: float = Field(alias="validate")
+    diff: float
+    blas: float
+    tlas: float
+    store: float
+    total: float
+
+    model_config = ConfigDict(extra="forbid", populate_by_name=True)
+
+
+class PushPublic(Strict):
+    """The answer to a push: the diff by UUID, what was rebuilt, and the seconds of each stage."""
+
+    scene: str
+    revision: int
+    base_revision: int | None
+    added: list[str]
+    removed: list[str]
+    moved: list[str]
+    geometry_changed: list[str]
+    renamed: list[str]
+    reparented: list[str]
+    recolored: list[str]
+    unchanged: int
+    blas_built: int
+    blas_reused: int
+    blas_loaded: int
+    instances: int
+    seconds: dict[str, float]
+    orphaned: list[OrphanPublic]
+    restored: list[OrphanPublic]
+
+
+# ---------------------------------------------------------------- geometries
+
+class MissingQuery(Strict):
+    """Body of ``POST /geometries/missing``."""
+
+    ids: Annotated[list[GeometryId], Field(max_length=1_000_000)]
+
+
+class MissingPublic(Strict):
+    missing: list[str]
+
+
+class GeometryPublic(Strict):
+    id: str
+    vertices: int
+    triangles: int
+    normals: bool
+    bytes: int
+    created: bool  # False when the mesh was already stored (idempotent upload)
+
+
+# ---------------------------------------------------------------- materials (DESIGN.md bodies)
+
+class Lambertian(Strict):
+    type: Literal["lambertian"]
+    reflectance: Fraction
+
+
+class Mirror(Strict):
+    type: Literal["mirror"]
+    reflectance: Fraction
+
+
+class Black(Strict):
+    type: Literal["black"]
+
+
+class Mix(Strict):
+    """Diffuse + specular mix: ``diffuse`` and ``specular`` reflectances, their sum at most 1."""
+
+    type: Literal["mix"]
+    diffuse: Fraction
+    specular: Fraction
+
+    @model_validator(mode="after")
+    def _energy(self) -> Mix:
+        if self.diffuse + self.specular > 1.0:
+            raise ValueError(f"diffuse + specular must be at most 1, got {self.diffuse + self.specular}")
+        return self
+
+
+class Dielectric(Strict):
+    """A solid: Fresnel surface, homogeneous medium inside (Henyey–Greenstein ``g``)."""
+
+    type: Literal["dielectric"]
+    ior: Annotated[float, Field(gt=0.0, le=10.0)]
+    absorption_per_m: NonNegative = 0.0
+    scattering_per_m: NonNegative = 0.0
+    g: Annotated[float, Field(gt=-1.0, lt=1.0)] = 0.0
+
+
+Material = Annotated[Lambertian | Mirror | Black | Mix | Dielectric, Field(discriminator="type")]
+
+
+class MaterialAssignment(Strict):
+    """Wrapper used only to validate a material body (the body itself is the material)."""
+
+    material: Material
+
+
+class MaterialPublic(Strict):
+    node: str
+    material: dict[str, Any]
+    orphaned: bool
+
+
+# ---------------------------------------------------------------- lights (DESIGN.md bodies)
+
+class _Attachable(Strict):
+    name: Annotated[str, StringConstraints(max_length=200)] | None = None
+    attached_to: Uuid | None = None  # then positions/directions are in that node's frame, metres
+
+
+class _Intensity(_Attachable):
+    intensity_cd: NonNegative | None = None
+    flux_lm: NonNegative | None = None
+
+    @model_validator(mode="after")
+    def _one_of(self) -> _Intensity:
+        if (self.intensity_cd is None) == (self.flux_lm is None):
+            raise ValueError("give exactly one of intensity_cd and flux_lm")
+        return self
+
+
+class PointLight(_Intensity):
+    type: Literal["point"]
+    position: Vec3
+
+
+class SpotLight(_Intensity):
+    type: Literal["spot"]
+    position: Vec3
+    direction: Vec3
+    cone_deg: Annotated[float, Field(gt=0.0, le=180.0)]
+    falloff_deg: Annotated[float, Field(ge=0.0, le=180.0)] = 0.0
+
+    @model_validator(mode="after")
+    def _check(self) -> SpotLight:
+        _nonzero("direction", self.direction)
+        if self.falloff_deg > self.cone_deg:
+            raise ValueError(f"falloff_deg ({self.falloff_deg}) must not exceed cone_deg ({self.cone_deg})")
+        return self
+
+
+class CollimatedLight(_Attachable):
+    type: Literal["collimated"]
+    origin: Vec3
+    direction: Vec3
+    radius: Positive
+    illuminance_lx: NonNegative
+
+    @model_validator(mode="after")
+    def _check(self) -> CollimatedLight:
+        _nonzero("direction", self.direction)
+        return self
+
+
+class AreaLight(Strict):
+    type: Literal["area"]
+    name: Annotated[str, StringConstraints(max_length=200)] | None = None
+    node: Uuid  # the node whose surfaces (with its descendants') emit
+    exitance_lm_m2: NonNegative
+
+
+class GoniometricLight(_Attachable):
+    type: Literal["goniometric"]
+    position: Vec3
+    format: Literal["ies", "ldt"]
+    data: Annotated[str, StringConstraints(min_length=1, max_length=10_000_000)]
+
+
+Light = Annotated[PointLight | SpotLight | CollimatedLight | AreaLight | GoniometricLight, Field(discriminator="type")]
+
+
+class LightCreate(Strict):
+    light: Light
+
+
+# ---------------------------------------------------------------- sensors
+
+class GridSensor(_Attachable):
+    """A rectangle ``origin + s·u + t·v`` (s, t in [0, 1]) split into nu × nv cells; front side u × v."""
+
+    type: Literal["grid"]
+    origin: Vec3
+    u: Vec3
+    v: Vec3
+    nu: Annotated[int, Field(ge=1, le=4096)]
+    nv: Annotated[int, Field(ge=1, le=4096)]
+
+    @model_validator(mode="after")
+    def _check(self) -> GridSensor:
+        _nonzero("u", self.u)
+        _nonzero("v", self.v)
+        ux, uy, uz = self.u
+        vx, vy, vz = self.v
+        cross = math.hypot(uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx)
+        if cross <= 1e-12 * math.hypot(*self.u) * math.hypot(*self.v):
+            raise ValueError("u and v must not be parallel")
+        return self
+
+
+class DiskSensor(_Attachable):
+    type: Literal["disk"]
+    center: Vec3
+    normal: Vec3
+    radius: Positive
+
+    @model_validator(mode="after")
+    def _check(self) -> DiskSensor:
+        _nonzero("normal", self.normal)
+        return self
+
+
+Sensor = Annotated[GridSensor | DiskSensor, Field(discriminator="type")]
+
+
+class SensorCreate(Strict):
+    sensor: Sensor
+
+
+# ---------------------------------------------------------------- simulation-owned objects
+
+class ObjectCreate(Strict):
+    """A library object owned by the simulation: a stored mesh placed by a transform; pushes never touch it.
+
+    ``transform`` (row-major 4×4) is ``world_from_object`` in metres, or ``node_from_object`` when
+    ``attached_to`` names a node; the mesh vertices are in ``mesh_unit``.
+    """
+
+    geometry: GeometryId
+    transform: Matrix16 = Field(default_factory=lambda: [1.0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1])
+    mesh_unit: LengthUnit = "m"
+    name: Annotated[str, StringConstraints(max_length=200)] | None = None
+    attached_to: Uuid | None = None
+    material: Material | None = None
+
+
+class AssignmentPublic(BaseModel):
+    """A stored light, sensor or object: its id, its body as given, and whether it is orphaned."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    id: str
+    body: dict[str, Any]
+    orphaned: bool

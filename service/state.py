@@ -1,0 +1,745 @@
+"""The sync service's core: scenes in memory and in the database, pushes, assignments, live views.
+
+`SceneManager` owns, per scene, the current `Tree`, the committed `tracer.Scene`, the instance
+id of every node with geometry and every assignment (materials, lights, sensors, sim-owned
+objects, all keyed by uuid). Every change runs under the scene's lock:
+
+- a push decodes and validates the whole document, checks ``base_revision``, diffs it against
+  the current tree, applies the diff to the tracer scene (BLAS for new geometry, top level
+  for the rest), then writes the changed rows and the revision in one transaction whose
+  ``UPDATE … WHERE revision = old`` guards against a writer in another process. If the store
+  fails, the in-memory scene is dropped and reloaded from the database on next use, so memory
+  never runs ahead of what was committed.
+- after a restart a scene is loaded on first use: tree, assignments, and a tracer scene whose
+  bottom levels come from the BLAS cache under the data directory (none rebuilt if intact).
+
+Domain errors are raised as `service.errors` exceptions; the routes stay thin.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import gc
+import logging
+import threading
+import time
+import uuid as uuidlib
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from pydantic import TypeAdapter
+from sqlalchemy import Engine, delete, insert, select, update
+
+from service import db
+from service.config import Settings
+from service.errors import Conflict, Invalid, NotFound
+from service.live import LiveRegistry, LiveScene
+from service.meshes import MeshStore
+from service.schemas import LENGTH_UNITS, DocumentPush, Light, Material, ObjectCreate, Sensor
+from service.tree import Tree, TreeDiff, TreeError, apply_to_scene, diff_trees, nodes_to_columns
+
+log = logging.getLogger("lumenlink.service")
+
+DEFAULT_MATERIAL: dict[str, Any] = {"type": "lambertian", "reflectance": 0.5}
+
+material_adapter: TypeAdapter = TypeAdapter(Material)
+light_adapter: TypeAdapter = TypeAdapter(Light)
+sensor_adapter: TypeAdapter = TypeAdapter(Sensor)
+
+
+@contextlib.contextmanager
+def gc_paused() -> Iterator[None]:
+    """Pause the cyclic garbage collector: decoding a 20k-node document allocates ~10^6 objects,
+    and generation-2 passes over them would otherwise cost more than the decode itself."""
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was:
+            gc.enable()
+
+
+def _blob(m: np.ndarray) -> bytes:
+    return np.ascontiguousarray(m, dtype="<f8").tobytes()
+
+
+@dataclass
+class SceneState:
+    """One scene in memory (guarded by `lock`)."""
+
+    id: str
+    name: str
+    revision: int
+    length_unit: str | None
+    tree: Tree
+    tracer: Any
+    instances: dict[str, int] = field(default_factory=dict)  # document node uuid -> instance
+    object_instances: dict[str, int] = field(default_factory=dict)  # sim object id -> instance
+    geometries: set[str] = field(default_factory=set)  # geometry ids added to `tracer`
+    materials: dict[str, dict] = field(default_factory=dict)  # node uuid / object id -> material body
+    lights: dict[str, dict] = field(default_factory=dict)  # id -> body as given
+    sensors: dict[str, dict] = field(default_factory=dict)
+    objects: dict[str, dict] = field(default_factory=dict)
+    last_commit: dict[str, Any] = field(default_factory=dict)
+    live: LiveScene | None = None
+    lock: threading.RLock = field(default_factory=threading.RLock)
+
+    # ------------------------------------------------------------ references to nodes
+
+    def has_node(self, key: str) -> bool:
+        return key in self.tree.index
+
+    def anchor_of(self, body: dict) -> str | None:
+        """The node a light/sensor/object body depends on (attached_to, or an area light's node)."""
+        return body.get("attached_to") or (body.get("node") if body.get("type") == "area" else None)
+
+    def orphans(self, only_nodes: set[str] | None = None) -> list[dict[str, str]]:
+        """Assignments whose node is not in the tree (optionally only those naming `only_nodes`)."""
+        out: list[dict[str, str]] = []
+
+        def missing(node: str | None) -> bool:
+            if node is None:
+                return False
+            if only_nodes is not None:
+                return node in only_nodes
+            return not self.has_node(node) and node not in self.objects
+
+        for key in self.materials:
+            if missing(key) and key not in self.objects:
+                out.append({"kind": "material", "id": key, "node": key})
+        for kind, table in (("light", self.lights), ("sensor", self.sensors), ("object", self.objects)):
+            for aid, body in table.items():
+                node = self.anchor_of(body)
+                if missing(node):
+                    out.append({"kind": kind, "id": aid, "node": node})  # type: ignore[dict-item]
+        return out
+
+
+class SceneManager:
+    """All scenes of this process, backed by the database and the mesh store."""
+
+    def __init__(self, settings: Settings, engine: Engine, meshes: MeshStore,
+                 scene_factory: Callable[[], Any] | None = None) -> None:
+        self.settings = settings
+        self.engine = engine
+        self.meshes = meshes
+        self._scene_factory = scene_factory
+        self._states: dict[str, SceneState] = {}
+        self._lock = threading.Lock()
+        self._scene_locks: dict[str, threading.RLock] = {}
+        self.live = LiveRegistry(self.live_scene, self.revision)
+        with engine.connect() as conn:
+            self._known_geometries: set[str] = set(conn.execute(select(db.geometries.c.id)).scalars())
+
+    # ------------------------------------------------------------ tracer scenes
+
+    def new_tracer_scene(self) -> Any:
+        if self._scene_factory is not None:
+            return self._scene_factory()
+        import tracer  # imported on first use: numba start-up is not paid by /health
+
+        cache = self.settings.blas_dir
+        cache.mkdir(parents=True, exist_ok=True)
+        return tracer.Scene(cache_dir=cache)
+
+    # ------------------------------------------------------------ scenes
+
+    def list_scenes(self) -> list[dict[str, Any]]:
+        with self.engine.connect() as conn:
+            rows = conn.execute(select(db.scenes.c.id, db.scenes.c.name, db.scenes.c.revision)
+                                .order_by(db.scenes.c.created_at, db.scenes.c.name)).all()
+        return [{"id": r.id, "name": r.name, "revision": r.revision} for r in rows]
+
+    def create_scene(self, name: str) -> dict[str, Any]:
+        scene_id = str(uuidlib.uuid4())
+        with self.engine.begin() as conn:
+            if conn.execute(select(db.scenes.c.id).where(db.scenes.c.name == name)).first() is not None:
+                raise Conflict(f"a scene named {name!r} exists already")
+            conn.execute(insert(db.scenes).values(id=scene_id, name=name, revision=0))
+        return {"id": scene_id, "name": name, "revision": 0}
+
+    def delete_scene(self, scene_id: str) -> None:
+        state = self.state(scene_id)
+        with state.lock:
+            with self.engine.begin() as conn:
+                for table in (db.materials, db.lights, db.sensors, db.sim_objects, db.nodes, db.revisions):
+                    conn.execute(delete(table).where(table.c.scene_id == scene_id))
+                conn.execute(delete(db.scenes).where(db.scenes.c.id == scene_id))
+            with self._lock:
+                self._states.pop(scene_id, None)
+
+    def revision(self, scene_id: str) -> int:
+        return self.state(scene_id).revision
+
+    def state(self, scene_id: str) -> SceneState:
+        """The in-memory scene, loaded from the database on first use (NotFound if there is none)."""
+        state = self._states.get(scene_id)
+        if state is not None:
+            return state
+        with self._lock:
+            lock = self._scene_locks.setdefault(scene_id, threading.RLock())
+        with lock:
+            state = self._states.get(scene_id)
+            if state is None:
+                state = self._load(scene_id, lock)
+                with self._lock:
+                    self._states[scene_id] = state
+        return state
+
+    def forget(self, scene_id: str) -> None:
+        """Drop the in-memory scene; the next use reloads it from the database."""
+        with self._lock:
+            self._states.pop(scene_id, None)
+
+    def _load(self, scene_id: str, lock: threading.RLock) -> SceneState:
+        with self.engine.connect() as conn:
+            row = conn.execute(select(db.scenes).where(db.scenes.c.id == scene_id)).first()
+            if row is None:
+                raise NotFound(f"no scene {scene_id}")
+            node_rows = conn.execute(select(db.nodes).where(db.nodes.c.scene_id == scene_id)
+                                     .order_by(db.nodes.c.position)).all()
+            mats = conn.execute(select(db.materials).where(db.materials.c.scene_id == scene_id)).all()
+            tables = {}
+            for name, table in (("lights", db.lights), ("sensors", db.sensors), ("objects", db.sim_objects)):
+                tables[name] = {r.id: r.body for r in conn.execute(
+                    select(table).where(table.c.scene_id == scene_id).order_by(table.c.created_at, table.c.id))}
+        unit = row.length_unit or "m"
+        transforms = (np.frombuffer(b"".join(r.transform for r in node_rows), dtype="<f8").reshape(-1, 16)
+                      if node_rows else np.zeros((0, 16)))
+        tree = Tree.build([r.uuid for r in node_rows], [r.parent for r in node_rows], [r.name for r in node_rows],
+                          transforms, [r.geometry for r in node_rows],
+                          [tuple(r.color) if r.color is not None else None for r in node_rows], unit)
+        state = SceneState(scene_id, row.name, row.revision, row.length_unit, Tree.empty(unit),
+                           self.new_tracer_scene(), materials={m.node: m.body for m in mats},
+                           lights=tables["lights"], sensors=tables["sensors"], objects=tables["objects"], lock=lock)
+        diff = diff_trees(state.tree, tree)
+        state.tree = tree
+        apply_to_scene(state.tracer, state.instances, tree, diff, lambda g: self._ensure_geometry(state, g))
+        for oid, body in state.objects.items():
+            self._place_object(state, oid, body)
+        state.last_commit = self._commit(state)
+        log.info("loaded scene %s (revision %d, %d nodes): %s", scene_id, state.revision, len(tree),
+                 state.last_commit)
+        return state
+
+    # ------------------------------------------------------------ geometry
+
+    def known_geometries(self, ids: list[str]) -> set[str]:
+        return {g for g in ids if g in self._known_geometries}
+
+    def missing_geometries(self, ids: list[str]) -> list[str]:
+        seen: set[str] = set()
+        out = []
+        for g in ids:
+            if g not in self._known_geometries and g not in seen:
+                seen.add(g)
+                out.append(g)
+        return out
+
+    def put_geometry(self, gid: str, data: bytes) -> dict[str, Any]:
+        """Store an uploaded GLB (idempotent): 400 if it does not hash to `gid`, 422 if it is no valid mesh."""
+        mesh = self.meshes.validate_upload(gid, data)
+        created = gid not in self._known_geometries or not self.meshes.has(gid)
+        if created:
+            self.meshes.write(gid, data, mesh)
+            with self.engine.begin() as conn:
+                exists = conn.execute(select(db.geometries.c.id).where(db.geometries.c.id == gid)).first()
+                if exists is None:
+                    conn.execute(insert(db.geometries).values(
+                        id=gid, n_vertices=len(mesh.vertices), n_triangles=len(mesh.triangles),
+                        has_normals=mesh.normals is not None, size_bytes=len(data)))
+            self._known_geometries.add(gid)
+        return {"id": gid, "vertices": len(mesh.vertices), "triangles": len(mesh.triangles),
+                "normals": mesh.normals is not None, "bytes": len(data), "created": created}
+
+    def geometry_glb(self, gid: str) -> bytes:
+        if gid not in self._known_geometries:
+            raise NotFound(f"no geometry {gid}")
+        return self.meshes.glb(gid)
+
+    def _ensure_geometry(self, state: SceneState, gid: str) -> bool:
+        if gid in state.geometries:
+            return False
+        mesh = self.meshes.load(gid)
+        got = state.tracer.add_geometry(mesh.vertices, mesh.triangles, mesh.normals)
+        if got != gid:
+            raise RuntimeError(f"tracer gave geometry id {got} for stored mesh {gid}")
+        state.geometries.add(gid)
+        return True
+
+    def _commit(self, state: SceneState) -> dict[str, Any]:
+        stats = state.tracer.commit()
+        return {"blas_built": int(getattr(stats, "blas_built", 0)),
+                "blas_loaded": int(getattr(stats, "blas_loaded", 0)),
+                "blas_seconds": float(getattr(stats, "blas_seconds", 0.0)),
+                "tlas_seconds": float(getattr(stats, "tlas_seconds", 0.0))}
+
+    # ------------------------------------------------------------ sim-owned objects in the tracer scene
+
+    def _object_transform(self, state: SceneState, body: dict) -> np.ndarray | None:
+        """world_from_mesh of a sim object, or None while its node is missing (orphaned)."""
+        t = np.asarray(body["transform"], dtype=np.float64).reshape(4, 4)
+        s = LENGTH_UNITS[body.get("mesh_unit", "m")]
+        t = t @ np.diag([s, s, s, 1.0])
+        node = body.get("attached_to")
+        if node is None:
+            return t
+        row = state.tree.index.get(node)
+        if row is None:
+            return None
+        return state.tree.world[row] @ t
+
+    def _place_object(self, state: SceneState, oid: str, body: dict) -> None:
+        """Add, move or remove the object's instance so it matches the tree (call before commit)."""
+        t = self._object_transform(state, body)
+        inst = state.object_instances.get(oid)
+        if t is None:
+            if inst is not None:
+                state.tracer.remove_instance(inst)
+                del state.object_instances[oid]
+            return
+        if inst is None:
+            self._ensure_geometry(state, body["geometry"])
+            state.object_instances[oid] = state.tracer.add_instance(body["geometry"], t)
+        else:
+            state.tracer.set_transform(inst, t)
+
+    # ------------------------------------------------------------ push
+
+    def push(self, scene_id: str, body: bytes) -> dict[str, Any]:
+        """Validate, diff, apply and store one pushed document; the answer of ``PUT /scenes/{id}/document``."""
+        t0 = time.perf_counter()
+        state = self.state(scene_id)  # 404 before any work
+        with gc_paused():
+            doc = DocumentPush.model_validate_json(body)  # pydantic's ValidationError becomes a 400/422
+            t_decode = time.perf_counter()
+            if len(doc.nodes) > self.settings.max_nodes:
+                raise Invalid(f"the document has {len(doc.nodes)} nodes; this service accepts at most "
+                              f"{self.settings.max_nodes}")
+            cols = nodes_to_columns(doc.nodes)
+            try:
+                new = Tree.build(*cols, doc.length_unit)
+            except TreeError as exc:
+                raise Invalid(str(exc), problems=exc.problems[:100]) from exc
+            missing = self.missing_geometries([g for g in set(new.geometries) if g is not None])
+            if missing:
+                raise Invalid(f"{len(missing)} geometry id(s) are not uploaded yet (PUT /geometries/{{id}} first)",
+                              missing=sorted(missing))
+            with state.lock:
+                if self._states.get(scene_id) is not state:  # reloaded meanwhile (a failed store)
+                    state = self.state(scene_id)
+                return self._push_locked(state, doc, new, t0, t_decode)
+
+    def _push_locked(self, state: SceneState, doc: DocumentPush, new: Tree, t0: float,
+                     t_decode: float) -> dict[str, Any]:
+        t_validate = time.perf_counter()
+        diff = diff_trees(state.tree, new)
+        if state.length_unit is None and len(new) == 0 and doc.length_unit != state.tree.length_unit:
+            diff.length_unit_changed = False
+        t_diff = time.perf_counter()
+        if doc.base_revision is not None and doc.base_revision != state.revision and not diff.is_empty():
+            raise Conflict(f"base_revision {doc.base_revision} is stale: the scene is at revision {state.revision}",
+                           current_revision=state.revision)
+        if diff.is_empty():
+            seconds = {"decode": t_decode - t0, "validate": t_validate - t_decode, "diff": t_diff - t_validate,
+                       "blas": 0.0, "tlas": 0.0, "store": 0.0}
+            seconds["total"] = time.perf_counter() - t0
+            return self._answer(state, doc, diff, {}, seconds, [], [], blas_reused=0)
+
+        old_tree = state.tree
+        removed = set(diff.removed)
+        added = set(diff.added)
+        try:
+            t_apply = time.perf_counter()
+            load_seconds = [0.0]
+
+            def ensure(gid: str) -> bool:
+                tl = time.perf_counter()
+                try:
+                    return self._ensure_geometry(state, gid)
+                finally:
+                    load_seconds[0] += time.perf_counter() - tl
+
+            apply_stats = apply_to_scene(state.tracer, state.instances, new, diff, ensure)
+            state.tree = new
+            moved = set(diff.moved)
+            for oid, body in state.objects.items():
+                node = body.get("attached_to")
+                if node is not None and (node in moved or node in removed or node in added):
+                    self._place_object(state, oid, body)
+            t_applied = time.perf_counter()
+            commit = self._commit(state)
+            t_commit = time.perf_counter()
+        except Exception:
+            log.exception("applying a push to scene %s failed; reloading it from the database", state.id)
+            self.forget(state.id)
+            raise
+        orphaned = state.orphans(only_nodes=removed) if removed else []
+        restored = state.orphans(only_nodes=added) if added else []
+        seconds = {"decode": t_decode - t0, "validate": t_validate - t_decode, "diff": t_diff - t_validate,
+                   "blas": commit["blas_seconds"] + load_seconds[0],
+                   "tlas": commit["tlas_seconds"] + (t_applied - t_apply - load_seconds[0]),
+                   "commit": t_commit - t_applied}
+        try:
+            self._store(state, doc, old_tree, new, diff, seconds)
+        except Exception:
+            self.forget(state.id)
+            raise
+        t_store = time.perf_counter()
+        seconds["store"] = t_store - t_commit
+        seconds["total"] = t_store - t0
+        state.revision += 1
+        state.length_unit = doc.length_unit
+        state.last_commit = commit
+        state.live = None
+        self.live.notify(state.id, state.revision)
+        return self._answer(state, doc, diff, commit, seconds, orphaned, restored,
+                            blas_reused=len(apply_stats.reused_geometries))
+
+    def _store(self, state: SceneState, doc: DocumentPush, old: Tree, new: Tree, diff: TreeDiff,
+               seconds: dict[str, float]) -> None:
+        summary = diff.summary()
+        summary = {k: (len(v) if isinstance(v, list) else v) for k, v in summary.items()}
+        summary["seconds"] = {k: round(v, 6) for k, v in seconds.items()}
+        c = db.nodes.c
+        with self.engine.begin() as conn:
+            res = conn.execute(update(db.scenes).where(db.scenes.c.id == state.id)
+                               .where(db.scenes.c.revision == state.revision)
+                               .values(revision=state.revision + 1, length_unit=doc.length_unit,
+                                       source=doc.source.model_dump() if doc.source else None))
+            if res.rowcount != 1:
+                current = conn.execute(select(db.scenes.c.revision).where(db.scenes.c.id == state.id)).scalar()
+                raise Conflict(f"the scene changed under this push (now at revision {current})",
+                               current_revision=current)
+            gone = list(diff.removed) + [u for u in diff.upserts if u in old.index]
+            for i in range(0, len(gone), 500):
+                conn.execute(delete(db.nodes).where(c.scene_id == state.id).where(c.uuid.in_(gone[i:i + 500])))
+            if diff.upserts:
+                rows = []
+                for u in diff.upserts:
+                    j = new.index[u]
+                    rows.append({"scene_id": state.id, "uuid": u, "position": float(j), "parent": new.parents[j],
+                                 "name": new.names[j], "transform": _blob(new.local[j]),
+                                 "geometry": new.geometries[j],
+                                 "color": list(new.colors[j]) if new.colors[j] is not None else None})
+                conn.execute(insert(db.nodes), rows)
+            conn.execute(insert(db.revisions).values(scene_id=state.id, revision=state.revision + 1, summary=summary))
+
+    def _answer(self, state: SceneState, doc: DocumentPush, diff: TreeDiff, commit: dict, seconds: dict,
+                orphaned: list, restored: list, blas_reused: int) -> dict[str, Any]:
+        out: dict[str, Any] = {"scene": state.id, "revision": state.revision, "base_revision": doc.base_revision}
+        out.update(diff.summary())
+        out.update(blas_built=commit.get("blas_built", 0), blas_reused=blas_reused,
+                   blas_loaded=commit.get("blas_loaded", 0),
+                   instances=len(state.instances) + len(state.object_instances),
+                   seconds=seconds, orphaned=orphaned, restored=restored)
+        return out
+
+    # ------------------------------------------------------------ assignments
+
+    def _check_anchor(self, state: SceneState, node: str | None, what: str) -> None:
+        if node is not None and not state.has_node(node):
+            raise NotFound(f"{what}: no node {node} in scene {state.id} (revision {state.revision})", node=node)
+
+    def _changed(self, state: SceneState) -> None:
+        state.live = None
+        self.live.notify(state.id, state.revision)
+
+    def set_material(self, scene_id: str, key: str, body: dict) -> dict[str, Any]:
+        material = material_adapter.validate_python(body)
+        clean = material.model_dump(exclude_none=True)
+        state = self.state(scene_id)
+        with state.lock:
+            if not state.has_node(key) and key not in state.objects:
+                raise NotFound(f"no node or object {key} in scene {scene_id}", node=key)
+            with self.engine.begin() as conn:
+                conn.execute(delete(db.materials).where(db.materials.c.scene_id == scene_id)
+                             .where(db.materials.c.node == key))
+                conn.execute(insert(db.materials).values(scene_id=scene_id, node=key, body=clean))
+            state.materials[key] = clean
+            self._changed(state)
+        return {"node": key, "material": clean, "orphaned": False}
+
+    def delete_material(self, scene_id: str, key: str) -> None:
+        state = self.state(scene_id)
+        with state.lock:
+            if key not in state.materials:
+                raise NotFound(f"no material assigned to {key} in scene {scene_id}")
+            with self.engine.begin() as conn:
+                conn.execute(delete(db.materials).where(db.materials.c.scene_id == scene_id)
+                             .where(db.materials.c.node == key))
+            del state.materials[key]
+            self._changed(state)
+
+    def list_materials(self, scene_id: str) -> list[dict[str, Any]]:
+        state = self.state(scene_id)
+        with state.lock:
+            return [{"node": k, "material": v, "orphaned": not state.has_node(k) and k not in state.objects}
+                    for k, v in state.materials.items()]
+
+    def _table(self, kind: str) -> tuple[Any, str]:
+        return {"light": (db.lights, "lights"), "sensor": (db.sensors, "sensors"),
+                "object": (db.sim_objects, "objects")}[kind]
+
+    def add_assignment(self, scene_id: str, kind: str, body: dict) -> dict[str, Any]:
+        """Add a light, sensor or sim-owned object (validated body); answers its public form."""
+        state = self.state(scene_id)
+        with state.lock:
+            anchor = state.anchor_of(body)
+            self._check_anchor(state, anchor, kind)
+            if kind == "light" and body["type"] == "goniometric":
+                _validate_photometry(body["format"], body["data"])
+            if kind == "object" and body["geometry"] not in self._known_geometries:
+                raise Invalid(f"geometry {body['geometry']} is not uploaded (PUT /geometries/{{id}} first)",
+                              missing=[body["geometry"]])
+            aid = str(uuidlib.uuid4())
+            table, attr = self._table(kind)
+            if kind == "object":
+                material = body.pop("material", None)
+                try:
+                    self._place_object(state, aid, body)
+                    state.last_commit = self._commit(state)
+                except Exception:
+                    self.forget(scene_id)
+                    raise
+            with self.engine.begin() as conn:
+                conn.execute(insert(table).values(id=aid, scene_id=scene_id, body=body))
+                if kind == "object" and material is not None:
+                    conn.execute(insert(db.materials).values(scene_id=scene_id, node=aid, body=material))
+            getattr(state, attr)[aid] = body
+            if kind == "object" and material is not None:
+                state.materials[aid] = material
+            self._changed(state)
+            return {"id": aid, "body": body, "orphaned": False}
+
+    def list_assignments(self, scene_id: str, kind: str) -> list[dict[str, Any]]:
+        state = self.state(scene_id)
+        _, attr = self._table(kind)
+        with state.lock:
+            out = []
+            for aid, body in getattr(state, attr).items():
+                anchor = state.anchor_of(body)
+                out.append({"id": aid, "body": body, "orphaned": anchor is not None and not state.has_node(anchor)})
+            return out
+
+    def get_assignment(self, scene_id: str, kind: str, aid: str) -> dict[str, Any]:
+        for item in self.list_assignments(scene_id, kind):
+            if item["id"] == aid:
+                return item
+        raise NotFound(f"no {kind} {aid} in scene {scene_id}")
+
+    def delete_assignment(self, scene_id: str, kind: str, aid: str) -> None:
+        state = self.state(scene_id)
+        table, attr = self._table(kind)
+        with state.lock:
+            items = getattr(state, attr)
+            if aid not in items:
+                raise NotFound(f"no {kind} {aid} in scene {scene_id}")
+            if kind == "object":
+                inst = state.object_instances.pop(aid, None)
+                if inst is not None:
+                    try:
+                        state.tracer.remove_instance(inst)
+                        state.last_commit = self._commit(state)
+                    except Exception:
+                        self.forget(scene_id)
+                        raise
+            with self.engine.begin() as conn:
+                conn.execute(delete(table).where(table.c.id == aid))
+                if kind == "object":
+                    conn.execute(delete(db.materials).where(db.materials.c.scene_id == scene_id)
+                                 .where(db.materials.c.node == aid))
+            del items[aid]
+            state.materials.pop(aid, None) if kind == "object" else None
+            self._changed(state)
+
+    def purge_orphans(self, scene_id: str) -> list[dict[str, str]]:
+        """Delete every orphaned assignment of the scene; answers what was deleted."""
+        state = self.state(scene_id)
+        with state.lock:
+            gone = state.orphans()
+            for o in gone:
+                if o["kind"] == "material":
+                    self.delete_material(scene_id, o["id"])
+                else:
+                    self.delete_assignment(scene_id, o["kind"], o["id"])
+            return gone
+
+    # ------------------------------------------------------------ views
+
+    def summary(self, scene_id: str) -> dict[str, Any]:
+        state = self.state(scene_id)
+        with state.lock:
+            live = self._live_locked(state)
+            n_instances = len(state.instances) + len(state.object_instances)
+            triangles = 0
+            counts: dict[str, int] = {}
+            for gid in (state.tree.geometries[state.tree.index[u]] for u in state.instances):
+                counts[gid] = counts.get(gid, 0) + 1
+            for oid in state.object_instances:
+                gid = state.objects[oid]["geometry"]
+                counts[gid] = counts.get(gid, 0) + 1
+            with self.engine.connect() as conn:
+                if counts:
+                    tri = dict(conn.execute(select(db.geometries.c.id, db.geometries.c.n_triangles)
+                                            .where(db.geometries.c.id.in_(list(counts)))).all())
+                    triangles = sum(tri.get(g, 0) * k for g, k in counts.items())
+            return {"id": state.id, "name": state.name, "revision": state.revision, "length_unit": state.length_unit,
+                    "nodes": len(state.tree), "objects": n_instances, "triangles": triangles,
+                    "geometries": len(counts), "effects": scene_effects(live, n_instances > len(live.materials)),
+                    "orphaned": state.orphans(),
+                    "materials_assigned": sum(1 for k in state.materials
+                                              if state.has_node(k) or k in state.objects),
+                    "default_material": dict(DEFAULT_MATERIAL),
+                    "default_material_instances": n_instances - len(live.materials),
+                    "lights": len(live.lights), "sensors": len(live.sensors), "sim_objects": len(state.objects),
+                    "last_commit": state.last_commit}
+
+    def nodes(self, scene_id: str) -> list[dict[str, Any]]:
+        state = self.state(scene_id)
+        with state.lock:
+            t = state.tree
+            return [{"uuid": u, "parent": t.parents[i], "name": t.names[i],
+                     "transform": t.local[i].ravel().tolist(), "geometry": t.geometries[i],
+                     "color": list(t.colors[i]) if t.colors[i] is not None else None,
+                     "instance": state.instances.get(u)} for i, u in enumerate(t.uuids)]
+
+    def live_scene(self, scene_id: str) -> LiveScene:
+        state = self.state(scene_id)
+        with state.lock:
+            return self._live_locked(state)
+
+    def _live_locked(self, state: SceneState) -> LiveScene:
+        if state.live is not None:
+            return state.live
+        tree = state.tree
+        node_world = {u: tree.world[i] for i, u in enumerate(tree.uuids)}
+        # effective material per node: its own, else its parent's (rows visited parents first)
+        effective: dict[str, dict] = {}
+        if state.materials:
+            for i in np.argsort(tree.depth, kind="stable"):
+                u = tree.uuids[i]
+                own = state.materials.get(u)
+                if own is not None:
+                    effective[u] = own
+                else:
+                    p = tree.parents[i]
+                    if p is not None and p in effective:
+                        effective[u] = effective[p]
+        materials: dict[int, dict] = {}
+        for u, inst in state.instances.items():
+            if u in effective:
+                materials[inst] = copy.deepcopy(effective[u])
+        for oid, inst in state.object_instances.items():
+            if oid in state.materials:
+                materials[inst] = copy.deepcopy(state.materials[oid])
+        instance_of_node = dict(state.instances)
+        instance_of_node.update(state.object_instances)
+        lights = []
+        for lid, body in state.lights.items():
+            resolved = self._resolve(state, lid, body)
+            if resolved is not None:
+                lights.append(resolved)
+        sensors = []
+        for sid, body in state.sensors.items():
+            resolved = self._resolve(state, sid, body)
+            if resolved is not None:
+                sensors.append(resolved)
+        state.live = LiveScene(state.id, state.revision, state.tracer, instance_of_node, node_world, materials,
+                               dict(DEFAULT_MATERIAL), lights, sensors,
+                               extras={"length_unit": state.length_unit, "objects": dict(state.objects)})
+        return state.live
+
+    def _resolve(self, state: SceneState, aid: str, body: dict) -> dict | None:
+        """A light/sensor body in world metres (None while its node is missing)."""
+        out = {k: copy.deepcopy(v) for k, v in body.items() if k not in ("attached_to", "name")}
+        out["id"] = aid
+        if body.get("type") == "area":
+            node = body["node"]
+            if not state.has_node(node):
+                return None
+            out.pop("node")
+            out["instances"] = [state.instances[u] for u in state.tree.subtree(node) if u in state.instances]
+            return out
+        node = body.get("attached_to")
+        if node is None:
+            return out
+        row = state.tree.index.get(node)
+        if row is None:
+            return None
+        w = state.tree.world[row]
+        lin = w[:3, :3]
+        for key in ("position", "origin", "center"):
+            if key in out:
+                out[key] = (lin @ np.asarray(out[key], dtype=float) + w[:3, 3]).tolist()
+        for key in ("direction", "normal"):
+            if key in out:
+                d = lin @ np.asarray(out[key], dtype=float)
+                out[key] = (d / np.linalg.norm(d)).tolist()
+        for key in ("u", "v"):
+            if key in out:
+                out[key] = (lin @ np.asarray(out[key], dtype=float)).tolist()
+        return out
+
+
+def _validate_photometry(fmt: str, text: str) -> None:
+    """Parse a goniometric file with the tracer's parser (422 naming the problem if it is wrong)."""
+    try:
+        from tracer.photometry import parse_photometry
+    except ImportError:  # the parser is not built yet: accept, it is parsed again at simulation time
+        return
+    try:
+        parse_photometry(fmt, text)
+    except ValueError as exc:
+        raise Invalid(f"invalid {fmt} photometry file: {exc}") from exc
+
+
+def scene_effects(live: LiveScene, uses_default: bool = True) -> list[str]:
+    """The scene's effect set, from the transport's own rule when it is available."""
+    try:
+        from tracer.simulate import scene_effects as transport_effects  # type: ignore[attr-defined]
+    except ImportError:
+        transport_effects = None
+    if transport_effects is not None:
+        try:
+            return sorted(transport_effects(live.materials, live.lights, live.default_material))
+        except Exception:  # the transport's rule changed shape: fall back to ours
+            log.debug("tracer.simulate.scene_effects failed; using the service's rule", exc_info=True)
+    effects: set[str] = set()
+    for m in list(live.materials.values()) + ([live.default_material] if uses_default else []):
+        kind = m.get("type")
+        if kind == "lambertian":
+            effects.add("lambertian")
+        elif kind == "mirror":
+            effects.add("specular")
+        elif kind == "mix":
+            effects.update(("lambertian", "specular"))
+        elif kind == "dielectric":
+            effects.add("fresnel")
+            if m.get("absorption_per_m", 0) > 0:
+                effects.add("absorption")
+            if m.get("scattering_per_m", 0) > 0:
+                effects.add("scattering")
+    return sorted(effects)
+
+
+def validate_body(kind: str, body: Any) -> dict:
+    """Validate a light, sensor or object body; answers it as a clean dict (422 on a bad field)."""
+    adapter = {"light": light_adapter, "sensor": sensor_adapter}.get(kind)
+    model = adapter.validate_python(body) if adapter is not None else ObjectCreate.model_validate(body)
+    out = model.model_dump(exclude_none=True)
+    if kind == "object":
+        out["transform"] = [float(x) for x in out["transform"]]
+        t = np.asarray(out["transform"]).reshape(4, 4)
+        try:
+            Tree.build(["00000000-0000-0000-0000-000000000000"], [None], [""], t.reshape(1, 16), [None], None, "m")
+        except TreeError as exc:
+            raise Invalid(f"object transform: {str(exc).split(': ', 1)[-1]}") from exc
+    for key in ("position", "origin", "center", "direction", "normal", "u", "v"):
+        if key in out:
+            out[key] = list(out[key])
+    return out
