@@ -1,0 +1,336 @@
+"""Two-level traversal: the top level over instance boxes, each instance's bottom level in object space.
+
+All functions are ``@njit(cache=True, error_model="numpy")`` and take a :class:`SceneArrays` (``scene.arrays()`` after
+``scene.commit()``), so light transport can call them from its own jitted code (docs/CONTRACTS.md).
+
+Conventions
+-----------
+* Rays are ``o + t d`` in world space, ``d`` need not be unit: ``t`` is in units of ``|d|``
+  (world metres for a unit ``d``). The ray is mapped into object space with ``object_from_world``
+  *without* renormalising ``d``, so the parametric ``t`` is the same in both spaces.
+* ``inst_id`` is the public instance id of :class:`tracer.Scene` (ids index the instance arrays
+  directly; removed ids have ``inst_kind == -1`` and are in no top level). ``prim_id`` is the
+  triangle's index in the ``triangles`` array given to ``add_geometry``.
+* Normals come back in world space: object normals times the inverse transpose of
+  ``world_from_object`` (the transpose of ``object_from_world``'s linear part), so a mirrored
+  instance keeps its outward side outward.
+* Sensor instances live in their own top level (``sen_*``): closest-hit and any-hit never see them.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit, prange
+
+from tracer.blas import STACK_SIZE
+from tracer.kinds import dispatch
+from tracer.kinds.mesh import box_hit
+
+
+class SceneArrays(NamedTuple):
+    """Everything a query needs, as arrays (structure of arrays, packed at commit).
+
+    Geometry store (append-only; indices local to a geometry, offsets below):
+    ``node_box`` (K, 6) f8, ``node_a`` (K,) i4, ``node_n`` (K,) i4 — BLAS nodes (:mod:`tracer.blas`);
+    ``tri_v`` (M, 9) f8 — triangle vertices in leaf order; ``tri_prim`` (M,) i4 — original
+    triangle index of each row; ``prim_slot`` (M,) i4 — the inverse (original index -> local row);
+    ``tri_n`` (M, 9) f4 — vertex normals in leaf order (zero where the mesh has none);
+    ``geom_node0``, ``geom_tri0`` (G,) i8, ``geom_ntri`` (G,) i8, ``geom_has_normals`` (G,) bool.
+
+    Instances (indexed by instance id): ``inst_kind`` (I,) i4 (-1: removed), ``inst_geom`` (I,) i4,
+    ``world_from_object`` and ``object_from_world`` (I, 3, 4) f8 (affine rows).
+
+    Top levels over instance ids: solids ``top_box, top_a, top_n, top_items`` and sensors
+    ``sen_box, sen_a, sen_n, sen_items`` (same node layout, leaves index ``*_items``).
+    """
+
+    node_box: np.ndarray
+    node_a: np.ndarray
+    node_n: np.ndarray
+    tri_v: np.ndarray
+    tri_prim: np.ndarray
+    prim_slot: np.ndarray
+    tri_n: np.ndarray
+    geom_node0: np.ndarray
+    geom_tri0: np.ndarray
+    geom_ntri: np.ndarray
+    geom_has_normals: np.ndarray
+    inst_kind: np.ndarray
+    inst_geom: np.ndarray
+    world_from_object: np.ndarray
+    object_from_world: np.ndarray
+    top_box: np.ndarray
+    top_a: np.ndarray
+    top_n: np.ndarray
+    top_items: np.ndarray
+    sen_box: np.ndarray
+    sen_a: np.ndarray
+    sen_n: np.ndarray
+    sen_items: np.ndarray
+
+
+@njit(cache=True, error_model="numpy")
+def _to_object(m, inst, ox, oy, oz, dx, dy, dz):
+    rox = m[inst, 0, 0] * ox + m[inst, 0, 1] * oy + m[inst, 0, 2] * oz + m[inst, 0, 3]
+    roy = m[inst, 1, 0] * ox + m[inst, 1, 1] * oy + m[inst, 1, 2] * oz + m[inst, 1, 3]
+    roz = m[inst, 2, 0] * ox + m[inst, 2, 1] * oy + m[inst, 2, 2] * oz + m[inst, 2, 3]
+    rdx = m[inst, 0, 0] * dx + m[inst, 0, 1] * dy + m[inst, 0, 2] * dz
+    rdy = m[inst, 1, 0] * dx + m[inst, 1, 1] * dy + m[inst, 1, 2] * dz
+    rdz = m[inst, 2, 0] * dx + m[inst, 2, 1] * dy + m[inst, 2, 2] * dz
+    return rox, roy, roz, rdx, rdy, rdz
+
+
+@njit(cache=True, error_model="numpy")
+def normal_to_world(sa, inst, nx, ny, nz):
+    """Object-space normal -> unit world-space normal (inverse transpose of world_from_object)."""
+    m = sa.object_from_world
+    wx = m[inst, 0, 0] * nx + m[inst, 1, 0] * ny + m[inst, 2, 0] * nz
+    wy = m[inst, 0, 1] * nx + m[inst, 1, 1] * ny + m[inst, 2, 1] * nz
+    wz = m[inst, 0, 2] * nx + m[inst, 1, 2] * ny + m[inst, 2, 2] * nz
+    ln = math.sqrt(wx * wx + wy * wy + wz * wz)
+    if ln > 0.0 and ln < np.inf:
+        return wx / ln, wy / ln, wz / ln
+    return 0.0, 0.0, 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def point_to_world(sa, inst, px, py, pz):
+    """Object-space point -> world space."""
+    m = sa.world_from_object
+    return (m[inst, 0, 0] * px + m[inst, 0, 1] * py + m[inst, 0, 2] * pz + m[inst, 0, 3],
+            m[inst, 1, 0] * px + m[inst, 1, 1] * py + m[inst, 1, 2] * pz + m[inst, 1, 3],
+            m[inst, 2, 0] * px + m[inst, 2, 1] * py + m[inst, 2, 2] * pz + m[inst, 2, 3])
+
+
+@njit(cache=True, error_model="numpy")
+def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, top_stack, stack):
+    best_t = t_max
+    best_inst = -1
+    best_slot = -1
+    bu = 0.0
+    bv = 0.0
+    if sa.top_a.shape[0] == 0:
+        return best_t, best_inst, best_slot, bu, bv
+    ix = 1.0 / dx
+    iy = 1.0 / dy
+    iz = 1.0 / dz
+    box = sa.top_box
+    ta = sa.top_a
+    tn = sa.top_n
+    items = sa.top_items
+    m = sa.object_from_world
+    sp = 0
+    node = 0
+    while True:
+        if box_hit(box, node, ox, oy, oz, ix, iy, iz, best_t):
+            c = tn[node]
+            if c > 0:
+                first = ta[node]
+                for q in range(first, first + c):
+                    inst = items[q]
+                    rox, roy, roz, rdx, rdy, rdz = _to_object(m, inst, ox, oy, oz, dx, dy, dz)
+                    hit, t, slot, u, v = dispatch.intersect_solid(sa, inst, rox, roy, roz, rdx, rdy, rdz,
+                                                                  best_t, any_hit, stack)
+                    if hit:
+                        best_t = t
+                        best_inst = inst
+                        best_slot = slot
+                        bu = u
+                        bv = v
+                        if any_hit:
+                            return best_t, best_inst, best_slot, bu, bv
+                if sp == 0:
+                    break
+                sp -= 1
+                node = top_stack[sp]
+            else:
+                axis = -c - 1
+                neg = ix < 0.0 if axis == 0 else (iy < 0.0 if axis == 1 else iz < 0.0)
+                if neg:
+                    top_stack[sp] = node + 1
+                    node = ta[node]
+                else:
+                    top_stack[sp] = ta[node]
+                    node = node + 1
+                sp += 1
+        else:
+            if sp == 0:
+                break
+            sp -= 1
+            node = top_stack[sp]
+    return best_t, best_inst, best_slot, bu, bv
+
+
+@njit(cache=True, error_model="numpy")
+def closest_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, top_stack, stack):
+    """:func:`intersect_closest` with caller-provided traversal stacks (int64, :data:`STACK_SIZE`)."""
+    t, inst, slot, u, v = _closest(sa, ox, oy, oz, dx, dy, dz, t_max, False, top_stack, stack)
+    if inst < 0:
+        return np.inf, -1, -1, 0.0, 0.0, 0.0, 0.0, 0.0
+    prim = dispatch.primitive_solid(sa, inst, slot)
+    nx, ny, nz = dispatch.normal_solid(sa, inst, slot)
+    wx, wy, wz = normal_to_world(sa, inst, nx, ny, nz)
+    return t, inst, prim, u, v, wx, wy, wz
+
+
+@njit(cache=True, error_model="numpy")
+def intersect_closest(sa, ox, oy, oz, dx, dy, dz, t_max):
+    """Closest hit of the ray ``o + t d``, ``0 < t < t_max``, with the solid (non-sensor) instances.
+
+    Returns
+    -------
+    (t, inst_id, prim_id, u, v, ngx, ngy, ngz)
+        ``t = inf``, ``inst_id = prim_id = -1`` on a miss; ``(u, v)`` barycentrics
+        (``p = (1-u-v) v0 + u v1 + v v2``); ``ng`` the unit world-space geometric normal of the
+        object-space ``(v1-v0) x (v2-v0)`` (zeros on a miss).
+    """
+    top_stack = np.empty(STACK_SIZE, np.int64)
+    stack = np.empty(STACK_SIZE, np.int64)
+    return closest_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, top_stack, stack)
+
+
+@njit(cache=True, error_model="numpy")
+def any_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, top_stack, stack):
+    """:func:`intersect_any` with caller-provided traversal stacks."""
+    t, inst, slot, u, v = _closest(sa, ox, oy, oz, dx, dy, dz, t_max, True, top_stack, stack)
+    return inst >= 0
+
+
+@njit(cache=True, error_model="numpy")
+def intersect_any(sa, ox, oy, oz, dx, dy, dz, t_max):
+    """True when any solid instance is hit with ``0 < t < t_max`` (shadow rays; sensors ignored)."""
+    top_stack = np.empty(STACK_SIZE, np.int64)
+    stack = np.empty(STACK_SIZE, np.int64)
+    return any_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, top_stack, stack)
+
+
+@njit(cache=True, error_model="numpy")
+def sensor_crossings(sa, ox, oy, oz, dx, dy, dz, t_max, out_inst, out_t, out_u, out_v, out_cos):
+    """Every sensor instance the segment ``0 < t < t_max`` crosses, sorted by ``t``.
+
+    Parameters
+    ----------
+    out_inst : (c,) int array, out_t, out_u, out_v, out_cos : (c,) float arrays
+        Filled with the first ``count`` crossings; at most ``c`` are kept (the nearest ones).
+
+    Returns
+    -------
+    count : int
+        ``(u, v)``: sensor object-space coordinates (disk: unit disk; rect: ``[0, 1]^2``);
+        ``cos = -dot(d, n_world) / |d|`` (> 0: the ray arrives on the sensor's front side).
+    """
+    cap = out_inst.shape[0]
+    count = 0
+    if sa.sen_a.shape[0] == 0 or cap == 0:
+        return 0
+    ix = 1.0 / dx
+    iy = 1.0 / dy
+    iz = 1.0 / dz
+    dlen = math.sqrt(dx * dx + dy * dy + dz * dz)
+    stack = np.empty(STACK_SIZE, np.int64)
+    m = sa.object_from_world
+    sp = 0
+    node = 0
+    while True:
+        if box_hit(sa.sen_box, node, ox, oy, oz, ix, iy, iz, t_max):
+            c = sa.sen_n[node]
+            if c > 0:
+                first = sa.sen_a[node]
+                for q in range(first, first + c):
+                    inst = sa.sen_items[q]
+                    rox, roy, roz, rdx, rdy, rdz = _to_object(m, inst, ox, oy, oz, dx, dy, dz)
+                    hit, t, u, v = dispatch.cross_sensor(sa, inst, rox, roy, roz, rdx, rdy, rdz, t_max)
+                    if not hit:
+                        continue
+                    nx, ny, nz = normal_to_world(sa, inst, 0.0, 0.0, 1.0)
+                    cs = -(dx * nx + dy * ny + dz * nz) / dlen
+                    # insertion into the sorted list, dropping the farthest when full
+                    if count == cap:
+                        if t >= out_t[cap - 1]:
+                            continue
+                        pos = cap - 1
+                    else:
+                        pos = count
+                        count += 1
+                    while pos > 0 and out_t[pos - 1] > t:
+                        out_inst[pos] = out_inst[pos - 1]
+                        out_t[pos] = out_t[pos - 1]
+                        out_u[pos] = out_u[pos - 1]
+                        out_v[pos] = out_v[pos - 1]
+                        out_cos[pos] = out_cos[pos - 1]
+                        pos -= 1
+                    out_inst[pos] = inst
+                    out_t[pos] = t
+                    out_u[pos] = u
+                    out_v[pos] = v
+                    out_cos[pos] = cs
+                if sp == 0:
+                    break
+                sp -= 1
+                node = stack[sp]
+            else:
+                stack[sp] = sa.sen_a[node]
+                node = node + 1
+                sp += 1
+        else:
+            if sp == 0:
+                break
+            sp -= 1
+            node = stack[sp]
+    return count
+
+
+@njit(cache=True, error_model="numpy")
+def shading_normal(sa, inst_id, prim_id, u, v):
+    """Unit world-space shading normal: the interpolated vertex normal, the geometric one where the
+    mesh has no normals (or they cancel)."""
+    nx, ny, nz, _ = dispatch.shading_normal_object(sa, inst_id, prim_id, u, v)
+    return normal_to_world(sa, inst_id, nx, ny, nz)
+
+
+@njit(cache=True, error_model="numpy")
+def hit_point(sa, inst_id, prim_id, u, v):
+    """World-space surface point from barycentrics: more accurate than ``o + t d`` for spawning, as
+    its error depends on the vertex magnitudes only, not on how far the ray came."""
+    px, py, pz = dispatch.point_object(sa, inst_id, prim_id, u, v)
+    return point_to_world(sa, inst_id, px, py, pz)
+
+
+BLOCK = 64
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def closest_batch(sa, o, d, t_max, out_t, out_inst, out_prim, out_u, out_v, out_n):
+    """Batched :func:`intersect_closest` over rays ``o[i], d[i]`` (k, 3), ``t_max`` (k,); parallel."""
+    k = o.shape[0]
+    nb = (k + BLOCK - 1) // BLOCK
+    for b in prange(nb):
+        top_stack = np.empty(STACK_SIZE, np.int64)
+        stack = np.empty(STACK_SIZE, np.int64)
+        for i in range(b * BLOCK, min(k, (b + 1) * BLOCK)):
+            t, inst, prim, u, v, nx, ny, nz = closest_with_stacks(
+                sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t_max[i], top_stack, stack)
+            out_t[i] = t
+            out_inst[i] = inst
+            out_prim[i] = prim
+            out_u[i] = u
+            out_v[i] = v
+            out_n[i, 0] = nx
+            out_n[i, 1] = ny
+            out_n[i, 2] = nz
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def any_batch(sa, o, d, t_max, out):
+    """Batched :func:`intersect_any`; parallel."""
+    k = o.shape[0]
+    nb = (k + BLOCK - 1) // BLOCK
+    for b in prange(nb):
+        top_stack = np.empty(STACK_SIZE, np.int64)
+        stack = np.empty(STACK_SIZE, np.int64)
+        for i in range(b * BLOCK, min(k, (b + 1) * BLOCK)):
+            out[i] = any_with_stacks(sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t_max[i],
+                                     top_stack, stack)
