@@ -52,7 +52,7 @@ def ray_triangle_t(o: np.ndarray, d: np.ndarray, tri: np.ndarray) -> tuple[np.nd
         q = np.cross(s, e1)
         v = (q @ d) * inv
         t = np.einsum("ij,ij->i", e2, q) * inv
-            ok = (det != 0) & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0) & np.isfinite(t)
+        ok = (det != 0) & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0) & np.isfinite(t)
     return np.where(ok, t, np.inf), u, v
 
 
