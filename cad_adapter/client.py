@@ -1,0 +1,217 @@
+"""REST client of the service: find or create a scene, upload missing meshes, push the tree.
+
+Order of a push (DESIGN.md's REST contract): ``GET /scenes`` (find the scene by name, ``POST /scenes``
+if none has it) → ``GET /scenes/{id}`` (its revision) → ``POST /geometries/missing`` → ``PUT
+/geometries/{gid}`` for each missing mesh (GLB) → ``PUT /scenes/{id}/document`` with that revision as
+``base_revision``. Uploads are content-addressed, so an interrupted push leaves nothing half-done: the
+tree changes in one request or not at all. A 409 means someone changed the scene meanwhile: the client
+re-reads the revision, raises :class:`~cad_adapter.errors.RevisionConflict` and never retries by itself.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import httpx
+
+from .errors import PushError, RevisionConflict, ServiceUnavailable
+from .glb import MEDIA_TYPE, encode_glb
+from .payload import build_push
+from .tessellate import Mesh, Tessellation
+from .tree import Document
+
+
+@dataclass
+class PushResult:
+    """What a push did.
+
+    Attributes
+    ----------
+    answer : dict
+        The service's answer to ``PUT /scenes/{id}/document`` (the diff, rebuilds, seconds).
+    scene_id : str
+    created_scene : bool
+    geometries : int
+        Distinct geometries in the tree.
+    uploaded : int
+        Meshes the service lacked and got now.
+    uploaded_bytes : int
+    seconds : dict of str to float
+        Client-side stages: ``scene``, ``missing``, ``upload``, ``push``.
+    """
+
+    answer: dict
+    scene_id: str
+    created_scene: bool
+    geometries: int
+    uploaded: int
+    uploaded_bytes: int
+    seconds: dict[str, float] = field(default_factory=dict)
+
+
+def _problem(resp: httpx.Response) -> str:
+    """A readable message out of an RFC 9457 problem (or any) error response."""
+    try:
+        data = resp.json()
+    except ValueError:
+        return resp.text[:500] or resp.reason_phrase
+    if isinstance(data, dict):
+        parts = [str(data[k]) for k in ("title", "detail") if data.get(k)]
+        if data.get("errors"):
+            parts.append(str(data["errors"])[:500])
+        return ": ".join(parts) or str(data)[:500]
+    return str(data)[:500]
+
+
+class Pusher:
+    """A client of one service.
+
+    Parameters
+    ----------
+    server : str
+        Base URL, e.g. ``http://127.0.0.1:8000``.
+    timeout : float
+        Seconds per request.
+    transport : httpx.BaseTransport, optional
+        For tests (``httpx.MockTransport``).
+    upload_progress : callable(done, total, gid), optional
+        Called after each uploaded mesh.
+    """
+
+    def __init__(self, server: str, *, timeout: float = 60.0, transport: httpx.BaseTransport | None = None,
+                 upload_progress: Callable[[int, int, str], None] | None = None) -> None:
+        if not isinstance(server, str) or not server.startswith(("http://", "https://")):
+            raise PushError(f"server must be an http(s) URL, got {server!r}")
+        self.server = server.rstrip("/")
+        self.http = httpx.Client(base_url=self.server, timeout=timeout, transport=transport)
+        self.upload_progress = upload_progress
+
+    def close(self) -> None:
+        self.http.close()
+
+    def __enter__(self) -> Pusher:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _request(self, method: str, url: str, **kwargs: Any) -> httpx.Response:
+        try:
+            return self.http.request(method, url, **kwargs)
+        except httpx.TimeoutException as exc:
+            raise ServiceUnavailable(f"the service at {self.server} did not answer {method} {url} in time "
+                                     f"({type(exc).__name__})") from exc
+        except httpx.TransportError as exc:
+            raise ServiceUnavailable(f"cannot reach the service at {self.server} ({exc}); is `lumenlink serve` "
+                                     "running there?") from exc
+
+    def _json(self, resp: httpx.Response, what: str, ok: tuple[int, ...] = (200,)) -> Any:
+        if resp.status_code not in ok:
+            raise PushError(f"{what} failed: HTTP {resp.status_code}: {_problem(resp)}")
+        try:
+            return resp.json()
+        except ValueError as exc:
+            raise PushError(f"{what}: the service answered HTTP {resp.status_code} without JSON") from exc
+
+    # ---------------------------------------------------------------- the calls
+
+    def scene_by_name(self, name: str) -> dict | None:
+        """The scene called ``name`` (``{id, name, revision}``), or None."""
+        scenes = self._json(self._request("GET", "/scenes"), "listing scenes")
+        if isinstance(scenes, dict):  # tolerate {"scenes": [...]}
+            scenes = scenes.get("scenes", [])
+        for s in scenes:
+            if s.get("name") == name:
+                return s
+        return None
+
+    def find_or_create_scene(self, name: str) -> tuple[dict, bool]:
+        """``(scene, created)``: the scene called ``name``, created if no scene has that name."""
+        if not isinstance(name, str) or not name.strip():
+            raise PushError("the scene name must be a non-empty string")
+        found = self.scene_by_name(name)
+        if found is not None:
+            return found, False
+        created = self._json(self._request("POST", "/scenes", json={"name": name}), f"creating scene {name!r}",
+                             ok=(200, 201))
+        return created, True
+
+    def revision(self, scene_id: str) -> int:
+        """The scene's current revision."""
+        data = self._json(self._request("GET", f"/scenes/{scene_id}"), f"reading scene {scene_id}")
+        return int(data["revision"])
+
+    def missing(self, ids: list[str]) -> list[str]:
+        """Which of ``ids`` the service does not store yet."""
+        if not ids:
+            return []
+        data = self._json(self._request("POST", "/geometries/missing", json={"ids": ids}), "asking for missing meshes")
+        return list(data["missing"])
+
+    def upload(self, gid: str, glb: bytes) -> None:
+        resp = self._request("PUT", f"/geometries/{gid}", content=glb, headers={"content-type": MEDIA_TYPE})
+        self._json(resp, f"uploading geometry {gid[:12]}", ok=(200, 201))
+
+    def push_document(self, scene_id: str, body: dict) -> dict:
+        """``PUT /scenes/{id}/document``; :class:`RevisionConflict` on 409 (after re-reading the revision)."""
+        resp = self._request("PUT", f"/scenes/{scene_id}/document", json=body)
+        if resp.status_code == 409:
+            try:
+                current = self.revision(scene_id)
+            except PushError:
+                current = None
+            raise RevisionConflict(
+                f"the scene changed on the service since revision {body.get('base_revision')} "
+                f"(it is now at revision {current if current is not None else '?'}); nothing was pushed. "
+                "Check what changed, then push again.", current_revision=current)
+        return self._json(resp, "pushing the document")
+
+    def push(self, doc: Document, tess: Tessellation, scene: str, base_revision: int | None = None) -> PushResult:
+        """Push a document: scene, missing meshes, upload, tree.
+
+        Parameters
+        ----------
+        doc : Document
+            With UUIDs assigned.
+        tess : Tessellation
+        scene : str
+            Scene name (created if absent).
+        base_revision : int, optional
+            Revision the push is based on; default the scene's revision read just before pushing.
+
+        Raises
+        ------
+        ServiceUnavailable, RevisionConflict, PushError
+        """
+        seconds: dict[str, float] = {}
+        t = time.perf_counter()
+        info, created = self.find_or_create_scene(scene)
+        scene_id = str(info["id"])
+        if base_revision is None:
+            base_revision = int(info["revision"]) if created else self.revision(scene_id)
+        body = build_push(doc, tess, base_revision)
+        seconds["scene"] = time.perf_counter() - t
+        t = time.perf_counter()
+        by_gid: dict[str, Mesh] = {m.geometry_id: m for m in tess.meshes.values()}
+        used = sorted({n["geometry"] for n in body["nodes"] if n["geometry"]})
+        missing = self.missing(used)
+        seconds["missing"] = time.perf_counter() - t
+        t = time.perf_counter()
+        sent = 0
+        for i, gid in enumerate(missing, start=1):
+            if gid not in by_gid:
+                raise PushError(f"the service asked for geometry {gid} which this document does not have")
+            m = by_gid[gid]
+            glb = encode_glb(m.vertices, m.triangles, m.normals)
+            self.upload(gid, glb)
+            sent += len(glb)
+            if self.upload_progress is not None:
+                self.upload_progress(i, len(missing), gid)
+        seconds["upload"] = time.perf_counter() - t
+        t = time.perf_counter()
+        answer = self.push_document(scene_id, body)
+        seconds["push"] = time.perf_counter() - t
+        return PushResult(answer, scene_id, created, len(used), len(missing), sent, seconds)
