@@ -426,8 +426,11 @@ def apply_to_scene(
         instances[u] = scene.add_instance(gid, new.instance_transform(row))
         stats.instances_added += 1
     stats.new_geometries = sorted(g for g in seen_new if g not in stats.reused_geometries)
-    for u in diff.moved:
-        if u in changed_geometry:
+    # a changed length unit rescales every mesh (instance = S·W) even where the node frame stays put
+    to_move = [u for u in new.uuids if u in instances] if diff.length_unit_changed else diff.moved
+    just_added = set(diff.added)
+    for u in to_move:
+        if u in changed_geometry or u in just_added:
             continue
         inst = instances.get(u)
         if inst is not None:

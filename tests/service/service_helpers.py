@@ -1,0 +1,73 @@
+"""Builders shared by the service tests: meshes as GLB, documents, a TestClient on a temp data dir."""
+
+from __future__ import annotations
+
+import uuid as uuidlib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import trimesh
+
+from tracer.geometry_id import geometry_id
+
+IDENTITY = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]
+
+
+def grid_mesh(n: int = 2, z: float = 0.0, size: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """A flat n×n-cell square (2n² triangles) in the plane z, side `size`: vertices (k,3), triangles (m,3)."""
+    xs = np.linspace(0.0, size, n + 1)
+    gx, gy = np.meshgrid(xs, xs, indexing="ij")
+    v = np.column_stack([gx.ravel(), gy.ravel(), np.full(gx.size, z)])
+    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    f = np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d])])
+    return v, f
+
+
+def glb(vertices: np.ndarray, triangles: np.ndarray) -> tuple[str, bytes]:
+    """(geometry id, GLB bytes) of a mesh, encoded the way the adapter does (trimesh, no processing)."""
+    data = trimesh.Trimesh(vertices, triangles, process=False).export(file_type="glb")
+    return geometry_id(vertices, triangles), data
+
+
+def uid(i: int) -> str:
+    return str(uuidlib.UUID(int=0xABC000 + i))
+
+
+def translation(x: float = 0.0, y: float = 0.0, z: float = 0.0) -> list[float]:
+    t = list(IDENTITY)
+    t[3], t[7], t[11] = x, y, z
+    return t
+
+
+def node(u: str, parent: str | None, name: str, transform: list[float] | None = None,
+         geometry: str | None = None, **extra: Any) -> dict[str, Any]:
+    out = {"uuid": u, "parent": parent, "name": name, "transform": transform or list(IDENTITY),
+           "geometry": geometry}
+    out.update(extra)
+    return out
+
+
+def car_document(gid_body: str, gid_wheel: str, base_revision: int | None = 0, door_x: float = 0.0,
+                 unit: str = "mm") -> dict[str, Any]:
+    """root → body (mesh), door (mesh, hinged at door_x), axle → 4 wheels (one mesh, four instances)."""
+    nodes = [node(uid(0), None, "car"),
+             node(uid(1), uid(0), "body", geometry=gid_body),
+             node(uid(2), uid(0), "door", translation(door_x, 0, 0), geometry=gid_body),
+             node(uid(3), uid(0), "axle", translation(0, 0, 100))]
+    nodes += [node(uid(10 + k), uid(3), f"wheel{k}", translation(100 * k, 0, 0), geometry=gid_wheel)
+              for k in range(4)]
+    return {"base_revision": base_revision, "length_unit": unit,
+            "source": {"name": "car.step", "tessellation": {"linear": 0.1, "angular": 0.5}}, "nodes": nodes}
+
+
+def make_client(data_dir: Path, **settings: Any):
+    """A TestClient on a fresh app whose data live in `data_dir` (real tracer, real SQLite file)."""
+    from fastapi.testclient import TestClient
+
+    from service.app import create_app
+    from service.config import Settings
+
+    app = create_app(Settings(data_dir=data_dir, log_requests=False, **settings))
+    return TestClient(app, raise_server_exceptions=False)
