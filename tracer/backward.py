@@ -1,0 +1,182 @@
+"""Backward tracing from the query points with next-event estimation (Radiance's way, with an error bar).
+
+For a query patch (a disk around a query point, or a grid cell) with unit normal n, the illuminance
+averaged over the patch is E = ∫ L(x, ω) cosθ dω, averaged over x. A path starts at a uniform point
+x of the patch and
+
+- adds the direct illuminance at x from one light chosen in proportion to its flux (next-event
+  estimation: a shadow ray to a point source, or to a uniform point of an area emitter), divided
+  by the choice probability;
+- leaves x in a cosine-distributed direction (pdf cosθ/π, so the estimator of E is π L: the π
+  cancels against the Lambertian BRDF ρ/π of the next surface, leaving a path weight that is
+  multiplied by ρ at each diffuse bounce);
+- at each Lambertian hit y adds weight × (direct illuminance at y from one chosen light) — the
+  reflected radiance there is ρ/π × E(y) — and continues in a new cosine direction.
+
+Emission is counted only by next-event estimation, never when a path happens to hit an emitter,
+so nothing is counted twice. Russian roulette after `RR_DEPTH` bounces survives with the path
+weight (≤ 1) as probability and divides by it: unbiased.
+
+Limits (why `Simulation` chooses the forward estimator for such scenes): point-like and collimated
+sources cannot be reached through mirrors or glass by a shadow ray, so only scenes whose surfaces
+are Lambertian or black and whose lights are point, spot, goniometric or area lights are traced
+backward.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit, prange
+
+from tracer.rng import path_key, uniform
+from tracer.sources import AREA, P_I0, intensity_toward, pick_light, sample_area_point
+from tracer.spawn import offset_ray_origin
+from tracer.surfaces import LAMBERTIAN, onb, sample_cosine
+from tracer.traverse import intersect_any, intersect_closest
+
+RR_DEPTH = 3
+MAX_BOUNCES = 10_000
+SHADOW_SHORTEN = 1e-6  # a shadow ray toward an emitter point stops this fraction short of it
+
+COUNTERS = ("rejected", "truncated")
+
+
+class QueryArrays(NamedTuple):
+    """Query patches.
+
+    kind (k,) int64: 0 disk (centre + r(x a + y b), (x, y) uniform in the unit disk), 1 parallelogram
+    (origin + s a + t b, s, t uniform in [0, 1]); o (k, 3) centre or origin, already moved off any
+    surface along n; a, b (k, 3) the patch's axes (disk: orthonormal × radius); n (k, 3) unit normal.
+    """
+
+    kind: np.ndarray
+    o: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
+    n: np.ndarray
+
+
+@njit(cache=True, error_model="numpy")
+def direct_illuminance(sa, L, x, y, z, nx, ny, nz, u0, u1, u2, u3):
+    """Estimate of the direct illuminance (lx) at point x on a surface with unit normal n, from one light.
+
+    x must already be off any surface (shadow rays start there).
+    """
+    j, pj = pick_light(L, u0)
+    if pj <= 0.0:
+        return 0.0
+    k = L.kind[j]
+    if k == AREA:
+        lx, ly, lz, lnx, lny, lnz = sample_area_point(L, j, u1, u2, u3)
+        dx, dy, dz = lx - x, ly - y, lz - z
+        d2 = dx * dx + dy * dy + dz * dz
+        if not (d2 > 0.0):
+            return 0.0
+        dist = math.sqrt(d2)
+        cos_x = (dx * nx + dy * ny + dz * nz) / dist
+        cos_l = -(dx * lnx + dy * lny + dz * lnz) / dist
+        if cos_x <= 0.0 or cos_l <= 0.0:
+            return 0.0
+        if intersect_any(sa, x, y, z, dx, dy, dz, 1.0 - SHADOW_SHORTEN):
+            return 0.0
+        return L.par[j, P_I0] / math.pi * cos_l * cos_x / d2 * L.a_area[j] / pj
+    dx, dy, dz = L.par[j, 0] - x, L.par[j, 1] - y, L.par[j, 2] - z
+    d2 = dx * dx + dy * dy + dz * dz
+    if not (d2 > 0.0):
+        return 0.0
+    dist = math.sqrt(d2)
+    cos_x = (dx * nx + dy * ny + dz * nz) / dist
+    if cos_x <= 0.0:
+        return 0.0
+    inten = intensity_toward(L, j, -dx / dist, -dy / dist, -dz / dist)
+    if inten <= 0.0:
+        return 0.0
+    if intersect_any(sa, x, y, z, dx, dy, dz, 1.0):
+        return 0.0
+    return inten * cos_x / d2 / pj
+
+
+@njit(cache=True, error_model="numpy")
+def trace_path(sa, M, L, Q, q, key, counters):
+    """One backward path from query patch q: an unbiased estimate of its mean illuminance (lx)."""
+    if Q.kind[q] == 0:
+        r = math.sqrt(uniform(key, 0))
+        phi = 2.0 * math.pi * uniform(key, 1)
+        s, t = r * math.cos(phi), r * math.sin(phi)
+    else:
+        s, t = uniform(key, 0), uniform(key, 1)
+    x = Q.o[q, 0] + s * Q.a[q, 0] + t * Q.b[q, 0]
+    y = Q.o[q, 1] + s * Q.a[q, 1] + t * Q.b[q, 1]
+    z = Q.o[q, 2] + s * Q.a[q, 2] + t * Q.b[q, 2]
+    nx, ny, nz = Q.n[q, 0], Q.n[q, 1], Q.n[q, 2]
+    e = direct_illuminance(sa, L, x, y, z, nx, ny, nz, uniform(key, 2), uniform(key, 3), uniform(key, 4),
+                           uniform(key, 5))
+    dx, dy, dz = sample_cosine(nx, ny, nz, uniform(key, 6), uniform(key, 7))
+    dim = 8
+    w = 1.0
+    for bounce in range(MAX_BOUNCES):
+        t_hit, inst, prim, hu, hv, ngx, ngy, ngz = intersect_closest(sa, x, y, z, dx, dy, dz, math.inf)
+        if inst < 0:
+            break
+        if M.kind[inst] != LAMBERTIAN:
+            break
+        w *= M.par[inst, 0]
+        if w <= 0.0:
+            break
+        px, py, pz = x + t_hit * dx, y + t_hit * dy, z + t_hit * dz
+        fx, fy, fz = ngx, ngy, ngz
+        if dx * fx + dy * fy + dz * fz > 0.0:
+            fx, fy, fz = -fx, -fy, -fz
+        sx, sy, sz = offset_ray_origin(px, py, pz, ngx, ngy, ngz, fx, fy, fz)
+        e += w * direct_illuminance(sa, L, sx, sy, sz, fx, fy, fz, uniform(key, dim), uniform(key, dim + 1),
+                                    uniform(key, dim + 2), uniform(key, dim + 3))
+        dx, dy, dz = sample_cosine(fx, fy, fz, uniform(key, dim + 4), uniform(key, dim + 5))
+        dim += 6
+        x, y, z = sx, sy, sz
+        if bounce + 1 >= RR_DEPTH:
+            q_survive = min(1.0, w)
+            if uniform(key, dim) >= q_survive:
+                break
+            dim += 1
+            w /= q_survive
+    else:
+        counters[1] += 1
+    if not math.isfinite(e):
+        counters[0] += 1
+        return 0.0
+    return e
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def backward_batches(sa, M, L, Q, seed, batch0, n_batches, paths):
+    """Batches batch0 … batch0+n_batches−1, each `paths` paths per query patch.
+
+    Returns (lux (n_batches, k) float64: each batch's estimate per patch; counters (n_batches, 2) int64).
+    """
+    k = Q.kind.shape[0]
+    out = np.zeros((n_batches, k))
+    cnt = np.zeros((n_batches, len(COUNTERS)), np.int64)
+    for b in prange(n_batches):
+        counters = cnt[b]
+        for q in range(k):
+            acc = 0.0
+            for i in range(paths):
+                key = path_key(seed, batch0 + b, q * paths + i)
+                acc += trace_path(sa, M, L, Q, q, key, counters)
+            out[b, q] = acc / paths
+    return out, cnt
+
+
+def disk_queries(centers: np.ndarray, normals: np.ndarray, radius: float) -> QueryArrays:
+    """Disk patches of `radius` around `centers` (k, 3) (already offset) with unit `normals` (k, 3)."""
+    k = len(centers)
+    a = np.zeros((k, 3))
+    b = np.zeros((k, 3))
+    for i in range(k):
+        t, bb = onb(*normals[i])
+        a[i], b[i] = np.asarray(t) * radius, np.asarray(bb) * radius
+    return QueryArrays(np.zeros(k, np.int64), np.ascontiguousarray(centers, np.float64), a, b,
+                       np.ascontiguousarray(normals, np.float64))

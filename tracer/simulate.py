@@ -1,0 +1,451 @@
+"""The illuminance query: `Simulation` (docs/CONTRACTS.md, "light transport → service").
+
+A `Simulation` holds a committed `tracer.Scene`, the material of every instance, and the lights, all
+validated once. Its queries:
+
+- `illuminance(points, normals, radius=...)`: the illuminance (lx) on the front side of a small disk
+  receiver (radius `radius`, default `DEFAULT_RADIUS`) at each point, averaged over the disk;
+- `grid(origin, u, v, nu, nv)`: the illuminance averaged over each cell of a rectangle
+  origin + s u + t v (front side u × v), as an (nv, nu) map.
+
+Both estimators estimate exactly these patch averages, so they agree within their error bars:
+
+- ``"forward"`` (`tracer.transport`): photons from the sources, recorded by sensor instances added to
+  the scene for the query (`Scene.add_disk_sensor` / `add_rect_sensor`) and removed afterwards;
+- ``"backward"`` (`tracer.backward`): paths from uniform points of each patch with next-event
+  estimation; only for scenes of Lambertian/black surfaces lit by point, spot, goniometric or area
+  lights. ``"auto"`` takes it for `illuminance` where it applies, and forward otherwise and for
+  grids; the result says which ran.
+
+A query point may lie exactly on a surface (a receiver on the floor). Its patch is moved off the
+plane by `sensor_offset(p)` along its normal, a hair (≥ 1e-9 m, 2⁻²⁸ of the coordinate magnitude,
+≈ 16 times the distance `tracer.spawn.offset_ray_origin` moves spawned rays), so light arriving
+at the floor crosses the receiver before it hits the floor and light leaving the floor does not
+cross it from the front.
+
+Estimation: independent batches seeded from (seed, batch index) through the counter-based
+`tracer.rng`; batch sizes depend only on the request, batches are started in rounds of
+`ROUND_BATCHES`, and the stop test runs between rounds, so for the same seed and stop rule (target
+error or photon budget) the answer is bit-identical whatever the number of threads. Standard errors
+are batch means (`tracer.estimate`). A query stops when every point's relative error is at most
+`target_relative_error` (``"target_relative_error"``), at `max_photons` (``"max_photons"``),
+`max_seconds` (``"max_seconds"``) or when `cancel()` is truthy (``"cancelled"``). Without any
+budget it runs `DEFAULT_MAX_SECONDS`.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from tracer.backward import QueryArrays, backward_batches, disk_queries
+from tracer.effects import EFFECTS, derive_effects, flags_for, with_forced
+from tracer.estimate import Estimate
+from tracer.sources import COLLIMATED_DISK, COLLIMATED_RECT, pack_lights
+from tracer.surfaces import NONE, MaterialArrays, pack_materials
+from tracer.transport import COUNTERS, SensorArrays, forward_batches
+
+DEFAULT_RADIUS = 0.05          # m: disk receiver radius when the query gives none
+DEFAULT_MAX_SECONDS = 30.0     # s: budget of a query that states none
+ROUND_BATCHES = 8              # batches started between two stop tests
+MIN_BATCHES = 8                # batches before the error bar is trusted for a target-error stop
+FORWARD_BATCH = 20_000         # photons per forward batch (fewer when max_photons is small)
+BACKWARD_BATCH = 32            # paths per patch per backward batch
+ESTIMATORS = ("auto", "forward", "backward")
+
+_COMPILE_SECONDS: dict[tuple, float] = {}   # first call of each compiled variant in this process
+
+
+class SimulationError(ValueError):
+    """A query or a scene the transport cannot simulate; the message says why."""
+
+
+@dataclass
+class IlluminanceResult:
+    """Illuminance at query points.
+
+    lux, stderr : (k,) float64, lx — patch-average illuminance and its standard error.
+    photons : int — photons (forward) or paths (backward, all points together) traced.
+    seconds : float — wall time of the query.
+    effects : list[str] — the effect set of the kernel that ran.
+    estimator : "forward" or "backward".
+    stop_reason : "target_relative_error", "max_photons", "max_seconds" or "cancelled".
+    batches : int; rejected : int — samples dropped as non-finite (never tallied);
+    counters : dict — every kernel counter; compile_seconds : float — spent compiling (or loading
+    from numba's cache) a kernel variant used for the first time in this process.
+    """
+
+    lux: np.ndarray
+    stderr: np.ndarray
+    photons: int
+    seconds: float
+    effects: list[str]
+    estimator: str
+    stop_reason: str
+    batches: int = 0
+    rejected: int = 0
+    counters: dict = field(default_factory=dict)
+    compile_seconds: float = 0.0
+
+
+@dataclass
+class GridResult(IlluminanceResult):
+    """Illuminance of a grid sensor: `lux` and `stderr` have shape (nv, nu); row j is v-cell j."""
+
+
+def sensor_offset(p: np.ndarray) -> float:
+    """How far a query patch is moved off its plane along its normal, m (see the module docstring)."""
+    return max(1e-9, 2.0 ** -28 * float(np.max(np.abs(p))))
+
+
+def _vectors(a, name: str, k: int | None = None) -> np.ndarray:
+    try:
+        v = np.asarray(a, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise SimulationError(f"{name} must be numbers, shape (k, 3)") from None
+    if v.ndim == 1 and v.shape == (3,) and k is None:
+        v = v[None, :]
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise SimulationError(f"{name} must have shape (k, 3), got {v.shape}")
+    if k is not None and v.shape[0] != k:
+        raise SimulationError(f"{name} has {v.shape[0]} rows, expected {k}")
+    if not np.all(np.isfinite(v)):
+        raise SimulationError(f"{name} must be finite")
+    return v
+
+
+def _vec3(a, name: str) -> np.ndarray:
+    try:
+        v = np.asarray(a, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise SimulationError(f"{name} must be 3 numbers") from None
+    if v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise SimulationError(f"{name} must be 3 finite numbers, got {a!r}")
+    return v
+
+
+@dataclass
+class _Budget:
+    target: float | None
+    max_seconds: float | None
+    max_photons: int | None
+
+
+def _budget(target_relative_error, max_seconds, max_photons) -> _Budget:
+    if target_relative_error is not None:
+        if isinstance(target_relative_error, bool) or not (0 < float(target_relative_error) < 1):
+            raise SimulationError(f"target_relative_error must be in (0, 1), got {target_relative_error!r}")
+        target_relative_error = float(target_relative_error)
+    if max_seconds is not None:
+        if isinstance(max_seconds, bool) or not (0 < float(max_seconds) < math.inf):
+            raise SimulationError(f"max_seconds must be > 0 and finite, got {max_seconds!r}")
+        max_seconds = float(max_seconds)
+    if max_photons is not None:
+        if isinstance(max_photons, bool) or int(max_photons) != max_photons or int(max_photons) < 1:
+            raise SimulationError(f"max_photons must be a positive integer, got {max_photons!r}")
+        max_photons = int(max_photons)
+    if target_relative_error is None and max_seconds is None and max_photons is None:
+        max_seconds = DEFAULT_MAX_SECONDS
+    return _Budget(target_relative_error, max_seconds, max_photons)
+
+
+class Simulation:
+    """Light transport over one committed scene (docs/CONTRACTS.md).
+
+    Parameters
+    ----------
+    scene : tracer.Scene
+        Committed. Queries add their receivers as sensor instances for their duration (under a
+        lock: queries of one `Simulation` run one at a time on the scene).
+    materials : {instance id: material body}
+        DESIGN.md material bodies (`tracer.surfaces`).
+    lights : list of light bodies
+        World metres (`tracer.sources`); area lights carry ``"instances"``.
+    default_material : material body, optional
+        For instances not in `materials`; without it every non-sensor instance needs a material.
+
+    Raises
+    ------
+    SimulationError, MaterialError, LightError (all ValueError)
+        Saying which body or field is wrong.
+    """
+
+    def __init__(self, scene, materials: dict[int, dict], lights: list[dict], default_material: dict | None = None):
+        if scene is None or not hasattr(scene, "arrays"):
+            raise SimulationError("scene must be a tracer.Scene")
+        if getattr(scene, "dirty", False) is True:
+            raise SimulationError("the scene has changes that are not committed: call scene.commit() first")
+        if not isinstance(materials, dict):
+            raise SimulationError(f"materials must be a dict {{instance id: body}}, got {type(materials).__name__}")
+        self.scene = scene
+        ids = [int(i) for i in scene.instances()]
+        self._sensor_ids = {i for i in ids if _is_sensor(scene, i)}
+        geometry_ids = [i for i in ids if i not in self._sensor_ids]
+        mats = {int(k): v for k, v in materials.items() if int(k) not in self._sensor_ids}
+        self._mats = pack_materials(mats, default_material, ids, self._sensor_ids)
+        self._lights = pack_lights(list(lights), scene, frozenset(self._sensor_ids))
+        used = np.zeros(len(self._mats.kind), bool)
+        used[geometry_ids] = True
+        self.effects: list[str] = derive_effects(self._mats, used)
+        self._has_collimated = bool(np.any((self._lights.kind == COLLIMATED_DISK)
+                                           | (self._lights.kind == COLLIMATED_RECT)))
+        self._lock = threading.Lock()
+
+    # ------------------------------------------------------------------------------------------ helpers
+
+    def backward_applies(self, effects: list[str] | None = None) -> tuple[bool, str]:
+        """Whether the backward estimator can answer for this scene (and effect set), and if not why."""
+        effects = self.effects if effects is None else effects
+        if set(effects) - {"lambertian"}:
+            return False, (f"the scene needs {sorted(set(effects) - {'lambertian'})}: point-like sources cannot be "
+                           f"reached through specular or refractive surfaces by shadow rays")
+        if self._has_collimated:
+            return False, "a collimated beam cannot be reached by shadow rays"
+        return True, ""
+
+    def _choose(self, estimator: str, effects: list[str], grid: bool) -> str:
+        if estimator not in ESTIMATORS:
+            raise SimulationError(f"estimator must be one of {list(ESTIMATORS)}, got {estimator!r}")
+        ok, why = self.backward_applies(effects)
+        if estimator == "backward" and not ok:
+            raise SimulationError(f"the backward estimator cannot answer here: {why}; use 'forward' or 'auto'")
+        if estimator == "auto":
+            return "backward" if (ok and not grid) else "forward"
+        return estimator
+
+    def _materials_for(self, n_inst: int) -> MaterialArrays:
+        kind, par = self._mats.kind, self._mats.par
+        if n_inst > len(kind):
+            kind = np.concatenate([kind, np.full(n_inst - len(kind), NONE, np.int32)])
+            par = np.concatenate([par, np.zeros((n_inst - len(par), par.shape[1]))])
+        return MaterialArrays(kind, par)
+
+    # ------------------------------------------------------------------------------------------ queries
+
+    def illuminance(self, points, normals, radius=None, target_relative_error=None, max_seconds=None,
+                    max_photons=None, seed=0, estimator="auto", force_effects=(), progress=None,
+                    cancel=None) -> IlluminanceResult:
+        """Illuminance (lx) on the front side of a disk receiver at each point.
+
+        Parameters
+        ----------
+        points, normals : (k, 3) float
+            Receiver centres (m) and front-side normals (any non-zero length).
+        radius : float, optional
+            Receiver radius, m (default `DEFAULT_RADIUS`).
+        target_relative_error, max_seconds, max_photons : stop rules (see the module docstring).
+        seed : int ≥ 0.
+        estimator : "auto", "forward" or "backward".
+        force_effects : effect names to compile in although the scene does not need them.
+        progress : callable(photons, worst_relative_error, seconds), called between rounds.
+        cancel : callable() -> bool, polled between rounds.
+        """
+        pts = _vectors(points, "points")
+        k = len(pts)
+        if k == 0:
+            raise SimulationError("points must hold at least one point")
+        nrm = _vectors(normals, "normals", k)
+        ln = np.linalg.norm(nrm, axis=1)
+        if np.any(ln <= 0):
+            raise SimulationError(f"normal {int(np.argmax(ln <= 0))} is the zero vector")
+        nrm = nrm / ln[:, None]
+        r = DEFAULT_RADIUS if radius is None else radius
+        if isinstance(r, bool) or not isinstance(r, int | float) or not (0 < r < math.inf):
+            raise SimulationError(f"radius must be a positive finite number of metres, got {radius!r}")
+        r = float(r)
+        centers = np.array([p + sensor_offset(p) * n for p, n in zip(pts, nrm, strict=True)])
+        return self._run(False, centers, nrm, r, None, target_relative_error, max_seconds, max_photons, seed,
+                         estimator, force_effects, progress, cancel)
+
+    def grid(self, origin, u, v, nu, nv, target_relative_error=None, max_seconds=None, max_photons=None, seed=0,
+             estimator="auto", force_effects=(), progress=None, cancel=None) -> GridResult:
+        """Cell-average illuminance (lx) over a grid sensor origin + s u + t v, front side u × v.
+
+        Returns a `GridResult` whose `lux` and `stderr` are (nv, nu) arrays. Other parameters as
+        for `illuminance`.
+        """
+        o, uu, vv = _vec3(origin, "origin"), _vec3(u, "u"), _vec3(v, "v")
+        for name, val in (("nu", nu), ("nv", nv)):
+            if isinstance(val, bool) or not isinstance(val, int | np.integer) or not 1 <= val <= 4096:
+                raise SimulationError(f"{name} must be an integer in [1, 4096], got {val!r}")
+        nrm = np.cross(uu, vv)
+        ln = float(np.linalg.norm(nrm))
+        if not ln > 1e-12 * float(np.linalg.norm(uu) * np.linalg.norm(vv)) or ln == 0.0:
+            raise SimulationError("u and v must be non-zero and not parallel")
+        nrm = nrm / ln
+        far = max(np.max(np.abs(o)), np.max(np.abs(o + uu + vv)))
+        o = o + sensor_offset(np.array([far])) * nrm
+        res = self._run(True, o, nrm, 0.0, (uu, vv, int(nu), int(nv)), target_relative_error, max_seconds,
+                        max_photons, seed, estimator, force_effects, progress, cancel)
+        return GridResult(res.lux.reshape(int(nv), int(nu)), res.stderr.reshape(int(nv), int(nu)), res.photons,
+                          res.seconds, res.effects, res.estimator, res.stop_reason, res.batches, res.rejected,
+                          res.counters, res.compile_seconds)
+
+    # ------------------------------------------------------------------------------------------ engine
+
+    def _run(self, is_grid, centers, normals, radius, grid, target, max_seconds, max_photons, seed, estimator,
+             force_effects, progress, cancel) -> IlluminanceResult:
+        budget = _budget(target, max_seconds, max_photons)
+        if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or not 0 <= seed < 2 ** 63:
+            raise SimulationError(f"seed must be an integer in [0, 2**63), got {seed!r}")
+        if force_effects is None:
+            force_effects = ()
+        if isinstance(force_effects, str):
+            force_effects = (force_effects,)
+        unknown = sorted(set(force_effects) - set(EFFECTS))
+        if unknown:
+            raise SimulationError(f"unknown effect(s) {unknown} in force_effects; known: {list(EFFECTS)}")
+        effects = with_forced(self.effects, tuple(force_effects))
+        which = self._choose(estimator, effects, is_grid)
+        flags = tuple(flags_for(effects))
+        if which == "backward":
+            effects = ["lambertian"]
+        t0 = time.perf_counter()
+        with self._lock:
+            if which == "forward":
+                return self._forward(is_grid, centers, normals, radius, grid, budget, int(seed), flags, effects,
+                                     progress, cancel, t0)
+            return self._backward(is_grid, centers, normals, radius, grid, budget, int(seed), effects, progress,
+                                  cancel, t0)
+
+    def _loop(self, run_round, n_bins, per_batch, budget, progress, cancel, t0):
+        """Rounds of batches until a stop rule holds; returns (Estimate, batches, stop_reason, counters)."""
+        est = Estimate.empty(n_bins)
+        batches = 0
+        counters = None
+        while True:
+            nb = ROUND_BATCHES
+            if budget.max_photons is not None:
+                nb = min(nb, max(1, (budget.max_photons - batches * per_batch) // per_batch))
+            values, cnt = run_round(batches, nb)
+            est.add(values)
+            counters = cnt.sum(axis=0) if counters is None else counters + cnt.sum(axis=0)
+            batches += nb
+            elapsed = time.perf_counter() - t0
+            rel = est.relative_error()
+            worst = float(np.max(rel)) if rel.size else 0.0
+            if progress is not None:
+                progress(batches * per_batch, worst, elapsed)
+            if cancel is not None and cancel():
+                return est, batches, "cancelled", counters
+            if budget.target is not None and batches >= MIN_BATCHES and worst <= budget.target:
+                return est, batches, "target_relative_error", counters
+            if budget.max_photons is not None and (batches + 1) * per_batch > budget.max_photons:
+                return est, batches, "max_photons", counters
+            if budget.max_seconds is not None and elapsed >= budget.max_seconds:
+                return est, batches, "max_seconds", counters
+
+    def _forward(self, is_grid, centers, normals, radius, grid, budget, seed, flags, effects, progress, cancel, t0):
+        scene = self.scene
+        added: list[int] = []
+        try:
+            if is_grid:
+                uu, vv, nu, nv = grid
+                added.append(scene.add_rect_sensor(centers, uu, vv))
+                n_bins = nu * nv
+                area = np.full(n_bins, float(np.linalg.norm(np.cross(uu, vv))) / (nu * nv))
+            else:
+                for c, n in zip(centers, normals, strict=True):
+                    added.append(scene.add_disk_sensor(c, n, radius))
+                n_bins = len(centers)
+                area = np.full(n_bins, math.pi * radius * radius)
+            scene.commit()
+            sa = scene.arrays()
+            n_inst = max(int(max(scene.instances())) + 1, len(self._mats.kind))
+            bin0 = np.full(n_inst, -1, np.int64)
+            snu = np.ones(n_inst, np.int64)
+            snv = np.ones(n_inst, np.int64)
+            if is_grid:
+                bin0[added[0]] = 0
+                snu[added[0]], snv[added[0]] = grid[2], grid[3]
+            else:
+                bin0[added] = np.arange(len(added))
+            sens = SensorArrays(bin0, snu, snv)
+            mats = self._materials_for(n_inst)
+            per_batch = FORWARD_BATCH
+            if budget.max_photons is not None:
+                per_batch = int(min(FORWARD_BATCH, max(100, budget.max_photons // (4 * ROUND_BATCHES))))
+            compile_s = self._warm(("forward",) + flags, lambda: forward_batches(
+                sa, mats, self._lights, sens, n_bins, seed, 0, 1, 1, *flags))
+
+            def run_round(b0, nb):
+                flux, cnt = forward_batches(sa, mats, self._lights, sens, n_bins, seed, b0, nb, per_batch, *flags)
+                return flux / area[None, :], cnt
+
+            est, batches, stop, counters = self._loop(run_round, n_bins, per_batch, budget, progress, cancel, t0)
+        finally:
+            for i in added:
+                scene.remove_instance(i)
+            if added:
+                scene.commit()
+        cdict = {name: int(c) for name, c in zip(COUNTERS, counters, strict=True)}
+        return IlluminanceResult(est.mean, est.stderr, batches * per_batch, time.perf_counter() - t0, effects,
+                                 "forward", stop, batches, cdict["rejected"], cdict, compile_s)
+
+    def _backward(self, is_grid, centers, normals, radius, grid, budget, seed, effects, progress, cancel, t0):
+        if is_grid:
+            uu, vv, nu, nv = grid
+            k = nu * nv
+            jj, ii = np.divmod(np.arange(k), nu)
+            o = centers[None, :] + (ii / nu)[:, None] * uu[None, :] + (jj / nv)[:, None] * vv[None, :]
+            q = QueryArrays(np.ones(k, np.int64), o, np.tile(uu / nu, (k, 1)), np.tile(vv / nv, (k, 1)),
+                            np.tile(normals, (k, 1)))
+        else:
+            q = disk_queries(centers, normals, radius)
+            k = len(centers)
+        sa = self.scene.arrays()
+        n_inst = max(int(max(self.scene.instances())) + 1, len(self._mats.kind))
+        mats = self._materials_for(n_inst)
+        paths = BACKWARD_BATCH
+        per_batch = paths * k
+        if budget.max_photons is not None:
+            paths = int(min(BACKWARD_BATCH, max(1, budget.max_photons // (4 * ROUND_BATCHES * k))))
+            per_batch = paths * k
+        compile_s = self._warm(("backward",), lambda: backward_batches(sa, mats, self._lights, q, seed, 0, 1, 1))
+
+        def run_round(b0, nb):
+            return backward_batches(sa, mats, self._lights, q, seed, b0, nb, paths)
+
+        est, batches, stop, counters = self._loop(run_round, k, per_batch, budget, progress, cancel, t0)
+        cdict = {"rejected": int(counters[0]), "truncated": int(counters[1])}
+        return IlluminanceResult(est.mean, est.stderr, batches * per_batch, time.perf_counter() - t0, effects,
+                                 "backward", stop, batches, cdict["rejected"], cdict, compile_s)
+
+    @staticmethod
+    def _warm(variant: tuple, call: Callable[[], object]) -> float:
+        """Compile (or load from cache) a kernel variant on a one-photon batch; seconds it took, once per process."""
+        if variant in _COMPILE_SECONDS:
+            return 0.0
+        t = time.perf_counter()
+        call()
+        _COMPILE_SECONDS[variant] = time.perf_counter() - t
+        return _COMPILE_SECONDS[variant]
+
+
+def compile_seconds() -> dict[str, float]:
+    """Seconds each kernel variant took to compile or load, this process: {"forward/specular,...": s}."""
+    out = {}
+    for variant, s in _COMPILE_SECONDS.items():
+        name = variant[0]
+        if len(variant) > 1:
+            on = [n for n, f in zip(("specular", "fresnel", "absorption", "scattering"), variant[1:], strict=True)
+                  if f is not None]
+            name += "/" + (",".join(on) if on else "lambertian")
+        out[name] = s
+    return out
+
+
+def _is_sensor(scene, i: int) -> bool:
+    fn = getattr(scene, "is_sensor", None)
+    if fn is not None:
+        return bool(fn(i))
+    try:
+        scene.instance_geometry(i)
+    except Exception:
+        return True
+    return False
