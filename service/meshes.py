@@ -47,7 +47,7 @@ def _glb_has_normals(data: bytes) -> bool:
         raise Invalid("the body is not a GLB file (it must start with the magic 'glTF')")
     version, length = struct.unpack_from("<II", data, 4)
     if version != 2:
-        raise Invalid(f"only glTF 2 binaries are accepted, got version {version}")
+        raise Invalid(f"only glTF 2 binaries (GLB version 2) are accepted, got version {version}")
     if length != len(data):
         raise Invalid(f"GLB header says {length} bytes but the body has {len(data)}")
     chunk_length, chunk_type = struct.unpack_from("<II", data, 12)

@@ -71,3 +71,29 @@ def make_client(data_dir: Path, **settings: Any):
 
     app = create_app(Settings(data_dir=data_dir, log_requests=False, **settings))
     return TestClient(app, raise_server_exceptions=False)
+
+
+def raw_glb(positions: np.ndarray, indices: np.ndarray) -> bytes:
+    """A one-primitive GLB written by hand, so tests can make meshes no encoder would (bad indices)."""
+    import json
+    import struct
+
+    pos = np.ascontiguousarray(positions, dtype="<f4")
+    idx = np.ascontiguousarray(indices, dtype="<u4").ravel()
+    binary = pos.tobytes() + idx.tobytes()
+    binary += b"\0" * (-len(binary) % 4)
+    gltf = {
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "buffers": [{"byteLength": len(binary)}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": pos.nbytes},
+                        {"buffer": 0, "byteOffset": pos.nbytes, "byteLength": idx.nbytes}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": len(pos), "type": "VEC3",
+                       "min": pos.min(axis=0).tolist(), "max": pos.max(axis=0).tolist()},
+                      {"bufferView": 1, "componentType": 5125, "count": len(idx), "type": "SCALAR"}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "mode": 4}]}],
+    }
+    text = json.dumps(gltf).encode()
+    text += b" " * (-len(text) % 4)
+    total = 12 + 8 + len(text) + 8 + len(binary)
+    return (struct.pack("<4sII", b"glTF", 2, total) + struct.pack("<II", len(text), 0x4E4F534A) + text
+            + struct.pack("<II", len(binary), 0x004E4942) + binary)
