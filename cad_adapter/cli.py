@@ -142,7 +142,7 @@ def push(file: Path, scene: str, server: str, linear: float | None = None, angul
          relative: bool = False, json_out: bool = False, *, transport: Any = None,
          cache_dir: Path | None = None) -> int:
     """``lumenlink push FILE --scene NAME``: one push; returns the exit code."""
-    console = Console(stderr=True)
+    console = Console(stderr=True, soft_wrap=True)
     if not _check_options(linear, angular, relative, console):
         return EXIT_INPUT
     cache = TessellationCache(cache_dir if cache_dir is not None else default_cache_dir())
@@ -167,7 +167,7 @@ def watch(file: Path, scene: str, server: str, linear: float | None = None, angu
     (a half-written file, the service down, a 409) is reported and the watch goes on; the tessellation
     cache stays in memory, so each push meshes only the parts that changed.
     """
-    console = Console(stderr=True)
+    console = Console(stderr=True, soft_wrap=True)
     if not _check_options(linear, angular, relative, console):
         return EXIT_INPUT
     if not isinstance(debounce, int | float) or debounce < 0:

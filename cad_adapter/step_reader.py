@@ -249,6 +249,8 @@ def read_xcaf(path: str | Path) -> tuple[TDocStd_Document, STEPCAFControl_Reader
     status = reader.ReadFile(str(p))
     if status != IFSelect_RetDone:
         raise CadImportError(f"{p}: OCCT could not parse this STEP file (status {int(status)})")
+    if reader.NbRootsForTransfer() == 0:
+        raise EmptyDocumentError(f"{p}: the STEP file holds no product or shape to read")
     unit = _file_unit(reader)
     if unit is None:
         warnings.append("the file declares no length unit this reader knows; millimetres assumed")

@@ -1,7 +1,225 @@
-"""UUIDs carried inside STEP files (placeholder until the writer lands)."""
+"""UUIDs carried inside STEP files: a writer that puts them in, and the reader's side that finds them.
+
+Where the UUIDs go (OCP allows it through the STEP model the XCAF writer builds, before it is written):
+
+* a component occurrence (``NEXT_ASSEMBLY_USAGE_OCCURRENCE``): its ``id`` attribute holds the node's UUID;
+* a root (a free ``PRODUCT`` with no parent): the product's ``id`` holds the root node's UUID.
+
+The writer names each XCAF label with a unique token while transferring, finds the entity that carries
+the token in the STEP model, moves the UUID into its ``id`` and restores the real name, so names in the
+file stay what the document had.
+
+Limit: a NAUO is one usage of a product in its parent *product*; when a sub-assembly is used several
+times (as1-oc-214's nut-bolt assembly) its inner NAUOs are shared by all its occurrences, so a UUID there
+would be ambiguous. The reader therefore applies a carried UUID only to a component that occurs exactly
+once in the tree; the others fall back on the sidecar. The writer writes the tree it is given (one
+product per part, one per assembly node), where every NAUO is one occurrence.
+"""
 
 from __future__ import annotations
 
+from pathlib import Path
 
-def carried_uuids(reader, doc) -> dict[str, str]:
-    return {}
+from OCP.gp import gp_Trsf
+from OCP.IFSelect import IFSelect_RetDone
+from OCP.Interface import Interface_Static
+from OCP.Quantity import Quantity_Color, Quantity_TOC_RGB
+from OCP.StepBasic import StepBasic_Product
+from OCP.STEPCAFControl import STEPCAFControl_Reader, STEPCAFControl_Writer
+from OCP.STEPConstruct import STEPConstruct_Tool
+from OCP.STEPControl import STEPControl_AsIs
+from OCP.StepRepr import StepRepr_NextAssemblyUsageOccurrence
+from OCP.TCollection import TCollection_ExtendedString, TCollection_HAsciiString
+from OCP.TDataStd import TDataStd_Name
+from OCP.TDF import TDF_Label, TDF_LabelSequence
+from OCP.TDocStd import TDocStd_Document
+from OCP.TopLoc import TopLoc_Location
+from OCP.XCAFApp import XCAFApp_Application
+from OCP.XCAFDoc import XCAFDoc_ColorSurf, XCAFDoc_DocumentTool, XCAFDoc_ShapeTool
+from OCP.XSControl import XSControl_WorkSession
+
+from .errors import CadAdapterError
+from .step_reader import UUID_RE, label_entry, label_name
+from .tree import UNIT_METRES, Document
+
+_STEP_UNIT = {"mm": "MM", "cm": "CM", "m": "M", "um": "UM", "in": "INCH", "ft": "FT"}
+
+
+def _entities(model):
+    for i in range(1, model.NbEntities() + 1):
+        yield model.Value(i)
+
+
+def _text(h) -> str:
+    return "" if h is None else str(h.ToCString())
+
+
+def carried_uuids(reader: STEPCAFControl_Reader, doc: TDocStd_Document) -> dict[str, str]:
+    """UUIDs a read STEP file carries, by XCAF label entry (component labels and free-shape labels).
+
+    A NAUO whose ``id`` is a UUID marks its component; a root product whose ``id`` is a UUID marks the
+    free shape of the same name. Malformed or missing ids are ignored (the sidecar takes over).
+    """
+    ws = reader.ChangeReader().WS()
+    model = reader.ChangeReader().Model()
+    if model is None:
+        return {}
+    shape_tool = XCAFDoc_DocumentTool.ShapeTool_s(doc.Main())
+    tool = STEPConstruct_Tool(ws)
+    label_map = reader.GetShapeLabelMap()
+    out: dict[str, str] = {}
+    root_products: dict[str, str] = {}
+    for ent in _entities(model):
+        if isinstance(ent, StepRepr_NextAssemblyUsageOccurrence):
+            text = _text(ent.Id())
+            if UUID_RE.fullmatch(text):
+                try:
+                    label = STEPCAFControl_Reader.FindInstance_s(ent, shape_tool, tool, label_map)
+                except Exception:  # OCCT cannot place it: leave it to the sidecar
+                    continue
+                if not label.IsNull():
+                    out[label_entry(label)] = text.lower()
+        elif isinstance(ent, StepBasic_Product):
+            text = _text(ent.Id())
+            if UUID_RE.fullmatch(text):
+                root_products.setdefault(_text(ent.Name()), text.lower())
+    if root_products:
+        labels = TDF_LabelSequence()
+        shape_tool.GetFreeShapes(labels)
+        for i in range(1, labels.Length() + 1):
+            lab = labels.Value(i)
+            u = root_products.get(label_name(lab))
+            if u is not None:
+                out.setdefault(label_entry(lab), u)
+    return _only_single_occurrences(out, shape_tool)
+
+
+def _only_single_occurrences(found: dict[str, str], shape_tool) -> dict[str, str]:
+    """Drop component UUIDs whose component is reached more than once (a shared sub-assembly's inside)."""
+    counts: dict[str, int] = {}
+
+    def walk(label, depth: int) -> None:
+        comps = TDF_LabelSequence()
+        shape_tool.GetComponents_s(label, comps)
+        for i in range(1, comps.Length() + 1):
+            comp = comps.Value(i)
+            e = label_entry(comp)
+            counts[e] = counts.get(e, 0) + 1
+            ref = TDF_Label()
+            if shape_tool.GetReferredShape_s(comp, ref) and shape_tool.IsAssembly_s(ref) and depth < 64:
+                walk(ref, depth + 1)
+
+    labels = TDF_LabelSequence()
+    shape_tool.GetFreeShapes(labels)
+    for i in range(1, labels.Length() + 1):
+        lab = labels.Value(i)
+        counts[label_entry(lab)] = counts.get(label_entry(lab), 0) + 1
+        walk(lab, 0)
+    return {e: u for e, u in found.items() if counts.get(e, 0) == 1}
+
+
+def _set_name(label, text: str) -> None:
+    TDataStd_Name.Set_s(label, TCollection_ExtendedString(text))
+
+
+def write_step(doc: Document, path: str | Path) -> Path:
+    """Write a document (with UUIDs assigned) as STEP AP214, each node's UUID carried in the file.
+
+    Parameters
+    ----------
+    doc : Document
+        Read from STEP or cadquery; every node needs ``uuid``. Parts keep their instancing (one product
+        per part, one occurrence per node).
+    path : path
+        Output file (overwritten).
+
+    Returns
+    -------
+    pathlib.Path
+
+    Raises
+    ------
+    CadAdapterError
+        A node without UUID, or OCCT fails to write.
+    """
+    if any(n.uuid is None for n in doc.nodes):
+        raise CadAdapterError("every node needs a UUID before writing (run cad_adapter.identity.identify)")
+    if doc.length_unit not in UNIT_METRES:
+        raise CadAdapterError(f"unknown length unit {doc.length_unit!r}")
+    app = XCAFApp_Application.GetApplication_s()
+    xdoc = TDocStd_Document(TCollection_ExtendedString("XmlXCAF"))
+    app.InitDocument(xdoc)
+    XCAFDoc_DocumentTool.SetLengthUnit_s(xdoc, UNIT_METRES[doc.length_unit])
+    tool = XCAFDoc_DocumentTool.ShapeTool_s(xdoc.Main())
+    tool.SetAutoNaming_s(False)
+    ctool = XCAFDoc_DocumentTool.ColorTool_s(xdoc.Main())
+    part_labels = {}
+    for key, part in doc.parts.items():
+        lab = tool.AddShape(part.shape, False, False)
+        _set_name(lab, part.name or key)
+        if XCAFDoc_ShapeTool.IsReference_s(lab):  # a located shape: name its prototype too
+            proto = TDF_Label()
+            XCAFDoc_ShapeTool.GetReferredShape_s(lab, proto)
+            _set_name(proto, part.name or key)
+        if part.color is not None:
+            ctool.SetColor(lab, Quantity_Color(*part.color, Quantity_TOC_RGB), XCAFDoc_ColorSurf)
+        part_labels[key] = lab
+    tokens: dict[str, tuple[str, str]] = {}  # token -> (uuid, real name)
+    node_labels = {}
+
+    def loc_of(m) -> TopLoc_Location:
+        t = gp_Trsf()
+        t.SetValues(*[float(m[r, c]) for r in range(3) for c in range(4)])
+        return TopLoc_Location(t)
+
+    for n in doc.nodes:
+        token = f"LLTOKEN{n.index:08d}"
+        tokens[token] = (n.uuid, n.name)
+        kids = doc.children(n.index)
+        if n.parent is None:
+            # a root: a free assembly label (even for a single part, so that the product id can carry its UUID)
+            lab = tool.NewShape()
+            _set_name(lab, token)
+            node_labels[n.index] = lab
+            if n.part is not None:
+                comp = tool.AddComponent(lab, part_labels[n.part], loc_of(n.transform))
+                _set_name(comp, n.name)
+            continue
+        parent_lab = node_labels[n.parent]
+        if n.part is not None and not kids:
+            comp = tool.AddComponent(parent_lab, part_labels[n.part], loc_of(n.transform))
+        else:
+            sub = tool.NewShape()
+            _set_name(sub, n.name)
+            node_labels[n.index] = sub
+            if n.part is not None:
+                tool.AddComponent(sub, part_labels[n.part], TopLoc_Location())
+            comp = tool.AddComponent(parent_lab, sub, loc_of(n.transform))
+        _set_name(comp, token)
+        if n.color is not None and (n.part is None or n.color != doc.parts[n.part].color):
+            ctool.SetColor(comp, Quantity_Color(*n.color, Quantity_TOC_RGB), XCAFDoc_ColorSurf)
+    tool.UpdateAssemblies()
+    session = XSControl_WorkSession()
+    writer = STEPCAFControl_Writer(session, False)
+    writer.SetNameMode(True)
+    writer.SetColorMode(True)
+    Interface_Static.SetCVal_s("write.step.schema", "AP214IS")
+    Interface_Static.SetCVal_s("write.step.unit", _STEP_UNIT[doc.length_unit])
+    if not writer.Transfer(xdoc, STEPControl_AsIs):
+        raise CadAdapterError("OCCT could not transfer the document to STEP")
+    model = writer.ChangeWriter().Model()
+    found = 0
+    for ent in _entities(model):
+        if isinstance(ent, StepRepr_NextAssemblyUsageOccurrence | StepBasic_Product):
+            name = _text(ent.Name())
+            if name in tokens:
+                uuid, real = tokens[name]
+                ent.SetId(TCollection_HAsciiString(uuid))
+                ent.SetName(TCollection_HAsciiString(real))
+                found += 1
+    p = Path(path)
+    if writer.Write(str(p)) != IFSelect_RetDone:
+        raise CadAdapterError(f"{p}: OCCT could not write the STEP file")
+    if found < len(doc.nodes):
+        raise CadAdapterError(f"only {found} of {len(doc.nodes)} node UUIDs could be placed in the STEP model")
+    return p
