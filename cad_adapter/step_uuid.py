@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy
 from OCP.gp import gp_Trsf
 from OCP.IFSelect import IFSelect_RetDone
 from OCP.Interface import Interface_Static
@@ -155,7 +156,8 @@ def write_step(doc: Document, path: str | Path) -> Path:
     ctool = XCAFDoc_DocumentTool.ColorTool_s(xdoc.Main())
     part_labels = {}
     for key, part in doc.parts.items():
-        lab = tool.AddShape(part.shape, False, False)
+        # a deep copy: the STEP writer's shape processing adjusts tolerances in place
+        lab = tool.AddShape(BRepBuilderAPI_Copy(part.shape, True, False).Shape(), False, False)
         _set_name(lab, part.name or key)
         if XCAFDoc_ShapeTool.IsReference_s(lab):  # a located shape: name its prototype too
             proto = TDF_Label()

@@ -11,8 +11,9 @@ angular     0.5 rad  angular deflection between adjacent facets
 relative    False    linear deflection relative to each part's own size, not the document's
 ==========  =======  ==========================================================================
 
-Determinism: every part's old triangulation is removed before meshing (``BRepTools.Clean``), so the
-result depends only on the B-rep and the settings, never on what was meshed before; the same part and
+Determinism: each part is meshed as a deep copy without triangulation (``BRepBuilderAPI_Copy``), so the
+result depends only on the B-rep and the settings, never on what was meshed before, and the document's
+shapes are never modified (meshing adjusts edge tolerances); the same part and
 settings give byte-identical arrays, hence the same geometry id. OCCT's parallel mode meshes the faces
 of a part concurrently; each face's mesh does not depend on the order faces finish in.
 
@@ -39,6 +40,7 @@ from OCP.BinTools import BinTools, BinTools_FormatVersion
 from OCP.Bnd import Bnd_Box
 from OCP.BRep import BRep_Tool
 from OCP.BRepBndLib import BRepBndLib
+from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy
 from OCP.BRepLib import BRepLib_ToolTriangulatedShape
 from OCP.BRepMesh import BRepMesh_IncrementalMesh
 from OCP.BRepTools import BRepTools
@@ -261,6 +263,9 @@ def mesh_shape(shape, deflection: float, angular: float, parallel: bool = True) 
     """
     if not has_faces(shape):
         return None, 0
+    # mesh a deep copy without any triangulation: meshing also adjusts edge tolerances, so meshing the
+    # document's own shape would change it (and its digest, and any later meshing of it)
+    shape = BRepBuilderAPI_Copy(shape, True, False).Shape()
     BRepTools.Clean_s(shape, True)
     try:
         mesher = BRepMesh_IncrementalMesh(shape, deflection, False, angular, parallel)
@@ -272,6 +277,13 @@ def mesh_shape(shape, deflection: float, angular: float, parallel: bool = True) 
     if len(t) == 0:
         raise TessellationError(f"no face could be meshed ({missing} face(s) without triangles)")
     v32, t32, n32 = canonical_arrays(v, t, n.astype(np.float32))
+    # triangles collapsed to a segment (two corners at the same float32 point, e.g. at the pole of a
+    # revolved surface) have no normal and no area: drop them, they only confuse a ray tracer
+    corners = v32[t32]
+    collapsed = ((corners[:, 0] == corners[:, 1]).all(axis=1) | (corners[:, 1] == corners[:, 2]).all(axis=1)
+                 | (corners[:, 2] == corners[:, 0]).all(axis=1))
+    if collapsed.any():
+        t32 = np.ascontiguousarray(t32[~collapsed])
     return Mesh(v32, t32, n32, geometry_id(v32, t32, n32), deflection), missing
 
 
