@@ -17,11 +17,16 @@ Both estimators estimate exactly these patch averages, so they agree within thei
   lights. ``"auto"`` takes it for `illuminance` where it applies, and forward otherwise and for
   grids; the result says which ran.
 
-A query point may lie exactly on a surface (a receiver on the floor). Its patch is moved off the
-plane by `sensor_offset(p)` along its normal, a hair (≥ 1e-9 m, 2⁻²⁸ of the coordinate magnitude,
-≈ 16 times the distance `tracer.spawn.offset_ray_origin` moves spawned rays), so light arriving
-at the floor crosses the receiver before it hits the floor and light leaving the floor does not
-cross it from the front.
+A query point may lie exactly on a surface (a receiver on the floor). The mesh is stored in float32,
+so the surface the rays meet may lie a little above or below the point given. `place_receivers`
+therefore probes along the normal from `probe_distance(p)` (1e-6 m + 2⁻²⁰ × the coordinate
+magnitude, 16 float32 ulps) above the point down to as far below it; where it meets a surface, the
+receiver is put on the surface the rays actually meet. In every case it then sits `sensor_offset`
+in front: max(1e-9 m, 2⁻⁴⁴ × the coordinate magnitude), 5.7e-9 m at 1e5 m from the origin, ~400
+float64 ulps there — far above the error of the crossing distances (computed in object space, where
+an instance's translation has cancelled), so light arriving at the floor crosses the receiver
+before it hits the floor, and far too small to change the answer. Light leaving the floor crosses
+the receiver from behind (spawned rays start 2⁻³² × magnitude off the surface) and is not counted.
 
 Estimation: independent batches seeded from (seed, batch index) through the counter-based
 `tracer.rng`; batch sizes depend only on the request, batches are started in rounds of
@@ -100,7 +105,27 @@ class GridResult(IlluminanceResult):
 
 def sensor_offset(p: np.ndarray) -> float:
     """How far a query patch is moved off its plane along its normal, m (see the module docstring)."""
-    return max(1e-9, 2.0 ** -28 * float(np.max(np.abs(p))))
+    return max(1e-9, 2.0 ** -44 * float(np.max(np.abs(p))))
+
+
+def probe_distance(p: np.ndarray) -> float:
+    """How far from a query point a surface is taken to be the one it lies on, m (16 float32 ulps)."""
+    return 1e-6 + 2.0 ** -20 * float(np.max(np.abs(p)))
+
+
+def place_receivers(scene, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Receiver centres (k, 3): each point moved onto the surface it lies on (if any, within
+    `probe_distance`) and then `sensor_offset` along its unit normal (see the module docstring)."""
+    h = np.array([probe_distance(p) for p in points])
+    origins = points + h[:, None] * normals
+    hits = scene.intersect(origins, -normals)
+    out = np.empty_like(points)
+    for i in range(len(points)):
+        base = points[i]
+        if hits.instance[i] >= 0 and hits.t[i] <= 2.0 * h[i]:
+            base = origins[i] - hits.t[i] * normals[i]
+        out[i] = base + sensor_offset(base) * normals[i]
+    return out
 
 
 def _vectors(a, name: str, k: int | None = None) -> np.ndarray:
@@ -258,7 +283,7 @@ class Simulation:
         if isinstance(r, bool) or not isinstance(r, int | float) or not (0 < r < math.inf):
             raise SimulationError(f"radius must be a positive finite number of metres, got {radius!r}")
         r = float(r)
-        centers = np.array([p + sensor_offset(p) * n for p, n in zip(pts, nrm, strict=True)])
+        centers = place_receivers(self.scene, pts, nrm)
         return self._run(False, centers, nrm, r, None, target_relative_error, max_seconds, max_photons, seed,
                          estimator, force_effects, progress, cancel)
 
@@ -278,8 +303,8 @@ class Simulation:
         if not ln > 1e-12 * float(np.linalg.norm(uu) * np.linalg.norm(vv)) or ln == 0.0:
             raise SimulationError("u and v must be non-zero and not parallel")
         nrm = nrm / ln
-        far = max(np.max(np.abs(o)), np.max(np.abs(o + uu + vv)))
-        o = o + sensor_offset(np.array([far])) * nrm
+        centre = o + 0.5 * (uu + vv)
+        o = o + (place_receivers(self.scene, centre[None, :], nrm[None, :])[0] - centre) @ nrm * nrm
         res = self._run(True, o, nrm, 0.0, (uu, vv, int(nu), int(nv)), target_relative_error, max_seconds,
                         max_photons, seed, estimator, force_effects, progress, cancel)
         return GridResult(res.lux.reshape(int(nv), int(nu)), res.stderr.reshape(int(nv), int(nu)), res.photons,
