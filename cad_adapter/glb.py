@@ -12,8 +12,7 @@ import io
 import numpy as np
 import trimesh
 
-from tracer.geometry_id import canonical_arrays
-
+from ._geometry_id import canonical_arrays
 from .errors import CadAdapterError
 
 MEDIA_TYPE = "model/gltf-binary"

@@ -49,8 +49,7 @@ from OCP.TopExp import TopExp_Explorer
 from OCP.TopLoc import TopLoc_Location
 from OCP.TopoDS import TopoDS
 
-from tracer.geometry_id import canonical_arrays, geometry_id
-
+from ._geometry_id import canonical_arrays, geometry_id
 from .errors import TessellationError
 from .tree import UNIT_METRES, Document
 
