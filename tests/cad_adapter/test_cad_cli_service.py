@@ -1,0 +1,137 @@
+"""``lumenlink push`` / ``watch`` end to end against a real service process (tests/service_process.py)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+from cad_helpers import car
+
+import cad_adapter
+from cad_adapter import cli
+from cad_adapter.client import Pusher
+from cad_adapter.errors import RevisionConflict
+from cad_adapter.step_uuid import write_step
+
+ROOT = Path(__file__).resolve().parents[2]
+
+try:
+    from service_process import free_port, running_service
+
+    import service.app  # noqa: F401  (the service and the tracer it needs must import)
+
+    HAVE_SERVICE = True
+    WHY = ""
+except ImportError as exc:  # the service is another issue; say why the test cannot run
+    HAVE_SERVICE = False
+    WHY = f"the service cannot be started here: {exc}"
+
+pytestmark = [pytest.mark.skipif(not HAVE_SERVICE, reason=WHY or "no service"), pytest.mark.slow]
+
+COARSE_ARGS = ["--linear", "1.0", "--angular", "0.8"]
+
+
+@pytest.fixture(scope="module")
+def service(tmp_path_factory):
+    with running_service(tmp_path_factory.mktemp("service")) as url:
+        yield url
+
+
+def write_car(path: Path, door: float = 0.0, radius: float = 120.0) -> dict[str, str]:
+    """Write the sample car with stable UUIDs (the sidecar beside ``path``); returns name -> uuid."""
+    doc = cad_adapter.read_document(car(door, radius), sidecar=path.with_name(path.name + ".ids.json"))
+    write_step(doc, path)
+    return {n.name: n.uuid for n in doc.nodes}
+
+
+def run_cli(*args: str, env_extra: dict | None = None) -> subprocess.CompletedProcess:
+    env = {**os.environ, **(env_extra or {})}
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
+    return subprocess.run([sys.executable, "-m", "lumenlink.cli", *args], capture_output=True, text=True, env=env,
+                          cwd=ROOT, timeout=600)
+
+
+def test_push_edit_move_through_the_real_cli(service, tmp_path) -> None:
+    step = tmp_path / "car.step"
+    ids = write_car(step)
+    env = {"LUMENLINK_CACHE_DIR": str(tmp_path / "cache")}
+    first = run_cli("push", str(step), "--scene", "cli-car", "--server", service, "--json", *COARSE_ARGS, env_extra=env)
+    assert first.returncode == 0, first.stderr
+    a = json.loads(first.stdout)
+    assert sorted(a["added"]) == sorted(ids.values())
+    assert a["blas_built"] == 7 and a["instances"] == 10
+
+    same = json.loads(run_cli("push", str(step), "--scene", "cli-car", "--server", service, "--json", *COARSE_ARGS,
+                              env_extra=env).stdout)
+    assert same["unchanged"] == 12 and not same["added"] and not same["geometry_changed"] and same["blas_built"] == 0
+
+    write_car(step, radius=150.0)  # the lens only
+    edited = run_cli("push", str(step), "--scene", "cli-car", "--server", service, "--json", *COARSE_ARGS,
+                     env_extra=env)
+    e = json.loads(edited.stdout)
+    assert e["geometry_changed"] == [ids["lens"]]
+    assert e["blas_built"] == 1 and not e["added"] and not e["removed"] and not e["moved"]
+
+    write_car(step, door=40.0, radius=150.0)  # a move
+    moved = run_cli("push", str(step), "--scene", "cli-car", "--server", service, *COARSE_ARGS, env_extra=env)
+    assert moved.returncode == 0, moved.stderr
+    assert "moved 2" in moved.stdout and "geometry changed 0" in moved.stdout and "0 uploaded" in moved.stdout
+
+
+def test_push_to_a_stopped_service_fails_cleanly(tmp_path) -> None:
+    step = tmp_path / "car.step"
+    write_car(step)
+    r = run_cli("push", str(step), "--scene", "x", "--server", f"http://127.0.0.1:{free_port()}", *COARSE_ARGS,
+                env_extra={"LUMENLINK_CACHE_DIR": str(tmp_path / "cache")})
+    assert r.returncode == cli.EXIT_UNREACHABLE
+    assert "cannot reach the service" in r.stderr
+
+
+def test_push_bad_file_through_the_cli(service, tmp_path) -> None:
+    bad = tmp_path / "notes.step"
+    bad.write_text("hello")
+    r = run_cli("push", str(bad), "--scene", "x", "--server", service)
+    assert r.returncode == cli.EXIT_INPUT and "not a STEP file" in r.stderr
+
+
+def test_stale_revision_gets_409_and_changes_nothing(service, tmp_path) -> None:
+    doc = cad_adapter.read_document(car(), sidecar=tmp_path / "ids.json")
+    tess = cad_adapter.tessellate(doc, linear=1.0, angular=0.8)
+    with Pusher(service) as p:
+        first = p.push(doc, tess, scene="stale-car")
+        assert first.answer["revision"] == 1
+        p.push(doc, tess, scene="stale-car")  # no-op push: revision stays or moves; read it back
+        current = p.revision(first.scene_id)
+        moved = cad_adapter.read_document(car(30.0), sidecar=tmp_path / "ids.json")
+        with pytest.raises(RevisionConflict) as err:
+            p.push(moved, cad_adapter.tessellate(moved, linear=1.0, angular=0.8), scene="stale-car",
+                   base_revision=current - 1 if current > 0 else 99)
+        assert err.value.current_revision == current
+        assert p.revision(first.scene_id) == current
+
+
+def test_watch_pushes_again_when_the_file_changes(service, tmp_path) -> None:
+    step = tmp_path / "car.step"
+    ids = write_car(step)
+    codes: list[int] = []
+    t = threading.Thread(target=lambda: codes.append(cli.watch(step, "watch-car", service, linear=1.0, angular=0.8,
+                                                               debounce=0.3, poll=0.05, max_pushes=2, timeout=240,
+                                                               cache_dir=tmp_path / "cache")))
+    t.start()
+    with Pusher(service) as p:
+        deadline = time.monotonic() + 120
+        while p.scene_by_name("watch-car") is None or p.scene_by_name("watch-car")["revision"] < 1:
+            assert time.monotonic() < deadline, "the first push of watch never arrived"
+            time.sleep(0.2)
+        write_car(step, radius=150.0)
+        t.join(timeout=240)
+        assert not t.is_alive() and codes == [0]
+        scene = p.scene_by_name("watch-car")
+        assert scene["revision"] == 2
+    assert ids["lens"]
