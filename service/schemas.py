@@ -12,16 +12,17 @@ from __future__ import annotations
 import math
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, StringConstraints, model_validator
+from pydantic import BaseModel, ConfigDict, Field, Strict, StringConstraints, model_validator
 
 UUID_PATTERN = r"^[0-9a-fA-F]{8}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{12}$"
 GEOMETRY_PATTERN = r"^[0-9a-f]{64}$"
 
 Uuid = Annotated[str, StringConstraints(pattern=UUID_PATTERN, to_lower=True)]
 GeometryId = Annotated[str, StringConstraints(pattern=GEOMETRY_PATTERN)]
-Vec3 = tuple[float, float, float]
-Matrix16 = Annotated[list[float], Field(min_length=16, max_length=16)]
-Fraction = Annotated[float, Field(ge=0.0, le=1.0)]
+Num = Annotated[float, Strict()]  # a JSON number (an integer is fine; a boolean or a string is not)
+Vec3 = tuple[Num, Num, Num]
+Matrix16 = Annotated[list[Num], Field(min_length=16, max_length=16)]
+Fraction = Annotated[float, Strict(), Field(ge=0.0, le=1.0)]
 NonNegative = Annotated[float, Field(ge=0.0)]
 Positive = Annotated[float, Field(gt=0.0)]
 
@@ -30,7 +31,7 @@ LENGTH_UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001, "um": 1e-6,
 LengthUnit = Literal["m", "cm", "mm", "um", "in", "ft"]
 
 
-class Strict(BaseModel):
+class Wire(BaseModel):
     """Base of every wire model: unknown fields rejected, NaN and infinities rejected."""
 
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
@@ -43,13 +44,13 @@ def _nonzero(name: str, v: Vec3 | None) -> None:
 
 # ---------------------------------------------------------------- scenes
 
-class SceneCreate(Strict):
+class SceneCreate(Wire):
     """Body of ``POST /scenes``."""
 
     name: Annotated[str, StringConstraints(min_length=1, max_length=200, strip_whitespace=True)]
 
 
-class OrphanPublic(Strict):
+class OrphanPublic(Wire):
     """An assignment whose node a push removed: kept, and live again if the UUID comes back."""
 
     kind: Literal["material", "light", "sensor", "object"]
@@ -57,7 +58,7 @@ class OrphanPublic(Strict):
     node: str  # the missing node
 
 
-class ScenePublic(Strict):
+class ScenePublic(Wire):
     """What ``GET /scenes/{id}`` answers (DESIGN.md), plus a few counts."""
 
     id: str
@@ -79,7 +80,7 @@ class ScenePublic(Strict):
     last_commit: dict[str, Any]  # what the last tracer commit in this process built or loaded
 
 
-class SceneListItem(Strict):
+class SceneListItem(Wire):
     id: str
     name: str
     revision: int
@@ -87,18 +88,12 @@ class SceneListItem(Strict):
 
 # ---------------------------------------------------------------- the pushed document
 
-class Tessellation(BaseModel):
-    """How the adapter tessellated (informative; stored, not interpreted)."""
-
-    model_config = ConfigDict(extra="allow", allow_inf_nan=False)
-
-
-class Source(Strict):
+class Source(Wire):
     name: str | None = None
     tessellation: dict[str, float | bool | str | None] | None = None
 
 
-class NodeIn(Strict):
+class NodeIn(Wire):
     """One node of a pushed tree: parent link, local transform (row-major 4×4, document units)."""
 
     uuid: Uuid
@@ -109,7 +104,7 @@ class NodeIn(Strict):
     color: tuple[Fraction, Fraction, Fraction] | None = None
 
 
-class DocumentPush(Strict):
+class DocumentPush(Wire):
     """Body of ``PUT /scenes/{id}/document``.
 
     ``base_revision`` is the revision the client's tree is based on: a stale one gets 409
@@ -123,7 +118,7 @@ class DocumentPush(Strict):
     nodes: list[NodeIn]
 
 
-class StageSeconds(Strict):
+class StageSeconds(Wire):
     validate_: float = Field(alias="validate")
     diff: float
     blas: float
@@ -134,7 +129,7 @@ class StageSeconds(Strict):
     model_config = ConfigDict(extra="forbid", populate_by_name=True)
 
 
-class PushPublic(Strict):
+class PushPublic(Wire):
     """The answer to a push: the diff by UUID, what was rebuilt, and the seconds of each stage."""
 
     scene: str
@@ -159,17 +154,17 @@ class PushPublic(Strict):
 
 # ---------------------------------------------------------------- geometries
 
-class MissingQuery(Strict):
+class MissingQuery(Wire):
     """Body of ``POST /geometries/missing``."""
 
     ids: Annotated[list[GeometryId], Field(max_length=1_000_000)]
 
 
-class MissingPublic(Strict):
+class MissingPublic(Wire):
     missing: list[str]
 
 
-class GeometryPublic(Strict):
+class GeometryPublic(Wire):
     id: str
     vertices: int
     triangles: int
@@ -180,21 +175,21 @@ class GeometryPublic(Strict):
 
 # ---------------------------------------------------------------- materials (DESIGN.md bodies)
 
-class Lambertian(Strict):
+class Lambertian(Wire):
     type: Literal["lambertian"]
     reflectance: Fraction
 
 
-class Mirror(Strict):
+class Mirror(Wire):
     type: Literal["mirror"]
     reflectance: Fraction
 
 
-class Black(Strict):
+class Black(Wire):
     type: Literal["black"]
 
 
-class Mix(Strict):
+class Mix(Wire):
     """Diffuse + specular mix: ``diffuse`` and ``specular`` reflectances, their sum at most 1."""
 
     type: Literal["mix"]
@@ -208,7 +203,7 @@ class Mix(Strict):
         return self
 
 
-class Dielectric(Strict):
+class Dielectric(Wire):
     """A solid: Fresnel surface, homogeneous medium inside (Henyey–Greenstein ``g``)."""
 
     type: Literal["dielectric"]
@@ -221,13 +216,13 @@ class Dielectric(Strict):
 Material = Annotated[Lambertian | Mirror | Black | Mix | Dielectric, Field(discriminator="type")]
 
 
-class MaterialAssignment(Strict):
+class MaterialAssignment(Wire):
     """Wrapper used only to validate a material body (the body itself is the material)."""
 
     material: Material
 
 
-class MaterialPublic(Strict):
+class MaterialPublic(Wire):
     node: str
     material: dict[str, Any]
     orphaned: bool
@@ -235,7 +230,7 @@ class MaterialPublic(Strict):
 
 # ---------------------------------------------------------------- lights (DESIGN.md bodies)
 
-class _Attachable(Strict):
+class _Attachable(Wire):
     name: Annotated[str, StringConstraints(max_length=200)] | None = None
     attached_to: Uuid | None = None  # then positions/directions are in that node's frame, metres
 
@@ -284,7 +279,7 @@ class CollimatedLight(_Attachable):
         return self
 
 
-class AreaLight(Strict):
+class AreaLight(Wire):
     type: Literal["area"]
     name: Annotated[str, StringConstraints(max_length=200)] | None = None
     node: Uuid  # the node whose surfaces (with its descendants') emit
@@ -301,7 +296,7 @@ class GoniometricLight(_Attachable):
 Light = Annotated[PointLight | SpotLight | CollimatedLight | AreaLight | GoniometricLight, Field(discriminator="type")]
 
 
-class LightCreate(Strict):
+class LightCreate(Wire):
     light: Light
 
 
@@ -344,13 +339,13 @@ class DiskSensor(_Attachable):
 Sensor = Annotated[GridSensor | DiskSensor, Field(discriminator="type")]
 
 
-class SensorCreate(Strict):
+class SensorCreate(Wire):
     sensor: Sensor
 
 
 # ---------------------------------------------------------------- simulation-owned objects
 
-class ObjectCreate(Strict):
+class ObjectCreate(Wire):
     """A library object owned by the simulation: a stored mesh placed by a transform; pushes never touch it.
 
     ``transform`` (row-major 4×4) is ``world_from_object`` in metres, or ``node_from_object`` when

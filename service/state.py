@@ -35,11 +35,12 @@ from sqlalchemy import Engine, delete, insert, select, update
 
 from service import db
 from service.config import Settings
+from service.document import decode_document
 from service.errors import Conflict, Invalid, NotFound
 from service.live import LiveRegistry, LiveScene
 from service.meshes import MeshStore
 from service.schemas import LENGTH_UNITS, DocumentPush, Light, Material, ObjectCreate, Sensor
-from service.tree import Tree, TreeDiff, TreeError, apply_to_scene, diff_trees, nodes_to_columns
+from service.tree import Tree, TreeDiff, TreeError, apply_to_scene, diff_trees
 
 log = logging.getLogger("lumenlink.service")
 
@@ -85,6 +86,7 @@ class SceneState:
     sensors: dict[str, dict] = field(default_factory=dict)
     objects: dict[str, dict] = field(default_factory=dict)
     last_commit: dict[str, Any] = field(default_factory=dict)
+    nodes_suffix: bytes | None = None  # the node-list bytes of the push that made `tree` (identical re-push check)
     live: LiveScene | None = None
     lock: threading.RLock = field(default_factory=threading.RLock)
 
@@ -314,25 +316,53 @@ class SceneManager:
         """Validate, diff, apply and store one pushed document; the answer of ``PUT /scenes/{id}/document``."""
         t0 = time.perf_counter()
         state = self.state(scene_id)  # 404 before any work
-        with gc_paused():
-            doc = DocumentPush.model_validate_json(body)  # pydantic's ValidationError becomes a 400/422
-            t_decode = time.perf_counter()
-            if len(doc.nodes) > self.settings.max_nodes:
-                raise Invalid(f"the document has {len(doc.nodes)} nodes; this service accepts at most "
-                              f"{self.settings.max_nodes}")
-            cols = nodes_to_columns(doc.nodes)
-            try:
-                new = Tree.build(*cols, doc.length_unit)
-            except TreeError as exc:
-                raise Invalid(str(exc), problems=exc.problems[:100]) from exc
-            missing = self.missing_geometries([g for g in set(new.geometries) if g is not None])
-            if missing:
-                raise Invalid(f"{len(missing)} geometry id(s) are not uploaded yet (PUT /geometries/{{id}} first)",
-                              missing=sorted(missing))
-            with state.lock:
-                if self._states.get(scene_id) is not state:  # reloaded meanwhile (a failed store)
-                    state = self.state(scene_id)
-                return self._push_locked(state, doc, new, t0, t_decode)
+        with state.lock, gc_paused():
+            if self._states.get(scene_id) is not state:  # reloaded meanwhile (a failed store)
+                state = self.state(scene_id)
+            suffix, doc = self._same_nodes(state, body)
+            if doc is not None:  # byte-identical node list: the tree is the current one
+                new = state.tree
+                t_decode = time.perf_counter()
+            else:
+                decoded = decode_document(body, state.tree.index, self._known_geometries)  # ValidationError: 4xx
+                doc = decoded.header
+                t_decode = time.perf_counter()
+                if len(decoded.uuids) > self.settings.max_nodes:
+                    raise Invalid(f"the document has {len(decoded.uuids)} nodes; this service accepts at most "
+                                  f"{self.settings.max_nodes}")
+                try:
+                    new = Tree.build(*decoded.columns(), doc.length_unit, like=state.tree)
+                except TreeError as exc:
+                    raise Invalid(str(exc), problems=exc.problems[:100]) from exc
+                missing = self.missing_geometries([g for g in set(new.geometries) if g is not None])
+                if missing:
+                    raise Invalid(f"{len(missing)} geometry id(s) are not uploaded yet (PUT /geometries/{{id}} "
+                                  f"first)", missing=sorted(missing))
+            answer = self._push_locked(state, doc, new, t0, t_decode)
+            state.nodes_suffix = suffix  # the tree is now exactly what these bytes describe
+            return answer
+
+    @staticmethod
+    def _same_nodes(state: SceneState, body: bytes) -> tuple[bytes | None, DocumentPush | None]:
+        """The body's node-list bytes, and its header if they equal those of the push that made the current tree.
+
+        Only a body whose last member is ``"nodes": [...]`` qualifies (then everything before it is the
+        header); anything unusual answers (None, None) and the body is decoded in full.
+        """
+        start = body.find(b'"nodes"')
+        if start < 0 or not body.rstrip().endswith(b"]}"):
+            return None, None
+        suffix = body[start:]
+        if state.nodes_suffix is None or suffix != state.nodes_suffix:
+            return suffix, None
+        head = body[:start] + b'"nodes": []}'
+        try:
+            doc = DocumentPush.model_validate_json(head)
+        except ValueError:
+            return None, None
+        if doc.length_unit != state.tree.length_unit:
+            return suffix, None
+        return suffix, doc
 
     def _push_locked(self, state: SceneState, doc: DocumentPush, new: Tree, t0: float,
                      t_decode: float) -> dict[str, Any]:

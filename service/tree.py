@@ -84,6 +84,7 @@ class Tree:
     parent_index: np.ndarray
     depth: np.ndarray
     index: dict[str, int] = field(repr=False)
+    levels: list[np.ndarray] = field(repr=False, default_factory=list)  # rows of each depth, roots first
 
     @property
     def scale(self) -> float:
@@ -107,12 +108,16 @@ class Tree:
         geometries: Sequence[str | None],
         colors: Sequence[tuple[float, float, float] | None] | None,
         length_unit: str,
+        like: Tree | None = None,
     ) -> Tree:
         """Validate a node list and compute world transforms.
 
         Parameters
         ----------
         transforms : (n, 16) or (n, 4, 4) float, row-major local transforms in `length_unit`
+        like : a tree with, possibly, the same uuids and parents in the same order (the previous
+            revision): its structure (index, parent links, depths; all validated) is then reused and
+            only the transforms are checked, the common case of a push that moves parts.
 
         Raises
         ------
@@ -128,6 +133,12 @@ class Tree:
             raise TreeError("node columns have different lengths")
         local = np.asarray(transforms, dtype=np.float64).reshape(n, 4, 4) if n else np.zeros((0, 4, 4))
         uuids = list(uuids)
+        parents = list(parents)
+        if like is not None and like.uuids == uuids and like.parents == parents:
+            _check_transforms(uuids, local)
+            world = _world(local, like.parent_index, like.levels, length_unit)
+            return cls(length_unit, uuids, parents, list(names), list(geometries), colors, local, world,
+                       like.parent_index, like.depth, like.index, like.levels)
 
         index = {u: i for i, u in enumerate(uuids)}
         if len(index) != n:
@@ -147,18 +158,14 @@ class Tree:
         _check_transforms(uuids, local)
         depth = _depths(uuids, parent_index)
 
-        world = np.empty_like(local)
+        levels: list[np.ndarray] = []
         if n:
             order = np.argsort(depth, kind="stable")
             bounds = np.searchsorted(depth[order], np.arange(int(depth.max()) + 2))
-            roots = order[bounds[0]:bounds[1]]
-            world[roots] = local[roots]
-            for d in range(1, int(depth.max()) + 1):
-                rows = order[bounds[d]:bounds[d + 1]]
-                world[rows] = _compose(world[parent_index[rows]], local[rows])
-            world[:, :3, 3] *= LENGTH_UNITS[length_unit]
-        return cls(length_unit, uuids, list(parents), list(names), list(geometries), colors, local, world,
-                   parent_index, depth, index)
+            levels = [order[bounds[d]:bounds[d + 1]] for d in range(int(depth.max()) + 1)]
+        world = _world(local, parent_index, levels, length_unit)
+        return cls(length_unit, uuids, parents, list(names), list(geometries), colors, local, world,
+                   parent_index, depth, index, levels)
 
     # ---------------------------------------------------------------- queries
 
@@ -187,6 +194,18 @@ class Tree:
             rows = np.flatnonzero(self.depth == d)
             inside[rows] |= inside[self.parent_index[rows]]
         return [self.uuids[i] for i in np.flatnonzero(inside)]
+
+
+def _world(local: np.ndarray, parent_index: np.ndarray, levels: list[np.ndarray], length_unit: str) -> np.ndarray:
+    """world_from_node (metres) of every row, level by level (parents before children)."""
+    world = np.empty_like(local)
+    if not len(local):
+        return world
+    world[levels[0]] = local[levels[0]]
+    for rows in levels[1:]:
+        world[rows] = _compose(world[parent_index[rows]], local[rows])
+    world[:, :3, 3] *= LENGTH_UNITS[length_unit]
+    return world
 
 
 def _check_transforms(uuids: Sequence[str], local: np.ndarray) -> None:
@@ -280,6 +299,40 @@ class TreeDiff:
 
 def diff_trees(a: Tree, b: Tree) -> TreeDiff:
     """Diff two validated trees by UUID: one linear pass, vectorized where it counts."""
+    if a.uuids == b.uuids:
+        return _diff_same_order(a, b)
+    return _diff_general(a, b)
+
+
+def _diff_same_order(a: Tree, b: Tree) -> TreeDiff:
+    """The common case — same nodes in the same order — with whole-column comparisons."""
+    n = len(b)
+    uu = b.uuids
+    moved_mask = ~(a.world == b.world).all(axis=(1, 2)) if n else np.zeros(0, dtype=bool)
+    changed = ~(a.local == b.local).all(axis=(1, 2)) if n else np.zeros(0, dtype=bool)
+    any_change = moved_mask.copy()
+
+    def column(xa: list, xb: list) -> list[int]:
+        if xa == xb:
+            return []
+        return [k for k in range(n) if xa[k] != xb[k]]
+
+    geometry = column(a.geometries, b.geometries)
+    names = column(a.names, b.names)
+    parents = column(a.parents, b.parents)
+    colors = column(a.colors, b.colors)
+    for rows in (geometry, names, parents, colors):
+        if rows:
+            changed[rows] = True
+            any_change[rows] = True
+    upserts = {uu[k]: _record(b, int(k)) for k in np.flatnonzero(changed)}
+    return TreeDiff([], [], [uu[k] for k in np.flatnonzero(moved_mask)], [uu[k] for k in geometry],
+                    [uu[k] for k in names], [uu[k] for k in parents], [uu[k] for k in colors],
+                    int(n - any_change.sum()), b.length_unit, a.length_unit != b.length_unit, upserts)
+
+
+def _diff_general(a: Tree, b: Tree) -> TreeDiff:
+    """Any two trees: match rows by uuid, then compare."""
     index_a = a.index
     rows_b_common: list[int] = []
     rows_a_common: list[int] = []

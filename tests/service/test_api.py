@@ -331,3 +331,26 @@ def test_nodes_without_parent_field_and_deep_trees(client, scene, meshes) -> Non
     assert len(a["added"]) == 51
     live = client.app.state.live.get(scene)
     np.testing.assert_allclose(live.node_world[uid(150)][:3, 3], [50, 0, 0])
+
+
+def test_byte_identical_node_list_is_recognised_and_still_checked(client, scene, meshes) -> None:
+    """A re-push whose node bytes equal the last accepted ones skips decoding them — but not the header checks."""
+    import json
+
+    doc = car(meshes)
+    raw = lambda d: json.dumps(d).encode()  # noqa: E731
+    hdr = {"content-type": "application/json"}
+    assert client.put(f"/scenes/{scene}/document", content=raw(doc), headers=hdr).status_code == 200
+    again = client.put(f"/scenes/{scene}/document", content=raw(dict(doc, base_revision=1)), headers=hdr)
+    assert again.status_code == 200 and again.json()["unchanged"] == 8 and again.json()["revision"] == 1
+    # same node bytes, but a header the schema refuses: still refused
+    bad = client.put(f"/scenes/{scene}/document", content=raw(dict(doc, base_revision=1, author="x")), headers=hdr)
+    assert bad.status_code == 422
+    # same node bytes, another unit: everything rescales (not a no-op)
+    moved = client.put(f"/scenes/{scene}/document", content=raw(dict(doc, base_revision=1, length_unit="cm")),
+                       headers=hdr)
+    assert moved.status_code == 200 and moved.json()["revision"] == 2 and moved.json()["moved"]
+    # and a real change right after is seen
+    doc2 = car(meshes, base_revision=2, door_x=3.0, unit="cm")
+    a = client.put(f"/scenes/{scene}/document", content=raw(doc2), headers=hdr).json()
+    assert a["moved"] == [uid(2)] and a["revision"] == 3

@@ -340,3 +340,51 @@ def test_every_pair_of_small_examples_round_trips() -> None:
     for ra, rb in itertools.product(examples, repeat=2):
         a, b = build(ra), build(rb)
         assert apply_diff(a, diff_trees(a, b)).same_as(b)
+
+
+@st.composite
+def edited(draw, a: Tree) -> Tree:
+    """`a` with some records edited in place (same uuids, same order): the push-that-moves-parts case."""
+    rows = rows_of(a)
+    for k in range(len(rows)):
+        if draw(st.booleans()):
+            u, p, name, t, g, c = rows[k]
+            what = draw(st.sampled_from(["move", "rename", "geometry", "color"]))
+            if what == "move":
+                t = draw(transforms())
+            elif what == "rename":
+                name = draw(st.sampled_from(NAMES))
+            elif what == "geometry":
+                g = draw(st.sampled_from([None, *GEOMS]))
+            else:
+                c = draw(st.sampled_from(COLORS))
+            rows[k] = (u, p, name, t, g, c)
+    return build(rows, draw(st.sampled_from([a.length_unit, "mm"])))
+
+
+@EXAMPLES
+@given(st.data())
+def test_same_order_fast_paths_agree_with_the_general_ones(data) -> None:
+    from service.tree import _diff_general, _diff_same_order
+
+    a = data.draw(trees())
+    b = data.draw(edited(a))
+    fast, slow = _diff_same_order(a, b), _diff_general(a, b)
+    assert fast.summary() == slow.summary() and fast.upserts == slow.upserts
+    assert fast.length_unit_changed == slow.length_unit_changed
+    rows = rows_of(b)
+    reused = Tree.build([r[0] for r in rows], [r[1] for r in rows], [r[2] for r in rows],
+                        np.array([r[3] for r in rows]).reshape(-1, 16), [r[4] for r in rows], [r[5] for r in rows],
+                        b.length_unit, like=a)
+    np.testing.assert_array_equal(reused.world, b.world)
+    assert reused.same_as(b)
+
+
+def test_like_is_ignored_when_the_structure_differs() -> None:
+    a = build(chain(4))
+    rows = chain(4)
+    rows[3] = (rows[3][0], POOL[0], *rows[3][2:])  # reparent the last node to the root
+    b = Tree.build([r[0] for r in rows], [r[1] for r in rows], [r[2] for r in rows],
+                   np.array([r[3] for r in rows]).reshape(-1, 16), [r[4] for r in rows], [r[5] for r in rows], "m",
+                   like=a)
+    assert b.world[3, 0, 3] == 2.0 and b.depth.tolist() == [0, 1, 2, 1]
