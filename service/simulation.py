@@ -4,10 +4,14 @@
 requests:
 
 - one `Simulation` per scene, built from the scene's live snapshot on first use and reused while
-  nothing changes. The sync service notifies every change that alters what a query sees (a push,
-  or an assignment, which keeps the revision number); the hub then bumps the scene's
-  *generation* and drops what it holds for that scene. Results carry the revision they were
-  computed at and the hub tells whether they are still current.
+  nothing changes. It runs on a private copy of the snapshot's `tracer.Scene`, taken under the
+  service's scene lock: the forward estimator adds its receivers to the scene it traces for the
+  duration of a query, and the service mutates the live scene in place on the next push, so
+  sharing one object would let a push and a query corrupt each other. With the copy, a push never
+  waits for a query and a query never sees half a push. The sync service notifies every change
+  that alters what a query sees (a push, or an assignment, which keeps the revision number); the
+  hub then bumps the scene's *generation* and drops what it holds for that scene. Results carry
+  the revision they were computed at and the hub tells whether they are still current.
 - the latest result of each grid sensor (for ``map.png``), at the generation it was computed at;
 - the `JobRunner` of async queries.
 
@@ -22,6 +26,9 @@ naming the missing part, never a made-up number.
 
 from __future__ import annotations
 
+import contextlib
+import copy
+import dataclasses
 import hashlib
 import json
 import threading
@@ -187,8 +194,10 @@ class SimulationHub:
     """
 
     def __init__(self, live: LiveRegistry, limits: Limits,
-                 build: Callable[[LiveScene], Any] | None = None) -> None:
+                 build: Callable[[LiveScene], Any] | None = None,
+                 scene_lock: Callable[[str], Any] | None = None) -> None:
         self.live = live
+        self._scene_lock = scene_lock or (lambda scene_id: contextlib.nullcontext())
         self.limits = limits
         self.jobs = JobRunner(workers=JOB_WORKERS, max_queued=MAX_QUEUED_JOBS)
         self._build = build or self._build_default
@@ -235,20 +244,39 @@ class SimulationHub:
     def prepare(self, scene_id: str) -> Prepared:
         """The scene's current snapshot and its simulation (built once per change); raises `NotFound`."""
         with self._lock:
-            scene_lock = self._scene_locks.setdefault(scene_id, threading.Lock())
-        with scene_lock:  # two first queries of one scene build it once
-            generation = self.generation(scene_id)
-            live = self.live.get(scene_id)
-            key = (int(live.revision), generation, fingerprint(live))
-            with self._lock:
-                cached = self._cache.get(scene_id)
-            if cached is not None and cached.key == key:
-                return Prepared(cached.live, cached.simulation, generation)
-            simulation = self._build(live)
+            build_lock = self._scene_locks.setdefault(scene_id, threading.Lock())
+        with build_lock:  # two first queries of one scene build it once
+            with self._scene_lock(scene_id):  # no push runs while we read and copy the snapshot
+                generation = self.generation(scene_id)
+                live = self.live.get(scene_id)
+                key = (int(live.revision), generation, fingerprint(live))
+                with self._lock:
+                    cached = self._cache.get(scene_id)
+                if cached is not None and cached.key == key:
+                    return Prepared(cached.live, cached.simulation, generation)
+                private = dataclasses.replace(live, tracer=copy.deepcopy(live.tracer))
+            simulation = self._build(private)
             with self._lock:
                 if self._generation.get(scene_id, 0) == generation:
-                    self._cache[scene_id] = _Cached(key, simulation, live)
-            return Prepared(live, simulation, generation)
+                    self._cache[scene_id] = _Cached(key, simulation, private)
+            return Prepared(private, simulation, generation)
+
+    @staticmethod
+    def check_query(prepared: Prepared, estimator: str, force_effects: tuple[str, ...]) -> None:
+        """Refuse (422) what the transport would refuse, before a job is queued: an async request gets
+        its error at once, not as a failed job."""
+        try:
+            from tracer.effects import EFFECTS, with_forced
+        except ImportError:  # an older transport: it checks for itself when the query runs
+            return
+        unknown = sorted(set(force_effects) - set(EFFECTS))
+        if unknown:
+            raise Invalid(f"unknown effect(s) {unknown} in force_effects; known: {list(EFFECTS)}")
+        applies = getattr(prepared.simulation, "backward_applies", None)
+        if estimator == "backward" and applies is not None:
+            ok, why = applies(with_forced(prepared.simulation.effects, force_effects))
+            if not ok:
+                raise Invalid(f"the backward estimator cannot answer here: {why}; use 'forward' or 'auto'")
 
     def slot(self) -> _Slot:
         """A context manager holding one of the sync-query slots (503 if none frees up in time)."""
@@ -261,10 +289,11 @@ class SimulationHub:
                    budget: Budget, seed: int, estimator: str, force_effects: tuple[str, ...],
                    progress: Callable | None = None, cancel: Callable | None = None) -> dict[str, Any]:
         """Illuminance at points; the JSON answer of ``POST /scenes/{id}/illuminance``."""
-        result = prepared.simulation.illuminance(
-            points, normals, radius=radius, target_relative_error=budget.target_relative_error,
-            max_seconds=budget.max_seconds, max_photons=budget.max_photons, seed=seed, estimator=estimator,
-            force_effects=force_effects, progress=progress, cancel=cancel)
+        with _refusals():
+            result = prepared.simulation.illuminance(
+                points, normals, radius=radius, target_relative_error=budget.target_relative_error,
+                max_seconds=budget.max_seconds, max_photons=budget.max_photons, seed=seed, estimator=estimator,
+                force_effects=force_effects, progress=progress, cancel=cancel)
         return result_payload(result, prepared.live.revision)
 
     def run_grid(self, prepared: Prepared, sensor: dict, budget: Budget, seed: int, estimator: str,
@@ -280,8 +309,10 @@ class SimulationHub:
             if nu * nv > self.limits.max_points:
                 raise TooLarge(f"sensor {sensor['id']!r} has {nu * nv} cells; this service answers "
                                f"at most {self.limits.max_points} points per query", limit=self.limits.max_points)
-            result = prepared.simulation.grid(np.asarray(sensor["origin"], float), np.asarray(sensor["u"], float),
-                                              np.asarray(sensor["v"], float), nu, nv, **common)
+            with _refusals():
+                result = prepared.simulation.grid(np.asarray(sensor["origin"], float),
+                                                  np.asarray(sensor["u"], float), np.asarray(sensor["v"], float),
+                                                  nu, nv, **common)
             payload = result_payload(result, prepared.live.revision)
             payload.update(sensor=str(sensor["id"]), type="grid", nu=nu, nv=nv,
                            origin=list(map(float, sensor["origin"])), u=list(map(float, sensor["u"])),
@@ -289,8 +320,9 @@ class SimulationHub:
         elif sensor["type"] == "disk":
             normal = np.asarray(sensor["normal"], float)
             normal = normal / np.linalg.norm(normal)
-            result = prepared.simulation.illuminance(np.asarray([sensor["center"]], float), normal[None, :],
-                                                     radius=float(sensor["radius"]), **common)
+            with _refusals():
+                result = prepared.simulation.illuminance(np.asarray([sensor["center"]], float), normal[None, :],
+                                                         radius=float(sensor["radius"]), **common)
             payload = result_payload(result, prepared.live.revision)
             payload.update(sensor=str(sensor["id"]), type="disk")
         else:
@@ -312,6 +344,17 @@ class SimulationHub:
 
     def shutdown(self) -> None:
         self.jobs.shutdown(wait=1.0)
+
+
+@contextlib.contextmanager
+def _refusals() -> Any:
+    """Map the transport's refusal of a query (a ValueError saying why) to a 422."""
+    try:
+        yield
+    except ServiceError:
+        raise
+    except ValueError as exc:
+        raise Invalid(f"the light transport refused the query: {exc}") from exc
 
 
 class _Slot:
@@ -343,7 +386,14 @@ def hub_for(app: Any) -> SimulationHub:
                 from service.config import Settings
 
                 settings = Settings()
-            hub = SimulationHub(app.state.live, Limits.from_settings(settings))
+            manager = getattr(app.state, "manager", None)
+            scene_lock = None
+            if manager is not None and hasattr(manager, "state"):
+                # the sync service's per-scene lock (service.state.SceneState.lock, reentrant)
+                def scene_lock(scene_id: str) -> Any:
+                    return manager.state(scene_id).lock
+
+            hub = SimulationHub(app.state.live, Limits.from_settings(settings), scene_lock=scene_lock)
             app.state.simulation_hub = hub
     return hub
 

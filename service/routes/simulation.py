@@ -171,6 +171,7 @@ def illuminance(scene_id: str, query: IlluminanceQuery, request: Request, mode: 
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     prepared = hub.prepare(scene_id)
     effects = tuple(query.force_effects)
+    hub.check_query(prepared, query.estimator, effects)
 
     def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
         payload = hub.run_points(prepared, points, normals, query.radius, budget, query.seed, query.estimator,
@@ -196,13 +197,15 @@ def simulate_sensor(scene_id: str, sensor_id: str, request: Request, query: Sens
     hub = _hub(request)
     query = query or SensorSimulate()
     budget = resolve_budget(hub.limits, query.target_relative_error, query.max_seconds, query.max_photons)
-    prepared = hub.prepare(scene_id)
-    sensor = find_sensor(prepared.live, sensor_id)
+    sensor = find_sensor(hub.live.get(scene_id), sensor_id)
     if sensor.get("type") == "grid" and int(sensor["nu"]) * int(sensor["nv"]) > hub.limits.max_points:
         raise TooLarge(f"sensor {sensor_id!r} has {int(sensor['nu']) * int(sensor['nv'])} cells; this service "
                        f"answers at most {hub.limits.max_points} points per query", limit=hub.limits.max_points)
+    prepared = hub.prepare(scene_id)
+    sensor = find_sensor(prepared.live, sensor_id)  # the same sensor in the snapshot the query runs on
     map_url = str(request.url_for("sensor_map", scene_id=scene_id, sensor_id=sensor_id).path)
     effects = tuple(query.force_effects)
+    hub.check_query(prepared, query.estimator, effects)
 
     def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
         payload = hub.run_grid(prepared, sensor, budget, query.seed, query.estimator, effects,
