@@ -19,6 +19,7 @@ part deleted and restored later gets its UUID back, and with it what the simulat
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -47,6 +48,26 @@ def sidecar_path(document: str | Path) -> Path:
     """``<file>.lumenlink.json`` beside the document."""
     p = Path(document)
     return p.with_name(p.name + SIDECAR_SUFFIX)
+
+
+def default_sidecar(document: str | Path) -> tuple[Path, str | None]:
+    """Where a document's sidecar lives: beside it, or (read-only folder) in the user's cache.
+
+    Returns
+    -------
+    path : pathlib.Path
+    warning : str or None
+        Set when the sidecar cannot sit beside the document.
+    """
+    beside = sidecar_path(Path(document).resolve())
+    if beside.exists() or os.access(beside.parent, os.W_OK):
+        return beside, None
+    base = Path(os.environ.get("LUMENLINK_SIDECAR_DIR") or Path(os.environ.get("XDG_CACHE_HOME") or
+                                                                 Path.home() / ".cache") / "lumenlink" / "sidecars")
+    digest = hashlib.sha256(str(beside).encode()).hexdigest()[:12]
+    path = base / f"{Path(document).name}-{digest}{SIDECAR_SUFFIX}"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return path, f"{beside.parent} is not writable: the UUID sidecar is kept in {path}"
 
 
 def is_uuid(text: object) -> bool:
@@ -287,7 +308,8 @@ def identify(doc: Document, sidecar: str | Path | None = None, write: bool = Tru
     ----------
     doc : Document
     sidecar : path, optional
-        Default: ``<doc.source>.lumenlink.json``; None and no source: no sidecar (carried UUIDs or new).
+        Default: ``<doc.source>.lumenlink.json`` (in the user's cache when the document's folder is
+        read-only, see :func:`default_sidecar`); None and no source: no sidecar (carried UUIDs or new).
     write : bool
         Write the sidecar back.
 
@@ -297,7 +319,9 @@ def identify(doc: Document, sidecar: str | Path | None = None, write: bool = Tru
         Match counts, as :func:`assign_uuids`.
     """
     if sidecar is None and doc.source is not None:
-        sidecar = sidecar_path(doc.source)
+        sidecar, warning = default_sidecar(doc.source)
+        if warning:
+            doc.warnings.append(warning)
     previous = load_sidecar(sidecar) if sidecar is not None else []
     counts = assign_uuids(doc, previous)
     if sidecar is not None and write:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import shutil
 import uuid
+from pathlib import Path
 
 import cadquery as cq
 import pytest
@@ -201,3 +202,21 @@ def test_step_reimport_and_renamed_occurrence(tmp_path) -> None:
     assert uc["as1/base_plate"] == uuids(a)["as1/plate_1"]
     assert next(n for n in c.nodes if n.name == "base_plate").match == "signature"
     assert set(uc.values()) == set(uuids(a).values())
+
+
+def test_read_only_folder_keeps_the_sidecar_in_the_cache(tmp_path, monkeypatch) -> None:
+    import os
+
+    from cad_adapter.identity import default_sidecar
+
+    folder = tmp_path / "ro"
+    folder.mkdir()
+    doc_path = folder / "car.step"
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode: False if Path(p) == folder else real_access(p, mode))
+    monkeypatch.setenv("LUMENLINK_SIDECAR_DIR", str(tmp_path / "cache"))
+    path, warning = default_sidecar(doc_path)
+    assert path.parent == tmp_path / "cache" and "not writable" in warning
+    # beside the document when the folder is writable, and always the same place for the same document
+    monkeypatch.setattr(os, "access", real_access)
+    assert default_sidecar(doc_path) == (folder / "car.step.lumenlink.json", None)

@@ -158,3 +158,13 @@ def test_assembly_bad_input() -> None:
         read_assembly(car(), length_unit="furlong")
     with pytest.raises(EmptyDocumentError):
         read_assembly(cq.Assembly(name="nothing"))
+
+
+def test_duplicate_sibling_names_get_ranked_paths(tmp_path) -> None:
+    text = AS1.read_text().replace("'nut_1'", "'nut'").replace("'nut_2'", "'nut'")
+    p = tmp_path / "dup.stp"
+    p.write_text(text)
+    doc = read_step(p)
+    rod = [n.path for n in doc.nodes if n.path.startswith("as1/rod-assembly_1/")]
+    assert rod == ["as1/rod-assembly_1/nut[0]", "as1/rod-assembly_1/nut[1]", "as1/rod-assembly_1/rod_1"]
+    assert len({n.path for n in doc.nodes}) == len(doc.nodes)
