@@ -46,8 +46,10 @@ def push(
     file: Annotated[Path, typer.Argument(help="STEP file to read.", exists=False)],
     scene: Annotated[str, typer.Option(help="Scene name; created if no scene has it.")],
     server: Annotated[str, typer.Option(envvar="LUMENLINK_SERVER", help="Service URL.")] = "http://127.0.0.1:8000",
-    linear: Annotated[float | None, typer.Option(help="Linear deflection (document units).")] = None,
-    angular: Annotated[float | None, typer.Option(help="Angular deflection (radians).")] = None,
+    linear: Annotated[float | None, typer.Option(
+        help="Linear deflection in document units (default 0.1 mm); with --relative a fraction of each part's "
+             "size (default 0.002).")] = None,
+    angular: Annotated[float | None, typer.Option(help="Angular deflection, radians (default 0.5).")] = None,
     relative: Annotated[bool, typer.Option(help="Linear deflection relative to each part's size.")] = False,
     json_out: Annotated[bool, typer.Option("--json", help="Print the service's answer as JSON.")] = False,
 ) -> None:
@@ -64,8 +66,10 @@ def watch(
     file: Annotated[Path, typer.Argument(help="STEP file to watch.")],
     scene: Annotated[str, typer.Option(help="Scene name; created if no scene has it.")],
     server: Annotated[str, typer.Option(envvar="LUMENLINK_SERVER", help="Service URL.")] = "http://127.0.0.1:8000",
-    linear: Annotated[float | None, typer.Option(help="Linear deflection (document units).")] = None,
-    angular: Annotated[float | None, typer.Option(help="Angular deflection (radians).")] = None,
+    linear: Annotated[float | None, typer.Option(
+        help="Linear deflection in document units (default 0.1 mm); with --relative a fraction of each part's "
+             "size (default 0.002).")] = None,
+    angular: Annotated[float | None, typer.Option(help="Angular deflection, radians (default 0.5).")] = None,
     relative: Annotated[bool, typer.Option(help="Linear deflection relative to each part's size.")] = False,
     debounce: Annotated[float, typer.Option(help="Seconds the file must stay unchanged.")] = 0.5,
 ) -> None:
