@@ -74,6 +74,14 @@ def _fast(body: bytes, known_uuids: Container[str], known_geometries: Container[
         return None  # a boolean among the nodes: let the schema say where
     nodes = data.pop("nodes")
     header = DocumentPush.model_validate({**data, "nodes": []})  # small; raises the schema's own errors
+    cols = _columns(nodes, known_uuids, known_geometries)
+    if cols is None:
+        return None
+    return Decoded(header, *cols, fast=True)
+
+
+def _columns(nodes: list, known_uuids: Container[str], known_geometries: Container[str]) -> tuple | None:
+    """Columns of parsed node dicts if each is certainly valid for `NodeIn` (booleans excluded beforehand)."""
     superset = _NODE_KEYS.issuperset
     if not all(type(n) is dict and superset(n) for n in nodes):
         return None
@@ -113,5 +121,138 @@ def _fast(body: bytes, known_uuids: Container[str], known_geometries: Container[
         if c.dtype.kind not in "fi" or c.shape != (len(given), 3) or not ((c >= 0.0) & (c <= 1.0)).all():
             return None
     colors = [None if c is None else (float(c[0]), float(c[1]), float(c[2])) for c in colors_in]
-    return Decoded(header, uuids, parents, names, t.astype(np.float64, copy=False).reshape(-1, 16), geometries,
-                   colors, fast=True)
+    return uuids, parents, names, t.astype(np.float64, copy=False).reshape(-1, 16), geometries, colors
+
+
+# ---------------------------------------------------------------- incremental decoding
+
+_NODES_OPEN = re.compile(rb'"nodes"\s*:\s*\[\s*')
+SEPARATORS = (b"}, {", b"},{")
+
+
+@dataclass
+class NodeBytes:
+    """The node list of the push that made the current tree, split into one byte string per node.
+
+    ``chunks[i]`` is the serialization of row ``i`` (without its braces). A split on ``sep`` is
+    exact when no string in the list contains ``sep``: only names may hold free text, and they are
+    checked. A later body split the same way can then reuse every byte-identical chunk (a complete
+    node, since a piece cut inside a string has an odd number of quotes) and decode only the others.
+    """
+
+    sep: bytes
+    chunks: list[bytes]
+    index: dict[bytes, int]
+
+
+def split_nodes(body: bytes, names: list[str] | None = None, sep: bytes | None = None
+                ) -> tuple[bytes, list[bytes], bytes] | None:
+    """(header bytes up to ``"nodes"``, per-node chunks, separator) of a body whose last member is the
+    node list, or None when its layout is not the plain one (then nothing is reused)."""
+    start = body.find(b'"nodes"')
+    if start < 0:
+        return None
+    m_open = _NODES_OPEN.match(body, start)
+    end = len(body)
+    while end and body[end - 1] in b" \t\r\n":
+        end -= 1
+    if m_open is None or body[end - 1:end] != b"}":
+        return None
+    end -= 1
+    while end and body[end - 1] in b" \t\r\n":
+        end -= 1
+    if body[end - 1:end] != b"]" or end - 1 < m_open.end():
+        return None
+    end -= 1
+    while end > m_open.end() and body[end - 1] in b" \t\r\n":
+        end -= 1
+    begin = m_open.end()
+    if begin == end:
+        return body[:start], [], sep or SEPARATORS[0]
+    if body[begin:begin + 1] != b"{" or body[end - 1:end] != b"}":
+        return None
+    core = body[begin + 1:end - 1]
+    if sep is None:
+        sep = next((s for s in SEPARATORS if s in core), SEPARATORS[0])
+    if names is not None and any(sep.decode() in x for x in names):
+        return None
+    return body[:start], core.split(sep), sep
+
+
+def remember(body: bytes, names: list[str]) -> NodeBytes | None:
+    """The `NodeBytes` of an accepted body (its tree's rows in body order), or None if it cannot be split."""
+    parts = split_nodes(body, names)
+    if parts is None:
+        return None
+    _, chunks, sep = parts
+    if len(chunks) != len(names):
+        return None
+    return NodeBytes(sep, chunks, {c: i for i, c in enumerate(chunks)})
+
+
+def decode_incremental(body: bytes, previous: NodeBytes, tree, known_geometries: Container[str]
+                       ) -> tuple[Decoded, NodeBytes] | None:
+    """Decode a body reusing the previous push's byte-identical nodes; None if that is not possible.
+
+    Parameters
+    ----------
+    previous : the `NodeBytes` of the body that produced `tree` (row i of `tree` is ``previous.chunks[i]``).
+    tree : the current `service.tree.Tree`.
+
+    Only the changed nodes are parsed (each one on its own: a piece of a wrongly split body is not
+    valid JSON) and checked like the fast path does; unchanged rows are copied from `tree`.
+    """
+    parts = split_nodes(body, None, previous.sep)
+    if parts is None:
+        return None
+    head, chunks, _ = parts
+    try:
+        header = DocumentPush.model_validate_json(head + b'"nodes": []}')
+    except ValueError:
+        return None
+    lookup = previous.index.get
+    rows = [lookup(c, -1) for c in chunks]
+    fresh = [k for k, r in enumerate(rows) if r < 0]
+    if len(fresh) > max(64, len(chunks) // 4):
+        return None  # mostly new: a full decode is as fast
+    parsed = []
+    for k in fresh:
+        chunk = chunks[k]
+        if b"true" in chunk or b"false" in chunk:
+            return None
+        try:
+            parsed.append(from_json(b"{" + chunk + b"}", allow_inf_nan=False))
+        except ValueError:
+            return None
+    cols = _columns(parsed, tree.index, known_geometries)
+    if cols is None:
+        return None
+    n = len(chunks)
+    old = np.asarray(rows, dtype=np.int64)
+    if not fresh and n == len(tree) and (old == np.arange(n)).all():  # nothing changed, same order
+        uuids, parents, names = list(tree.uuids), list(tree.parents), list(tree.names)
+        geometries, colors, transforms = list(tree.geometries), list(tree.colors), tree.local.reshape(-1, 16)
+    else:
+        safe = np.where(old >= 0, old, 0)  # fresh rows get a placeholder, replaced below
+        take = safe.tolist()
+        uuids = [tree.uuids[r] for r in take] if len(tree) else [None] * n
+        parents = [tree.parents[r] for r in take] if len(tree) else [None] * n
+        names = [tree.names[r] for r in take] if len(tree) else [""] * n
+        geometries = [tree.geometries[r] for r in take] if len(tree) else [None] * n
+        colors = [tree.colors[r] for r in take] if len(tree) else [None] * n
+        transforms = tree.local.reshape(-1, 16)[safe] if len(tree) else np.empty((n, 16))
+        for j, k in enumerate(fresh):
+            uuids[k], parents[k], names[k], geometries[k], colors[k] = (cols[0][j], cols[1][j], cols[2][j],
+                                                                        cols[4][j], cols[5][j])
+            transforms[k] = cols[3][j]
+    if fresh and any(previous.sep.decode() in names[k] for k in fresh):
+        return None
+    if n == len(previous.chunks) and len(fresh) <= 64 and (old[old >= 0] == np.flatnonzero(old >= 0)).all():
+        index = dict(previous.index)  # same order: a copy (C speed) updated for the changed rows
+        for k in fresh:
+            index.pop(previous.chunks[k], None)
+            index[chunks[k]] = k
+    else:
+        index = {c: i for i, c in enumerate(chunks)}
+    decoded = Decoded(header, uuids, parents, names, transforms, geometries, colors, fast=True)
+    return decoded, NodeBytes(previous.sep, chunks, index)

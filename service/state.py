@@ -35,7 +35,7 @@ from sqlalchemy import Engine, delete, insert, select, update
 
 from service import db
 from service.config import Settings
-from service.document import decode_document
+from service.document import NodeBytes, decode_document, decode_incremental, remember
 from service.errors import Conflict, Invalid, NotFound
 from service.live import LiveRegistry, LiveScene
 from service.meshes import MeshStore
@@ -87,6 +87,7 @@ class SceneState:
     objects: dict[str, dict] = field(default_factory=dict)
     last_commit: dict[str, Any] = field(default_factory=dict)
     nodes_suffix: bytes | None = None  # the node-list bytes of the push that made `tree` (identical re-push check)
+    node_bytes: NodeBytes | None = None  # the same, split per node (row i of `tree` = chunk i)
     live: LiveScene | None = None
     lock: threading.RLock = field(default_factory=threading.RLock)
 
@@ -320,11 +321,19 @@ class SceneManager:
             if self._states.get(scene_id) is not state:  # reloaded meanwhile (a failed store)
                 state = self.state(scene_id)
             suffix, doc = self._same_nodes(state, body)
+            node_bytes = state.node_bytes
             if doc is not None:  # byte-identical node list: the tree is the current one
                 new = state.tree
                 t_decode = time.perf_counter()
             else:
-                decoded = decode_document(body, state.tree.index, self._known_geometries)  # ValidationError: 4xx
+                inc = None
+                if state.node_bytes is not None:  # decode only the nodes whose bytes changed
+                    inc = decode_incremental(body, state.node_bytes, state.tree, self._known_geometries)
+                if inc is not None:
+                    decoded, node_bytes = inc
+                else:
+                    decoded = decode_document(body, state.tree.index, self._known_geometries)  # ValidationError
+                    node_bytes = None
                 doc = decoded.header
                 t_decode = time.perf_counter()
                 if len(decoded.uuids) > self.settings.max_nodes:
@@ -339,7 +348,9 @@ class SceneManager:
                     raise Invalid(f"{len(missing)} geometry id(s) are not uploaded yet (PUT /geometries/{{id}} "
                                   f"first)", missing=sorted(missing))
             answer = self._push_locked(state, doc, new, t0, t_decode)
-            state.nodes_suffix = suffix  # the tree is now exactly what these bytes describe
+            # the tree is now exactly what these bytes describe, row for row
+            state.nodes_suffix = suffix
+            state.node_bytes = node_bytes if node_bytes is not None else remember(body, state.tree.names)
             return answer
 
     @staticmethod
@@ -375,6 +386,7 @@ class SceneManager:
             raise Conflict(f"base_revision {doc.base_revision} is stale: the scene is at revision {state.revision}",
                            current_revision=state.revision)
         if diff.is_empty():
+            state.tree = new  # the same tree; its rows now follow this body's order
             seconds = {"decode": t_decode - t0, "validate": t_validate - t_decode, "diff": t_diff - t_validate,
                        "blas": 0.0, "tlas": 0.0, "store": 0.0}
             seconds["total"] = time.perf_counter() - t0

@@ -85,6 +85,7 @@ class Tree:
     depth: np.ndarray
     index: dict[str, int] = field(repr=False)
     levels: list[np.ndarray] = field(repr=False, default_factory=list)  # rows of each depth, roots first
+    world_doc: np.ndarray | None = field(repr=False, default=None)  # world_from_node in document units
 
     @property
     def scale(self) -> float:
@@ -135,10 +136,16 @@ class Tree:
         uuids = list(uuids)
         parents = list(parents)
         if like is not None and like.uuids == uuids and like.parents == parents:
-            _check_transforms(uuids, local)
-            world = _world(local, like.parent_index, like.levels, length_unit)
+            changed = ~(local == like.local).all(axis=(1, 2)) if n else np.zeros(0, dtype=bool)
+            rows = np.flatnonzero(changed)
+            _check_transforms([uuids[i] for i in rows], local[rows])
+            world_doc = _world_doc(local, like.parent_index, like.levels, like.world_doc, changed)
+            if not len(rows) and length_unit == like.length_unit:
+                world = like.world
+            else:
+                world = _to_metres(world_doc, length_unit)
             return cls(length_unit, uuids, parents, list(names), list(geometries), colors, local, world,
-                       like.parent_index, like.depth, like.index, like.levels)
+                       like.parent_index, like.depth, like.index, like.levels, world_doc)
 
         index = {u: i for i, u in enumerate(uuids)}
         if len(index) != n:
@@ -163,9 +170,9 @@ class Tree:
             order = np.argsort(depth, kind="stable")
             bounds = np.searchsorted(depth[order], np.arange(int(depth.max()) + 2))
             levels = [order[bounds[d]:bounds[d + 1]] for d in range(int(depth.max()) + 1)]
-        world = _world(local, parent_index, levels, length_unit)
-        return cls(length_unit, uuids, parents, list(names), list(geometries), colors, local, world,
-                   parent_index, depth, index, levels)
+        world_doc = _world_doc(local, parent_index, levels)
+        return cls(length_unit, uuids, parents, list(names), list(geometries), colors, local,
+                   _to_metres(world_doc, length_unit), parent_index, depth, index, levels, world_doc)
 
     # ---------------------------------------------------------------- queries
 
@@ -196,14 +203,38 @@ class Tree:
         return [self.uuids[i] for i in np.flatnonzero(inside)]
 
 
-def _world(local: np.ndarray, parent_index: np.ndarray, levels: list[np.ndarray], length_unit: str) -> np.ndarray:
-    """world_from_node (metres) of every row, level by level (parents before children)."""
+def _world_doc(local: np.ndarray, parent_index: np.ndarray, levels: list[np.ndarray],
+               base: np.ndarray | None = None, dirty: np.ndarray | None = None) -> np.ndarray:
+    """world_from_node (document units) of every row, level by level (parents before children).
+
+    With `base` (the previous worlds, same structure) and `dirty` (rows whose local transform
+    changed), only the dirty rows and their descendants are recomputed — by the same operations
+    as a full pass, so the result is bit-identical to one.
+    """
+    if base is not None and dirty is not None:
+        if not dirty.any():
+            return base
+        world = base.copy()
+        mark = dirty.copy()
+        for rows in levels:
+            if rows is not levels[0]:
+                mark[rows] |= mark[parent_index[rows]]
+            sel = rows[mark[rows]]
+            if len(sel):
+                world[sel] = local[sel] if rows is levels[0] else _compose(world[parent_index[sel]], local[sel])
+        return world
     world = np.empty_like(local)
     if not len(local):
         return world
     world[levels[0]] = local[levels[0]]
     for rows in levels[1:]:
         world[rows] = _compose(world[parent_index[rows]], local[rows])
+    return world
+
+
+def _to_metres(world_doc: np.ndarray, length_unit: str) -> np.ndarray:
+    """``S·W·S⁻¹``: the same frames with their translations in metres."""
+    world = world_doc.copy()
     world[:, :3, 3] *= LENGTH_UNITS[length_unit]
     return world
 
