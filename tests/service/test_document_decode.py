@@ -103,3 +103,96 @@ def test_fast_path_never_disagrees_with_the_schema(name: str) -> None:
 def test_not_a_document(text: bytes) -> None:
     with pytest.raises(ValidationError):
         decode_document(text, set(), set())
+
+
+# ---------------------------------------------------------------- incremental decoding
+
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from service.document import decode_incremental, remember  # noqa: E402
+from service.tree import Tree  # noqa: E402
+
+NASTY_NAMES = ["door", "a}, {b", 'quote " inside', "}, {", '"}, {"uuid": "x"', "true", "back\\\\slash", "é",
+               "},{", "{", "]}"]
+
+
+@st.composite
+def node_lists(draw) -> list[dict]:
+    n = draw(st.integers(0, 8))
+    nodes = []
+    for k in range(n):
+        node = {"uuid": U[k], "parent": U[draw(st.integers(0, k - 1))] if k and draw(st.booleans()) else None,
+                "name": draw(st.sampled_from(NASTY_NAMES)),
+                "transform": [1.0, 0, 0, float(draw(st.integers(-2, 2))), 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1],
+                "geometry": draw(st.sampled_from([None, G]))}
+        if draw(st.booleans()):
+            node["color"] = [0.5, 0.25, 1.0]
+        nodes.append(node)
+    return nodes
+
+
+def edit(draw, nodes: list[dict]) -> list[dict]:
+    nodes = copy.deepcopy(nodes)
+    for node in nodes:
+        what = draw(st.sampled_from(["keep", "keep", "move", "rename", "drop-color", "regeometry"]))
+        if what == "move":
+            node["transform"][3] += 1.0
+        elif what == "rename":
+            node["name"] = draw(st.sampled_from(NASTY_NAMES))
+        elif what == "drop-color":
+            node.pop("color", None)
+        elif what == "regeometry":
+            node["geometry"] = None if node["geometry"] else G
+    if nodes and draw(st.booleans()):  # drop the last node (a leaf or not: then the parent is missing)
+        nodes.pop()
+    if draw(st.booleans()):
+        nodes = draw(st.permutations(nodes))
+    return nodes
+
+
+def body_of(nodes: list[dict], compact: bool, base: int = 1) -> bytes:
+    seps = (",", ":") if compact else (", ", ": ")
+    return json.dumps({"base_revision": base, "length_unit": "mm", "nodes": nodes}, separators=seps).encode()
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(node_lists(), st.data(), st.booleans())
+def test_incremental_decode_equals_a_full_decode(nodes, data, compact) -> None:
+    first = body_of(nodes, compact)
+    d1 = decode_document(first, set(), {G})
+    tree = Tree.build(*d1.columns(), "mm")
+    previous = remember(first, tree.names)
+    second = body_of(edit(data.draw, nodes), compact, base=2)
+    full = decode_document(second, set(), {G})
+    if previous is None:
+        assert any(sep in x for x in tree.names for sep in ("}, {", "},{"))
+        return
+    inc = decode_incremental(second, previous, tree, {G})
+    if inc is None:
+        return  # declined: the caller decodes in full
+    decoded, nb = inc
+    assert decoded.header == full.header
+    got, want = decoded.columns(), full.columns()
+    for k in (0, 1, 2, 4, 5):
+        assert got[k] == want[k]
+    np.testing.assert_array_equal(got[3], want[3])
+    assert len(nb.chunks) == len(want[0]) and all(nb.index[c] == i for i, c in enumerate(nb.chunks))
+
+
+def test_incremental_declines_odd_layouts() -> None:
+    nodes = [{"uuid": U[0], "parent": None, "name": "a", "transform": IDENT, "geometry": None},
+             {"uuid": U[1], "parent": U[0], "name": "b", "transform": IDENT, "geometry": None}]
+    first = body_of(nodes, False)
+    tree = Tree.build(*decode_document(first, set(), set()).columns(), "mm")
+    previous = remember(first, tree.names)
+    assert previous is not None and len(previous.chunks) == 2
+    trailing = json.dumps({"nodes": nodes, "base_revision": 1}).encode()
+    pretty = json.dumps({"base_revision": 1, "nodes": nodes}, indent=2).encode()
+    extra = body_of(nodes, False)[:-1] + b', "x": 1}'
+    for body in (trailing, pretty, extra, b"{}", b""):
+        assert decode_incremental(body, previous, tree, set()) is None
+    # a changed node with an unknown key is declined, so the schema reports it
+    bad = copy.deepcopy(nodes)
+    bad[1]["material"] = "x"
+    assert decode_incremental(body_of(bad, False), previous, tree, set()) is None
