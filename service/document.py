@@ -80,7 +80,10 @@ def _fast(body: bytes, known_uuids: Container[str], known_geometries: Container[
     return Decoded(header, *cols, fast=True)
 
 
-def _columns(nodes: list, known_uuids: Container[str], known_geometries: Container[str]) -> tuple | None:
+Columns = tuple[list, list, list, np.ndarray, list, list]
+
+
+def _columns(nodes: list, known_uuids: Container[str], known_geometries: Container[str]) -> Columns | None:
     """Columns of parsed node dicts if each is certainly valid for `NodeIn` (booleans excluded beforehand)."""
     superset = _NODE_KEYS.issuperset
     if not all(type(n) is dict and superset(n) for n in nodes):

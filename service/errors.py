@@ -95,7 +95,7 @@ def install_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(ValidationError)
     async def _pydantic(_: Request, exc: ValidationError) -> JSONResponse:
-        return validation_problem(list(exc.errors(include_url=False, include_input=False)))
+        return validation_problem([dict(e) for e in exc.errors(include_url=False, include_input=False)])
 
     @app.exception_handler(StarletteHTTPException)
     async def _http(_: Request, exc: StarletteHTTPException) -> JSONResponse:

@@ -124,7 +124,7 @@ class MeshStore:
         arrays = {"vertices": mesh.vertices, "triangles": mesh.triangles}
         if mesh.normals is not None:
             arrays["normals"] = mesh.normals
-        np.savez(buf, **arrays)
+        np.savez(buf, **arrays)  # type: ignore[arg-type]
         self._atomic_write(self._path(gid, ".glb"), data)
         self._atomic_write(self._path(gid, ".npz"), buf.getvalue())
 

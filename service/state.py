@@ -64,6 +64,10 @@ def gc_paused() -> Iterator[None]:
             gc.enable()
 
 
+def _color(c: tuple[float, float, float] | None) -> list[float] | None:
+    return None if c is None else list(c)
+
+
 def _blob(m: np.ndarray) -> bytes:
     return np.ascontiguousarray(m, dtype="<f8").tobytes()
 
@@ -467,7 +471,7 @@ class SceneManager:
                     rows.append({"scene_id": state.id, "uuid": u, "position": float(j), "parent": new.parents[j],
                                  "name": new.names[j], "transform": _blob(new.local[j]),
                                  "geometry": new.geometries[j],
-                                 "color": list(new.colors[j]) if new.colors[j] is not None else None})
+                                 "color": _color(new.colors[j])})
                 conn.execute(insert(db.nodes), rows)
             conn.execute(insert(db.revisions).values(scene_id=state.id, revision=state.revision + 1, summary=summary))
 
@@ -620,7 +624,8 @@ class SceneManager:
             n_instances = len(state.instances) + len(state.object_instances)
             triangles = 0
             counts: dict[str, int] = {}
-            for gid in (state.tree.geometries[state.tree.index[u]] for u in state.instances):
+            for u in state.instances:
+                gid = str(state.tree.geometries[state.tree.index[u]])
                 counts[gid] = counts.get(gid, 0) + 1
             for oid in state.object_instances:
                 gid = state.objects[oid]["geometry"]
@@ -647,7 +652,7 @@ class SceneManager:
             t = state.tree
             return [{"uuid": u, "parent": t.parents[i], "name": t.names[i],
                      "transform": t.local[i].ravel().tolist(), "geometry": t.geometries[i],
-                     "color": list(t.colors[i]) if t.colors[i] is not None else None,
+                     "color": _color(t.colors[i]),
                      "instance": state.instances.get(u)} for i, u in enumerate(t.uuids)]
 
     def live_scene(self, scene_id: str) -> LiveScene:

@@ -246,14 +246,14 @@ def _check_transforms(uuids: Sequence[str], local: np.ndarray) -> None:
     if not finite.all():
         i = int(np.flatnonzero(~finite)[0])
         raise TreeError(f"node {uuids[i]}: transform has a non-finite number",
-                        [{"uuid": uuids[j], "problem": "non-finite transform"} for j in np.flatnonzero(~finite)])
+                        [{"uuid": uuids[int(j)], "problem": "non-finite transform"} for j in np.flatnonzero(~finite)])
     bottom = np.abs(local[:, 3, :] - np.array([0.0, 0.0, 0.0, 1.0])).max(axis=1)
     bad = bottom > AFFINE_TOLERANCE
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         raise TreeError(f"node {uuids[i]}: transform is not affine (its last row must be 0 0 0 1, got "
                         f"{local[i, 3].tolist()})",
-                        [{"uuid": uuids[j], "problem": "last row is not 0 0 0 1"} for j in np.flatnonzero(bad)])
+                        [{"uuid": uuids[int(j)], "problem": "last row is not 0 0 0 1"} for j in np.flatnonzero(bad)])
     a = local[:, :3, :3]
     det = np.linalg.det(a)
     norms = np.linalg.norm(a, axis=1).prod(axis=1)  # product of the column norms
@@ -261,7 +261,7 @@ def _check_transforms(uuids: Sequence[str], local: np.ndarray) -> None:
     if singular.any():
         i = int(np.flatnonzero(singular)[0])
         raise TreeError(f"node {uuids[i]}: transform is singular (det {det[i]:.3g}); a part cannot be flattened",
-                        [{"uuid": uuids[j], "problem": "singular transform"} for j in np.flatnonzero(singular)])
+                        [{"uuid": uuids[int(j)], "problem": "singular transform"} for j in np.flatnonzero(singular)])
 
 
 def _depths(uuids: Sequence[str], parent_index: np.ndarray) -> np.ndarray:
