@@ -11,8 +11,10 @@ carries); coordinates in a node's frame are metres too.
 
 The snapshot is built lazily, at most once per (revision, assignment change), so a push does
 not pay for it. The `tracer` object is shared with the sync service: a later push mutates it
-in place, so a long query should compare `revision` with `LiveRegistry.revision(scene_id)`
-when it ends if it wants to know that its answer is stale.
+in place (and commits before it lets go of the scene's lock), so a long query should compare
+`revision` with `LiveRegistry.revision(scene_id)` when it ends if it wants to know that its
+answer is stale. ``extras["lock"]`` is that lock (a re-entrant lock): hold it while taking
+``tracer.arrays()`` to never see a scene between a change and its commit.
 """
 
 from __future__ import annotations

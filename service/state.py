@@ -698,7 +698,8 @@ class SceneManager:
                 sensors.append(resolved)
         state.live = LiveScene(state.id, state.revision, state.tracer, instance_of_node, node_world, materials,
                                dict(DEFAULT_MATERIAL), lights, sensors,
-                               extras={"length_unit": state.length_unit, "objects": dict(state.objects)})
+                               extras={"length_unit": state.length_unit, "objects": dict(state.objects),
+                                       "lock": state.lock})
         return state.live
 
     def _resolve(self, state: SceneState, aid: str, body: dict) -> dict | None:
