@@ -163,9 +163,12 @@ def _markdown(results: list[dict[str, Any]], reps: int) -> str:
                          + f" | {ms(m['total_minus_blas'])} | {ms(m['wall'])} |")
     lines += ["", "First push (everything added): " + ", ".join(
         f"{r['nodes']} nodes {ms(r['first_push']['total'])} ms" for r in results) + ".",
-        "`decode` is JSON parsing plus schema validation of the whole body, the part that grows with the document "
-        "whatever changed; `diff` is the linear pass; `blas`, `tlas` and `store` scale with what changed "
-        "(the top level is rebuilt over all instances)."]
+        "`decode`: the body split into per-node byte strings, only those that differ from the previous push parsed "
+        "and schema-checked (a first push, or an unusual layout, is decoded in full); `validate`: transforms of the "
+        "changed nodes, world transforms of their subtrees; `diff`: the linear pass over columns; `blas`: mesh load "
+        "and bottom-level build of new geometry; `tlas`: instance updates and the top-level rebuild over all "
+        "instances (the tracer's); `store`: one SQLite transaction writing the changed rows. `wall`: the client's "
+        "round trip through the in-process ASGI transport."]
     return "\n".join(lines)
 
 

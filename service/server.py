@@ -14,6 +14,7 @@ def run(host: str = "127.0.0.1", port: int = 8000, data_dir: Path | str = "./var
     from service.config import Settings
 
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    logging.getLogger("alembic").setLevel(logging.WARNING)  # migrations: only say something when it matters
     settings = Settings(host=host, port=port, data_dir=Path(data_dir))
     app = create_app(settings)
     uvicorn.run(app, host=host, port=port, log_level="info", access_log=False, workers=1)
