@@ -91,6 +91,21 @@ def _check_grid(name: str, values: object, shape: tuple[int, ...] | None = None)
     return a
 
 
+def median_relative_error(lux: object, stderr: object, floor: float = 0.05) -> float:
+    """Median of stderr/lux over the cells brighter than ``floor`` × the maximum (NaN if none).
+
+    Dark cells are left out: their relative error is large and says nothing about the lit area a
+    reader looks at; the same figure is printed by the demo and on the maps.
+    """
+    e = np.asarray(lux, dtype=float)
+    se = np.asarray(stderr, dtype=float)
+    if e.shape != se.shape:
+        raise MapError(f"lux and stderr shapes differ: {e.shape} vs {se.shape}")
+    top = float(e.max()) if e.size else 0.0
+    lit = e > floor * top if top > 0 else np.zeros(e.shape, bool)
+    return float(np.median(se[lit] / e[lit])) if np.any(lit) else float("nan")
+
+
 def cell_centres(origin: object, u: object, v: object, nu: int, nv: int) -> np.ndarray:
     """World positions of the cell centres of a grid sensor.
 
@@ -184,10 +199,9 @@ def illuminance_map_png(
     if caption is None:
         caption = f"min {e.min():.4g} lx · mean {e.mean():.4g} lx · max {e.max():.4g} lx"
         if se is not None:
-            positive = e > 0
-            if np.any(positive):
-                rel = np.median(se[positive] / e[positive])
-                caption += f" · median std. error {100 * rel:.2g} %"
+            rel = median_relative_error(e, se)
+            if np.isfinite(rel):
+                caption += f" · median std. error {100 * rel:.2g} % (lit cells)"
     heading = title or "Illuminance"
     ax.set_title(f"{heading}\n{caption}", fontsize=9)
     fig.text(0.01, 0.005, f"grid {nu}×{nv} cells, origin ({o[0]:.3g}, {o[1]:.3g}, {o[2]:.3g}) m",

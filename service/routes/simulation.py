@@ -237,12 +237,22 @@ def sensor_map(scene_id: str, sensor_id: str, request: Request,
     if result is None:
         raise NotFound(f"sensor {sensor_id!r} has no result for the scene as it is now (revision {live.revision}); "
                        f"POST /scenes/{scene_id}/sensors/{sensor_id}/simulate first", revision=live.revision)
-    name = sensor.get("name") or f"sensor {sensor_id}"
+    name = _sensor_name(request, scene_id, sensor_id)
     png = illuminance_map_png(result["lux"], result["origin"], result["u"], result["v"], stderr=result["stderr"],
                               title=f"{name} — scene revision {result['revision']}, {result['photons']:,} photons",
                               vmax=vmax)
     return Response(content=png, media_type="image/png",
                     headers={"X-Scene-Revision": str(result["revision"]), "Cache-Control": "no-store"})
+
+
+def _sensor_name(request: Request, scene_id: str, sensor_id: str) -> str:
+    """The name the user gave the sensor (the live body drops it), else its id."""
+    manager = getattr(request.app.state, "manager", None)
+    try:
+        name = manager.get_assignment(scene_id, "sensor", sensor_id)["body"].get("name")  # type: ignore[union-attr]
+    except Exception:  # no manager, or no such method: the id will do
+        name = None
+    return str(name) if name else f"sensor {sensor_id}"
 
 
 def _job_state(hub: SimulationHub, job_id: str) -> dict[str, Any]:
