@@ -133,9 +133,11 @@ def bench_many(n: int, linear: float, angular: float) -> dict:
     for c in copies:
         _read_faces(c)
     read_s = time.perf_counter() - t0
-    # cadquery's tessellate on the same triangulations: it meshes only when the shape has no triangulation
-    # as fine as asked (BRepTools.Triangulation), so after the meshing above it only reads out, into lists
+    # cadquery's tessellate on the same triangulations: its meshing step is switched off (it would remesh,
+    # with a relative deflection), so what is timed is its read-out into lists of Vector and tuples
     cq_shapes = [cq.Shape.cast(c) for c in copies]
+    for s in cq_shapes:
+        s.mesh = lambda *args, **kwargs: None
     t0 = time.perf_counter()
     cq_tris = 0
     for s in cq_shapes:
