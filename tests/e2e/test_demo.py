@@ -1,0 +1,100 @@
+"""`make demo` end to end with small photon counts: the facts it prints are the facts that happened.
+
+Runs the real path — cadquery model, STEP with UUIDs, adapter push over HTTP to the service on a
+loopback port, materials/lights/sensor, photon tracing, maps, a door move and a lens edit — and
+checks what the issue asks the demo to show: the door move builds no bottom level, the lens edit
+builds exactly one, every assignment survives both pushes, and the three PNGs are real images.
+"""
+
+from __future__ import annotations
+
+import io
+
+import matplotlib.image as mpimg
+import numpy as np
+import pytest
+from rich.console import Console
+
+from lumenlink.demo import GRID_NU, GRID_NV, Narrator, run_demo
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    out = tmp_path_factory.mktemp("demo")
+    buffer = io.StringIO()
+    narrator = Narrator(Console(file=buffer, width=200, highlight=False, soft_wrap=True))
+    report = run_demo(out, photons=20_000, narrator=narrator)
+    return report, buffer.getvalue()
+
+
+def test_first_push_uploads_each_distinct_geometry_once(demo) -> None:
+    report, log = demo
+    first = report.pushes["initial"]
+    assert first.revision == 1
+    nodes_with_mesh = sum(1 for r in first.raw["added"])  # every node is new on the first push
+    # four wheels share one mesh: fewer uploads than nodes, and each built once
+    assert first.uploaded == first.blas_built < nodes_with_mesh
+    assert f"{first.uploaded} of {first.uploaded} distinct geometries uploaded" in log
+
+
+def test_door_move_is_a_transform_change_and_builds_no_bottom_level(demo) -> None:
+    report, log = demo
+    doors = report.pushes["doors"]
+    assert doors.revision == 2
+    assert len(doors.moved) == 2 and doors.geometry_changed == []
+    assert doors.blas_built == 0 and doors.uploaded == 0
+    assert "bottom levels built: 0" in log and "door_left" in log and "door_right" in log
+
+
+def test_lens_edit_builds_exactly_one_bottom_level(demo) -> None:
+    report, log = demo
+    lens = report.pushes["lens"]
+    assert lens.revision == 3
+    assert len(lens.geometry_changed) == 1 and lens.moved == []
+    assert lens.blas_built == 1 and lens.uploaded == 1
+    assert "geometry changed lens" in log and "bottom levels built: 1" in log
+    assert lens.tlas_ms >= 0.0
+
+
+def test_every_assignment_survives_both_pushes(demo) -> None:
+    report, log = demo
+    before, after = report.assignments_before, report.assignments_after
+    kinds = {key.split(":")[0] for key in before}
+    assert kinds == {"material", "light", "sensor", "object"}
+    # car, windscreen, lens, housing, 4 wheels, and the floor object's own material
+    assert sum(k.startswith("material") for k in before) == 9
+    assert sum(k.startswith("light") for k in before) == 2
+    assert after == before  # same ids, same bodies, none orphaned
+    assert all(orphaned is False for _, orphaned in after.values())
+    assert "all kept, none orphaned" in log
+
+
+def test_queries_answer_at_the_revision_they_describe(demo) -> None:
+    report, _ = demo
+    b, a = report.grid_before, report.grid_after
+    assert (b["revision"], a["revision"]) == (1, 3)
+    for grid in (b, a):
+        lux = np.asarray(grid["lux"])
+        assert lux.shape == (GRID_NV, GRID_NU) and np.all(lux >= 0) and lux.max() > 0
+        assert grid["photons"] > 0 and "fresnel" in grid["effects"]  # glass lens and windscreen
+    assert report.points_before["revision"] == 1 and report.points_after["revision"] == 3
+    assert report.change.cells == GRID_NU * GRID_NV
+
+
+def test_maps_are_non_empty_pngs(demo) -> None:
+    report, log = demo
+    assert set(report.maps) == {"before", "after", "difference"}
+    for path in report.maps.values():
+        data = path.read_bytes()
+        assert data.startswith(b"\x89PNG\r\n\x1a\n") and len(data) > 10_000
+        image = mpimg.imread(io.BytesIO(data), format="png")
+        assert image.shape[0] > 300 and image.shape[1] > 500
+        assert str(path) in log
+    assert "http://127.0.0.1:8000/docs" in log
+
+
+def test_log_says_how_long_it_took(demo) -> None:
+    report, log = demo
+    assert report.seconds > 0 and 0 <= report.compile_seconds <= report.seconds
+    for step in ("1. ", "2. ", "3. ", "4a. ", "4b. ", "5. ", "6. "):
+        assert f"] {step}" in log
