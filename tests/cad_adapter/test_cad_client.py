@@ -208,3 +208,38 @@ def test_cli_exit_codes(fake, car_step, tmp_path, capsys) -> None:
     assert cli.push(car_step, "car", "http://127.0.0.1:9", linear=1.0, angular=0.8,
                     transport=httpx.MockTransport(refuse), cache_dir=tmp_path) == cli.EXIT_UNREACHABLE
     assert "lumenlink serve" in capsys.readouterr().err
+
+
+def test_watch_pushes_on_change_debounced(fake, tmp_path) -> None:
+    import threading
+    import time
+
+    step = tmp_path / "car.step"
+    doc = cad_adapter.read_document(car(), sidecar=tmp_path / "ids.json")
+    write_step(doc, step)
+    edited = tmp_path / "edited.step"
+    write_step(cad_adapter.read_document(car(0.0, 150.0), sidecar=tmp_path / "ids.json"), edited)
+    codes: list[int] = []
+    t = threading.Thread(target=lambda: codes.append(cli.watch(
+        step, "car", "http://fake", linear=1.0, angular=0.8, debounce=1.0, poll=0.02, max_pushes=2, timeout=120,
+        transport=httpx.MockTransport(fake), cache_dir=tmp_path / "cache")))
+    t.start()
+    deadline = time.monotonic() + 60
+    while not fake.documents:
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+    # a save in two steps (truncate, then write): the debounce waits for the file to settle
+    step.write_text("")
+    time.sleep(0.05)
+    step.write_bytes(edited.read_bytes())
+    t.join(timeout=120)
+    assert codes == [0] and len(fake.documents) == 2
+    before, after = ({n["uuid"]: n["geometry"] for n in d["nodes"]} for d in fake.documents)
+    assert sum(before[u] != after[u] for u in before) == 1
+
+
+def test_watch_bad_input(tmp_path) -> None:
+    assert cli.watch(tmp_path / "none.step", "car", "http://fake", timeout=0) == cli.EXIT_INPUT
+    (tmp_path / "x.step").write_text("x")
+    assert cli.watch(tmp_path / "x.step", "car", "http://fake", debounce=-1, timeout=0) == cli.EXIT_INPUT
+    assert cli.watch(tmp_path / "x.step", "car", "http://fake", angular=5.0, timeout=0) == cli.EXIT_INPUT
