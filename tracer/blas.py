@@ -11,6 +11,12 @@ Layout (pbrt's ``LinearBVHNode`` as structure of arrays, one row per node, depth
     leaf: number of primitives (> 0); interior: ``-(axis + 1)``, the split axis, so traversal can
     visit the near child first.
 
+For traversal, :func:`collapse` and :func:`pack_rows` turn each tree into *child-box rows*: one
+64-byte float32 row per interior node holding both children's boxes and references (leaves are
+encoded in the reference), so a ray tests both children from one cache line and never fetches a
+child it misses. The boxes are exact in float32 because the vertices are float32 (the geometry id
+hashes them so); :func:`pack_rows` still rounds outward. The top level uses the same rows.
+
 Indices are local to one geometry; the scene adds per-geometry offsets at traversal time, so the
 packed store grows by appending and never rewrites what is there.
 
@@ -342,7 +348,7 @@ def check_topology(node_a, node_n, m):
         c = node_n[i]
         a = node_a[i]
         if c > 0:
-            if a < 0 or a + c > m:
+            if a < 0 or a + c > m or c >= 16:
                 return False
             for q in range(a, a + c):
                 if covered[q]:
@@ -386,3 +392,95 @@ def refit(node_a, node_n, tri_v_leaf, node_box):
             for ax in range(3):
                 node_box[i, ax] = min(node_box[l_, ax], node_box[r, ax])
                 node_box[i, 3 + ax] = max(node_box[l_, 3 + ax], node_box[r, 3 + ax])
+
+
+
+@njit(cache=True)
+def collapse(node_box, node_a, node_n, node_off, node_cnt):
+    """Turn binary trees (one per geometry) into child-box rows: one row per interior node.
+
+    A row holds both children's boxes, so traversal tests both from one 64-byte row and never
+    fetches a child it misses (pbrt's layout fetches a node to test its own box). A single-leaf tree
+    gets one row whose second child is an empty box.
+
+    Returns
+    -------
+    boxes : (R, 12) float64
+        left box (xmin, ymin, zmin, xmax, ymax, zmax), right box.
+    refs : (R, 2) int64
+        Child references: ``>= 0`` a row (local to the geometry), ``< 0`` a leaf
+        ``-(first * 16 + count) - 1`` (count < 16).
+    row_cnt : (G,) int64
+        Rows per geometry, in geometry order.
+    """
+    g_n = node_cnt.shape[0]
+    row_cnt = np.zeros(g_n, np.int64)
+    for g in range(g_n):
+        n = node_cnt[g]
+        if n == 1:
+            row_cnt[g] = 1
+        else:
+            c = 0
+            for i in range(node_off[g], node_off[g] + n):
+                if node_n[i] <= 0:
+                    c += 1
+            row_cnt[g] = c
+    total = 0
+    for g in range(g_n):
+        total += row_cnt[g]
+    boxes = np.empty((total, 12))
+    refs = np.empty((total, 2), np.int64)
+    row_of = np.zeros(node_a.shape[0], np.int64)
+    r = 0
+    for g in range(g_n):
+        k0 = node_off[g]
+        n = node_cnt[g]
+        if n == 0:
+            continue
+        if n == 1:
+            for a in range(6):
+                boxes[r, a] = node_box[k0, a]
+            for a in range(3):
+                boxes[r, 6 + a] = np.inf
+                boxes[r, 9 + a] = -np.inf
+            refs[r, 0] = -(node_a[k0] * 16 + node_n[k0]) - 1
+            refs[r, 1] = -1
+            r += 1
+            continue
+        q = 0
+        for i in range(k0, k0 + n):
+            if node_n[i] <= 0:
+                row_of[i] = q
+                q += 1
+        for i in range(k0, k0 + n):
+            if node_n[i] > 0:
+                continue
+            left = i + 1
+            right = k0 + node_a[i]
+            for a in range(6):
+                boxes[r, a] = node_box[left, a]
+                boxes[r, 6 + a] = node_box[right, a]
+            refs[r, 0] = row_of[left] if node_n[left] <= 0 else -(node_a[left] * 16 + node_n[left]) - 1
+            refs[r, 1] = row_of[right] if node_n[right] <= 0 else -(node_a[right] * 16 + node_n[right]) - 1
+            r += 1
+    return boxes, refs, row_cnt
+
+
+_LO = np.array([0, 1, 2, 6, 7, 8])
+_HI = np.array([3, 4, 5, 9, 10, 11])
+
+
+def pack_rows(boxes: np.ndarray, refs: np.ndarray) -> np.ndarray:
+    """(R, 16) float32 traversal rows: the 12 box values rounded outward to float32, then the two
+    child references bit-cast into columns 12-13 (read through an int32 view of the same buffer)."""
+    out = np.zeros((len(boxes), 16), np.float32)
+    with np.errstate(over="ignore"):
+        b32 = boxes.astype(np.float32)
+    lo = b32[:, _LO]
+    hi = b32[:, _HI]
+    lo = np.where(lo > boxes[:, _LO], np.nextafter(lo, np.float32(-np.inf)), lo)
+    hi = np.where(hi < boxes[:, _HI], np.nextafter(hi, np.float32(np.inf)), hi)
+    out[:, _LO] = lo
+    out[:, _HI] = hi
+    out.view(np.int32)[:, 12:14] = refs
+    return out

@@ -25,7 +25,7 @@ import numba
 import numpy as np
 
 from tracer import cache as blas_cache
-from tracer.blas import build_meshes, gather_triangles, refit
+from tracer.blas import build_meshes, collapse, gather_triangles, pack_rows, refit
 from tracer.errors import NotCommittedError, TracerError, UnknownIdError
 from tracer.geometry_id import canonical_arrays, geometry_id
 from tracer.kinds import SENSOR_KINDS, disk_sensor, mesh, rect_sensor
@@ -101,8 +101,8 @@ class _Geometry:
 
 def _empty_store() -> dict[str, np.ndarray]:
     return {
-        "node_box": np.empty((0, 6)), "node_a": np.empty(0, np.int32), "node_n": np.empty(0, np.int32),
-        "tri_v": np.empty((0, 9)), "tri_prim": np.empty(0, np.int32), "prim_slot": np.empty(0, np.int32),
+        "bvh": np.empty((0, 16), np.float32),
+        "tri_v": np.empty((0, 9), np.float32), "tri_prim": np.empty(0, np.int32), "prim_slot": np.empty(0, np.int32),
         "tri_n": np.empty((0, 9), np.float32),
     }
 
@@ -188,7 +188,7 @@ class Scene:
         self._dirty_ids: set[int] = set()
         self._top_dirty = True
         self._sen_dirty = True
-        self._top = (np.empty((0, 6)), np.empty(0, np.int32), np.empty(0, np.int32), np.empty(0, np.int32))
+        self._top = build_top(np.empty(0, np.int64), self._wbox)
         self._sen = self._top
         self._arrays: SceneArrays | None = None
         self._changed = True
@@ -389,10 +389,11 @@ class Scene:
             self._sen_dirty = False
         s = self._store
         self._arrays = SceneArrays(
-            s["node_box"], s["node_a"], s["node_n"], s["tri_v"], s["tri_prim"], s["prim_slot"], s["tri_n"],
+            s["bvh"].ravel(), s["bvh"].view(np.int32).ravel(), s["tri_v"].ravel(),
+            s["tri_prim"], s["prim_slot"], s["tri_n"],
             self._g_node0, self._g_tri0, self._g_ntri, self._g_hasn,
             kind.copy(), self._igeom[:n].copy(), self._wfo[:n].copy(), self._ofw[:n].copy(),
-            *self._top, *self._sen)
+            *_flat(self._top), *_flat(self._sen))
         self._changed = False
         t2 = time.perf_counter()
         return UpdateStats(built, loaded, t1 - t0, t2 - t1)
@@ -422,7 +423,7 @@ class Scene:
         ntri = np.concatenate([self._g_ntri, np.zeros(G - len(self._g_ntri), np.int64)])
         hasn = np.concatenate([self._g_hasn, np.zeros(G - len(self._g_hasn), np.bool_)])
         new = {k: [v] for k, v in self._store.items()}
-        n_nodes = len(self._store["node_a"])
+        n_nodes = len(self._store["bvh"])
         n_tris = len(self._store["tri_prim"])
         for geoms, arrs, g_nodes, g_tris in parts:
             idx = np.array([g.index for g in geoms], np.int64)
@@ -465,16 +466,18 @@ class Scene:
             nrm = np.concatenate([g.normals if g.normals is not None else np.zeros_like(g.vertices) for g in geoms])
             tri_n[:] = nrm[tris + np.repeat(vert_off[:-1], g_tris)[:, None]].reshape(m, 9)
             tri_n = tri_n[leaf_rows]
-        arrs = {"node_box": node_box[rows], "node_a": node_a[rows], "node_n": node_n[rows], "tri_v": tri_v[leaf_rows],
+        node_a, node_n = node_a[rows], node_n[rows]
+        n0 = np.concatenate([[0], np.cumsum(node_cnt)])
+        boxes, refs, row_cnt = collapse(node_box[rows], node_a, node_n, n0[:-1], node_cnt)
+        arrs = {"bvh": pack_rows(boxes, refs), "tri_v": tri_v[leaf_rows].astype(np.float32),
                 "tri_prim": tri_prim, "prim_slot": prim_slot, "tri_n": tri_n}
         if self.cache_dir is not None:
-            n0 = np.concatenate([[0], np.cumsum(node_cnt)])
             for q, g in enumerate(geoms):
                 if g_tris[q] >= self.cache_min_triangles:
                     sl = slice(int(n0[q]), int(n0[q + 1]))
                     blas_cache.save(self.cache_dir, self._geom_ids[g.index], order[tri_off[q]:tri_off[q + 1]],
-                                    arrs["node_a"][sl], arrs["node_n"][sl])
-        return geoms, arrs, node_cnt, g_tris
+                                    node_a[sl], node_n[sl])
+        return geoms, arrs, row_cnt, g_tris
 
     def _loaded_part(self, g: _Geometry, order: np.ndarray, node_a: np.ndarray, node_n: np.ndarray):
         """Store arrays of a BLAS whose topology came from the cache; boxes are refitted, never read."""
@@ -489,9 +492,11 @@ class Scene:
             tri_n = g.normals[g.triangles.astype(np.int64)].reshape(m, 9)[order].astype(np.float32)
         else:
             tri_n = np.zeros((m, 9), np.float32)
-        arrs = {"node_box": node_box, "node_a": node_a, "node_n": node_n, "tri_v": tri_v,
+        boxes, refs, row_cnt = collapse(node_box, node_a, node_n, np.zeros(1, np.int64),
+                                        np.array([len(node_a)], np.int64))
+        arrs = {"bvh": pack_rows(boxes, refs), "tri_v": tri_v.astype(np.float32),
                 "tri_prim": order.astype(np.int32), "prim_slot": prim_slot, "tri_n": tri_n}
-        return [g], arrs, np.array([len(node_a)], np.int64), np.array([m], np.int64)
+        return [g], arrs, row_cnt, np.array([m], np.int64)
 
     # ---------------------------------------------------------------- queries
     def arrays(self) -> SceneArrays:
@@ -534,6 +539,11 @@ class Scene:
         out = np.empty(len(o), np.bool_)
         _run_threads(threads, lambda: any_batch(sa, o, d, tm, out))
         return out
+
+
+def _flat(level: tuple[np.ndarray, np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    rows_f, rows_i, items = level
+    return rows_f.ravel(), rows_i.ravel(), items
 
 
 def _run_threads(threads: int | None, fn: Callable[[], None]) -> None:

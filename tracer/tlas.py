@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from tracer.blas import build_bvh_range
+from tracer.blas import build_bvh_range, collapse, pack_rows
 
 #: an instance visit (transform + BLAS root) costs about this many node visits (SAH)
 INSTANCE_COST = 2.0
@@ -59,12 +59,7 @@ def world_boxes(ids, world_from_object, object_box, out):
 
 
 @njit(cache=True, error_model="numpy")
-def build_top(ids, boxes):
-    """Build the top level over instances ``ids`` with world boxes ``boxes[ids]``.
-
-    Returns ``(node_box, node_a, node_n, items)``: the node layout of :mod:`tracer.blas`, leaves
-    index ``items`` (instance ids in leaf order).
-    """
+def _build_top(ids, boxes):
     n = ids.shape[0]
     bmin = np.empty((n, 3))
     bmax = np.empty((n, 3))
@@ -81,4 +76,18 @@ def build_top(ids, boxes):
     items = np.empty(n, np.int32)
     for q in range(n):
         items[q] = ids[order[q]]
-    return node_box[:k].copy(), node_a[:k].copy(), node_n[:k].copy(), items
+    node_off = np.zeros(1, np.int64)
+    node_cnt = np.full(1, k, np.int64)
+    boxes2, refs, _ = collapse(node_box[:k], node_a[:k], node_n[:k], node_off, node_cnt)
+    return boxes2, refs, items
+
+
+def build_top(ids: np.ndarray, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Build the top level over instances ``ids`` with world boxes ``boxes[ids]``.
+
+    Returns ``(rows_f, rows_i, items)``: child-box rows (:func:`tracer.blas.pack_rows`, float32 and
+    its int32 view; no rows when there are no instances), leaves index ``items`` (instance ids).
+    """
+    b, refs, items = _build_top(np.ascontiguousarray(ids, np.int64), boxes)
+    rows = pack_rows(b, refs)
+    return rows, rows.view(np.int32), items

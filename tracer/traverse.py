@@ -27,15 +27,17 @@ from numba import njit, prange
 
 from tracer.blas import STACK_SIZE
 from tracer.kinds import dispatch
-from tracer.kinds.mesh import box_hit
+from tracer.kinds.mesh import ray_inverse, slab
 
 
 class SceneArrays(NamedTuple):
     """Everything a query needs, as arrays (structure of arrays, packed at commit).
 
     Geometry store (append-only; indices local to a geometry, offsets below):
-    ``node_box`` (K, 6) f8, ``node_a`` (K,) i4, ``node_n`` (K,) i4 — BLAS nodes (:mod:`tracer.blas`);
-    ``tri_v`` (M, 9) f8 — triangle vertices in leaf order; ``tri_prim`` (M,) i4 — original
+    ``bvh_f`` (16 R,) f4 and ``bvh_i`` (16 R,) i4, two flat views of the same BLAS child-box rows
+    (:func:`tracer.blas.pack_rows`, 16 values per row); ``tri_v`` (9 M,) f4 — triangle vertices in
+    leaf order, 9 values each (exact: the geometry's vertices are float32; all arithmetic on them is
+    float64); ``tri_prim`` (M,) i4 — original
     triangle index of each row; ``prim_slot`` (M,) i4 — the inverse (original index -> local row);
     ``tri_n`` (M, 9) f4 — vertex normals in leaf order (zero where the mesh has none);
     ``geom_node0``, ``geom_tri0`` (G,) i8, ``geom_ntri`` (G,) i8, ``geom_has_normals`` (G,) bool.
@@ -43,13 +45,12 @@ class SceneArrays(NamedTuple):
     Instances (indexed by instance id): ``inst_kind`` (I,) i4 (-1: removed), ``inst_geom`` (I,) i4,
     ``world_from_object`` and ``object_from_world`` (I, 3, 4) f8 (affine rows).
 
-    Top levels over instance ids: solids ``top_box, top_a, top_n, top_items`` and sensors
-    ``sen_box, sen_a, sen_n, sen_items`` (same node layout, leaves index ``*_items``).
+    Top levels over instance ids, flat child-box rows as in the BLAS: solids ``top_f, top_i, top_items``
+    and sensors ``sen_f, sen_i, sen_items`` (leaves index ``*_items``).
     """
 
-    node_box: np.ndarray
-    node_a: np.ndarray
-    node_n: np.ndarray
+    bvh_f: np.ndarray
+    bvh_i: np.ndarray
     tri_v: np.ndarray
     tri_prim: np.ndarray
     prim_slot: np.ndarray
@@ -62,17 +63,15 @@ class SceneArrays(NamedTuple):
     inst_geom: np.ndarray
     world_from_object: np.ndarray
     object_from_world: np.ndarray
-    top_box: np.ndarray
-    top_a: np.ndarray
-    top_n: np.ndarray
+    top_f: np.ndarray
+    top_i: np.ndarray
     top_items: np.ndarray
-    sen_box: np.ndarray
-    sen_a: np.ndarray
-    sen_n: np.ndarray
+    sen_f: np.ndarray
+    sen_i: np.ndarray
     sen_items: np.ndarray
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _to_object(m, inst, ox, oy, oz, dx, dy, dz):
     rox = m[inst, 0, 0] * ox + m[inst, 0, 1] * oy + m[inst, 0, 2] * oz + m[inst, 0, 3]
     roy = m[inst, 1, 0] * ox + m[inst, 1, 1] * oy + m[inst, 1, 2] * oz + m[inst, 1, 3]
@@ -83,7 +82,7 @@ def _to_object(m, inst, ox, oy, oz, dx, dy, dz):
     return rox, roy, roz, rdx, rdy, rdz
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def normal_to_world(sa, inst, nx, ny, nz):
     """Object-space normal -> unit world-space normal (inverse transpose of world_from_object)."""
     m = sa.object_from_world
@@ -105,69 +104,84 @@ def point_to_world(sa, inst, px, py, pz):
             m[inst, 2, 0] * px + m[inst, 2, 1] * py + m[inst, 2, 2] * pz + m[inst, 2, 3])
 
 
-@njit(cache=True, error_model="numpy")
-def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, top_stack, stack):
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stacks, tstacks):
     best_t = t_max
     best_inst = -1
     best_slot = -1
     bu = 0.0
     bv = 0.0
-    if sa.top_a.shape[0] == 0:
+    if sa.top_f.shape[0] == 0:
         return best_t, best_inst, best_slot, bu, bv
-    ix = 1.0 / dx
-    iy = 1.0 / dy
-    iz = 1.0 / dz
-    box = sa.top_box
-    ta = sa.top_a
-    tn = sa.top_n
+    ix, iy, iz, ixe, iye, ize, xl, yl, zl = ray_inverse(dx, dy, dz)
+    bf = sa.top_f
+    bi = sa.top_i
     items = sa.top_items
     m = sa.object_from_world
+    stack = stacks[0]
+    tstack = tstacks[0]
     sp = 0
-    node = 0
+    ref = 0
     while True:
-        if box_hit(box, node, ox, oy, oz, ix, iy, iz, best_t):
-            c = tn[node]
-            if c > 0:
-                first = ta[node]
-                for q in range(first, first + c):
-                    inst = items[q]
-                    rox, roy, roz, rdx, rdy, rdz = _to_object(m, inst, ox, oy, oz, dx, dy, dz)
-                    hit, t, slot, u, v = dispatch.intersect_solid(sa, inst, rox, roy, roz, rdx, rdy, rdz,
-                                                                  best_t, any_hit, stack)
-                    if hit:
-                        best_t = t
-                        best_inst = inst
-                        best_slot = slot
-                        bu = u
-                        bv = v
-                        if any_hit:
-                            return best_t, best_inst, best_slot, bu, bv
-                if sp == 0:
-                    break
-                sp -= 1
-                node = top_stack[sp]
-            else:
-                axis = -c - 1
-                neg = ix < 0.0 if axis == 0 else (iy < 0.0 if axis == 1 else iz < 0.0)
-                if neg:
-                    top_stack[sp] = node + 1
-                    node = ta[node]
+        if ref >= 0:
+            r = 16 * ref
+            hl, tl = slab(bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
+            hr, tr = slab(bf, r + 6, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
+            if hl and hr:
+                if tr < tl:
+                    stack[sp] = bi[r + 12]
+                    tstack[sp] = tl
+                    ref = bi[r + 13]
                 else:
-                    top_stack[sp] = ta[node]
-                    node = node + 1
+                    stack[sp] = bi[r + 13]
+                    tstack[sp] = tr
+                    ref = bi[r + 12]
                 sp += 1
+                continue
+            if hl:
+                ref = bi[r + 12]
+                continue
+            if hr:
+                ref = bi[r + 13]
+                continue
         else:
-            if sp == 0:
-                break
+            x = -ref - 1
+            first = x >> 4
+            for q in range(first, first + (x & 15)):
+                inst = items[q]
+                rox, roy, roz, rdx, rdy, rdz = _to_object(m, inst, ox, oy, oz, dx, dy, dz)
+                hit, t, slot, u, v = dispatch.intersect_solid(sa, inst, rox, roy, roz, rdx, rdy, rdz,
+                                                              best_t, any_hit, stacks[1], tstacks[1])
+                if hit:
+                    best_t = t
+                    best_inst = inst
+                    best_slot = slot
+                    bu = u
+                    bv = v
+                    if any_hit:
+                        return best_t, best_inst, best_slot, bu, bv
+        found = False
+        while sp > 0:
             sp -= 1
-            node = top_stack[sp]
+            if tstack[sp] <= best_t:
+                ref = stack[sp]
+                found = True
+                break
+        if not found:
+            break
     return best_t, best_inst, best_slot, bu, bv
 
 
-@njit(cache=True, error_model="numpy")
-def closest_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, top_stack, stack):
-    """:func:`intersect_closest` with caller-provided traversal stacks (int64, :data:`STACK_SIZE`)."""
-    t, inst, slot, u, v = _closest(sa, ox, oy, oz, dx, dy, dz, t_max, False, top_stack, stack)
+def new_stacks() -> tuple[np.ndarray, np.ndarray]:
+    """Traversal stacks for the ``*_with_stacks`` functions: ``(stacks, tstacks)``, (2, STACK_SIZE)."""
+    return np.empty((2, STACK_SIZE), np.int64), np.empty((2, STACK_SIZE))
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def closest_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, stacks, tstacks):
+    """:func:`intersect_closest` with caller-provided traversal stacks (:func:`new_stacks`), which
+    saves two small allocations per call in a loop over many rays."""
+    t, inst, slot, u, v = _closest(sa, ox, oy, oz, dx, dy, dz, t_max, False, stacks, tstacks)
     if inst < 0:
         return np.inf, -1, -1, 0.0, 0.0, 0.0, 0.0, 0.0
     prim = dispatch.primitive_solid(sa, inst, slot)
@@ -187,24 +201,24 @@ def intersect_closest(sa, ox, oy, oz, dx, dy, dz, t_max):
         (``p = (1-u-v) v0 + u v1 + v v2``); ``ng`` the unit world-space geometric normal of the
         object-space ``(v1-v0) x (v2-v0)`` (zeros on a miss).
     """
-    top_stack = np.empty(STACK_SIZE, np.int64)
-    stack = np.empty(STACK_SIZE, np.int64)
-    return closest_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, top_stack, stack)
+    stacks = np.empty((2, STACK_SIZE), np.int64)
+    tstacks = np.empty((2, STACK_SIZE))
+    return closest_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, stacks, tstacks)
 
 
-@njit(cache=True, error_model="numpy")
-def any_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, top_stack, stack):
-    """:func:`intersect_any` with caller-provided traversal stacks."""
-    t, inst, slot, u, v = _closest(sa, ox, oy, oz, dx, dy, dz, t_max, True, top_stack, stack)
+@njit(cache=True, error_model="numpy", _nrt=False)
+def any_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, stacks, tstacks):
+    """:func:`intersect_any` with caller-provided traversal stacks (:func:`new_stacks`)."""
+    t, inst, slot, u, v = _closest(sa, ox, oy, oz, dx, dy, dz, t_max, True, stacks, tstacks)
     return inst >= 0
 
 
 @njit(cache=True, error_model="numpy")
 def intersect_any(sa, ox, oy, oz, dx, dy, dz, t_max):
     """True when any solid instance is hit with ``0 < t < t_max`` (shadow rays; sensors ignored)."""
-    top_stack = np.empty(STACK_SIZE, np.int64)
-    stack = np.empty(STACK_SIZE, np.int64)
-    return any_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, top_stack, stack)
+    stacks = np.empty((2, STACK_SIZE), np.int64)
+    tstacks = np.empty((2, STACK_SIZE))
+    return any_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, stacks, tstacks)
 
 
 @njit(cache=True, error_model="numpy")
@@ -224,62 +238,60 @@ def sensor_crossings(sa, ox, oy, oz, dx, dy, dz, t_max, out_inst, out_t, out_u, 
     """
     cap = out_inst.shape[0]
     count = 0
-    if sa.sen_a.shape[0] == 0 or cap == 0:
+    if sa.sen_f.shape[0] == 0 or cap == 0:
         return 0
-    ix = 1.0 / dx
-    iy = 1.0 / dy
-    iz = 1.0 / dz
+    ix, iy, iz, ixe, iye, ize, xl, yl, zl = ray_inverse(dx, dy, dz)
     dlen = math.sqrt(dx * dx + dy * dy + dz * dz)
     stack = np.empty(STACK_SIZE, np.int64)
+    bf = sa.sen_f
+    bi = sa.sen_i
     m = sa.object_from_world
-    sp = 0
-    node = 0
-    while True:
-        if box_hit(sa.sen_box, node, ox, oy, oz, ix, iy, iz, t_max):
-            c = sa.sen_n[node]
-            if c > 0:
-                first = sa.sen_a[node]
-                for q in range(first, first + c):
-                    inst = sa.sen_items[q]
-                    rox, roy, roz, rdx, rdy, rdz = _to_object(m, inst, ox, oy, oz, dx, dy, dz)
-                    hit, t, u, v = dispatch.cross_sensor(sa, inst, rox, roy, roz, rdx, rdy, rdz, t_max)
-                    if not hit:
-                        continue
-                    nx, ny, nz = normal_to_world(sa, inst, 0.0, 0.0, 1.0)
-                    cs = -(dx * nx + dy * ny + dz * nz) / dlen
-                    # insertion into the sorted list, dropping the farthest when full
-                    if count == cap:
-                        if t >= out_t[cap - 1]:
-                            continue
-                        pos = cap - 1
-                    else:
-                        pos = count
-                        count += 1
-                    while pos > 0 and out_t[pos - 1] > t:
-                        out_inst[pos] = out_inst[pos - 1]
-                        out_t[pos] = out_t[pos - 1]
-                        out_u[pos] = out_u[pos - 1]
-                        out_v[pos] = out_v[pos - 1]
-                        out_cos[pos] = out_cos[pos - 1]
-                        pos -= 1
-                    out_inst[pos] = inst
-                    out_t[pos] = t
-                    out_u[pos] = u
-                    out_v[pos] = v
-                    out_cos[pos] = cs
-                if sp == 0:
-                    break
-                sp -= 1
-                node = stack[sp]
-            else:
-                stack[sp] = sa.sen_a[node]
-                node = node + 1
+    sp = 1
+    stack[0] = 0
+    while sp > 0:
+        sp -= 1
+        ref = stack[sp]
+        if ref >= 0:
+            r = 16 * ref
+            hl, _ = slab(bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, t_max)
+            hr, _ = slab(bf, r + 6, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, t_max)
+            if hl:
+                stack[sp] = bi[r + 12]
                 sp += 1
-        else:
-            if sp == 0:
-                break
-            sp -= 1
-            node = stack[sp]
+            if hr:
+                stack[sp] = bi[r + 13]
+                sp += 1
+            continue
+        x = -ref - 1
+        first = x >> 4
+        for q in range(first, first + (x & 15)):
+            inst = sa.sen_items[q]
+            rox, roy, roz, rdx, rdy, rdz = _to_object(m, inst, ox, oy, oz, dx, dy, dz)
+            hit, t, u, v = dispatch.cross_sensor(sa, inst, rox, roy, roz, rdx, rdy, rdz, t_max)
+            if not hit:
+                continue
+            nx, ny, nz = normal_to_world(sa, inst, 0.0, 0.0, 1.0)
+            cs = -(dx * nx + dy * ny + dz * nz) / dlen
+            # insertion into the sorted list, dropping the farthest when full
+            if count == cap:
+                if t >= out_t[cap - 1]:
+                    continue
+                pos = cap - 1
+            else:
+                pos = count
+                count += 1
+            while pos > 0 and out_t[pos - 1] > t:
+                out_inst[pos] = out_inst[pos - 1]
+                out_t[pos] = out_t[pos - 1]
+                out_u[pos] = out_u[pos - 1]
+                out_v[pos] = out_v[pos - 1]
+                out_cos[pos] = out_cos[pos - 1]
+                pos -= 1
+            out_inst[pos] = inst
+            out_t[pos] = t
+            out_u[pos] = u
+            out_v[pos] = v
+            out_cos[pos] = cs
     return count
 
 
@@ -308,11 +320,11 @@ def closest_batch(sa, o, d, t_max, out_t, out_inst, out_prim, out_u, out_v, out_
     k = o.shape[0]
     nb = (k + BLOCK - 1) // BLOCK
     for b in prange(nb):
-        top_stack = np.empty(STACK_SIZE, np.int64)
-        stack = np.empty(STACK_SIZE, np.int64)
+        stacks = np.empty((2, STACK_SIZE), np.int64)
+        tstacks = np.empty((2, STACK_SIZE))
         for i in range(b * BLOCK, min(k, (b + 1) * BLOCK)):
             t, inst, prim, u, v, nx, ny, nz = closest_with_stacks(
-                sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t_max[i], top_stack, stack)
+                sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t_max[i], stacks, tstacks)
             out_t[i] = t
             out_inst[i] = inst
             out_prim[i] = prim
@@ -329,8 +341,8 @@ def any_batch(sa, o, d, t_max, out):
     k = o.shape[0]
     nb = (k + BLOCK - 1) // BLOCK
     for b in prange(nb):
-        top_stack = np.empty(STACK_SIZE, np.int64)
-        stack = np.empty(STACK_SIZE, np.int64)
+        stacks = np.empty((2, STACK_SIZE), np.int64)
+        tstacks = np.empty((2, STACK_SIZE))
         for i in range(b * BLOCK, min(k, (b + 1) * BLOCK)):
             out[i] = any_with_stacks(sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t_max[i],
-                                     top_stack, stack)
+                                     stacks, tstacks)

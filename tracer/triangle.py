@@ -6,7 +6,7 @@ sheared triangle are then evaluated with the *same* expression for an edge share
 slips between triangles. Everything is float64; the vertices come from float32 tessellations,
 so at 1e5 m a vertex is exact and the edge functions keep ~11 spare digits.
 
-Conventions: ``tri`` rows hold ``v0, v1, v2`` (9 float64). A hit returns barycentrics ``(u, v)``
+Conventions: each triangle is 9 consecutive values ``v0, v1, v2`` of a flat array. A hit returns barycentrics ``(u, v)``
 with ``p = (1 - u - v) v0 + u v1 + v v2``. Both faces are hit (no culling). Degenerate (zero-area)
 triangles give ``det == 0`` and never hit; no division by zero happens before that test.
 """
@@ -16,7 +16,7 @@ from __future__ import annotations
 from numba import njit
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def ray_setup(dx, dy, dz):
     """Per-ray constants of the watertight test.
 
@@ -49,16 +49,17 @@ def ray_setup(dx, dy, dz):
     return kx, ky, kz, sx, sy, sz
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def intersect_triangle(tri, j, o0, o1, o2, kx, ky, kz, sx, sy, sz, t_max):
     """Test ray ``(o, d)`` (``d`` given through :func:`ray_setup`) against triangle row ``tri[j]``.
 
     Parameters
     ----------
-    tri : (m, 9) float64
-        Triangle vertices ``v0, v1, v2`` in the ray's space.
+    tri : (9 m,) float32 or float64
+        Triangle vertices ``v0, v1, v2`` in the ray's space, flat, 9 per triangle (arithmetic is
+        float64 either way).
     j : int
-        Row to test.
+        Triangle to test.
     o0, o1, o2 : float
         Ray origin (x, y, z).
     kx, ky, kz, sx, sy, sz
@@ -73,15 +74,16 @@ def intersect_triangle(tri, j, o0, o1, o2, kx, ky, kz, sx, sy, sz, t_max):
     okx = o0 if kx == 0 else (o1 if kx == 1 else o2)
     oky = o0 if ky == 0 else (o1 if ky == 1 else o2)
     okz = o0 if kz == 0 else (o1 if kz == 1 else o2)
-    akz = tri[j, kz] - okz
-    bkz = tri[j, 3 + kz] - okz
-    ckz = tri[j, 6 + kz] - okz
-    ax = (tri[j, kx] - okx) - sx * akz
-    ay = (tri[j, ky] - oky) - sy * akz
-    bx = (tri[j, 3 + kx] - okx) - sx * bkz
-    by = (tri[j, 3 + ky] - oky) - sy * bkz
-    cx = (tri[j, 6 + kx] - okx) - sx * ckz
-    cy = (tri[j, 6 + ky] - oky) - sy * ckz
+    q = 9 * j
+    akz = tri[q + kz] - okz
+    bkz = tri[q + 3 + kz] - okz
+    ckz = tri[q + 6 + kz] - okz
+    ax = (tri[q + kx] - okx) - sx * akz
+    ay = (tri[q + ky] - oky) - sy * akz
+    bx = (tri[q + 3 + kx] - okx) - sx * bkz
+    by = (tri[q + 3 + ky] - oky) - sy * bkz
+    cx = (tri[q + 6 + kx] - okx) - sx * ckz
+    cy = (tri[q + 6 + ky] - oky) - sy * ckz
     uu = cx * by - cy * bx
     vv = ax * cy - ay * cx
     ww = bx * ay - by * ax

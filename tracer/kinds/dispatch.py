@@ -12,16 +12,16 @@ from numba import njit
 from tracer.kinds import disk_sensor, mesh, rect_sensor
 
 
-@njit(cache=True, error_model="numpy")
-def intersect_solid(sa, inst, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack):
+@njit(cache=True, error_model="numpy", _nrt=False)
+def intersect_solid(sa, inst, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
     """``(hit, t, slot, u, v)`` of the ray with solid instance ``inst`` (closest, or any with ``any_hit``)."""
     kind = sa.inst_kind[inst]
     if kind == mesh.KIND:
-        return mesh.traverse(sa, sa.inst_geom[inst], ox, oy, oz, dx, dy, dz, t_max, any_hit, stack)
+        return mesh.traverse(sa, sa.inst_geom[inst], ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack)
     return False, 0.0, -1, 0.0, 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def primitive_solid(sa, inst, slot):
     """Primitive id reported for a hit at ``slot`` of solid instance ``inst``."""
     kind = sa.inst_kind[inst]
@@ -30,7 +30,7 @@ def primitive_solid(sa, inst, slot):
     return -1
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def normal_solid(sa, inst, slot):
     """Unnormalised object-space geometric normal at ``slot`` of solid instance ``inst``."""
     kind = sa.inst_kind[inst]

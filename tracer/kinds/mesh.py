@@ -1,7 +1,7 @@
 """Kind 0: a triangle mesh with its binned-SAH BVH (:mod:`tracer.blas`), one per unique geometry.
 
 The ray arrives in object space; ``slot`` results are rows of the packed triangle arrays
-(``sa.tri_v``, leaf order), turned into the caller's primitive id by :func:`primitive_id`.
+(triangles of ``sa.tri_v``, leaf order), turned into the caller's primitive id by :func:`primitive_id`.
 """
 
 from __future__ import annotations
@@ -19,10 +19,10 @@ BOX_EPS = 1.0 + 8.0 * 1.1102230246251565e-16
 
 @njit(cache=True, error_model="numpy")
 def box_hit(box, i, ox, oy, oz, ix, iy, iz, t_max):
-    """Slab test of ``box[i]`` against a ray with inverse direction ``(ix, iy, iz)``, ``0 <= t <= t_max``.
+    """Slab test of the box ``box[i, 0:6]`` against a ray with inverse direction ``(ix, iy, iz)``.
 
-    A NaN slab (origin on the slab plane of an axis the ray is parallel to) is ignored, which is
-    conservative: such a box is visited.
+    Returns ``(hit, t_near)`` for the segment ``0 <= t <= t_max``. A NaN slab (origin on the slab
+    plane of an axis the ray is parallel to) is ignored, which is conservative.
     """
     tn = 0.0
     tf = t_max
@@ -59,87 +59,143 @@ def box_hit(box, i, ox, oy, oz, ix, iy, iz, t_max):
         tn = t0
     if t1 < tf:
         tf = t1
-    return tn <= tf
+    return tn <= tf, tn
 
 
-@njit(cache=True, error_model="numpy")
-def traverse(sa, g, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack):
-    """Closest (or, with ``any_hit``, first found) hit of the object-space ray in geometry ``g``.
+@njit(cache=True, error_model="numpy", inline="always")
+def slab(bf, b, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, t_max):
+    """Slab test of the box ``bf[b : b+6]`` (xmin, ymin, zmin, xmax, ymax, zmax).
 
-    Returns ``(hit, t, slot, u, v)``; ``slot`` is the row in ``sa.tri_v``.
+    ``ix`` etc. are the inverse direction, ``ixe`` the same times :data:`BOX_EPS` (the far distance is
+    enlarged so float64 rounding never culls a box the ray touches), ``xl`` etc. the near-plane
+    offsets (0/1/2 for a positive direction, 3/4/5 for a negative one). Returns ``(hit, t_near)``
+    for ``0 <= t <= t_max``. A NaN slab (origin on the plane of an axis the ray is parallel to) is
+    ignored: numba's ``max(a, b)``/``min(a, b)`` return ``a`` when ``b`` is NaN (and compile to
+    branch-free selects): conservative.
     """
-    n_tri = sa.geom_ntri[g]
-    if n_tri == 0:
-        return False, 0.0, -1, 0.0, 0.0
-    node0 = sa.geom_node0[g]
-    tri0 = sa.geom_tri0[g]
-    kx, ky, kz, sx, sy, sz = ray_setup(dx, dy, dz)
+    tn = 0.0
+    tf = t_max
+    t0 = (bf[b + xl] - ox) * ix
+    t1 = (bf[b + 3 - xl] - ox) * ixe
+    tn = max(tn, t0)
+    tf = min(tf, t1)
+    t0 = (bf[b + yl] - oy) * iy
+    t1 = (bf[b + 5 - yl] - oy) * iye
+    tn = max(tn, t0)
+    tf = min(tf, t1)
+    t0 = (bf[b + zl] - oz) * iz
+    t1 = (bf[b + 7 - zl] - oz) * ize
+    tn = max(tn, t0)
+    tf = min(tf, t1)
+    return tn <= tf, tn
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def ray_inverse(dx, dy, dz):
+    """Per-ray constants of :func:`slab`: ``(ix, iy, iz, ixe, iye, ize, xl, yl, zl)``."""
     ix = 1.0 / dx
     iy = 1.0 / dy
     iz = 1.0 / dz
-    box = sa.node_box
-    na = sa.node_a
-    nn = sa.node_n
-    tri = sa.tri_v
+    xl = 0 if ix >= 0.0 else 3
+    yl = 1 if iy >= 0.0 else 4
+    zl = 2 if iz >= 0.0 else 5
+    return ix, iy, iz, ix * BOX_EPS, iy * BOX_EPS, iz * BOX_EPS, xl, yl, zl
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def traverse(sa, g, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
+    """Closest (or, with ``any_hit``, first found) hit of the object-space ray in geometry ``g``.
+
+    Child-box rows (:func:`tracer.blas.collapse`), nearer child first, a pending child is skipped
+    when its entry distance is beyond the best hit so far. Returns ``(hit, t, slot, u, v)``;
+    ``slot`` is the triangle's index in ``sa.tri_v`` (9 values each).
+    """
+    if sa.geom_ntri[g] == 0:
+        return False, 0.0, -1, 0.0, 0.0
+    return traverse_rows(sa.bvh_f, sa.bvh_i, sa.tri_v, sa.geom_node0[g], sa.geom_tri0[g], ox, oy, oz, dx, dy, dz,
+                         t_max, any_hit, stack, tstack)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def traverse_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
+    """:func:`traverse` on explicit arrays (a separate function: LLVM optimises the loop better when
+    the arrays are plain arguments than when they are fields of the scene tuple)."""
+    kx, ky, kz, sx, sy, sz = ray_setup(dx, dy, dz)
+    ix, iy, iz, ixe, iye, ize, xl, yl, zl = ray_inverse(dx, dy, dz)
     best_t = t_max
     best = -1
     bu = 0.0
     bv = 0.0
     sp = 0
-    node = 0
+    ref = 0
     while True:
-        gi = node0 + node
-        if box_hit(box, gi, ox, oy, oz, ix, iy, iz, best_t):
-            c = nn[gi]
-            if c > 0:
-                first = tri0 + na[gi]
-                for j in range(first, first + c):
-                    hit, t, u, v = intersect_triangle(tri, j, ox, oy, oz, kx, ky, kz, sx, sy, sz, best_t)
-                    if hit:
-                        best_t = t
-                        best = j
-                        bu = u
-                        bv = v
-                        if any_hit:
-                            return True, best_t, best, bu, bv
-                if sp == 0:
-                    break
-                sp -= 1
-                node = stack[sp]
-            else:
-                axis = -c - 1
-                neg = ix < 0.0 if axis == 0 else (iy < 0.0 if axis == 1 else iz < 0.0)
-                if neg:
-                    stack[sp] = node + 1
-                    node = na[gi]
+        if ref >= 0:
+            r = 16 * (row0 + ref)
+            hl, tl = slab(bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
+            hr, tr = slab(bf, r + 6, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
+            if hl and hr:
+                if tr < tl:
+                    stack[sp] = bi[r + 12]
+                    tstack[sp] = tl
+                    ref = bi[r + 13]
                 else:
-                    stack[sp] = na[gi]
-                    node = node + 1
+                    stack[sp] = bi[r + 13]
+                    tstack[sp] = tr
+                    ref = bi[r + 12]
                 sp += 1
+                continue
+            if hl:
+                ref = bi[r + 12]
+                continue
+            if hr:
+                ref = bi[r + 13]
+                continue
         else:
-            if sp == 0:
-                break
+            x = -ref - 1
+            first = tri0 + (x >> 4)
+            for j in range(first, first + (x & 15)):
+                hit, t, u, v = intersect_triangle(tri, j, ox, oy, oz, kx, ky, kz, sx, sy, sz, best_t)
+                if hit:
+                    best_t = t
+                    best = j
+                    bu = u
+                    bv = v
+                    if any_hit:
+                        return True, best_t, best, bu, bv
+        # pop the nearest pending child that may still hold a nearer hit
+        found = False
+        while sp > 0:
             sp -= 1
-            node = stack[sp]
+            if tstack[sp] <= best_t:
+                ref = stack[sp]
+                found = True
+                break
+        if not found:
+            break
     return best >= 0, best_t, best, bu, bv
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def primitive_id(sa, g, slot):
     """The caller's triangle index (position in the geometry's ``triangles``) of row ``slot``."""
     return sa.tri_prim[slot]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def object_normal(sa, g, slot):
     """Unnormalised object-space geometric normal ``(v1 - v0) x (v2 - v0)`` of row ``slot``."""
     t = sa.tri_v
-    e1x = t[slot, 3] - t[slot, 0]
-    e1y = t[slot, 4] - t[slot, 1]
-    e1z = t[slot, 5] - t[slot, 2]
-    e2x = t[slot, 6] - t[slot, 0]
-    e2y = t[slot, 7] - t[slot, 1]
-    e2z = t[slot, 8] - t[slot, 2]
+    q = 9 * slot
+    # float64 before subtracting: the rows are float32
+    x0 = np.float64(t[q])
+    y0 = np.float64(t[q + 1])
+    z0 = np.float64(t[q + 2])
+    e1x = t[q + 3] - x0
+    e1y = t[q + 4] - y0
+    e1z = t[q + 5] - z0
+    e2x = t[q + 6] - x0
+    e2y = t[q + 7] - y0
+    e2z = t[q + 8] - z0
     return e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
 
 
@@ -164,10 +220,11 @@ def object_point(sa, g, prim, u, v):
     """Object-space point of triangle ``prim`` at barycentrics ``(u, v)``."""
     slot = sa.geom_tri0[g] + sa.prim_slot[sa.geom_tri0[g] + prim]
     t = sa.tri_v
+    q = 9 * slot
     w = 1.0 - u - v
-    return (w * t[slot, 0] + u * t[slot, 3] + v * t[slot, 6],
-            w * t[slot, 1] + u * t[slot, 4] + v * t[slot, 7],
-            w * t[slot, 2] + u * t[slot, 5] + v * t[slot, 8])
+    return (w * t[q] + u * t[q + 3] + v * t[q + 6],
+            w * t[q + 1] + u * t[q + 4] + v * t[q + 7],
+            w * t[q + 2] + u * t[q + 5] + v * t[q + 8])
 
 
 def object_bounds_of(vertices: np.ndarray) -> np.ndarray:
