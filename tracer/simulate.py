@@ -25,7 +25,9 @@ receiver is put on the surface the rays actually meet. In every case it then sit
 in front: max(1e-9 m, 2⁻⁴⁴ × the coordinate magnitude), 5.7e-9 m at 1e5 m from the origin, ~400
 float64 ulps there — far above the error of the crossing distances (computed in object space, where
 an instance's translation has cancelled), so light arriving at the floor crosses the receiver
-before it hits the floor, and far too small to change the answer. Light leaving the floor crosses
+before it hits the floor, and far too small to change the answer. Where the facet met is tilted
+against the receiver by float32 rounding (≲ 1e-7 rad on a tessellated sphere), the receiver is moved
+a further 2 r sin(tilt), so that no part of the disk lies behind the facet. Light leaving the floor crosses
 the receiver from behind (spawned rays start 2⁻³² × magnitude off the surface) and is not counted.
 
 Estimation: independent batches seeded from (seed, batch index) through the counter-based
@@ -113,19 +115,39 @@ def probe_distance(p: np.ndarray) -> float:
     return 1e-6 + 2.0 ** -20 * float(np.max(np.abs(p)))
 
 
-def place_receivers(scene, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+def place_receivers(scene, points: np.ndarray, normals: np.ndarray, radius: float) -> np.ndarray:
     """Receiver centres (k, 3): each point moved onto the surface it lies on (if any, within
-    `probe_distance`) and then `sensor_offset` along its unit normal (see the module docstring)."""
+    `probe_distance`) and then in front of it along its unit normal (see the module docstring).
+
+    The offset is `sensor_offset`, plus, where the surface met is tilted against the receiver by less
+    than 1e-3 rad (float32 rounding of a facet the point lies on), 2 r sin(tilt), so that the whole
+    disk of radius r stays in front of the facet the rays meet.
+    """
     h = np.array([probe_distance(p) for p in points])
     origins = points + h[:, None] * normals
     hits = scene.intersect(origins, -normals)
     out = np.empty_like(points)
     for i in range(len(points)):
         base = points[i]
+        extra = 0.0
         if hits.instance[i] >= 0 and hits.t[i] <= 2.0 * h[i]:
             base = origins[i] - hits.t[i] * normals[i]
-        out[i] = base + sensor_offset(base) * normals[i]
+            m = _facet_normal(scene, int(hits.instance[i]), int(hits.primitive[i]))
+            sin_tilt = float(np.linalg.norm(np.cross(m, normals[i])))
+            if sin_tilt < 1e-3:
+                extra = 2.0 * radius * sin_tilt
+        out[i] = base + (sensor_offset(base) + extra) * normals[i]
     return out
+
+
+def _facet_normal(scene, inst: int, prim: int) -> np.ndarray:
+    """Unit world normal of one triangle as the scene stores it (float32 vertices, instance transform)."""
+    v, t, _ = scene.geometry_arrays(scene.instance_geometry(inst))
+    m = np.asarray(scene.instance_transform(inst), np.float64)
+    p = np.asarray(v, np.float64)[np.asarray(t)[prim]] @ m[:3, :3].T
+    n = np.cross(p[1] - p[0], p[2] - p[0])
+    ln = float(np.linalg.norm(n))
+    return n / ln if ln > 0 else np.zeros(3)
 
 
 def _vectors(a, name: str, k: int | None = None) -> np.ndarray:
@@ -283,7 +305,7 @@ class Simulation:
         if isinstance(r, bool) or not isinstance(r, int | float) or not (0 < r < math.inf):
             raise SimulationError(f"radius must be a positive finite number of metres, got {radius!r}")
         r = float(r)
-        centers = place_receivers(self.scene, pts, nrm)
+        centers = place_receivers(self.scene, pts, nrm, r)
         return self._run(False, centers, nrm, r, None, target_relative_error, max_seconds, max_photons, seed,
                          estimator, force_effects, progress, cancel)
 
@@ -304,7 +326,8 @@ class Simulation:
             raise SimulationError("u and v must be non-zero and not parallel")
         nrm = nrm / ln
         centre = o + 0.5 * (uu + vv)
-        o = o + (place_receivers(self.scene, centre[None, :], nrm[None, :])[0] - centre) @ nrm * nrm
+        half_diagonal = 0.5 * float(np.linalg.norm(uu + vv))
+        o = o + (place_receivers(self.scene, centre[None, :], nrm[None, :], half_diagonal)[0] - centre) @ nrm * nrm
         res = self._run(True, o, nrm, 0.0, (uu, vv, int(nu), int(nv)), target_relative_error, max_seconds,
                         max_photons, seed, estimator, force_effects, progress, cancel)
         return GridResult(res.lux.reshape(int(nv), int(nu)), res.stderr.reshape(int(nv), int(nu)), res.photons,

@@ -55,6 +55,16 @@ def icosphere(radius: float, subdivisions: int):
     return np.array(verts) * radius, np.array(f)
 
 
+def outward(v, t):
+    """Triangles of a convex mesh reordered so that e1 × e2 points away from the centroid."""
+    v, t = np.asarray(v, float), np.array(t)
+    c = v.mean(axis=0)
+    a, b, d = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
+    flip = np.einsum("ij,ij->i", np.cross(b - a, d - a), (a + b + d) / 3 - c) < 0
+    t[flip] = t[flip][:, [0, 2, 1]]
+    return v, t
+
+
 def mesh_area(v, t) -> float:
     a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
     return float(0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
