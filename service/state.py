@@ -646,6 +646,15 @@ class SceneManager:
                     "lights": len(live.lights), "sensors": len(live.sensors), "sim_objects": len(state.objects),
                     "last_commit": state.last_commit}
 
+    def revisions(self, scene_id: str) -> list[dict[str, Any]]:
+        """One entry per accepted push that changed the tree: its counts and stage seconds, oldest first."""
+        self.state(scene_id)  # 404 for an unknown scene
+        with self.engine.connect() as conn:
+            rows = conn.execute(select(db.revisions).where(db.revisions.c.scene_id == scene_id)
+                                .order_by(db.revisions.c.revision)).all()
+        return [{"revision": r.revision, "created_at": r.created_at.isoformat() if r.created_at else None,
+                 **r.summary} for r in rows]
+
     def nodes(self, scene_id: str) -> list[dict[str, Any]]:
         state = self.state(scene_id)
         with state.lock:

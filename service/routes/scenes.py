@@ -43,6 +43,12 @@ def get_nodes(scene_id: str, manager: Manager) -> list[dict[str, Any]]:
     return manager.nodes(scene_id)
 
 
+@router.get("/scenes/{scene_id}/revisions")
+def get_revisions(scene_id: str, manager: Manager) -> list[dict[str, Any]]:
+    """The scene's history: per accepted push, how many nodes were added, removed, moved… and the seconds."""
+    return manager.revisions(scene_id)
+
+
 @router.put(
     "/scenes/{scene_id}/document",
     response_model=PushPublic,

@@ -159,6 +159,16 @@ def test_stale_base_revision_is_409_and_changes_nothing(client, scene, meshes) -
     assert client.get(f"/scenes/{scene}/nodes").json() == before
 
 
+def test_revision_history(client, scene, meshes) -> None:
+    push(client, scene, car(meshes))
+    push(client, scene, car(meshes, base_revision=1))  # a no-op: no revision
+    push(client, scene, car(meshes, base_revision=1, door_x=4.0))
+    history = client.get(f"/scenes/{scene}/revisions").json()
+    assert [h["revision"] for h in history] == [1, 2]
+    assert history[0]["added"] == 8 and history[1]["moved"] == 1 and "tlas" in history[1]["seconds"]
+    assert client.get("/scenes/nope/revisions").status_code == 404
+
+
 def test_push_without_base_revision_is_unconditional(client, scene, meshes) -> None:
     push(client, scene, car(meshes))
     a = push(client, scene, car(meshes, base_revision=None, door_x=5.0))

@@ -144,9 +144,13 @@ def edit(draw, nodes: list[dict]) -> list[dict]:
             node.pop("color", None)
         elif what == "regeometry":
             node["geometry"] = None if node["geometry"] else G
-    if nodes and draw(st.booleans()):  # drop the last node (a leaf or not: then the parent is missing)
-        nodes.pop()
-    if draw(st.booleans()):
+    if nodes and draw(st.booleans()):  # drop a node (a leaf or not: then a parent may be missing)
+        nodes.pop(draw(st.integers(0, len(nodes) - 1)))
+    if draw(st.booleans()):  # insert a new one somewhere
+        new = {"uuid": U[9], "parent": None, "name": draw(st.sampled_from(NASTY_NAMES)), "transform": IDENT,
+               "geometry": None}
+        nodes.insert(draw(st.integers(0, len(nodes))), new)
+    if draw(st.integers(0, 4)) == 0:
         nodes = draw(st.permutations(nodes))
     return nodes
 
@@ -177,7 +181,11 @@ def test_incremental_decode_equals_a_full_decode(nodes, data, compact) -> None:
     for k in (0, 1, 2, 4, 5):
         assert got[k] == want[k]
     np.testing.assert_array_equal(got[3], want[3])
-    assert len(nb.chunks) == len(want[0]) and all(nb.index[c] == i for i, c in enumerate(nb.chunks))
+    chunks = [nb.chunk(i) for i in range(len(nb.starts))]
+    assert len(chunks) == len(want[0])
+    assert [json.loads(b"{" + c + b"}")["uuid"] for c in chunks] == want[0]  # chunk i is node i
+    if chunks:
+        assert b"{" + nb.sep.join(chunks) + b"}" in second
 
 
 def test_incremental_declines_odd_layouts() -> None:
@@ -186,7 +194,7 @@ def test_incremental_declines_odd_layouts() -> None:
     first = body_of(nodes, False)
     tree = Tree.build(*decode_document(first, set(), set()).columns(), "mm")
     previous = remember(first, tree.names)
-    assert previous is not None and len(previous.chunks) == 2
+    assert previous is not None and len(previous.starts) == 2
     trailing = json.dumps({"nodes": nodes, "base_revision": 1}).encode()
     pretty = json.dumps({"base_revision": 1, "nodes": nodes}, indent=2).encode()
     extra = body_of(nodes, False)[:-1] + b', "x": 1}'
