@@ -13,11 +13,15 @@ Tree (names are stable, so occurrence paths match from one build to the next)::
         └── lens        a plano-convex spherical cap; its radius of curvature is ``lens_radius_mm``
 
 Axes: x forward, y to the left, z up; the origin on the ground under the middle of the car.
+
+Every node carries its UUID in its metadata (``metadata["uuid"]``, a UUID5 of its occurrence path), so the
+same node has the same UUID in every build, whatever the parameters, with or without a sidecar.
 """
 
 from __future__ import annotations
 
 import math
+import uuid
 
 import cadquery as cq
 
@@ -31,6 +35,16 @@ WHEEL_RADIUS = 330.0
 WHEEL_WIDTH = 220.0
 LENS_APERTURE_MM = 60.0  # radius of the lens' rim
 DEFAULT_LENS_RADIUS_MM = 120.0
+SAMPLE_NAMESPACE = uuid.UUID("6c1d4f0e-3b0a-5d6e-9a51-6c756d656e6c")
+
+
+def node_uuid(path: str) -> str:
+    """The UUID the sample carries for the node at occurrence path ``path`` (e.g. ``car/headlamp/lens``)."""
+    return str(uuid.uuid5(SAMPLE_NAMESPACE, path))
+
+
+def _meta(path: str) -> dict[str, str]:
+    return {"uuid": node_uuid(path)}
 
 
 def wheel() -> cq.Workplane:
@@ -103,23 +117,25 @@ def car_assembly(door_angle_deg: float = 0.0, lens_radius_mm: float = DEFAULT_LE
         raise CadAdapterError(f"lens_radius_mm must exceed the lens rim radius {LENS_APERTURE_MM} mm, "
                               f"got {lens_radius_mm}")
     paint = cq.Color(0.6, 0.05, 0.05)
-    car = cq.Assembly(name="car")
-    car.add(body(), name="body", color=paint)
+    car = cq.Assembly(name="car", metadata=_meta("car"))
+    car.add(body(), name="body", color=paint, metadata=_meta("car/body"))
     d = door()
     hinge_x = LENGTH * 0.18
-    car.add(d, name="door_left", color=paint,
+    car.add(d, name="door_left", color=paint, metadata=_meta("car/door_left"),
             loc=cq.Location((hinge_x, WIDTH / 2, GROUND + 60), (0, 0, 1), door_angle_deg))
-    car.add(d.mirror("XZ"), name="door_right", color=paint,
+    car.add(d.mirror("XZ"), name="door_right", color=paint, metadata=_meta("car/door_right"),
             loc=cq.Location((hinge_x, -WIDTH / 2, GROUND + 60), (0, 0, 1), -door_angle_deg))
     w = wheel()
     tyre = cq.Color(0.05, 0.05, 0.05)
     for name, x, y in (("wheel_fl", 1, 1), ("wheel_fr", 1, -1), ("wheel_rl", -1, 1), ("wheel_rr", -1, -1)):
-        car.add(w, name=name, color=tyre,
+        car.add(w, name=name, color=tyre, metadata=_meta(f"car/{name}"),
                 loc=cq.Location((x * LENGTH * 0.32, y * (WIDTH / 2 - WHEEL_WIDTH / 2 + 30), WHEEL_RADIUS)))
-    car.add(windscreen(), name="windscreen", color=cq.Color(0.7, 0.8, 0.9, 0.3),
+    car.add(windscreen(), name="windscreen", color=cq.Color(0.7, 0.8, 0.9, 0.3), metadata=_meta("car/windscreen"),
             loc=cq.Location((LENGTH * 0.15, 0, GROUND + BODY_HEIGHT + 260)))
-    lamp = cq.Assembly(name="headlamp", loc=cq.Location((LENGTH / 2 + 5, WIDTH * 0.3, GROUND + BODY_HEIGHT * 0.6)))
-    lamp.add(housing(), name="housing", color=cq.Color(0.8, 0.8, 0.8))
-    lamp.add(lens(lens_radius_mm), name="lens", color=cq.Color(0.9, 0.95, 1.0, 0.2))
+    lamp = cq.Assembly(name="headlamp", loc=cq.Location((LENGTH / 2 + 5, WIDTH * 0.3, GROUND + BODY_HEIGHT * 0.6)),
+                       metadata=_meta("car/headlamp"))
+    lamp.add(housing(), name="housing", color=cq.Color(0.8, 0.8, 0.8), metadata=_meta("car/headlamp/housing"))
+    lamp.add(lens(lens_radius_mm), name="lens", color=cq.Color(0.9, 0.95, 1.0, 0.2),
+             metadata=_meta("car/headlamp/lens"))
     car.add(lamp, name="headlamp")
     return car

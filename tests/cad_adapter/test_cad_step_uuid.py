@@ -27,13 +27,20 @@ def test_car_uuids_survive_a_step_round_trip_without_sidecar(tmp_path) -> None:
 
 
 def test_carried_uuid_beats_a_stale_sidecar(tmp_path) -> None:
+    from cad_adapter.assembly import read_assembly
+    from cad_adapter.identity import identify
+
     doc = cad_adapter.read_document(car())
     out = write_step(doc, tmp_path / "car.step")
-    # a sidecar from some other document at the same place must not override what the file carries
-    other = cad_adapter.read_document(car(), sidecar=tmp_path / "car.step.lumenlink.json")
+    # a sidecar at the same place that gives every path another UUID must not override what the file carries
+    other = read_assembly(car())
+    for n in other.nodes:
+        n.carried_uuid = None
+    identify(other, tmp_path / "car.step.lumenlink.json")
     assert {n.uuid for n in other.nodes}.isdisjoint({n.uuid for n in doc.nodes})
     back = cad_adapter.read_document(out)
     assert [n.uuid for n in back.nodes] == [n.uuid for n in doc.nodes]
+    assert {n.match for n in back.nodes} == {"carried"}
 
 
 @needs_fixtures
