@@ -96,5 +96,5 @@ def test_maps_are_non_empty_pngs(demo) -> None:
 def test_log_says_how_long_it_took(demo) -> None:
     report, log = demo
     assert report.seconds > 0 and 0 <= report.compile_seconds <= report.seconds
-    for step in ("1. ", "2. ", "3. ", "4a. ", "4b. ", "5. ", "6. "):
+    for step in ("1. ", "2. ", "3a. ", "3b. ", "4a. ", "4b. ", "5. ", "6. "):
         assert f"] {step}" in log
