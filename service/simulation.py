@@ -48,6 +48,8 @@ QUEUE_WAIT_SECONDS = 30.0
 #: Async jobs: worker threads and how many may wait.
 JOB_WORKERS = 1
 MAX_QUEUED_JOBS = 16
+#: Finished jobs whose results stay readable (a grid result of 100k cells is ~3 MB of JSON-ready floats).
+KEEP_FINISHED_JOBS = 64
 #: Budget applied when a request names no time budget (s); the settings' max_seconds caps it.
 DEFAULT_MAX_SECONDS = 60.0
 
@@ -199,7 +201,7 @@ class SimulationHub:
         self.live = live
         self._scene_lock = scene_lock or (lambda scene_id: contextlib.nullcontext())
         self.limits = limits
-        self.jobs = JobRunner(workers=JOB_WORKERS, max_queued=MAX_QUEUED_JOBS)
+        self.jobs = JobRunner(workers=JOB_WORKERS, max_queued=MAX_QUEUED_JOBS, keep_finished=KEEP_FINISHED_JOBS)
         self._build = build or self._build_default
         self._lock = threading.Lock()
         self._scene_locks: dict[str, threading.Lock] = {}
@@ -243,6 +245,7 @@ class SimulationHub:
 
     def prepare(self, scene_id: str) -> Prepared:
         """The scene's current snapshot and its simulation (built once per change); raises `NotFound`."""
+        self.live.revision(scene_id)  # NotFound before any per-scene state is made for an unknown id
         with self._lock:
             build_lock = self._scene_locks.setdefault(scene_id, threading.Lock())
         with build_lock:  # two first queries of one scene build it once

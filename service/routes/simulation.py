@@ -138,6 +138,43 @@ class JobAccepted(BaseModel):
     url: str
 
 
+class JobProgress(BaseModel):
+    """How far a job got: updated between photon batches."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    photons: int = Field(description="Photons (or paths) traced so far.")
+    worst_relative_error: float | None = Field(description="Largest stderr/value over the points so far.")
+    seconds: float = Field(description="Time spent so far, s.")
+    seconds_left: float | None = Field(
+        description="Estimated time to the first stopping rule (target error by the 1/√N law, photons, seconds).")
+
+
+class JobPublic(BaseModel):
+    """A job as ``GET /jobs/{id}`` shows it."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    id: str
+    kind: Literal["illuminance", "sensor"]
+    status: Literal["queued", "running", "succeeded", "failed", "cancelled"]
+    scene_id: str
+    revision: int = Field(description="Scene revision the job computes.")
+    current: bool = Field(description="False once the scene changed after the job started (push or assignment).")
+    cancel_requested: bool
+    created_at: float
+    started_at: float | None
+    finished_at: float | None
+    progress: JobProgress
+    result: dict[str, Any] | None = Field(
+        description="The answer of the sync call (IlluminancePublic or SensorPublic); a cancelled job keeps its "
+                    "partial answer.")
+    error: str | None
+    url: str
+    points: int | None = None
+    sensor: str | None = None
+
+
 def _hub(request: Request) -> SimulationHub:
     return hub_for(request.app)
 
@@ -272,7 +309,7 @@ def _public(hub: SimulationHub, request: Request, state: dict[str, Any]) -> dict
     return state
 
 
-@router.get("/jobs/{job_id}", name="get_job")
+@router.get("/jobs/{job_id}", name="get_job", response_model=JobPublic)
 def get_job(job_id: str, request: Request) -> dict[str, Any]:
     """A job's status, progress (photons, worst relative error, seconds, seconds left) and result.
 
@@ -283,7 +320,7 @@ def get_job(job_id: str, request: Request) -> dict[str, Any]:
     return _public(hub, request, _job_state(hub, job_id))
 
 
-@router.delete("/jobs/{job_id}")
+@router.delete("/jobs/{job_id}", response_model=JobPublic)
 def cancel_job(job_id: str, request: Request) -> dict[str, Any]:
     """Cancel a job: a queued one never starts, a running one stops after its current batch."""
     hub = _hub(request)
