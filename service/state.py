@@ -35,7 +35,7 @@ from sqlalchemy import Engine, delete, insert, select, update
 
 from service import db
 from service.config import Settings
-from service.document import NodeBytes, decode_document, decode_incremental, remember
+from service.document import NodeBytes, decode_document, decode_incremental, remember, same_nodes
 from service.errors import Conflict, Invalid, NotFound
 from service.live import LiveRegistry, LiveScene
 from service.meshes import MeshStore
@@ -90,8 +90,7 @@ class SceneState:
     sensors: dict[str, dict] = field(default_factory=dict)
     objects: dict[str, dict] = field(default_factory=dict)
     last_commit: dict[str, Any] = field(default_factory=dict)
-    nodes_suffix: bytes | None = None  # the node-list bytes of the push that made `tree` (identical re-push check)
-    node_bytes: NodeBytes | None = None  # the same, split per node (row i of `tree` = chunk i)
+    node_bytes: NodeBytes | None = None  # where each node sits in the body that made `tree` (row i = chunk i)
     live: LiveScene | None = None
     lock: threading.RLock = field(default_factory=threading.RLock)
 
@@ -324,9 +323,10 @@ class SceneManager:
         with state.lock, gc_paused():
             if self._states.get(scene_id) is not state:  # reloaded meanwhile (a failed store)
                 state = self.state(scene_id)
-            suffix, doc = self._same_nodes(state, body)
             node_bytes = state.node_bytes
-            if doc is not None:  # byte-identical node list: the tree is the current one
+            doc = same_nodes(body, node_bytes) if node_bytes is not None else None
+            if doc is not None and doc.length_unit == state.tree.length_unit:
+                # byte-identical node list: the tree is the current one
                 new = state.tree
                 t_decode = time.perf_counter()
             else:
@@ -353,31 +353,8 @@ class SceneManager:
                                   f"first)", missing=sorted(missing))
             answer = self._push_locked(state, doc, new, t0, t_decode)
             # the tree is now exactly what these bytes describe, row for row
-            state.nodes_suffix = suffix
             state.node_bytes = node_bytes if node_bytes is not None else remember(body, state.tree.names)
             return answer
-
-    @staticmethod
-    def _same_nodes(state: SceneState, body: bytes) -> tuple[bytes | None, DocumentPush | None]:
-        """The body's node-list bytes, and its header if they equal those of the push that made the current tree.
-
-        Only a body whose last member is ``"nodes": [...]`` qualifies (then everything before it is the
-        header); anything unusual answers (None, None) and the body is decoded in full.
-        """
-        start = body.find(b'"nodes"')
-        if start < 0 or not body.rstrip().endswith(b"]}"):
-            return None, None
-        suffix = body[start:]
-        if state.nodes_suffix is None or suffix != state.nodes_suffix:
-            return suffix, None
-        head = body[:start] + b'"nodes": []}'
-        try:
-            doc = DocumentPush.model_validate_json(head)
-        except ValueError:
-            return None, None
-        if doc.length_unit != state.tree.length_unit:
-            return suffix, None
-        return suffix, doc
 
     def _push_locked(self, state: SceneState, doc: DocumentPush, new: Tree, t0: float,
                      t_decode: float) -> dict[str, Any]:

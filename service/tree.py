@@ -330,6 +330,8 @@ class TreeDiff:
 
 def diff_trees(a: Tree, b: Tree) -> TreeDiff:
     """Diff two validated trees by UUID: one linear pass, vectorized where it counts."""
+    if a is b:
+        return TreeDiff([], [], [], [], [], [], [], len(a), a.length_unit, False, {})
     if a.uuids == b.uuids:
         return _diff_same_order(a, b)
     return _diff_general(a, b)
