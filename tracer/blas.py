@@ -31,7 +31,7 @@ import numpy as np
 from numba import njit, prange
 
 #: Bumped whenever the build or the layout changes: cache files of another version are rebuilt.
-BUILDER_VERSION = "lumenlink-blas-1"
+BUILDER_VERSION = "lumenlink-blas-2"
 N_BINS = 16
 #: Below this depth SAH decides; beyond it, splits halve the range so depth stays bounded
 #: (traversal uses fixed stacks of :data:`STACK_SIZE`).
@@ -145,8 +145,10 @@ def build_bvh_range(bmin, bmax, order, p0, n, node_box, node_a, node_n, k0, max_
                 else:
                     mid = start + cnt // 2
             else:
-                scale = N_BINS / ext
-                for b in range(N_BINS):
+                # as many bins as primitives for small nodes: the per-node cost stays proportional to them
+                nb = min(N_BINS, cnt)
+                scale = nb / ext
+                for b in range(nb):
                     bin_cnt[b] = 0
                     bin_box[b, 0] = np.inf
                     bin_box[b, 1] = np.inf
@@ -158,8 +160,8 @@ def build_bvh_range(bmin, bmax, order, p0, n, node_box, node_a, node_n, k0, max_
                     p = order[q]
                     c = 0.5 * (bmin[p, axis] + bmax[p, axis])
                     b = int((c - lo) * scale)
-                    if b >= N_BINS:
-                        b = N_BINS - 1
+                    if b >= nb:
+                        b = nb - 1
                     if b < 0:
                         b = 0
                     bin_cnt[b] += 1
@@ -172,7 +174,7 @@ def build_bvh_range(bmin, bmax, order, p0, n, node_box, node_a, node_n, k0, max_
                 rx0 = ry0 = rz0 = np.inf
                 rx1 = ry1 = rz1 = -np.inf
                 rc = 0
-                for b in range(N_BINS - 1, 0, -1):
+                for b in range(nb - 1, 0, -1):
                     rx0 = min(rx0, bin_box[b, 0])
                     ry0 = min(ry0, bin_box[b, 1])
                     rz0 = min(rz0, bin_box[b, 2])
@@ -187,7 +189,7 @@ def build_bvh_range(bmin, bmax, order, p0, n, node_box, node_a, node_n, k0, max_
                 lc = 0
                 best = np.inf
                 best_b = -1
-                for b in range(N_BINS - 1):
+                for b in range(nb - 1):
                     lx0 = min(lx0, bin_box[b, 0])
                     ly0 = min(ly0, bin_box[b, 1])
                     lz0 = min(lz0, bin_box[b, 2])
@@ -218,8 +220,8 @@ def build_bvh_range(bmin, bmax, order, p0, n, node_box, node_a, node_n, k0, max_
                         p = order[i]
                         c = 0.5 * (bmin[p, axis] + bmax[p, axis])
                         b = int((c - lo) * scale)
-                        if b >= N_BINS:
-                            b = N_BINS - 1
+                        if b >= nb:
+                            b = nb - 1
                         if b < 0:
                             b = 0
                         if b <= best_b:

@@ -29,7 +29,7 @@ from tracer.blas import build_meshes, collapse, gather_triangles, pack_rows, ref
 from tracer.errors import NotCommittedError, TracerError, UnknownIdError
 from tracer.geometry_id import canonical_arrays, geometry_id
 from tracer.kinds import SENSOR_KINDS, disk_sensor, mesh, rect_sensor
-from tracer.tlas import build_top, world_boxes
+from tracer.tlas import build_top, refit_top, world_boxes
 from tracer.traverse import SceneArrays, any_batch, closest_batch
 
 #: BLAS build parameters: largest leaf and the cost of a triangle test relative to a node visit
@@ -38,6 +38,8 @@ MESH_ISECT_COST = 1.0
 #: below this many triangles a BLAS is rebuilt rather than cached (building it takes less than
 #: opening a file)
 CACHE_MIN_TRIANGLES = 512
+#: a top level is rebuilt after this many refitting commits (see ``Scene(tlas_refit=...)``)
+MAX_REFITS = 64
 
 SENSOR_GEOMETRY = {disk_sensor.KIND: "sensor:disk", rect_sensor.KIND: "sensor:rect"}
 
@@ -56,12 +58,15 @@ class UpdateStats:
         Wall time of bottom-level work (build, load, cache write, packing).
     tlas_seconds : float
         Wall time of instance boxes, top-level build and packing of the query arrays.
+    tlas_mode : str
+        What happened to the solid top level: ``"rebuild"``, ``"refit"`` or ``"none"``.
     """
 
     blas_built: int
     blas_loaded: int
     blas_seconds: float
     tlas_seconds: float
+    tlas_mode: str = "none"
 
 
 @dataclass(frozen=True)
@@ -108,7 +113,11 @@ def _empty_store() -> dict[str, np.ndarray]:
 
 
 def _check_matrix(transform: Any, what: str) -> tuple[np.ndarray, np.ndarray]:
-    """Validate a 4x4 affine object-to-world matrix; return (world_from_object, object_from_world) (3,4)."""
+    """Validate a 4x4 affine object-to-world matrix; return (world_from_object, object_from_world) (3,4).
+
+    The 3x3 inverse is done with Python floats (cofactors): numpy's linalg costs ~50 µs per small
+    call, which would dominate adding 20,000 instances.
+    """
     try:
         m = np.array(transform, dtype=np.float64)
     except (TypeError, ValueError) as exc:
@@ -117,19 +126,30 @@ def _check_matrix(transform: Any, what: str) -> tuple[np.ndarray, np.ndarray]:
         raise TracerError(f"{what}: transform must have shape (4, 4), got {m.shape}")
     if not np.isfinite(m).all():
         raise TracerError(f"{what}: transform has non-finite entries")
-    if not np.array_equal(m[3], [0.0, 0.0, 0.0, 1.0]):
-        raise TracerError(f"{what}: transform is not affine (last row must be [0, 0, 0, 1], got {m[3].tolist()})")
-    lin = m[:3, :3]
-    scale = np.abs(lin).max()
-    det = np.linalg.det(lin)
-    if scale == 0.0 or not np.isfinite(det) or abs(det) <= 1e-12 * scale**3:
+    rows = m.tolist()
+    if rows[3] != [0.0, 0.0, 0.0, 1.0]:
+        raise TracerError(f"{what}: transform is not affine (last row must be [0, 0, 0, 1], got {rows[3]})")
+    (a, b, c, tx), (d, e, f, ty), (g, h, k, tz) = rows[:3]
+    c00, c01, c02 = e * k - f * h, f * g - d * k, d * h - e * g
+    det = a * c00 + b * c01 + c * c02
+    scale = max(abs(a), abs(b), abs(c), abs(d), abs(e), abs(f), abs(g), abs(h), abs(k))
+    if scale == 0.0 or not abs(det) > 1e-12 * scale**3 or not np.isfinite(det):
         raise TracerError(f"{what}: transform is singular (det {det:.3g} of its 3x3 part)")
-    inv = np.linalg.inv(lin)
-    if not np.isfinite(inv).all() or np.abs(inv @ lin - np.eye(3)).max() > 1e-9:
+    r = 1.0 / det
+    inv = [[c00 * r, (c * h - b * k) * r, (b * f - c * e) * r],
+           [c01 * r, (a * k - c * g) * r, (c * d - a * f) * r],
+           [c02 * r, (b * g - a * h) * r, (a * e - b * d) * r]]
+    lin = [[a, b, c], [d, e, f], [g, h, k]]
+    for i in range(3):
+        for j in range(3):
+            x = inv[i][0] * lin[0][j] + inv[i][1] * lin[1][j] + inv[i][2] * lin[2][j]
+            if not abs(x - (1.0 if i == j else 0.0)) <= 1e-9:
+                raise TracerError(f"{what}: transform is too ill-conditioned to invert")
+    t = (tx, ty, tz)
+    ofw = np.array([[inv[i][0], inv[i][1], inv[i][2], -(inv[i][0] * t[0] + inv[i][1] * t[1] + inv[i][2] * t[2])]
+                    for i in range(3)])
+    if not np.isfinite(ofw).all():
         raise TracerError(f"{what}: transform is too ill-conditioned to invert")
-    ofw = np.empty((3, 4))
-    ofw[:, :3] = inv
-    ofw[:, 3] = -inv @ m[:3, 3]
     return np.ascontiguousarray(m[:3]), ofw
 
 
@@ -164,11 +184,18 @@ class Scene:
         Directory of the on-disk BLAS library (:mod:`tracer.cache`); None: no disk cache.
     cache_min_triangles : int
         Geometries with fewer triangles are not cached (rebuilding them is cheaper than a file).
+    tlas_refit : bool
+        When a commit only moves a few instances (at most ``max(16, n/64)``, none added or removed),
+        refit the top level instead of rebuilding it; a rebuild still happens after
+        :data:`MAX_REFITS` refitting commits or once the moved instances since the last build
+        exceed ``n/8``, so refits cannot degrade the tree for long. False: always rebuild.
     """
 
-    def __init__(self, cache_dir: Any = None, *, cache_min_triangles: int = CACHE_MIN_TRIANGLES) -> None:
+    def __init__(self, cache_dir: Any = None, *, cache_min_triangles: int = CACHE_MIN_TRIANGLES,
+                 tlas_refit: bool = True) -> None:
         self.cache_dir = cache_dir
         self.cache_min_triangles = int(cache_min_triangles)
+        self.tlas_refit = bool(tlas_refit)
         self._geoms: dict[str, _Geometry] = {}
         self._geom_ids: list[str] = []
         self._n_built = 0
@@ -186,10 +213,13 @@ class Scene:
         self._obox = np.zeros((cap, 6))
         self._wbox = np.zeros((cap, 6))
         self._dirty_ids: set[int] = set()
-        self._top_dirty = True
-        self._sen_dirty = True
-        self._top = build_top(np.empty(0, np.int64), self._wbox)
-        self._sen = self._top
+        # per top level ("top": solids, "sen": sensors): moved ids, structure changed, refit history
+        self._moved: dict[str, set[int]] = {"top": set(), "sen": set()}
+        self._struct = {"top": True, "sen": True}
+        self._refits = {"top": (0, 0), "sen": (0, 0)}  # (refit commits, instances moved) since build
+        self._levels = {"top": build_top(np.empty(0, np.int64), self._wbox)}
+        self._levels["sen"] = self._levels["top"]
+        self._inst_changed = True
         self._arrays: SceneArrays | None = None
         self._changed = True
 
@@ -260,15 +290,17 @@ class Scene:
         self._wfo[i] = wfo
         self._ofw[i] = ofw
         self._obox[i] = obox
-        self._touch(i)
+        self._touch(i, structural=True)
         return i
 
-    def _touch(self, i: int) -> None:
+    def _touch(self, i: int, structural: bool) -> None:
         self._dirty_ids.add(i)
-        if self._kind[i] in SENSOR_KINDS:
-            self._sen_dirty = True
+        level = "sen" if self._kind[i] in SENSOR_KINDS else "top"
+        if structural:
+            self._struct[level] = True
         else:
-            self._top_dirty = True
+            self._moved[level].add(i)
+        self._inst_changed = True
         self._changed = True
 
     def add_instance(self, gid: str, transform: Any) -> int:
@@ -292,12 +324,12 @@ class Scene:
         wfo, ofw = _check_matrix(transform, f"instance {i}")
         self._wfo[i] = wfo
         self._ofw[i] = ofw
-        self._touch(i)
+        self._touch(i, structural=False)
 
     def remove_instance(self, i: int) -> None:
         """Remove instance ``i`` (its geometry stays in the scene's library)."""
         i = self._instance(i)
-        self._touch(i)
+        self._touch(i, structural=True)
         self._kind[i] = -1
 
     def instances(self) -> list[int]:
@@ -379,24 +411,47 @@ class Scene:
             self._dirty_ids = set()
         n = self._n_ids
         kind = self._kind[:n]
-        if self._top_dirty:
-            alive = (kind >= 0) & ~np.isin(kind, list(SENSOR_KINDS)) & (self._wbox[:n, 0] <= self._wbox[:n, 3])
-            self._top = build_top(np.flatnonzero(alive), self._wbox)
-            self._top_dirty = False
-        if self._sen_dirty:
-            sens = np.isin(kind, list(SENSOR_KINDS))
-            self._sen = build_top(np.flatnonzero(sens), self._wbox)
-            self._sen_dirty = False
+        modes = {"top": "none", "sen": "none"}
+        for level in ("top", "sen"):
+            moved = self._moved[level]
+            if not (self._struct[level] or moved):
+                continue
+            n_level = len(self._levels[level][2])
+            commits, count = self._refits[level]
+            if (not self._struct[level] and self.tlas_refit and len(moved) <= max(16, n_level // 64)
+                    and commits < MAX_REFITS and count + len(moved) <= max(16, n_level // 8)):
+                rows, _, items, links = self._levels[level]
+                rows = rows.copy()  # published arrays are never written: a running query keeps its own
+                refit_top(rows, rows.view(np.int32), items, links, np.fromiter(moved, np.int64, len(moved)),
+                          self._wbox)
+                self._levels[level] = (rows, rows.view(np.int32), items, links)
+                self._refits[level] = (commits + 1, count + len(moved))
+                modes[level] = "refit"
+            else:
+                if level == "top":
+                    keep = (kind >= 0) & ~np.isin(kind, list(SENSOR_KINDS)) & (self._wbox[:n, 0] <= self._wbox[:n, 3])
+                else:
+                    keep = np.isin(kind, list(SENSOR_KINDS))
+                self._levels[level] = build_top(np.flatnonzero(keep), self._wbox)
+                self._refits[level] = (0, 0)
+                modes[level] = "rebuild"
+            self._struct[level] = False
+            self._moved[level] = set()
         s = self._store
+        old = self._arrays
+        if self._inst_changed or old is None:
+            inst = (kind.copy(), self._igeom[:n].copy(), self._wfo[:n].copy(), self._ofw[:n].copy())
+        else:
+            inst = (old.inst_kind, old.inst_geom, old.world_from_object, old.object_from_world)
         self._arrays = SceneArrays(
             s["bvh"].ravel(), s["bvh"].view(np.int32).ravel(), s["tri_v"].ravel(),
             s["tri_prim"], s["prim_slot"], s["tri_n"],
             self._g_node0, self._g_tri0, self._g_ntri, self._g_hasn,
-            kind.copy(), self._igeom[:n].copy(), self._wfo[:n].copy(), self._ofw[:n].copy(),
-            *_flat(self._top), *_flat(self._sen))
+            *inst, *_flat(self._levels["top"]), *_flat(self._levels["sen"]))
+        self._inst_changed = False
         self._changed = False
         t2 = time.perf_counter()
-        return UpdateStats(built, loaded, t1 - t0, t2 - t1)
+        return UpdateStats(built, loaded, t1 - t0, t2 - t1, modes["top"])
 
     def _build_pending(self) -> tuple[int, int]:
         pending = [self._geoms[g] for g in self._geom_ids[self._n_built:]]
@@ -541,8 +596,8 @@ class Scene:
         return out
 
 
-def _flat(level: tuple[np.ndarray, np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    rows_f, rows_i, items = level
+def _flat(level: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    rows_f, rows_i, items, _ = level
     return rows_f.ravel(), rows_i.ravel(), items
 
 

@@ -1,5 +1,9 @@
-"""Top level: a binned-SAH BVH over instance world boxes, rebuilt (not refitted) on every commit
-that changed instances.
+"""Top level: a binned-SAH BVH over instance world boxes.
+
+It is rebuilt whenever instances are added or removed, and after many moves; a commit that only
+moves a few instances *refits* it instead (:func:`refit_top`: the moved instances' leaf boxes and
+their ancestors, O(k log n)), which keeps a move commit at a fraction of a millisecond at any scene
+size. The policy is in :class:`tracer.Scene` (``tlas_refit``).
 
 An instance's world box is the box of the 8 transformed corners of its object box (a BLAS root
 box, or a sensor kind's fixed box), padded by a relative 1e-12 so float64 rounding of the corner
@@ -79,15 +83,96 @@ def _build_top(ids, boxes):
     node_off = np.zeros(1, np.int64)
     node_cnt = np.full(1, k, np.int64)
     boxes2, refs, _ = collapse(node_box[:k], node_a[:k], node_n[:k], node_off, node_cnt)
-    return boxes2, refs, items
+    # links for refits: row -> (parent row, slot in it); instance -> (row, slot) of its leaf
+    r_n = refs.shape[0]
+    row_parent = np.full(r_n, -1, np.int64)
+    row_pslot = np.zeros(r_n, np.int64)
+    item_row = np.full(boxes.shape[0], -1, np.int64)
+    item_slot = np.zeros(boxes.shape[0], np.int64)
+    for r in range(r_n):
+        for slot in range(2):
+            ref = refs[r, slot]
+            if ref >= 0:
+                row_parent[ref] = r
+                row_pslot[ref] = slot
+            else:
+                x = -ref - 1
+                for q in range(x >> 4, (x >> 4) + (x & 15)):
+                    item_row[items[q]] = r
+                    item_slot[items[q]] = slot
+    return boxes2, refs, items, row_parent, row_pslot, item_row, item_slot
 
 
-def build_top(ids: np.ndarray, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+@njit(cache=True, error_model="numpy")
+def _down32(x):
+    f = np.float32(x)
+    if np.float64(f) > x:
+        f = np.float32(x - abs(x) * 2.5e-7 - 1e-38)
+    return f
+
+
+@njit(cache=True, error_model="numpy")
+def _up32(x):
+    f = np.float32(x)
+    if np.float64(f) < x:
+        f = np.float32(x + abs(x) * 2.5e-7 + 1e-38)
+    return f
+
+
+@njit(cache=True, error_model="numpy")
+def refit_top(rows_f, rows_i, items, links, ids, boxes):
+    """Refit the top level in place after instances ``ids`` moved (their ``boxes`` are current).
+
+    ``rows_f``/``rows_i``: the (R, 16) rows and their int32 view; ``links``: the last four arrays
+    of :func:`build_top`. Each moved instance's leaf box is recomputed from its items, then every
+    ancestor's box, up to the root. Boxes are rounded outward to float32, as when built.
+    """
+    row_parent, row_pslot, item_row, item_slot = links
+    for q in range(ids.shape[0]):
+        i = ids[q]
+        r = item_row[i]
+        if r < 0:
+            continue
+        slot = item_slot[i]
+        x = -rows_i[r, 12 + slot] - 1
+        lo0 = lo1 = lo2 = np.inf
+        hi0 = hi1 = hi2 = -np.inf
+        for k in range(x >> 4, (x >> 4) + (x & 15)):
+            it = items[k]
+            lo0 = min(lo0, boxes[it, 0])
+            lo1 = min(lo1, boxes[it, 1])
+            lo2 = min(lo2, boxes[it, 2])
+            hi0 = max(hi0, boxes[it, 3])
+            hi1 = max(hi1, boxes[it, 4])
+            hi2 = max(hi2, boxes[it, 5])
+        while True:
+            c = 6 * slot
+            rows_f[r, c] = _down32(lo0)
+            rows_f[r, c + 1] = _down32(lo1)
+            rows_f[r, c + 2] = _down32(lo2)
+            rows_f[r, c + 3] = _up32(hi0)
+            rows_f[r, c + 4] = _up32(hi1)
+            rows_f[r, c + 5] = _up32(hi2)
+            p = row_parent[r]
+            if p < 0:
+                break
+            lo0 = min(rows_f[r, 0], rows_f[r, 6])
+            lo1 = min(rows_f[r, 1], rows_f[r, 7])
+            lo2 = min(rows_f[r, 2], rows_f[r, 8])
+            hi0 = max(rows_f[r, 3], rows_f[r, 9])
+            hi1 = max(rows_f[r, 4], rows_f[r, 10])
+            hi2 = max(rows_f[r, 5], rows_f[r, 11])
+            slot = row_pslot[r]
+            r = p
+
+
+def build_top(ids: np.ndarray, boxes: np.ndarray):
     """Build the top level over instances ``ids`` with world boxes ``boxes[ids]``.
 
-    Returns ``(rows_f, rows_i, items)``: child-box rows (:func:`tracer.blas.pack_rows`, float32 and
-    its int32 view; no rows when there are no instances), leaves index ``items`` (instance ids).
+    Returns ``(rows_f, rows_i, items, links)``: child-box rows (:func:`tracer.blas.pack_rows`, (R, 16)
+    float32 and its int32 view; no rows when there are no instances), leaves index ``items``
+    (instance ids), and ``links`` for :func:`refit_top`.
     """
-    b, refs, items = _build_top(np.ascontiguousarray(ids, np.int64), boxes)
+    b, refs, items, *links = _build_top(np.ascontiguousarray(ids, np.int64), boxes)
     rows = pack_rows(b, refs)
-    return rows, rows.view(np.int32), items
+    return rows, rows.view(np.int32), items, tuple(links)

@@ -131,3 +131,35 @@ def test_empty_scene_and_empty_geometry() -> None:
     scene.add_instance(g, np.eye(4))
     scene.commit()
     assert not scene.occluded(np.zeros((1, 3)), np.ones((1, 3))).any()
+
+
+def test_refit_and_rebuild_policies_agree(rng: np.random.Generator) -> None:
+    # many single-instance moves: refits (then a forced rebuild) must answer like always-rebuild
+    meshes = [reference.random_mesh(rng, 25) for _ in range(5)]
+    a = tracer.Scene()
+    b = tracer.Scene(tlas_refit=False)
+    for s in (a, b):
+        for q in range(40):
+            s.add_instance(s.add_geometry(*meshes[q % 5]), reference.random_affine(rng_for(q)))
+        s.commit()
+    o, d = _rays(rng, 400)
+    modes = []
+    for step in range(80):
+        i = int(rng.integers(40))
+        m = reference.random_affine(rng)
+        a.set_transform(i, m)
+        b.set_transform(i, m)
+        modes.append(a.commit().tlas_mode)
+        assert b.commit().tlas_mode == "rebuild"
+        if step % 20 == 0:
+            ha, hb = a.intersect(o, d), b.intersect(o, d)
+            np.testing.assert_array_equal(ha.t, hb.t)
+            np.testing.assert_array_equal(ha.instance, hb.instance)
+    assert "refit" in modes and "rebuild" in modes  # refits, and a periodic rebuild
+    a.add_instance(a.geometries()[0], np.eye(4))
+    assert a.commit().tlas_mode == "rebuild"  # adding always rebuilds
+    assert a.commit().tlas_mode == "none"
+
+
+def rng_for(q: int) -> np.random.Generator:
+    return np.random.default_rng(1000 + q)
