@@ -10,8 +10,8 @@ Sections (all wall-clock seconds on this machine, medians of ``repeat`` runs whe
    tessellation (OCCT meshing in parallel, triangulations read straight into numpy), split into meshing
    and read-out, against ``cadquery.Shape.tessellate`` on the same parts and tolerance.
 3. The car (fine tolerance) pushed in full (new scene, empty mesh cache) and re-pushed after one part (the
-   headlamp lens) changed: read, tessellate, upload, push; against the real service process when it can be started,
-   otherwise adapter-side only (said so in the result).
+   headlamp lens) changed, then after the doors moved: read, tessellate, upload, push; against the real
+   service process when it can be started, otherwise adapter-side only (said so in the result).
 """
 
 from __future__ import annotations
@@ -165,6 +165,10 @@ def bench_repush() -> dict:
         write_step(cad_adapter.read_document(car_assembly(), sidecar=sidecar), step)
         edited = tmp / "car_edited.step"
         write_step(cad_adapter.read_document(car_assembly(lens_radius_mm=150.0), sidecar=sidecar), edited)
+        moved = tmp / "car_moved.step"
+        write_step(cad_adapter.read_document(car_assembly(door_angle_deg=30.0, lens_radius_mm=150.0),
+                                             sidecar=sidecar), moved)
+        cases = (("full", step), ("one_part_edit", edited), ("doors_moved", moved))
         settings = Settings(linear=TOLERANCES["fine"][0], angular=TOLERANCES["fine"][1])  # mm, as the car
         cache = TessellationCache(tmp / "cache")
 
@@ -187,7 +191,7 @@ def bench_repush() -> dict:
         except Exception as exc:  # no service: adapter side only
             out["service"] = f"not available ({type(exc).__name__}: {exc}); adapter side only"
         if service_ctx is None:
-            for label, path in (("full", step), ("one_part_edit", edited)):
+            for label, path in cases:
                 _, _, s = adapter_side(path)
                 s["total"] = s["read"] + s["tessellate"]
                 out[label] = s
@@ -197,7 +201,7 @@ def bench_repush() -> dict:
                               "of another scene first (the service compiles its kernels on first use)")
             warm = cad_adapter.read_document(car_assembly(door_angle_deg=10.0), write_sidecar=False)
             pusher.push(warm, tessellate(warm, Settings(linear=2.0, angular=0.8)), scene="bench-warmup")
-            for label, path in (("full", step), ("one_part_edit", edited)):
+            for label, path in cases:
                 doc, tess, s = adapter_side(path)
                 t0 = time.perf_counter()
                 result = pusher.push(doc, tess, scene="bench-car")
@@ -208,6 +212,7 @@ def bench_repush() -> dict:
                 s["service_seconds"] = result.answer.get("seconds", {})
                 s["blas_built"] = result.answer.get("blas_built")
                 s["geometry_changed"] = len(result.answer.get("geometry_changed", []))
+                s["moved"] = len(result.answer.get("moved", []))
                 s["total"] = s["read"] + s["tessellate"] + s["push_total"]
                 out[label] = s
     return out
@@ -232,12 +237,13 @@ def _md(rows: list[dict], many: dict, repush: dict, quick: bool) -> str:
                  f"mesh cache, new scene) — {repush['service']}:")
     lines.append("")
     keys = [k for k in ("read", "tessellate", "meshed", "cached", "uploaded", "uploaded_bytes", "blas_built",
-                        "client_upload", "client_push", "push_total", "total") if k in repush["full"]]
-    lines += ["| stage | full push | one-part edit |", "| --- | ---: | ---: |"]
+                        "geometry_changed", "moved", "client_upload", "client_push", "push_total", "total")
+            if k in repush["full"]]
+    cases = ("full", "one_part_edit", "doors_moved")
+    lines += ["| stage | full push | one-part edit (lens) | doors moved |", "| --- | ---: | ---: | ---: |"]
     for k in keys:
-        a, b = repush["full"][k], repush["one_part_edit"][k]
-        fmt = (lambda x: f"{x:.3f}") if isinstance(a, float) else (lambda x: f"{x}")
-        lines.append(f"| {k} | {fmt(a)} | {fmt(b)} |")
+        vals = [repush[c][k] for c in cases]
+        lines.append(f"| {k} | " + " | ".join(f"{v:.3f}" if isinstance(v, float) else f"{v}" for v in vals) + " |")
     if quick:
         lines += ["", "_quick run: fewer parts and one repetition._"]
     return "\n".join(lines)
