@@ -17,6 +17,7 @@ import io
 from dataclasses import dataclass
 
 import numpy as np
+from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import Normalize, TwoSlopeNorm
 from matplotlib.figure import Figure
@@ -129,7 +130,7 @@ def cell_centres(origin: object, u: object, v: object, nu: int, nv: int) -> np.n
     return o + s[None, :, None] * uu + t[:, None, None] * vv
 
 
-def _figure(aspect: float) -> tuple[Figure, object]:
+def _figure(aspect: float) -> tuple[Figure, Axes]:
     # Width fixed, height from the sensor's aspect ratio (clamped so labels stay legible).
     width = 7.0
     height = float(np.clip(width * aspect * 0.85 + 1.2, 3.5, 9.0))

@@ -270,3 +270,25 @@ def test_map_before_any_simulation_says_what_to_do(tmp_path) -> None:
                                                           "v": [0, 1, 0], "nu": 10, "nv": 10}).json()["id"]
         r = client.post(f"/scenes/{sid}/sensors/{big}/simulate", json={})
         assert r.status_code == 413 and "100 cells" in r.json()["detail"]
+
+
+def test_push_while_a_query_runs_leaves_both_intact(world) -> None:
+    """The query traces a private copy of the scene: a push during it neither waits nor disturbs it."""
+    client, sid, sensor = world
+    rev = client.get(f"/scenes/{sid}").json()["revision"]
+    objects = client.get(f"/scenes/{sid}").json()["objects"]
+    r = client.post(f"/scenes/{sid}/sensors/{sensor}/simulate?mode=async",
+                    json={"target_relative_error": 1e-4, "max_seconds": 3.0})
+    url = r.json()["url"]
+    wait_job(client, url, done=("running",))
+    push_floor(client, sid, rev, dx=0.02)  # the live scene changes under the running query
+    assert client.get(url).json()["status"] == "running"
+    push_floor(client, sid, rev + 1, dx=0.0)
+    state = wait_job(client, url)
+    assert state["status"] == "succeeded" and state["result"]["stop_reason"] == "max_seconds"
+    assert state["result"]["revision"] == rev and state["current"] is False
+    assert np.all(np.isfinite(state["result"]["lux"]))
+    # the service's scene never held the query's receivers, and the next query sees the new revision
+    assert client.get(f"/scenes/{sid}").json()["objects"] == objects
+    again = client.post(f"/scenes/{sid}/illuminance", json=query([[0.0, 0.0, 0.0]], max_photons=10_000))
+    assert again.status_code == 200 and again.json()["revision"] == rev + 2
