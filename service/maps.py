@@ -130,6 +130,17 @@ def cell_centres(origin: object, u: object, v: object, nu: int, nv: int) -> np.n
     return o + s[None, :, None] * uu + t[:, None, None] * vv
 
 
+def _axes_frame(o: np.ndarray, uu: np.ndarray, vv: np.ndarray) -> tuple[tuple[float, float, float, float], str, str]:
+    """Extent and axis labels: world coordinates when u and v run along world axes, else metres along u, v."""
+    names = "xyz"
+    iu, iv = np.flatnonzero(uu), np.flatnonzero(vv)
+    if len(iu) == 1 and len(iv) == 1 and iu[0] != iv[0] and uu[iu[0]] > 0 and vv[iv[0]] > 0:
+        a, b = int(iu[0]), int(iv[0])
+        extent = (float(o[a]), float(o[a] + uu[a]), float(o[b]), float(o[b] + vv[b]))
+        return extent, f"{names[a]} (m)", f"{names[b]} (m)"
+    return (0.0, float(np.linalg.norm(uu)), 0.0, float(np.linalg.norm(vv))), "along u (m)", "along v (m)"
+
+
 def _figure(aspect: float) -> tuple[Figure, Axes]:
     # Width fixed, height from the sensor's aspect ratio (clamped so labels stay legible).
     width = 7.0
@@ -189,12 +200,13 @@ def illuminance_map_png(
     top = top if top > 0 else 1.0
 
     fig, ax = _figure(lv / lu)
-    im = ax.imshow(e, origin="lower", extent=(0.0, lu, 0.0, lv), cmap="turbo",
+    extent, xlabel, ylabel = _axes_frame(o, uu, vv)
+    im = ax.imshow(e, origin="lower", extent=extent, cmap="turbo",
                    norm=Normalize(0.0, top), interpolation="nearest", aspect="equal")
     bar = fig.colorbar(im, ax=ax, shrink=0.9)
     bar.set_label("Illuminance E (lx)")
-    ax.set_xlabel("along u (m)")
-    ax.set_ylabel("along v (m)")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
     nv, nu = e.shape
     caption = subtitle
     if caption is None:
@@ -255,20 +267,24 @@ def difference_map_png(
     span = span if span > 0 else 1.0
 
     fig, ax = _figure(lv / lu)
-    im = ax.imshow(delta, origin="lower", extent=(0.0, lu, 0.0, lv), cmap="RdBu_r",
+    extent, xlabel, ylabel = _axes_frame(o, uu, vv)
+    im = ax.imshow(delta, origin="lower", extent=extent, cmap="RdBu_r",
                    norm=TwoSlopeNorm(0.0, -span, span), interpolation="nearest", aspect="equal")
     bar = fig.colorbar(im, ax=ax, shrink=0.9)
     bar.set_label("ΔE = after − before (lx)")
-    ax.set_xlabel("along u (m)")
-    ax.set_ylabel("along v (m)")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
     nv, nu = delta.shape
-    caption = f"largest rise {delta.max():+.4g} lx · largest fall {delta.min():+.4g} lx"
+    rise = f"largest rise {delta.max():+.4g} lx" if delta.max() > 0 else "no rise"
+    fall = f"largest fall {delta.min():+.4g} lx" if delta.min() < 0 else "no fall"
+    caption = f"{rise} · {fall}"
     if sigma is not None:
         quiet = np.abs(delta) <= SIGNIFICANCE_SIGMAS * sigma
         caption += f" · {int((~quiet).sum())}/{delta.size} cells changed beyond {SIGNIFICANCE_SIGMAS:g}σ"
         if delta.size <= _MAX_DOTTED_CELLS and np.any(quiet):
             jj, ii = np.nonzero(quiet)
-            ax.scatter((ii + 0.5) / nu * lu, (jj + 0.5) / nv * lv, s=2.0, c="0.45", marker=".",
+            x0, x1, y0, y1 = extent
+            ax.scatter(x0 + (ii + 0.5) / nu * (x1 - x0), y0 + (jj + 0.5) / nv * (y1 - y0), s=2.0, c="0.45", marker=".",
                        label=f"|ΔE| ≤ {SIGNIFICANCE_SIGMAS:g}σ (noise)")
             ax.legend(loc="upper right", fontsize=7, framealpha=0.8)
     ax.set_title(f"{title or 'Change in illuminance'}\n{caption}", fontsize=9)

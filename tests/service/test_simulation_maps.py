@@ -81,3 +81,17 @@ def test_change_summary_finds_the_significant_cells() -> None:
 def test_bad_inputs_are_refused_with_a_reason(call, message: str) -> None:
     with pytest.raises(MapError, match=message):
         call()
+
+
+def test_axes_show_world_coordinates_when_the_grid_is_axis_aligned() -> None:
+    from service.maps import _axes_frame
+
+    extent, xl, yl = _axes_frame(*(np.asarray(a, float) for a in FRAME))
+    assert extent == (1.0, 5.0, -2.0, 0.0) and (xl, yl) == ("x (m)", "y (m)")
+    # a wall grid: u along y, v along z
+    extent, xl, yl = _axes_frame(np.array([0.0, 1.0, 0.5]), np.array([0.0, 3.0, 0.0]), np.array([0.0, 0.0, 2.0]))
+    assert extent == (1.0, 4.0, 0.5, 2.5) and (xl, yl) == ("y (m)", "z (m)")
+    # tilted or reversed: metres along u and v
+    for u in ([1.0, 1.0, 0.0], [-1.0, 0.0, 0.0]):
+        extent, xl, _ = _axes_frame(np.zeros(3), np.array(u), np.array([0.0, 0.0, 1.0]))
+        assert extent[0] == 0.0 and extent[1] == pytest.approx(np.linalg.norm(u)) and xl == "along u (m)"
