@@ -369,7 +369,7 @@ class SceneManager:
         if diff.is_empty():
             state.tree = new  # the same tree; its rows now follow this body's order
             seconds = {"decode": t_decode - t0, "validate": t_validate - t_decode, "diff": t_diff - t_validate,
-                       "blas": 0.0, "tlas": 0.0, "store": 0.0}
+                       "blas": 0.0, "tlas": 0.0, "commit": 0.0, "store": 0.0}
             seconds["total"] = time.perf_counter() - t0
             return self._answer(state, doc, diff, {}, seconds, [], [], blas_reused=0)
 
