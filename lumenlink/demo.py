@@ -537,6 +537,9 @@ def run(out_dir: Path = Path("demo-output"), photons: int = 2_000_000) -> int:
         n.warn(f"The demo stops here: {exc}.")
         n.warn("Nothing after this point was computed; no result above was made up.")
         return 2
+    except RuntimeError as exc:  # a call the service refused, or the service did not start
+        n.warn(f"The demo failed: {exc}")
+        return 1
     n.say(f"Done in {report.seconds:.1f} s, of which numba compilation {report.compile_seconds:.1f} s.")
     return 0
 

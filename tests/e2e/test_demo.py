@@ -98,3 +98,21 @@ def test_log_says_how_long_it_took(demo) -> None:
     assert report.seconds > 0 and 0 <= report.compile_seconds <= report.seconds
     for step in ("1. ", "2. ", "3a. ", "3b. ", "4a. ", "4b. ", "5. ", "6. "):
         assert f"] {step}" in log
+
+
+def test_a_missing_part_stops_the_demo_with_its_name_and_no_output(tmp_path, monkeypatch, capsys) -> None:
+    import sys
+
+    from lumenlink import demo as demo_module
+
+    monkeypatch.setitem(sys.modules, "cad_adapter.samples", None)  # importing it now raises ImportError
+    code = demo_module.run(tmp_path / "out", photons=10_000)
+    out = capsys.readouterr().out
+    assert code == 2
+    assert "cad_adapter.samples is not built yet (issue 4)" in out and "no result above was made up" in out
+    assert not list((tmp_path / "out").glob("*.png"))
+
+
+def test_photon_budget_is_checked(tmp_path) -> None:
+    with pytest.raises(ValueError, match="at least 1000"):
+        run_demo(tmp_path, photons=10)
