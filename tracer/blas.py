@@ -468,21 +468,51 @@ def collapse(node_box, node_a, node_n, node_off, node_cnt):
     return boxes, refs, row_cnt
 
 
-_LO = np.array([0, 1, 2, 6, 7, 8])
-_HI = np.array([3, 4, 5, 9, 10, 11])
+@njit(cache=True, error_model="numpy")
+def _down32(x):
+    """Largest float32 <= x (x finite or infinite)."""
+    f = np.float32(x)
+    if np.float64(f) > x:
+        f = np.float32(x - abs(x) * 2.5e-7 - 1e-38)
+    return f
+
+
+@njit(cache=True, error_model="numpy")
+def _up32(x):
+    """Smallest float32 >= x."""
+    f = np.float32(x)
+    if np.float64(f) < x:
+        f = np.float32(x + abs(x) * 2.5e-7 + 1e-38)
+    return f
+
+
+@njit(cache=True, error_model="numpy")
+def _pack_rows(boxes, refs, out_f, out_i):
+    for r in range(boxes.shape[0]):
+        for c in range(2):
+            for a in range(3):
+                out_f[r, 6 * c + a] = _down32(boxes[r, 6 * c + a])
+                out_f[r, 6 * c + 3 + a] = _up32(boxes[r, 6 * c + 3 + a])
+        out_i[r, 12] = refs[r, 0]
+        out_i[r, 13] = refs[r, 1]
+        out_i[r, 14] = 0
+        out_i[r, 15] = 0
 
 
 def pack_rows(boxes: np.ndarray, refs: np.ndarray) -> np.ndarray:
     """(R, 16) float32 traversal rows: the 12 box values rounded outward to float32, then the two
     child references bit-cast into columns 12-13 (read through an int32 view of the same buffer)."""
-    out = np.zeros((len(boxes), 16), np.float32)
-    with np.errstate(over="ignore"):
-        b32 = boxes.astype(np.float32)
-    lo = b32[:, _LO]
-    hi = b32[:, _HI]
-    lo = np.where(lo > boxes[:, _LO], np.nextafter(lo, np.float32(-np.inf)), lo)
-    hi = np.where(hi < boxes[:, _HI], np.nextafter(hi, np.float32(np.inf)), hi)
-    out[:, _LO] = lo
-    out[:, _HI] = hi
-    out.view(np.int32)[:, 12:14] = refs
+    out = np.empty((len(boxes), 16), np.float32)
+    _pack_rows(boxes, refs, out, out.view(np.int32))
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def leaf_order_f32(tri_v, leaf_rows):
+    """``tri_v[leaf_rows]`` as a flat float32 array (exact: the coordinates are float32 values)."""
+    out = np.empty(9 * leaf_rows.shape[0], np.float32)
+    for j in range(leaf_rows.shape[0]):
+        r = leaf_rows[j]
+        for c in range(9):
+            out[9 * j + c] = tri_v[r, c]
     return out

@@ -25,7 +25,7 @@ import numba
 import numpy as np
 
 from tracer import cache as blas_cache
-from tracer.blas import build_meshes, collapse, gather_triangles, pack_rows, refit
+from tracer.blas import build_meshes, collapse, gather_triangles, leaf_order_f32, pack_rows, refit
 from tracer.errors import NotCommittedError, TracerError, UnknownIdError
 from tracer.geometry_id import canonical_arrays, geometry_id
 from tracer.kinds import SENSOR_KINDS, disk_sensor, mesh, rect_sensor
@@ -507,29 +507,24 @@ class Scene:
         tri_v = np.empty((m, 9))
         gather_triangles(verts, tris, tri_off, vert_off, tri_v)
         order, node_box, node_a, node_n, node_cnt = build_meshes(tri_v, tri_off, MESH_MAX_LEAF, MESH_ISECT_COST)
-        # compact node rows: geometry g used rows 2*tri_off[g] .. + node_cnt[g]
-        starts = np.repeat(2 * tri_off[:-1] - np.concatenate([[0], np.cumsum(node_cnt)[:-1]]), node_cnt)
-        rows = starts + np.arange(int(node_cnt.sum()))
+        # geometry g's nodes are rows 2*tri_off[g] .. + node_cnt[g] of the build arrays
+        node_off = 2 * tri_off[:-1]
+        boxes, refs, row_cnt = collapse(node_box, node_a, node_n, node_off, node_cnt)
         base = np.repeat(tri_off[:-1], g_tris)
-        leaf_rows = base + order  # global original row at each leaf position
-        tri_prim = order.astype(np.int32)
+        leaf_rows = base + order  # batch row of the original triangle at each leaf position
         prim_slot = np.empty(m, np.int32)
         prim_slot[leaf_rows] = (np.arange(m) - base).astype(np.int32)
         tri_n = np.zeros((m, 9), np.float32)
-        has_n = [g.normals is not None for g in geoms]
-        if any(has_n):
+        if any(g.normals is not None for g in geoms):
             nrm = np.concatenate([g.normals if g.normals is not None else np.zeros_like(g.vertices) for g in geoms])
             tri_n[:] = nrm[tris + np.repeat(vert_off[:-1], g_tris)[:, None]].reshape(m, 9)
             tri_n = tri_n[leaf_rows]
-        node_a, node_n = node_a[rows], node_n[rows]
-        n0 = np.concatenate([[0], np.cumsum(node_cnt)])
-        boxes, refs, row_cnt = collapse(node_box[rows], node_a, node_n, n0[:-1], node_cnt)
-        arrs = {"bvh": pack_rows(boxes, refs), "tri_v": tri_v[leaf_rows].astype(np.float32),
-                "tri_prim": tri_prim, "prim_slot": prim_slot, "tri_n": tri_n}
+        arrs = {"bvh": pack_rows(boxes, refs), "tri_v": leaf_order_f32(tri_v, leaf_rows).reshape(m, 9),
+                "tri_prim": order.astype(np.int32), "prim_slot": prim_slot, "tri_n": tri_n}
         if self.cache_dir is not None:
             for q, g in enumerate(geoms):
                 if g_tris[q] >= self.cache_min_triangles:
-                    sl = slice(int(n0[q]), int(n0[q + 1]))
+                    sl = slice(int(node_off[q]), int(node_off[q] + node_cnt[q]))
                     blas_cache.save(self.cache_dir, self._geom_ids[g.index], order[tri_off[q]:tri_off[q + 1]],
                                     node_a[sl], node_n[sl])
         return geoms, arrs, row_cnt, g_tris

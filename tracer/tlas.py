@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from tracer.blas import build_bvh_range, collapse, pack_rows
+from tracer.blas import _down32, _up32, build_bvh_range, collapse, pack_rows
 
 #: an instance visit (transform + BLAS root) costs about this many node visits (SAH)
 INSTANCE_COST = 2.0
@@ -101,22 +101,6 @@ def _build_top(ids, boxes):
                     item_row[items[q]] = r
                     item_slot[items[q]] = slot
     return boxes2, refs, items, row_parent, row_pslot, item_row, item_slot
-
-
-@njit(cache=True, error_model="numpy")
-def _down32(x):
-    f = np.float32(x)
-    if np.float64(f) > x:
-        f = np.float32(x - abs(x) * 2.5e-7 - 1e-38)
-    return f
-
-
-@njit(cache=True, error_model="numpy")
-def _up32(x):
-    f = np.float32(x)
-    if np.float64(f) < x:
-        f = np.float32(x + abs(x) * 2.5e-7 + 1e-38)
-    return f
 
 
 @njit(cache=True, error_model="numpy")
