@@ -225,14 +225,28 @@ def remember(body: bytes, names: list[str]) -> NodeBytes | None:
     return NodeBytes(sep, body, begin, end - begin, starts, ends)
 
 
-def _common(a: np.ndarray, b: np.ndarray) -> int:
-    """Length of the common prefix of two byte arrays."""
+def _common(a: np.ndarray, b: np.ndarray, block: int = 1 << 18) -> int:
+    """Length of the common prefix of two byte arrays (compared block by block: stops at the first change)."""
     m = min(len(a), len(b))
-    if m == 0:
-        return 0
-    neq = a[:m] != b[:m]
-    k = int(np.argmax(neq))
-    return m if not neq[k] else k
+    for s in range(0, m, block):
+        e = min(m, s + block)
+        neq = a[s:e] != b[s:e]
+        k = int(np.argmax(neq))
+        if neq[k]:
+            return s + k
+    return m
+
+
+def _common_suffix(a: np.ndarray, b: np.ndarray, block: int = 1 << 18) -> int:
+    """Length of the common suffix of two byte arrays (forward-strided blocks from the end)."""
+    m = min(len(a), len(b))
+    la, lb = len(a), len(b)
+    for s in range(0, m, block):
+        e = min(m, s + block)
+        neq = a[la - e:la - s] != b[lb - e:lb - s]
+        if neq.any():
+            return s + (e - s) - 1 - int(np.flatnonzero(neq)[-1])
+    return m
 
 
 def decode_incremental(body: bytes, previous: NodeBytes, tree, known_geometries: Container[str]
@@ -261,7 +275,7 @@ def decode_incremental(body: bytes, previous: NodeBytes, tree, known_geometries:
     a = _bytes_view(previous.body, previous.core, len1)
     b = _bytes_view(body, begin, len2)
     p = _common(a, b)
-    q = _common(a[::-1][: len1 - min(p, len1)], b[::-1][: len2 - min(p, len2)])
+    q = _common_suffix(a[min(p, len1):], b[min(p, len2):])
     starts1, ends1 = previous.starts, previous.ends
     k0 = int(np.searchsorted(ends1, p, side="right")) if n1 else 0  # chunks 0..k0-1 lie in the prefix
     k1 = int(np.searchsorted(starts1, len1 - q, side="left")) if n1 else 0  # chunks k1.. lie in the suffix
@@ -311,9 +325,15 @@ def decode_incremental(body: bytes, previous: NodeBytes, tree, known_geometries:
         return None
     rows = np.concatenate([np.arange(k0), np.full(len(middle), -1), np.arange(k1, n1)]).astype(np.int64)
     n = len(rows)
-    if len(middle) == 0 and k0 + (n1 - k1) == n1 and n == len(tree):
+    if n == n1 == len(tree) and len(middle) == k1 - k0:  # nodes edited in place: copy the columns, patch
         uuids, parents, names = list(tree.uuids), list(tree.parents), list(tree.names)
-        geometries, colors, transforms = list(tree.geometries), list(tree.colors), tree.local.reshape(-1, 16)
+        geometries, colors = list(tree.geometries), list(tree.colors)
+        transforms = tree.local.reshape(-1, 16).copy() if middle else tree.local.reshape(-1, 16)
+        for j in range(len(middle)):
+            k = k0 + j
+            uuids[k], parents[k], names[k], geometries[k], colors[k] = (cols[0][j], cols[1][j], cols[2][j],
+                                                                        cols[4][j], cols[5][j])
+            transforms[k] = cols[3][j]
     else:
         safe = np.where(rows >= 0, rows, 0).tolist() if len(tree) else [0] * n
         pick = (lambda col: [col[r] for r in safe]) if len(tree) else (lambda col: [None] * n)

@@ -204,3 +204,16 @@ def test_incremental_declines_odd_layouts() -> None:
     bad = copy.deepcopy(nodes)
     bad[1]["material"] = "x"
     assert decode_incremental(body_of(bad, False), previous, tree, set()) is None
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.binary(max_size=40), st.binary(max_size=40), st.binary(max_size=40), st.integers(1, 7))
+def test_common_prefix_and_suffix_across_blocks(x: bytes, y: bytes, z: bytes, block: int) -> None:
+    from service.document import _common, _common_suffix
+
+    a, b = np.frombuffer(x + y, np.uint8), np.frombuffer(x + z, np.uint8)
+    p = next((i for i in range(min(len(a), len(b))) if a[i] != b[i]), min(len(a), len(b)))
+    assert _common(a, b, block) == p
+    c, d = np.frombuffer(y + x, np.uint8), np.frombuffer(z + x, np.uint8)
+    q = next((i for i in range(min(len(c), len(d))) if c[len(c) - 1 - i] != d[len(d) - 1 - i]), min(len(c), len(d)))
+    assert _common_suffix(c, d, block) == q
