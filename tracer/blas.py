@@ -31,13 +31,15 @@ import numpy as np
 from numba import njit, prange
 
 #: Bumped whenever the build or the layout changes: cache files of another version are rebuilt.
-BUILDER_VERSION = "lumenlink-blas-2"
+BUILDER_VERSION = "lumenlink-blas-3"
 N_BINS = 16
 #: Below this depth SAH decides; beyond it, splits halve the range so depth stays bounded
 #: (traversal uses fixed stacks of :data:`STACK_SIZE`).
 MAX_SAH_DEPTH = 64
 STACK_SIZE = 128
 TRAVERSAL_COST = 1.0
+#: nodes with at least this many primitives try SAH splits on all three axes
+ALL_AXES_MIN = 1024
 
 
 @njit(cache=True, error_model="numpy")
@@ -145,69 +147,85 @@ def build_bvh_range(bmin, bmax, order, p0, n, node_box, node_a, node_n, k0, max_
                 else:
                     mid = start + cnt // 2
             else:
-                # as many bins as primitives for small nodes: the per-node cost stays proportional to them
+                # binned SAH; every axis with extent for large nodes (tree quality where it matters),
+                # the widest only for small ones; as many bins as primitives for small nodes, so the
+                # per-node cost stays proportional to them
                 nb = min(N_BINS, cnt)
-                scale = nb / ext
-                for b in range(nb):
-                    bin_cnt[b] = 0
-                    bin_box[b, 0] = np.inf
-                    bin_box[b, 1] = np.inf
-                    bin_box[b, 2] = np.inf
-                    bin_box[b, 3] = -np.inf
-                    bin_box[b, 4] = -np.inf
-                    bin_box[b, 5] = -np.inf
-                for q in range(p0 + start, p0 + end):
-                    p = order[q]
-                    c = 0.5 * (bmin[p, axis] + bmax[p, axis])
-                    b = int((c - lo) * scale)
-                    if b >= nb:
-                        b = nb - 1
-                    if b < 0:
-                        b = 0
-                    bin_cnt[b] += 1
-                    for a in range(3):
-                        if bmin[p, a] < bin_box[b, a]:
-                            bin_box[b, a] = bmin[p, a]
-                        if bmax[p, a] > bin_box[b, 3 + a]:
-                            bin_box[b, 3 + a] = bmax[p, a]
-                # sweep from the right: area and count of bins b..N-1
-                rx0 = ry0 = rz0 = np.inf
-                rx1 = ry1 = rz1 = -np.inf
-                rc = 0
-                for b in range(nb - 1, 0, -1):
-                    rx0 = min(rx0, bin_box[b, 0])
-                    ry0 = min(ry0, bin_box[b, 1])
-                    rz0 = min(rz0, bin_box[b, 2])
-                    rx1 = max(rx1, bin_box[b, 3])
-                    ry1 = max(ry1, bin_box[b, 4])
-                    rz1 = max(rz1, bin_box[b, 5])
-                    rc += bin_cnt[b]
-                    right_area[b] = _area(rx0, ry0, rz0, rx1, ry1, rz1)
-                    right_cnt[b] = rc
-                lx0 = ly0 = lz0 = np.inf
-                lx1 = ly1 = lz1 = -np.inf
-                lc = 0
                 best = np.inf
                 best_b = -1
-                for b in range(nb - 1):
-                    lx0 = min(lx0, bin_box[b, 0])
-                    ly0 = min(ly0, bin_box[b, 1])
-                    lz0 = min(lz0, bin_box[b, 2])
-                    lx1 = max(lx1, bin_box[b, 3])
-                    ly1 = max(ly1, bin_box[b, 4])
-                    lz1 = max(lz1, bin_box[b, 5])
-                    lc += bin_cnt[b]
-                    if lc == 0 or right_cnt[b + 1] == 0:
+                best_axis = axis
+                best_lo = lo
+                best_scale = 0.0
+                for ax in range(3):
+                    if cnt < ALL_AXES_MIN and ax != axis:
                         continue
-                    c = lc * _area(lx0, ly0, lz0, lx1, ly1, lz1) + right_cnt[b + 1] * right_area[b + 1]
-                    if c < best:
-                        best = c
-                        best_b = b
+                    a_lo = cx0 if ax == 0 else (cy0 if ax == 1 else cz0)
+                    a_ext = (cx1 if ax == 0 else (cy1 if ax == 1 else cz1)) - a_lo
+                    if not a_ext > 0.0:
+                        continue
+                    scale = nb / a_ext
+                    for b in range(nb):
+                        bin_cnt[b] = 0
+                        bin_box[b, 0] = np.inf
+                        bin_box[b, 1] = np.inf
+                        bin_box[b, 2] = np.inf
+                        bin_box[b, 3] = -np.inf
+                        bin_box[b, 4] = -np.inf
+                        bin_box[b, 5] = -np.inf
+                    for q in range(p0 + start, p0 + end):
+                        p = order[q]
+                        c = 0.5 * (bmin[p, ax] + bmax[p, ax])
+                        b = int((c - a_lo) * scale)
+                        if b >= nb:
+                            b = nb - 1
+                        if b < 0:
+                            b = 0
+                        bin_cnt[b] += 1
+                        for a in range(3):
+                            if bmin[p, a] < bin_box[b, a]:
+                                bin_box[b, a] = bmin[p, a]
+                            if bmax[p, a] > bin_box[b, 3 + a]:
+                                bin_box[b, 3 + a] = bmax[p, a]
+                    # sweep from the right: area and count of bins b..nb-1
+                    rx0 = ry0 = rz0 = np.inf
+                    rx1 = ry1 = rz1 = -np.inf
+                    rc = 0
+                    for b in range(nb - 1, 0, -1):
+                        rx0 = min(rx0, bin_box[b, 0])
+                        ry0 = min(ry0, bin_box[b, 1])
+                        rz0 = min(rz0, bin_box[b, 2])
+                        rx1 = max(rx1, bin_box[b, 3])
+                        ry1 = max(ry1, bin_box[b, 4])
+                        rz1 = max(rz1, bin_box[b, 5])
+                        rc += bin_cnt[b]
+                        right_area[b] = _area(rx0, ry0, rz0, rx1, ry1, rz1)
+                        right_cnt[b] = rc
+                    lx0 = ly0 = lz0 = np.inf
+                    lx1 = ly1 = lz1 = -np.inf
+                    lc = 0
+                    for b in range(nb - 1):
+                        lx0 = min(lx0, bin_box[b, 0])
+                        ly0 = min(ly0, bin_box[b, 1])
+                        lz0 = min(lz0, bin_box[b, 2])
+                        lx1 = max(lx1, bin_box[b, 3])
+                        ly1 = max(ly1, bin_box[b, 4])
+                        lz1 = max(lz1, bin_box[b, 5])
+                        lc += bin_cnt[b]
+                        if lc == 0 or right_cnt[b + 1] == 0:
+                            continue
+                        c = lc * _area(lx0, ly0, lz0, lx1, ly1, lz1) + right_cnt[b + 1] * right_area[b + 1]
+                        if c < best:
+                            best = c
+                            best_b = b
+                            best_axis = ax
+                            best_lo = a_lo
+                            best_scale = scale
                 area = _area(x0, y0, z0, x1, y1, z1)
                 if area > 0.0:
                     split_cost = TRAVERSAL_COST + isect_cost * best / area
                 else:
                     split_cost = TRAVERSAL_COST + isect_cost * cnt * 0.5
+                axis = best_axis
                 if best_b < 0:
                     mid = start + cnt // 2
                 elif cnt <= max_leaf and split_cost >= isect_cost * cnt:
@@ -219,7 +237,7 @@ def build_bvh_range(bmin, bmax, order, p0, n, node_box, node_a, node_n, k0, max_
                     while i <= j:
                         p = order[i]
                         c = 0.5 * (bmin[p, axis] + bmax[p, axis])
-                        b = int((c - lo) * scale)
+                        b = int((c - best_lo) * best_scale)
                         if b >= nb:
                             b = nb - 1
                         if b < 0:
