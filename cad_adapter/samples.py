@@ -35,6 +35,7 @@ WHEEL_RADIUS = 330.0
 WHEEL_WIDTH = 220.0
 LENS_APERTURE_MM = 60.0  # radius of the lens' rim
 DEFAULT_LENS_RADIUS_MM = 120.0
+HOUSING_DEPTH_MM = 90.0
 SAMPLE_NAMESPACE = uuid.UUID("6c1d4f0e-3b0a-5d6e-9a51-6c756d656e6c")
 
 
@@ -76,7 +77,8 @@ def windscreen() -> cq.Workplane:
 
 
 def housing() -> cq.Workplane:
-    cup = cq.Workplane("YZ").circle(LENS_APERTURE_MM + 8).extrude(-90)
+    """A cup open towards +x (where the lens sits), its back at x = -HOUSING_DEPTH_MM."""
+    cup = cq.Workplane("YZ").circle(LENS_APERTURE_MM + 8).extrude(-HOUSING_DEPTH_MM)
     return cup.faces(">X").shell(-4)
 
 
@@ -121,10 +123,11 @@ def car_assembly(door_angle_deg: float = 0.0, lens_radius_mm: float = DEFAULT_LE
     car.add(body(), name="body", color=paint, metadata=_meta("car/body"))
     d = door()
     hinge_x = LENGTH * 0.18
+    # the panels run towards -x from the hinge: the left (+y) door opens by turning clockwise seen from above
     car.add(d, name="door_left", color=paint, metadata=_meta("car/door_left"),
-            loc=cq.Location((hinge_x, WIDTH / 2, GROUND + 60), (0, 0, 1), door_angle_deg))
+            loc=cq.Location((hinge_x, WIDTH / 2, GROUND + 60), (0, 0, 1), -door_angle_deg))
     car.add(d.mirror("XZ"), name="door_right", color=paint, metadata=_meta("car/door_right"),
-            loc=cq.Location((hinge_x, -WIDTH / 2, GROUND + 60), (0, 0, 1), -door_angle_deg))
+            loc=cq.Location((hinge_x, -WIDTH / 2, GROUND + 60), (0, 0, 1), door_angle_deg))
     w = wheel()
     tyre = cq.Color(0.05, 0.05, 0.05)
     for name, x, y in (("wheel_fl", 1, 1), ("wheel_fr", 1, -1), ("wheel_rl", -1, 1), ("wheel_rr", -1, -1)):
@@ -132,7 +135,9 @@ def car_assembly(door_angle_deg: float = 0.0, lens_radius_mm: float = DEFAULT_LE
                 loc=cq.Location((x * LENGTH * 0.32, y * (WIDTH / 2 - WHEEL_WIDTH / 2 + 30), WHEEL_RADIUS)))
     car.add(windscreen(), name="windscreen", color=cq.Color(0.7, 0.8, 0.9, 0.3), metadata=_meta("car/windscreen"),
             loc=cq.Location((LENGTH * 0.15, 0, GROUND + BODY_HEIGHT + 260)))
-    lamp = cq.Assembly(name="headlamp", loc=cq.Location((LENGTH / 2 + 5, WIDTH * 0.3, GROUND + BODY_HEIGHT * 0.6)),
+    # the housing's closed back (x = -HOUSING_DEPTH_MM in the lamp frame) sits on the body's front face
+    lamp = cq.Assembly(name="headlamp",
+                       loc=cq.Location((LENGTH / 2 + HOUSING_DEPTH_MM, WIDTH * 0.3, GROUND + BODY_HEIGHT * 0.6)),
                        metadata=_meta("car/headlamp"))
     lamp.add(housing(), name="housing", color=cq.Color(0.8, 0.8, 0.8), metadata=_meta("car/headlamp/housing"))
     lamp.add(lens(lens_radius_mm), name="lens", color=cq.Color(0.9, 0.95, 1.0, 0.2),

@@ -377,7 +377,7 @@ def _run(report: DemoReport, n: Narrator, photons: int, keep_data: bool, clock: 
         ies = (Path(__file__).parent / "data" / "rab_dled6r8y_7.ies").read_text()
         lights = {
             "headlamp": {"type": "spot", "name": "left low beam", "attached_to": uuid_of["headlamp"],
-                         # between the body's front face and the lens, in the headlamp's frame (m)
+                         # inside the housing, just behind the lens, in the headlamp's frame (m)
                          "position": [-0.0025, 0.0, 0.0], "direction": [1.0, 0.0, -0.1],
                          "cone_deg": 25.0, "falloff_deg": 8.0, "intensity_cd": 5000.0},
             "ceiling": {"type": "goniometric", "name": "ceiling downlight (RAB DLED6R8Y, IES)",

@@ -10,7 +10,7 @@ from cad_helpers import car
 import cad_adapter
 from cad_adapter.errors import CadAdapterError
 from cad_adapter.identity import shape_signature
-from cad_adapter.samples import LENS_APERTURE_MM, car_assembly, lens, node_uuid
+from cad_adapter.samples import LENS_APERTURE_MM, WIDTH, car_assembly, lens, node_uuid
 
 
 def test_nodes_carry_the_same_uuids_in_every_build() -> None:
@@ -35,8 +35,12 @@ def test_doors_turn_about_their_hinges() -> None:
     doc = cad_adapter.read_document(car(30.0))
     left = next(n for n in doc.nodes if n.name == "door_left").transform
     right = next(n for n in doc.nodes if n.name == "door_right").transform
-    assert math.degrees(math.atan2(left[1, 0], left[0, 0])) == pytest.approx(30.0)
-    assert math.degrees(math.atan2(right[1, 0], right[0, 0])) == pytest.approx(-30.0)
+    assert math.degrees(math.atan2(left[1, 0], left[0, 0])) == pytest.approx(-30.0)
+    assert math.degrees(math.atan2(right[1, 0], right[0, 0])) == pytest.approx(30.0)
+    # the free edge of each panel (1100 mm behind its hinge) swings out of the body, never into the cabin
+    free_edge = [-1100.0, 0.0, 0.0, 1.0]
+    assert (left @ free_edge)[1] > WIDTH / 2 + 500
+    assert (right @ free_edge)[1] < -WIDTH / 2 - 500
 
 
 @pytest.mark.parametrize("kwargs, match", [
