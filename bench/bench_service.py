@@ -7,7 +7,7 @@ excluded):
 
 - identical re-push (target at 20k nodes: ≤ 50 ms);
 - move one part (≤ 100 ms);
-- change one part's geometry to a new mesh (≤ 100 ms plus that part's BLAS build);
+- change one part's geometry to a new mesh of 200 triangles (≤ 100 ms plus that part's BLAS build);
 
 medians over repetitions, with the stage split (decode, validate, diff, blas, tlas, store) and how
 each grows at 1k, 10k, 20k and 100k nodes (``quick``: 1k, 10k and 20k, fewer repetitions).
@@ -163,8 +163,9 @@ def _markdown(results: list[dict[str, Any]], reps: int) -> str:
                          + f" | {ms(m['total_minus_blas'])} | {ms(m['wall'])} |")
     lines += ["", "First push (everything added): " + ", ".join(
         f"{r['nodes']} nodes {ms(r['first_push']['total'])} ms" for r in results) + ".",
-        "`decode`: the body split into per-node byte strings, only those that differ from the previous push parsed "
-        "and schema-checked (a first push, or an unusual layout, is decoded in full); `validate`: transforms of the "
+        "`decode`: the node list compared byte for byte with the previous push's (one vectorized pass); only the "
+        "nodes between the common prefix and suffix are parsed and schema-checked (a first push, or a body of "
+        "another layout, is decoded in full); `validate`: transforms of the "
         "changed nodes, world transforms of their subtrees; `diff`: the linear pass over columns; `blas`: mesh load "
         "and bottom-level build of new geometry; `tlas`: instance updates and the top-level rebuild over all "
         "instances (the tracer's); `store`: one SQLite transaction writing the changed rows. `wall`: the client's "
