@@ -364,3 +364,50 @@ def test_byte_identical_node_list_is_recognised_and_still_checked(client, scene,
     doc2 = car(meshes, base_revision=2, door_x=3.0, unit="cm")
     a = client.put(f"/scenes/{scene}/document", content=raw(doc2), headers=hdr).json()
     assert a["moved"] == [uid(2)] and a["revision"] == 3
+
+
+def test_a_long_sequence_of_edits_stays_consistent(client, scene, meshes, rng) -> None:
+    """Thirty pushes of random edits (moves, renames, geometry swaps, insertions, removals anywhere): each
+    answer equals the diff of fully decoded trees, and the stored tree equals the pushed one."""
+    import json
+
+    from service.document import decode_document
+    from service.tree import Tree, diff_trees
+
+    gids = [meshes[k][0] for k in ("body", "wheel", "other")]
+    nodes = [node(uid(500), None, "root")]
+    nodes += [node(uid(501 + k), uid(500), f"p{k}", translation(k, 0, 0), geometry=gids[k % 3]) for k in range(300)]
+    revision, fresh = 0, 1000
+    previous = None
+    for step in range(30):
+        if step:
+            for _ in range(int(rng.integers(1, 4))):
+                k = int(rng.integers(1, len(nodes)))
+                what = int(rng.integers(0, 5))
+                n = nodes[k] = dict(nodes[k])
+                if what == 0:
+                    n["transform"] = translation(float(rng.normal()), 0, 0)
+                elif what == 1:
+                    n["name"] = f"renamed{step}"
+                elif what == 2:
+                    n["geometry"] = gids[int(rng.integers(0, 3))]
+                elif what == 3:
+                    nodes.insert(k, node(uid(fresh), uid(500), f"new{fresh}", geometry=gids[0]))
+                    fresh += 1
+                else:
+                    del nodes[k]
+        body = json.dumps({"base_revision": revision, "length_unit": "mm", "nodes": nodes}).encode()
+        r = client.put(f"/scenes/{scene}/document", content=body, headers={"content-type": "application/json"})
+        assert r.status_code == 200, r.text
+        answer = r.json()
+        current = Tree.build(*decode_document(body, set(), set(gids)).columns(), "mm")
+        if previous is not None:
+            expect = diff_trees(previous, current).summary()
+            assert {k: answer[k] for k in expect} == expect
+        previous, revision = current, answer["revision"]
+        stored = {n["uuid"]: (n["parent"], n["name"], n["transform"], n["geometry"])
+                  for n in client.get(f"/scenes/{scene}/nodes").json()}
+        assert stored == {n["uuid"]: (n["parent"], n["name"], [float(x) for x in n["transform"]], n["geometry"])
+                          for n in nodes}
+    live = client.app.state.live.get(scene)
+    assert len(live.instance_of_node) == sum(1 for n in nodes if n["geometry"])
