@@ -4,12 +4,15 @@
 id of every node with geometry and every assignment (materials, lights, sensors, sim-owned
 objects, all keyed by uuid). Every change runs under the scene's lock:
 
-- a push decodes and validates the whole document, checks ``base_revision``, diffs it against
-  the current tree, applies the diff to the tracer scene (BLAS for new geometry, top level
-  for the rest), then writes the changed rows and the revision in one transaction whose
+- a push decodes and validates the document, checks ``base_revision``, diffs it against the
+  current tree, applies the diff to the tracer scene (BLAS for new geometry, top level for the
+  rest), then writes the changed rows and the revision in one transaction whose
   ``UPDATE … WHERE revision = old`` guards against a writer in another process. If the store
   fails, the in-memory scene is dropped and reloaded from the database on next use, so memory
-  never runs ahead of what was committed.
+  never runs ahead of what was committed. Decoding reuses the previous push's bytes
+  (`service.document`): a byte-identical node list is recognised by one comparison, and
+  otherwise only the nodes between the common prefix and suffix are parsed, so the cost of a
+  push follows what changed plus a few linear, vectorized passes.
 - after a restart a scene is loaded on first use: tree, assignments, and a tracer scene whose
   bottom levels come from the BLAS cache under the data directory (none rebuilt if intact).
 
