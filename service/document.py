@@ -7,6 +7,13 @@ and checks the node list column-wise (types, lengths, id formats, known ids) the
 key, a non-canonical UUID, a boolean among numbers, an unknown geometry id — sends the whole
 body through `DocumentPush.model_validate_json`, the single authority for what is valid and for
 the wording of errors. The fast path therefore only ever accepts documents the schema accepts.
+
+Pushes of the same CAD document mostly repeat themselves. `remember` notes where each node
+sits in an accepted body (`NodeBytes`); the next body is compared with it byte for byte
+(`same_nodes`: identical node list; `decode_incremental`: the nodes before the first and after
+the last differing byte are reused from the current tree, the few in between are parsed on
+their own and checked like the fast path). Anything unusual declines, and the body is decoded
+in full.
 """
 
 from __future__ import annotations
