@@ -736,32 +736,26 @@ def _validate_photometry(fmt: str, text: str) -> None:
 
 
 def scene_effects(live: LiveScene, uses_default: bool = True) -> list[str]:
-    """The scene's effect set, from the transport's own rule when it is available."""
+    """The scene's effect set, by the transport's rule (`tracer.effects.derive_effects`, mirrored here so a
+    summary needs no packed material table): Lambertian always; a mirror, or a mix with a specular part,
+    adds "specular"; a dielectric adds "fresnel", and "absorption"/"scattering" where its coefficients
+    are non-zero."""
     try:
-        from tracer.simulate import scene_effects as transport_effects  # type: ignore[attr-defined]
-    except ImportError:
-        transport_effects = None
-    if transport_effects is not None:
-        try:
-            return sorted(transport_effects(live.materials, live.lights, live.default_material))
-        except Exception:  # the transport's rule changed shape: fall back to ours
-            log.debug("tracer.simulate.scene_effects failed; using the service's rule", exc_info=True)
-    effects: set[str] = set()
+        from tracer.effects import EFFECTS
+    except ImportError:  # pragma: no cover - the transport is part of the package
+        EFFECTS = ("lambertian", "specular", "fresnel", "absorption", "scattering")
+    effects = {"lambertian"}
     for m in list(live.materials.values()) + ([live.default_material] if uses_default else []):
         kind = m.get("type")
-        if kind == "lambertian":
-            effects.add("lambertian")
-        elif kind == "mirror":
+        if kind == "mirror" or (kind == "mix" and m.get("specular", 0) > 0):
             effects.add("specular")
-        elif kind == "mix":
-            effects.update(("lambertian", "specular"))
         elif kind == "dielectric":
             effects.add("fresnel")
             if m.get("absorption_per_m", 0) > 0:
                 effects.add("absorption")
             if m.get("scattering_per_m", 0) > 0:
                 effects.add("scattering")
-    return sorted(effects)
+    return [e for e in EFFECTS if e in effects] + sorted(effects - set(EFFECTS))
 
 
 def validate_body(kind: str, body: Any) -> dict:

@@ -411,3 +411,22 @@ def test_a_long_sequence_of_edits_stays_consistent(client, scene, meshes, rng) -
                           for n in nodes}
     live = client.app.state.live.get(scene)
     assert len(live.instance_of_node) == sum(1 for n in nodes if n["geometry"])
+
+
+@pytest.mark.parametrize("materials", [
+    {},
+    {3: {"type": "mirror", "reflectance": 0.9}},
+    {1: {"type": "mix", "diffuse": 0.5, "specular": 0.0}},
+    {1: {"type": "dielectric", "ior": 1.5, "absorption_per_m": 2.0}, 11: {"type": "black"}},
+    {0: {"type": "dielectric", "ior": 1.3, "scattering_per_m": 1.0}},
+])
+def test_summary_effects_agree_with_the_transport(client, scene, meshes, materials) -> None:
+    from tracer.simulate import Simulation
+
+    push(client, scene, car(meshes))
+    for k, body in materials.items():
+        assert client.put(f"/scenes/{scene}/materials/{uid(k)}", json=body).status_code == 200
+    live = client.app.state.live.get(scene)
+    lights = [{"type": "point", "position": [0, 0, 5], "intensity_cd": 1.0}]
+    sim = Simulation(live.tracer, live.materials, lights, default_material=live.default_material)
+    assert client.get(f"/scenes/{scene}").json()["effects"] == sim.effects
