@@ -267,15 +267,33 @@ class SpotLight(_Intensity):
 
 
 class CollimatedLight(_Attachable):
+    """A parallel beam from an aperture centred on `origin`: a disk (`radius`) or a rectangle
+    (`width` × `height`, its height along `up` projected off the direction)."""
+
     type: Literal["collimated"]
     origin: Vec3
     direction: Vec3
-    radius: Positive
+    radius: Positive | None = None
+    width: Positive | None = None
+    height: Positive | None = None
+    up: Vec3 | None = None
     illuminance_lx: NonNegative
 
     @model_validator(mode="after")
     def _check(self) -> CollimatedLight:
         _nonzero("direction", self.direction)
+        rect = self.width is not None or self.height is not None
+        if (self.radius is None) == (not rect) or (rect and (self.width is None or self.height is None)):
+            raise ValueError("give either radius (a disk aperture) or width and height (a rectangle)")
+        if self.up is not None:
+            if not rect:
+                raise ValueError("up orients a rectangular aperture; a disk has none")
+            _nonzero("up", self.up)
+            dx, dy, dz = self.direction
+            ux, uy, uz = self.up
+            cross = math.hypot(dy * uz - dz * uy, dz * ux - dx * uz, dx * uy - dy * ux)
+            if cross <= 1e-9 * math.hypot(*self.direction) * math.hypot(*self.up):
+                raise ValueError("up must not be parallel to direction")
         return self
 
 

@@ -713,7 +713,7 @@ class SceneManager:
         for key in ("position", "origin", "center"):
             if key in out:
                 out[key] = (lin @ np.asarray(out[key], dtype=float) + w[:3, 3]).tolist()
-        for key in ("direction", "normal"):
+        for key in ("direction", "normal", "up"):
             if key in out:
                 d = lin @ np.asarray(out[key], dtype=float)
                 out[key] = (d / np.linalg.norm(d)).tolist()
@@ -770,7 +770,7 @@ def validate_body(kind: str, body: Any) -> dict:
             Tree.build(["00000000-0000-0000-0000-000000000000"], [None], [""], t.reshape(1, 16), [None], None, "m")
         except TreeError as exc:
             raise Invalid(f"object transform: {str(exc).split(': ', 1)[-1]}") from exc
-    for key in ("position", "origin", "center", "direction", "normal", "u", "v"):
+    for key in ("position", "origin", "center", "direction", "normal", "u", "v", "up"):
         if key in out:
             out[key] = list(out[key])
     return out

@@ -214,6 +214,11 @@ def test_attached_light_and_sensor_move_with_their_node(client, scene, meshes) -
     assert sensor.status_code == 201
     world = client.post(f"/scenes/{scene}/lights", json={"type": "point", "position": [1, 2, 3], "flux_lm": 1000})
     assert world.status_code == 201
+    beam = client.post(f"/scenes/{scene}/lights", json={"type": "collimated", "origin": [0, 0, 0],
+                                                        "direction": [0, 0, -1], "width": 0.1, "height": 0.2,
+                                                        "up": [1, 0, 0], "illuminance_lx": 100,
+                                                        "attached_to": uid(2)})
+    assert beam.status_code == 201, beam.text
     doc = car(meshes, base_revision=1, door_x=250.0)
     doc["nodes"][2]["transform"] = [0.0, -1, 0, 250, 1, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]  # door swung 90° about z
     push(client, scene, doc)
@@ -228,6 +233,13 @@ def test_attached_light_and_sensor_move_with_their_node(client, scene, meshes) -
     np.testing.assert_allclose(grid["v"], [-1, 0, 0], atol=1e-12)
     fixed = next(x for x in live.lights if x["id"] == world.json()["id"])
     assert fixed["position"] == [1.0, 2.0, 3.0]
+    rect = next(x for x in live.lights if x["id"] == beam.json()["id"])
+    np.testing.assert_allclose(rect["up"], [0, 1, 0], atol=1e-12)  # turned with the door
+    np.testing.assert_allclose(rect["direction"], [0, 0, -1], atol=1e-12)
+    from tracer.sources import pack_lights  # the transport accepts the resolved bodies as they are
+
+    pack_lights([{k: v for k, v in x.items() if k != "instances"} for x in live.lights if x["type"] != "area"],
+                live.tracer, frozenset())
 
 
 def test_area_light_names_the_instances_of_its_subtree(client, scene, meshes) -> None:

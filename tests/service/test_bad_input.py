@@ -263,6 +263,13 @@ def test_impossible_materials(world, unchanged, material: dict, field: str) -> N
       "intensity_cd": 1}, 422, "falloff"),
     ({"type": "collimated", "origin": [0, 0, 0], "direction": [0, 0, 1], "radius": 0, "illuminance_lx": 1}, 422,
      "radius"),
+    ({"type": "collimated", "origin": [0, 0, 0], "direction": [0, 0, 1], "illuminance_lx": 1}, 422, "either"),
+    ({"type": "collimated", "origin": [0, 0, 0], "direction": [0, 0, 1], "radius": 1, "width": 1, "height": 1,
+      "illuminance_lx": 1}, 422, "either"),
+    ({"type": "collimated", "origin": [0, 0, 0], "direction": [0, 0, 1], "width": 1, "illuminance_lx": 1}, 422,
+     "either"),
+    ({"type": "collimated", "origin": [0, 0, 0], "direction": [0, 0, 1], "width": 1, "height": 2, "up": [0, 0, 3],
+      "illuminance_lx": 1}, 422, "parallel"),
     ({"type": "goniometric", "position": [0, 0, 0], "format": "ies", "data": "not a photometry file"}, 422, "ies"),
     ({"type": "laser", "position": [0, 0, 0]}, 422, "laser"),
 ])
