@@ -233,7 +233,12 @@ class Simulation:
         ids = [int(i) for i in scene.instances()]
         self._sensor_ids = {i for i in ids if _is_sensor(scene, i)}
         geometry_ids = [i for i in ids if i not in self._sensor_ids]
-        mats = {int(k): v for k, v in materials.items() if int(k) not in self._sensor_ids}
+        mats = {}
+        for key, body in materials.items():
+            if isinstance(key, bool) or not isinstance(key, int | np.integer):
+                raise SimulationError(f"materials: keys must be instance ids (int), got {key!r}")
+            if int(key) not in self._sensor_ids:   # a sensor has no surface: nothing to assign
+                mats[int(key)] = body
         self._mats = pack_materials(mats, default_material, ids, self._sensor_ids)
         self._lights = pack_lights(list(lights), scene, frozenset(self._sensor_ids))
         used = np.zeros(len(self._mats.kind), bool)
