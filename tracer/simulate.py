@@ -422,7 +422,7 @@ class Simulation:
             mats = self._materials_for(n_inst)
             per_batch = FORWARD_BATCH
             if budget.max_photons is not None:
-                per_batch = int(min(FORWARD_BATCH, max(100, budget.max_photons // (4 * ROUND_BATCHES))))
+                per_batch = int(min(FORWARD_BATCH, max(1, budget.max_photons // (4 * ROUND_BATCHES))))
             compile_s = self._warm(("forward",) + flags, lambda: forward_batches(
                 sa, mats, self._lights, sens, n_bins, seed, 0, 1, 1, *flags))
 
