@@ -272,3 +272,20 @@ def test_error_bars_are_honest_over_200_seeds():
                               estimator="forward")
         covered += abs(res.lux[0] - ref) <= 2 * res.stderr[0]
     assert 180 <= covered <= 198, covered
+
+
+@pytest.mark.parametrize(("g", "tau"), [(-0.999999, 1.0), (-0.999999, 1e-6), (0.999999, 1.0), (0.999999, 1e-6)])
+def test_henyey_greenstein_near_plus_minus_one_in_a_slab(g, tau):
+    """g → −1 turns every scattering into a reversal: the slab becomes a 1-D rod with transmission
+    1/(1 + τ) exactly; g → +1 leaves the beam as it was (transmission 1)."""
+    s, (slab,) = scene_of(box((-1, -1, 0), (1, 1, 0.1)))
+    mat = {"type": "dielectric", "ior": 1.0, "scattering_per_m": tau / 0.1, "g": g}
+    sim = Simulation(s, {slab: mat}, [beam()])
+    res = sim.illuminance([[0, 0, -0.5]], [[0, 0, 1.0]], radius=0.1, max_photons=40_000, seed=12,
+                          force_effects=GLASS_EFFECTS)
+    ref = 1000.0 / (1.0 + tau) if g < 0 else 1000.0
+    if tau < 1e-3 or g > 0:   # practically every photon goes straight through
+        assert res.lux[0] == pytest.approx(ref, rel=1e-3)
+    else:
+        check(res, [ref])
+    assert res.rejected == 0 and res.counters["truncated"] == 0
