@@ -279,11 +279,11 @@ def pack_lights(lights: list[dict], scene=None, sensor_ids: frozenset = frozense
             tri_ns.append(normals)
             tri_cdfs.append(cdf / cdf[-1])
             n_tri += len(tri)
-    flux = par[:, P_FLUX]
-    total = float(flux.sum())
+    fluxes = par[:, P_FLUX]
+    total = float(fluxes.sum())
     if not total > 0:
         raise LightError("lights: the total flux is zero: nothing to simulate")
-    cdf = np.cumsum(flux) / total
+    cdf = np.cumsum(fluxes) / total
 
     def cat(parts, shape=(0,)):
         return np.concatenate(parts) if parts else np.zeros(shape)
