@@ -311,38 +311,49 @@ def hit_point(sa, inst_id, prim_id, u, v):
     return point_to_world(sa, inst_id, px, py, pz)
 
 
-BLOCK = 64
+BLOCK = 256
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _closest_block(sa, o, d, t_max, out_t, out_inst, out_prim, out_u, out_v, out_n, lo, hi, stacks, tstacks):
+    for i in range(lo, hi):
+        t, inst, prim, u, v, nx, ny, nz = closest_with_stacks(
+            sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t_max[i], stacks, tstacks)
+        out_t[i] = t
+        out_inst[i] = inst
+        out_prim[i] = prim
+        out_u[i] = u
+        out_v[i] = v
+        out_n[i, 0] = nx
+        out_n[i, 1] = ny
+        out_n[i, 2] = nz
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _any_block(sa, o, d, t_max, out, lo, hi, stacks, tstacks):
+    for i in range(lo, hi):
+        out[i] = any_with_stacks(sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t_max[i], stacks, tstacks)
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
 def closest_batch(sa, o, d, t_max, out_t, out_inst, out_prim, out_u, out_v, out_n):
-    """Batched :func:`intersect_closest` over rays ``o[i], d[i]`` (k, 3), ``t_max`` (k,); parallel."""
+    """Batched :func:`intersect_closest` over rays ``o[i], d[i]`` (k, 3), ``t_max`` (k,); parallel
+    over blocks of rays (each block runs in a plain compiled loop: faster than a parfor body)."""
     k = o.shape[0]
     nb = (k + BLOCK - 1) // BLOCK
     for b in prange(nb):
         stacks = np.empty((2, STACK_SIZE), np.int64)
         tstacks = np.empty((2, STACK_SIZE))
-        for i in range(b * BLOCK, min(k, (b + 1) * BLOCK)):
-            t, inst, prim, u, v, nx, ny, nz = closest_with_stacks(
-                sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t_max[i], stacks, tstacks)
-            out_t[i] = t
-            out_inst[i] = inst
-            out_prim[i] = prim
-            out_u[i] = u
-            out_v[i] = v
-            out_n[i, 0] = nx
-            out_n[i, 1] = ny
-            out_n[i, 2] = nz
+        _closest_block(sa, o, d, t_max, out_t, out_inst, out_prim, out_u, out_v, out_n, b * BLOCK,
+                       min(k, (b + 1) * BLOCK), stacks, tstacks)
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
 def any_batch(sa, o, d, t_max, out):
-    """Batched :func:`intersect_any`; parallel."""
+    """Batched :func:`intersect_any`; parallel over blocks of rays."""
     k = o.shape[0]
     nb = (k + BLOCK - 1) // BLOCK
     for b in prange(nb):
         stacks = np.empty((2, STACK_SIZE), np.int64)
         tstacks = np.empty((2, STACK_SIZE))
-        for i in range(b * BLOCK, min(k, (b + 1) * BLOCK)):
-            out[i] = any_with_stacks(sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t_max[i],
-                                     stacks, tstacks)
+        _any_block(sa, o, d, t_max, out, b * BLOCK, min(k, (b + 1) * BLOCK), stacks, tstacks)
