@@ -72,3 +72,15 @@ def test_rays_along_axes_through_shared_vertices_of_a_grid(rng: np.random.Genera
         hits = scene.intersect(o, dvec)
         assert np.all(hits.instance == 0)
         np.testing.assert_allclose(hits.t, 5.0, rtol=1e-12)
+
+
+def test_the_setup_catches_a_non_watertight_intersector() -> None:
+    # the same rays slip through a plain Möller–Trumbore test (the brute-force reference): the
+    # watertightness test above can fail
+    v, f = reference.icosphere(5, radius=10.0)
+    v = np.asarray(v + CENTRE, np.float32).astype(np.float64)
+    targets = _targets(v, f)[:600]
+    o = CENTRE + np.array([1.3, -2.1, 0.7])
+    tri = v[f]
+    escaped = sum(not np.isfinite(reference.ray_triangle_t(o, t - o, tri)[0]).any() for t in targets)
+    assert escaped > 0
