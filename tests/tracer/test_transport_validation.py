@@ -289,3 +289,32 @@ def test_henyey_greenstein_near_plus_minus_one_in_a_slab(g, tau):
     else:
         check(res, [ref])
     assert res.rejected == 0 and res.counters["truncated"] == 0
+
+
+def test_mirror_adds_the_image_source_and_mix_reduces_to_its_parts():
+    """Over a mirror plane of reflectance R a receiver sees the source and its image R·I below the plane."""
+    s, (plane,) = floor_scene()
+    src, img, rr = np.array([0, 0, 1.0]), np.array([0, 0, -1.0]), 0.8
+    light = [{"type": "point", "position": list(src), "intensity_cd": 1000.0}]
+    pts, nrm, r = np.array([[0.5, 0, 2.0], [-1.0, 0.5, 1.5]]), np.array([[0, 0, -1.0], [0.3, 0, -1.0]]), 0.2
+    nrm = nrm / np.linalg.norm(nrm, axis=1)[:, None]
+    ref = [disk_average(point_source_e(1000.0, src, n), p, n, r) + disk_average(point_source_e(rr * 1000.0, img, n),
+                                                                              p, n, r) for p, n in zip(pts, nrm,
+                                                                                                       strict=True)]
+    mirror = Simulation(s, {plane: {"type": "mirror", "reflectance": rr}}, light)
+    res = mirror.illuminance(pts, nrm, radius=r, target_relative_error=0.03, max_photons=4_000_000, seed=13,
+                             force_effects=GLASS_EFFECTS)
+    check(res, ref, 0.03)
+    # a mix with no diffuse part is the mirror, photon for photon
+    mix = Simulation(s, {plane: {"type": "mix", "diffuse": 0.0, "specular": rr}}, light)
+    same = mix.illuminance(pts, nrm, radius=r, target_relative_error=0.03, max_photons=4_000_000, seed=13,
+                           force_effects=GLASS_EFFECTS)
+    np.testing.assert_array_equal(same.lux, res.lux)
+    # a mix with no specular part is Lambertian: forward agrees with the backward estimate of the Lambertian plane
+    diffuse = Simulation(s, {plane: {"type": "mix", "diffuse": 0.5, "specular": 0.0}}, light)
+    assert diffuse.effects == ["lambertian"]
+    f = diffuse.illuminance(pts, nrm, radius=r, target_relative_error=0.03, max_photons=4_000_000, seed=14,
+                            force_effects=GLASS_EFFECTS)
+    b = Simulation(s, {plane: {"type": "lambertian", "reflectance": 0.5}}, light).illuminance(
+        pts, nrm, radius=r, target_relative_error=0.005, max_photons=1_000_000, seed=14)
+    assert np.all(np.abs(f.lux - b.lux) < 4 * np.hypot(f.stderr, b.stderr)), (f.lux, b.lux)
