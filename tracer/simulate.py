@@ -37,7 +37,9 @@ error or photon budget) the answer is bit-identical whatever the number of threa
 are batch means (`tracer.estimate`). A query stops when every point's relative error is at most
 `target_relative_error` (``"target_relative_error"``), at `max_photons` (``"max_photons"``),
 `max_seconds` (``"max_seconds"``) or when `cancel()` is truthy (``"cancelled"``). Without any
-budget it runs `DEFAULT_MAX_SECONDS`.
+budget it runs `DEFAULT_MAX_SECONDS`. A patch that received nothing in every batch so far counts as
+converged (0 ± 0): a point in full shadow does not hold a query to its time budget, but a forward
+query for a very small receiver far from the light can stop at 0 early; give it a photon budget.
 """
 
 from __future__ import annotations
