@@ -68,6 +68,23 @@ BACKWARD_BATCH = 32            # paths per patch per backward batch
 ESTIMATORS = ("auto", "forward", "backward")
 
 _COMPILE_SECONDS: dict[tuple, float] = {}   # first call of each compiled variant in this process
+_KERNEL_LOCK = threading.Lock()
+
+
+def _run_kernel(kernel, *args):
+    """Call a parallel kernel; serialised when numba's threading layer is `workqueue`, which aborts the
+    process on concurrent launches from two Python threads (the service runs queries in threads).
+    `omp` and `tbb` are thread-safe and run concurrently."""
+    try:
+        import numba
+
+        layer = numba.threading_layer()
+    except ValueError:          # no parallel kernel has run yet: be conservative
+        layer = "workqueue"
+    if layer == "workqueue":
+        with _KERNEL_LOCK:
+            return kernel(*args)
+    return kernel(*args)
 
 
 class SimulationError(ValueError):
@@ -425,11 +442,12 @@ class Simulation:
             per_batch = FORWARD_BATCH
             if budget.max_photons is not None:
                 per_batch = int(min(FORWARD_BATCH, max(1, budget.max_photons // (4 * ROUND_BATCHES))))
-            compile_s = self._warm(("forward",) + flags, lambda: forward_batches(
-                sa, mats, self._lights, sens, n_bins, seed, 0, 1, 1, *flags))
+            compile_s = self._warm(("forward",) + flags, lambda: _run_kernel(
+                forward_batches, sa, mats, self._lights, sens, n_bins, seed, 0, 1, 1, *flags))
 
             def run_round(b0, nb):
-                flux, cnt = forward_batches(sa, mats, self._lights, sens, n_bins, seed, b0, nb, per_batch, *flags)
+                flux, cnt = _run_kernel(forward_batches, sa, mats, self._lights, sens, n_bins, seed, b0, nb,
+                                        per_batch, *flags)
                 return flux / area[None, :], cnt
 
             est, batches, stop, counters = self._loop(run_round, n_bins, per_batch, budget, progress, cancel, t0)
@@ -461,10 +479,11 @@ class Simulation:
         if budget.max_photons is not None:
             paths = int(min(BACKWARD_BATCH, max(1, budget.max_photons // (4 * ROUND_BATCHES * k))))
             per_batch = paths * k
-        compile_s = self._warm(("backward",), lambda: backward_batches(sa, mats, self._lights, q, seed, 0, 1, 1))
+        compile_s = self._warm(("backward",), lambda: _run_kernel(backward_batches, sa, mats, self._lights, q, seed,
+                                                                  0, 1, 1))
 
         def run_round(b0, nb):
-            return backward_batches(sa, mats, self._lights, q, seed, b0, nb, paths)
+            return _run_kernel(backward_batches, sa, mats, self._lights, q, seed, b0, nb, paths)
 
         est, batches, stop, counters = self._loop(run_round, k, per_batch, budget, progress, cancel, t0)
         cdict = {"rejected": int(counters[0]), "truncated": int(counters[1])}

@@ -200,3 +200,28 @@ def test_direct_light_on_the_floor_of_a_black_room_matches_the_closed_form():
     res = sim.illuminance([[1.5, 1.0, 0.0]], [[0, 0, 1.0]], radius=0.01, max_photons=10_000)
     ref = point_source_e(3000.0 / (4 * math.pi), LAMP["position"], [0, 0, 1])(np.array([[1.5, 1.0, 0.0]]))[0]
     assert res.lux[0] == pytest.approx(ref, rel=1e-4)
+
+
+def test_concurrent_queries_from_threads_give_the_sequential_answers():
+    """The service runs queries in threads: two simulations at once must neither crash nor change bits."""
+    import threading
+
+    sims = []
+    for _ in range(2):
+        s, (r,) = scene_of(box((0, 0, 0), (3, 2, 2.5)))
+        sims.append(Simulation(s, {r: WALLS}, [LAMP]))
+    args = ([[1.0, 1.0, 0.0]], [[0, 0, 1.0]])
+    want = [sim.illuminance(*args, max_photons=40_000, seed=9, estimator=e).lux
+            for sim, e in zip(sims, ("forward", "backward"), strict=True)]
+    got: dict[int, np.ndarray] = {}
+
+    def run(i, est):
+        got[i] = sims[i].illuminance(*args, max_photons=40_000, seed=9, estimator=est).lux
+
+    threads = [threading.Thread(target=run, args=(i, e)) for i, e in enumerate(("forward", "backward"))]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for i in range(2):
+        np.testing.assert_array_equal(got[i], want[i])
