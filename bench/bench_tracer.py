@@ -315,7 +315,7 @@ def _warm_up() -> None:
 def run(quick: bool = False) -> dict:
     rng = np.random.default_rng(2008)
     _warm_up()
-    out: dict = {"quick": quick}
+    out: dict = {"quick": quick, "load_average_start": os.getloadavg(), "numba_threads": _numba_threads()}
 
     # 1. paper scenes
     paper = []
@@ -381,8 +381,15 @@ def run(quick: bool = False) -> dict:
     # 4. cold start
     if not quick:
         out["cold_start"] = cold_start()
+    out["load_average_end"] = os.getloadavg()
     out["markdown"] = markdown(out)
     return out
+
+
+def _numba_threads() -> int:
+    import numba
+
+    return int(numba.config.NUMBA_NUM_THREADS)
 
 
 def _f(x, nd=3) -> str:
@@ -442,6 +449,9 @@ def markdown(r: dict) -> str:
                   f"{c['compile_all_s']:.1f} s (whole process {c['cold_process_s']:.1f} s). With the cache warm: "
                   f"import {c['warm_import_s']:.2f} s, first build + queries {c['warm_first_use_s']:.2f} s "
                   f"(whole process {c['warm_process_s']:.1f} s)."]
+    lines += ["", f"_Machine load average (1 min) at start / end of this run: {r['load_average_start'][0]:.1f} / "
+              f"{r['load_average_end'][0]:.1f} on {r['numba_threads']} threads; the machine was shared with other "
+              "jobs, so wall times (and the 2-thread figures) are pessimistic._"]
     return "\n".join(lines)
 
 
