@@ -19,7 +19,7 @@ from tracer.blas import _down32, _up32, build_bvh_range, collapse, pack_rows
 
 #: an instance visit (transform + BLAS root) costs about this many node visits (SAH)
 INSTANCE_COST = 2.0
-MAX_LEAF = 2
+MAX_LEAF = 1
 PAD = 1e-12
 
 
