@@ -12,7 +12,8 @@ import io
 import numpy as np
 import trimesh
 
-from ._geometry_id import canonical_arrays
+from tracer.geometry_id import canonical_arrays
+
 from .errors import CadAdapterError
 
 MEDIA_TYPE = "model/gltf-binary"

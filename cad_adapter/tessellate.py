@@ -49,7 +49,8 @@ from OCP.TopExp import TopExp_Explorer
 from OCP.TopLoc import TopLoc_Location
 from OCP.TopoDS import TopoDS
 
-from ._geometry_id import canonical_arrays, geometry_id
+from tracer.geometry_id import canonical_arrays, geometry_id
+
 from .errors import TessellationError
 from .tree import UNIT_METRES, Document
 

@@ -51,3 +51,10 @@ def test_cli_help_does_not_import_heavy_stacks() -> None:
             "if m in sys.modules]; print(','.join(heavy))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
     assert out == "", f"`lumenlink --help` imports {out}"
+
+
+def test_geometry_id_imports_without_numba() -> None:
+    """The adapter hashes meshes through tracer.geometry_id; that must not load the kernels."""
+    code = "import sys, tracer.geometry_id; print('numba' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
+    assert out == "False"

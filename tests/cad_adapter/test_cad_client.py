@@ -12,11 +12,11 @@ from cad_helpers import COARSE, car
 
 import cad_adapter
 from cad_adapter import cli
-from cad_adapter._geometry_id import geometry_id
 from cad_adapter.client import Pusher
 from cad_adapter.errors import PushError, RevisionConflict, ServiceUnavailable
 from cad_adapter.glb import decode_glb
 from cad_adapter.step_uuid import write_step
+from tracer.geometry_id import geometry_id
 
 
 class FakeService:

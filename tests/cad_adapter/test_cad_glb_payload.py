@@ -9,9 +9,9 @@ import pytest
 from cad_helpers import AS1, COARSE, S1C5, STAMP, car, needs_fixtures
 
 import cad_adapter
-from cad_adapter._geometry_id import geometry_id
 from cad_adapter.errors import CadAdapterError
 from cad_adapter.glb import decode_glb, encode_glb
+from tracer.geometry_id import geometry_id
 
 HAVE_SCHEMA = importlib.util.find_spec("service.schemas") is not None
 needs_schema = pytest.mark.skipif(not HAVE_SCHEMA, reason="service/schemas.py does not exist yet (issue 5)")
@@ -118,12 +118,3 @@ def test_build_push_bad_input() -> None:
     doc.nodes[2].uuid = None
     with pytest.raises(CadAdapterError, match="no UUID"):
         cad_adapter.build_push(doc, t)
-
-
-def test_private_loader_is_the_tracers_geometry_id(rng) -> None:
-    tracer_gid = pytest.importorskip("tracer.geometry_id", reason="the tracer package does not import right now")
-    v = rng.normal(size=(7, 3))
-    f = rng.integers(0, 7, size=(5, 3))
-    n = rng.normal(size=(7, 3))
-    assert geometry_id(v, f, n) == tracer_gid.geometry_id(v, f, n)
-    assert geometry_id(v, f) == tracer_gid.geometry_id(v, f)
