@@ -13,13 +13,14 @@ The snapshot is built lazily, at most once per (revision, assignment change), so
 not pay for it. The `tracer` object is shared with the sync service: a later push mutates it
 in place (and commits before it lets go of the scene's lock), so a long query should compare
 `revision` with `LiveRegistry.revision(scene_id)` when it ends if it wants to know that its
-answer is stale. ``extras["lock"]`` is that lock (a re-entrant lock): hold it while taking
-``tracer.arrays()`` to never see a scene between a change and its commit.
+answer is stale. ``LiveRegistry.lock(scene_id)`` is that lock (re-entrant): hold it while taking
+``tracer.arrays()`` or copying the scene, to never see a scene between a change and its commit.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -54,11 +55,15 @@ class LiveRegistry:
         Builds (or returns a cached) snapshot; raises `service.errors.NotFound` for an unknown scene.
     revision : callable(scene_id) -> int
         The scene's current revision, cheap (no snapshot built).
+    lock : callable(scene_id) -> context manager
+        The scene's (re-entrant) lock: no push or assignment changes the scene while it is held.
     """
 
-    def __init__(self, build: Callable[[str], LiveScene], revision: Callable[[str], int]) -> None:
+    def __init__(self, build: Callable[[str], LiveScene], revision: Callable[[str], int],
+                 lock: Callable[[str], AbstractContextManager[Any]]) -> None:
         self._build = build
         self._revision = revision
+        self._lock = lock
         self._listeners: list[Callable[[str, int], None]] = []
 
     def get(self, scene_id: str) -> LiveScene:
@@ -68,6 +73,10 @@ class LiveRegistry:
     def revision(self, scene_id: str) -> int:
         """The scene's current revision (raises `service.errors.NotFound`)."""
         return self._revision(scene_id)
+
+    def lock(self, scene_id: str) -> AbstractContextManager[Any]:
+        """Hold it to read or copy the scene with no push or assignment change in between."""
+        return self._lock(scene_id)
 
     def subscribe(self, listener: Callable[[str, int], None]) -> None:
         """Call ``listener(scene_id, new_revision)`` after every change that alters the live view.

@@ -389,14 +389,8 @@ def hub_for(app: Any) -> SimulationHub:
                 from service.config import Settings
 
                 settings = Settings()
-            manager = getattr(app.state, "manager", None)
-            scene_lock = None
-            if manager is not None and hasattr(manager, "state"):
-                # the sync service's per-scene lock (service.state.SceneState.lock, reentrant)
-                def scene_lock(scene_id: str) -> Any:
-                    return manager.state(scene_id).lock
-
-            hub = SimulationHub(app.state.live, Limits.from_settings(settings), scene_lock=scene_lock)
+            live = app.state.live
+            hub = SimulationHub(live, Limits.from_settings(settings), scene_lock=live.lock)
             app.state.simulation_hub = hub
     return hub
 

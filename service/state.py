@@ -140,7 +140,7 @@ class SceneManager:
         self._states: dict[str, SceneState] = {}
         self._lock = threading.Lock()
         self._scene_locks: dict[str, threading.RLock] = {}
-        self.live = LiveRegistry(self.live_scene, self.revision)
+        self.live = LiveRegistry(self.live_scene, self.revision, lambda scene_id: self.state(scene_id).lock)
         with engine.connect() as conn:
             self._known_geometries: set[str] = set(conn.execute(select(db.geometries.c.id)).scalars())
 
@@ -687,8 +687,7 @@ class SceneManager:
                 sensors.append(resolved)
         state.live = LiveScene(state.id, state.revision, state.tracer, instance_of_node, node_world, materials,
                                dict(DEFAULT_MATERIAL), lights, sensors,
-                               extras={"length_unit": state.length_unit, "objects": dict(state.objects),
-                                       "lock": state.lock})
+                               extras={"length_unit": state.length_unit, "objects": dict(state.objects)})
         return state.live
 
     def _resolve(self, state: SceneState, aid: str, body: dict) -> dict | None:
