@@ -52,6 +52,8 @@ def test_bad_geometry(scene, vertices, triangles, normals, match) -> None:
     (np.array([[1, 2, 3, 0], [2, 4, 6, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]]), "singular"),
     (np.diag([1.0, 1.0, 1.0, 2.0]), "affine"),
     (np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [1, 0, 0, 1.0]]), "affine"),
+    (np.array([[0.3, 0.7, 1.1, 0], [1.3, -0.4, 0.9, 0], [1.6, 0.3, 2.0 + 1e-8, 0], [0, 0, 0, 1.0]]), "ill-conditioned"),
+    (np.array([[1, 0, 0, np.nan], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]]), "non-finite"),
 ])
 def test_bad_transform(scene, transform, match) -> None:
     before = (scene.geometries(), scene.instances())
@@ -161,3 +163,32 @@ def test_degenerate_triangles_never_hit_nor_nan() -> None:
     assert np.all(h.instance == -1) and np.all(np.isinf(h.t))
     assert not np.isnan(h.normal).any() and not np.isnan(h.u).any()
     assert not s.occluded(o, d).any()
+
+
+def test_scene_ids_are_geometry_ids() -> None:
+    """``add_geometry`` hashes the validated arrays itself (no second validation): same id as the spec."""
+    from tracer.geometry_id import geometry_id
+
+    rng = np.random.default_rng(5)
+    s = tracer.Scene()
+    for n in (None, rng.normal(size=(7, 3))):
+        v = rng.normal(size=(7, 3))
+        f = rng.integers(0, 7, (5, 3))
+        assert s.add_geometry(v, f, n) == geometry_id(v, f, n)
+    assert s.add_geometry(np.empty((0, 3)), np.empty((0, 3), int)) == geometry_id(np.empty((0, 3)),
+                                                                                   np.empty((0, 3), int))
+
+
+def test_transform_inverse_is_exact_on_a_known_matrix() -> None:
+    """object_from_world is the inverse of world_from_object (checked through a round trip of points)."""
+    rng = np.random.default_rng(6)
+    m = np.eye(4)
+    m[:3, :3] = rng.normal(size=(3, 3))
+    m[:3, 3] = rng.normal(size=3) * 10
+    s = tracer.Scene()
+    s.add_instance(s.add_geometry(V, F), m)
+    s.commit()
+    sa = s.arrays()
+    inv = np.linalg.inv(m)
+    np.testing.assert_allclose(sa.object_from_world[0], inv[:3], rtol=1e-12, atol=1e-12)
+    np.testing.assert_array_equal(sa.world_from_object[0], m[:3])
