@@ -305,10 +305,26 @@ class AreaLight(Wire):
 
 
 class GoniometricLight(_Attachable):
+    """A type-C photometric file; `direction` is its γ = 0 axis (default straight down, −z) and `c0`
+    its C = 0 half-plane (default +x); both turn with the node the light is attached to."""
+
     type: Literal["goniometric"]
     position: Vec3
     format: Literal["ies", "ldt"]
     data: Annotated[str, StringConstraints(min_length=1, max_length=10_000_000)]
+    direction: Vec3 | None = None
+    c0: Vec3 | None = None
+
+    @model_validator(mode="after")
+    def _check(self) -> GoniometricLight:
+        _nonzero("direction", self.direction)
+        _nonzero("c0", self.c0)
+        if self.direction is not None and self.c0 is not None:
+            (ax, ay, az), (bx, by, bz) = self.direction, self.c0
+            cross = math.hypot(ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx)
+            if cross <= 1e-9 * math.hypot(ax, ay, az) * math.hypot(bx, by, bz):
+                raise ValueError("c0 must not be parallel to direction")
+        return self
 
 
 Light = Annotated[PointLight | SpotLight | CollimatedLight | AreaLight | GoniometricLight, Field(discriminator="type")]

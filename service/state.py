@@ -712,7 +712,7 @@ class SceneManager:
         for key in ("position", "origin", "center"):
             if key in out:
                 out[key] = (lin @ np.asarray(out[key], dtype=float) + w[:3, 3]).tolist()
-        for key in ("direction", "normal", "up"):
+        for key in ("direction", "normal", "up", "c0"):
             if key in out:
                 d = lin @ np.asarray(out[key], dtype=float)
                 out[key] = (d / np.linalg.norm(d)).tolist()

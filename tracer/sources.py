@@ -11,8 +11,10 @@ Types and body fields (lengths in m, angles in degrees):
   `origin`; Φ = E × aperture area.
 - ``area``: instances (instance ids), exitance_lm_m2. Lambertian emission from the front side (the
   geometric normal) of every triangle of those instances; Φ = M × area.
-- ``goniometric``: position, format ("ies" or "ldt"), data (file text). The type-C table of
-  `tracer.photometry`, γ = 0 along world −z, C = 0 along world +x, C = 90° along +y.
+- ``goniometric``: position, format ("ies" or "ldt"), data (file text), direction = [0, 0, −1]
+  (the luminaire's γ = 0 axis), c0 = [1, 0, 0] (the C = 0 half-plane; only its part across
+  `direction` counts; C = 90° lies along c0 × direction, +y by default). The type-C table of
+  `tracer.photometry`; an attached light turns with its node because the service turns both axes.
 
 Bodies may also carry `id`, `name` and `attached_to` (kept by the service; ignored here); any
 other field is rejected. Photons are emitted with weight Φ_total / N × f, where f = I(ω)/(pdf(ω) Φ_j)
@@ -43,7 +45,7 @@ _FIELDS = {
     "spot": {"position", "direction", "cone_deg", "falloff_deg", "intensity_cd", "flux_lm"},
     "collimated": {"origin", "direction", "radius", "width", "height", "up", "illuminance_lx"},
     "area": {"instances", "exitance_lm_m2", "node"},
-    "goniometric": {"position", "format", "data"},
+    "goniometric": {"position", "format", "data", "direction", "c0"},
 }
 
 
@@ -109,6 +111,19 @@ def _num(body: dict, key: str, where: str, lo: float = 0.0, hi: float = math.inf
     if v < lo or v > hi or (lo_open and v == lo):
         raise LightError(f"{where}: {key!r} must be {'>' if lo_open else '>='} {lo:g} and <= {hi:g}, got {v:g}")
     return v
+
+
+def _gonio_frame(body: dict, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The luminaire's γ = 0 axis, C = 0 axis and C = 90° axis (an orthonormal frame) from its body."""
+    nadir = _vec(body, "direction", where, unit=True) if "direction" in body else np.array([0.0, 0.0, -1.0])
+    c0 = _vec(body, "c0", where, unit=True) if "c0" in body else np.array([1.0, 0.0, 0.0])
+    x = c0 - nadir * float(c0 @ nadir)
+    if np.linalg.norm(x) < 1e-9:
+        if "c0" in body:
+            raise LightError(f"{where}: 'c0' must not be parallel to 'direction'")
+        x = np.array([0.0, 1.0, 0.0]) - nadir * nadir[1]  # the default +x is the axis itself: take +y
+    x = x / np.linalg.norm(x)
+    return nadir, x, np.cross(x, nadir)
 
 
 def spot_solid_angle(cos_out: float, cos_in: float) -> float:
@@ -219,6 +234,7 @@ def pack_lights(lights: list[dict], scene=None, sensor_ids: frozenset = frozense
         elif t == "goniometric":
             kind[j] = GONIO
             row[P_POS:P_POS + 3] = _vec(body, "position", where)
+            row[P_AXIS:P_AXIS + 3], row[P_T:P_T + 3], row[P_B:P_B + 3] = _gonio_frame(body, where)
             fmt = body.get("format")
             data = body.get("data")
             if fmt not in ("ies", "ldt"):
@@ -349,8 +365,10 @@ def gonio_intensity(L, j, dx, dy, dz):
     """Intensity in cd of goniometric light j toward unit direction d (bilinear in C, γ)."""
     c0, g0, t0 = L.g_off[j, 0], L.g_off[j, 1], L.g_off[j, 2]
     nc, ng = L.g_n[j, 0], L.g_n[j, 1]
-    gam = math.acos(min(1.0, max(-1.0, -dz)))
-    c = math.atan2(dy, dx)
+    p = L.par[j]
+    cos_gam = dx * p[P_AXIS] + dy * p[P_AXIS + 1] + dz * p[P_AXIS + 2]
+    gam = math.acos(min(1.0, max(-1.0, cos_gam)))
+    c = math.atan2(dx * p[P_B] + dy * p[P_B + 1] + dz * p[P_B + 2], dx * p[P_T] + dy * p[P_T + 1] + dz * p[P_T + 2])
     if c < 0.0:
         c += 2.0 * math.pi
     ic = _interval(L.g_c, c0, nc, c)
@@ -476,7 +494,10 @@ def sample_emission(L, j, u0, u1, u2, u3, u4):
     cga, cgb = math.cos(ga), math.cos(gb)
     cg = cga + u2 * (cgb - cga)
     sg = math.sqrt(max(0.0, 1.0 - cg * cg))
-    dx, dy, dz = sg * math.cos(c), sg * math.sin(c), -cg
+    a, b = sg * math.cos(c), sg * math.sin(c)  # along the C = 0 and C = 90° axes; cg along γ = 0
+    dx = a * p[P_T] + b * p[P_B] + cg * p[P_AXIS]
+    dy = a * p[P_T + 1] + b * p[P_B + 1] + cg * p[P_AXIS + 1]
+    dz = a * p[P_T + 2] + b * p[P_B + 2] + cg * p[P_AXIS + 2]
     d_omega = (cb - ca) * (cga - cgb)
     inten = gonio_intensity(L, j, dx, dy, dz)
     f = inten * d_omega / (pc * p[P_FLUX]) if pc > 0.0 else 0.0

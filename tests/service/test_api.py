@@ -7,6 +7,8 @@ the live view the simulation reads.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from service_helpers import car_document, glb, grid_mesh, make_client, node, translation, uid
@@ -219,6 +221,11 @@ def test_attached_light_and_sensor_move_with_their_node(client, scene, meshes) -
                                                         "up": [1, 0, 0], "illuminance_lx": 100,
                                                         "attached_to": uid(2)})
     assert beam.status_code == 201, beam.text
+    ies = (Path(__file__).resolve().parents[1] / "fixtures" / "photometry" / "rab_boa2_5.ies").read_text()
+    gonio = client.post(f"/scenes/{scene}/lights", json={"type": "goniometric", "position": [0, 0, 0.5],
+                                                         "format": "ies", "data": ies, "direction": [0, 0, -1],
+                                                         "c0": [1, 0, 0], "attached_to": uid(2)})
+    assert gonio.status_code == 201, gonio.text
     doc = car(meshes, base_revision=1, door_x=250.0)
     doc["nodes"][2]["transform"] = [0.0, -1, 0, 250, 1, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]  # door swung 90° about z
     push(client, scene, doc)
@@ -236,6 +243,9 @@ def test_attached_light_and_sensor_move_with_their_node(client, scene, meshes) -
     rect = next(x for x in live.lights if x["id"] == beam.json()["id"])
     np.testing.assert_allclose(rect["up"], [0, 1, 0], atol=1e-12)  # turned with the door
     np.testing.assert_allclose(rect["direction"], [0, 0, -1], atol=1e-12)
+    lamp = next(x for x in live.lights if x["id"] == gonio.json()["id"])
+    np.testing.assert_allclose(lamp["c0"], [0, 1, 0], atol=1e-12)  # its C = 0 plane turned with the door
+    np.testing.assert_allclose(lamp["direction"], [0, 0, -1], atol=1e-12)
     from tracer.sources import pack_lights  # the transport accepts the resolved bodies as they are
 
     pack_lights([{k: v for k, v in x.items() if k != "instances"} for x in live.lights if x["type"] != "area"],

@@ -271,6 +271,10 @@ def test_impossible_materials(world, unchanged, material: dict, field: str) -> N
     ({"type": "collimated", "origin": [0, 0, 0], "direction": [0, 0, 1], "width": 1, "height": 2, "up": [0, 0, 3],
       "illuminance_lx": 1}, 422, "parallel"),
     ({"type": "goniometric", "position": [0, 0, 0], "format": "ies", "data": "not a photometry file"}, 422, "ies"),
+    ({"type": "goniometric", "position": [0, 0, 0], "format": "ies", "data": "x", "direction": [0, 0, -1],
+      "c0": [0, 0, 5]}, 422, "parallel"),
+    ({"type": "goniometric", "position": [0, 0, 0], "format": "ies", "data": "x", "c0": [0, 0, 0]}, 422,
+     "non-zero"),
     ({"type": "laser", "position": [0, 0, 0]}, 422, "laser"),
 ])
 def test_bad_lights(world, unchanged, light: dict, status: int, text: str) -> None:
