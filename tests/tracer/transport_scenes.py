@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from tracer import reference
 from tracer.scene import Scene
 
 
@@ -29,30 +30,7 @@ def box(lo, hi):
 
 def icosphere(radius: float, subdivisions: int):
     """Closed triangulated sphere with outward normals, vertices on the sphere of `radius`."""
-    p = (1 + 5 ** 0.5) / 2
-    v = [[-1, p, 0], [1, p, 0], [-1, -p, 0], [1, -p, 0], [0, -1, p], [0, 1, p], [0, -1, -p], [0, 1, -p],
-         [p, 0, -1], [p, 0, 1], [-p, 0, -1], [-p, 0, 1]]
-    f = [[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2],
-         [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5], [2, 4, 11],
-         [6, 2, 10], [8, 6, 7], [9, 8, 1]]
-    verts = [np.array(x, float) / np.linalg.norm(x) for x in v]
-    for _ in range(subdivisions):
-        cache: dict[tuple[int, int], int] = {}
-
-        def mid(a, b, cache=cache):
-            key = (min(a, b), max(a, b))
-            if key not in cache:
-                m = verts[a] + verts[b]
-                verts.append(m / np.linalg.norm(m))
-                cache[key] = len(verts) - 1
-            return cache[key]
-
-        nf = []
-        for a, b, c in f:
-            ab, bc, ca = mid(a, b), mid(b, c), mid(c, a)
-            nf += [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
-        f = nf
-    return np.array(verts) * radius, np.array(f)
+    return reference.icosphere(subdivisions, radius=radius)
 
 
 def outward(v, t):
