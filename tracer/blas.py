@@ -36,10 +36,7 @@ N_BINS = 16
 #: Below this depth SAH decides; beyond it, splits halve the range so depth stays bounded
 #: (traversal uses fixed stacks of :data:`STACK_SIZE`).
 MAX_SAH_DEPTH = 64
-#: Deepest binary tree accepted (from a cache file); the 4-wide BLAS rows (:func:`widen`) then need at
-#: most ``3 * ceil(MAX_TREE_DEPTH / 2) + 1`` pending entries, within :data:`STACK_SIZE`.
-MAX_TREE_DEPTH = 126
-STACK_SIZE = 256
+STACK_SIZE = 128
 TRAVERSAL_COST = 1.0
 #: nodes with at least this many primitives try SAH splits on all three axes
 ALL_AXES_MIN = 1024
@@ -365,7 +362,7 @@ def check_topology(node_a, node_n, m):
         sp -= 1
         i = stack[sp, 0]
         d = stack[sp, 1]
-        if d >= MAX_TREE_DEPTH or seen[i]:
+        if d >= STACK_SIZE - 2 or seen[i]:
             return False
         seen[i] = 1
         c = node_n[i]
@@ -523,17 +520,9 @@ def _pack_rows(boxes, refs, out_f, out_i):
 def pack_rows(boxes: np.ndarray, refs: np.ndarray) -> np.ndarray:
     """(R, 16) float32 traversal rows: the 12 box values rounded outward to float32, then the two
     child references bit-cast into columns 12-13 (read through an int32 view of the same buffer)."""
-    out = aligned_rows(len(boxes))
+    out = np.empty((len(boxes), 16), np.float32)
     _pack_rows(boxes, refs, out, out.view(np.int32))
     return out
-
-
-def aligned_rows(n: int, width: int = 16) -> np.ndarray:
-    """Uninitialised (n, width) float32 rows starting on a 64-byte boundary: a 64-byte row is then one
-    cache line (numpy only guarantees 16-byte alignment, which splits most rows over two lines)."""
-    buf = np.empty(n * 4 * width + 64, np.uint8)
-    off = (-buf.ctypes.data) % 64
-    return buf[off:off + n * 4 * width].view(np.float32).reshape(n, width)
 
 
 @njit(cache=True, error_model="numpy")
@@ -544,96 +533,4 @@ def leaf_order_f32(tri_v, leaf_rows):
         r = leaf_rows[j]
         for c in range(9):
             out[9 * j + c] = tri_v[r, c]
-    return out
-
-
-#: Values per 4-wide BLAS row: six SoA planes of four children (xmin[4], ymin[4], zmin[4], xmax[4],
-#: ymax[4], zmax[4]) as float32, then four int32 child references, then padding (128 bytes).
-WIDE = 32
-
-
-@njit(cache=True, error_model="numpy")
-def widen(boxes, refs, row_cnt):
-    """Collapse the binary child-box rows of each geometry (:func:`collapse`) into 4-wide rows.
-
-    A wide row holds the grandchildren of a binary row (a child that is a leaf stays a child): every
-    wide level skips one binary level, so traversal fetches about half as many rows and tests four
-    boxes from one 128-byte row. Empty slots get an empty box (never hit).
-
-    Returns
-    -------
-    wboxes : (W, 24) float64
-        SoA planes ``wboxes[w, 4 a + c]``: ``a`` = xmin, ymin, zmin, xmax, ymax, zmax; ``c`` the slot.
-    wrefs : (W, 4) int64
-        Child references as in :func:`collapse` (``>= 0`` a wide row local to the geometry).
-    wcnt : (G,) int64
-        Wide rows per geometry.
-    """
-    g_n = row_cnt.shape[0]
-    total = boxes.shape[0]
-    wboxes = np.empty((total, 24))
-    wrefs = np.empty((total, 4), np.int64)
-    wcnt = np.zeros(g_n, np.int64)
-    queue = np.empty(total + 1, np.int64)
-    b0 = 0
-    w0 = 0
-    for g in range(g_n):
-        n = row_cnt[g]
-        if n == 0:
-            continue
-        queue[0] = 0
-        nw = 1
-        k = 0
-        while k < nw:
-            b = b0 + queue[k]
-            row = w0 + k
-            slot = 0
-            for c in range(2):
-                ref = refs[b, c]
-                if ref >= 0:
-                    for cc in range(2):
-                        r2 = refs[b0 + ref, cc]
-                        for a in range(6):
-                            wboxes[row, 4 * a + slot] = boxes[b0 + ref, 6 * cc + a]
-                        if r2 >= 0:
-                            queue[nw] = r2
-                            wrefs[row, slot] = nw
-                            nw += 1
-                        else:
-                            wrefs[row, slot] = r2
-                        slot += 1
-                else:
-                    for a in range(6):
-                        wboxes[row, 4 * a + slot] = boxes[b, 6 * c + a]
-                    wrefs[row, slot] = ref
-                    slot += 1
-            while slot < 4:
-                for a in range(3):
-                    wboxes[row, 4 * a + slot] = np.inf
-                    wboxes[row, 4 * (a + 3) + slot] = -np.inf
-                wrefs[row, slot] = -1
-                slot += 1
-            k += 1
-        wcnt[g] = nw
-        b0 += n
-        w0 += nw
-    return wboxes[:w0], wrefs[:w0], wcnt
-
-
-@njit(cache=True, error_model="numpy")
-def _pack_wide(wboxes, wrefs, out_f, out_i):
-    for r in range(wboxes.shape[0]):
-        for c in range(12):
-            out_f[r, c] = _down32(wboxes[r, c])
-            out_f[r, 12 + c] = _up32(wboxes[r, 12 + c])
-        for c in range(4):
-            out_i[r, 24 + c] = wrefs[r, c]
-            out_i[r, 28 + c] = 0
-
-
-def pack_wide(wboxes: np.ndarray, wrefs: np.ndarray) -> np.ndarray:
-    """(W, :data:`WIDE`) float32 4-wide rows (:func:`widen`), boxes rounded outward to float32, child
-    references bit-cast into columns 24-27 (read through an int32 view), 64-byte aligned."""
-    out = aligned_rows(len(wboxes), WIDE)
-    _pack_wide(wboxes, wrefs, out, out.view(np.int32))
     return out

@@ -27,21 +27,11 @@ import numba
 import numpy as np
 
 from tracer import cache as blas_cache
-from tracer.blas import (
-    WIDE,
-    aligned_rows,
-    build_meshes,
-    collapse,
-    gather_triangles,
-    leaf_order_f32,
-    pack_wide,
-    refit,
-    widen,
-)
+from tracer.blas import build_meshes, collapse, gather_triangles, leaf_order_f32, pack_rows, refit
 from tracer.errors import NotCommittedError, TracerError, UnknownIdError
 from tracer.geometry_id import PREFIX, canonical_arrays
 from tracer.kinds import SENSOR_KINDS, disk_sensor, mesh, rect_sensor
-from tracer.tlas import build_top, refit_top, wide_top, world_boxes
+from tracer.tlas import build_top, refit_top, world_boxes
 from tracer.traverse import SceneArrays, any_batch, closest_batch
 
 #: BLAS build parameters: largest leaf and the cost of a triangle test relative to a node visit
@@ -118,7 +108,7 @@ class _Geometry:
 
 def _empty_store() -> dict[str, np.ndarray]:
     return {
-        "bvh": np.empty((0, WIDE), np.float32),
+        "bvh": np.empty((0, 16), np.float32),
         "tri_v": np.empty((0, 9), np.float32), "tri_prim": np.empty(0, np.int32), "prim_slot": np.empty(0, np.int32),
         "tri_n": np.empty((0, 9), np.float32),
     }
@@ -503,7 +493,7 @@ class Scene:
             s["bvh"].ravel(), s["bvh"].view(np.int32).ravel(), s["tri_v"].ravel(),
             s["tri_prim"], s["prim_slot"], s["tri_n"],
             self._g_node0, self._g_tri0, self._g_ntri, self._g_hasn,
-            *inst, *_flat(self._levels["top"], wide=True), *_flat(self._levels["sen"]))
+            *inst, *_flat(self._levels["top"]), *_flat(self._levels["sen"]))
         self._inst_changed = False
         self._changed = False
         t2 = time.perf_counter()
@@ -546,11 +536,7 @@ class Scene:
             n_tris += int(g_tris.sum())
             for k, v in arrs.items():
                 new[k].append(v)
-        bvh = new.pop("bvh")
         self._store = {k: np.concatenate(v) if len(v) > 1 else v[0] for k, v in new.items()}
-        # traversal rows on 64-byte boundaries (one cache line each)
-        self._store["bvh"] = np.concatenate(bvh, out=aligned_rows(sum(len(b) for b in bvh), WIDE)) if len(bvh) > 1 \
-            else bvh[0]
         self._g_node0, self._g_tri0, self._g_ntri, self._g_hasn = node0, tri0, ntri, hasn
         self._n_built = G
         return len(to_build), len(loaded)
@@ -570,7 +556,6 @@ class Scene:
         # geometry g's nodes are rows 2*tri_off[g] .. + node_cnt[g] of the build arrays
         node_off = 2 * tri_off[:-1]
         boxes, refs, row_cnt = collapse(node_box, node_a, node_n, node_off, node_cnt)
-        wboxes, wrefs, row_cnt = widen(boxes, refs, row_cnt)
         base = np.repeat(tri_off[:-1], g_tris)
         leaf_rows = base + order  # batch row of the original triangle at each leaf position
         prim_slot = np.empty(m, np.int32)
@@ -580,7 +565,7 @@ class Scene:
             nrm = np.concatenate([g.normals if g.normals is not None else np.zeros_like(g.vertices) for g in geoms])
             tri_n[:] = nrm[tris + np.repeat(vert_off[:-1], g_tris)[:, None]].reshape(m, 9)
             tri_n = tri_n[leaf_rows]
-        arrs = {"bvh": pack_wide(wboxes, wrefs), "tri_v": leaf_order_f32(tri_v, leaf_rows).reshape(m, 9),
+        arrs = {"bvh": pack_rows(boxes, refs), "tri_v": leaf_order_f32(tri_v, leaf_rows).reshape(m, 9),
                 "tri_prim": order.astype(np.int32), "prim_slot": prim_slot, "tri_n": tri_n}
         if self.cache_dir is not None:
             for q, g in enumerate(geoms):
@@ -605,8 +590,7 @@ class Scene:
             tri_n = np.zeros((m, 9), np.float32)
         boxes, refs, row_cnt = collapse(node_box, node_a, node_n, np.zeros(1, np.int64),
                                         np.array([len(node_a)], np.int64))
-        wboxes, wrefs, row_cnt = widen(boxes, refs, row_cnt)
-        arrs = {"bvh": pack_wide(wboxes, wrefs), "tri_v": tri_v.astype(np.float32),
+        arrs = {"bvh": pack_rows(boxes, refs), "tri_v": tri_v.astype(np.float32),
                 "tri_prim": order.astype(np.int32), "prim_slot": prim_slot, "tri_n": tri_n}
         return [g], arrs, row_cnt, np.array([m], np.int64)
 
@@ -653,10 +637,8 @@ class Scene:
         return out
 
 
-def _flat(level: tuple, wide: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _flat(level: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     rows_f, rows_i, items, _ = level
-    if wide:
-        return (*wide_top(rows_f, rows_i), items)
     return rows_f.ravel(), rows_i.ravel(), items
 
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from tracer.blas import WIDE, _down32, _up32, aligned_rows, build_bvh_range, collapse, pack_rows, widen
+from tracer.blas import _down32, _up32, build_bvh_range, collapse, pack_rows
 
 #: an instance visit (transform + BLAS root) costs about this many node visits (SAH)
 INSTANCE_COST = 2.0
@@ -160,36 +160,3 @@ def build_top(ids: np.ndarray, boxes: np.ndarray):
     b, refs, items, *links = _build_top(np.ascontiguousarray(ids, np.int64), boxes)
     rows = pack_rows(b, refs)
     return rows, rows.view(np.int32), items, tuple(links)
-
-
-@njit(cache=True, error_model="numpy")
-def _wide_top(rows_f, rows_i, out_f, out_i):
-    """:func:`tracer.blas.widen` of one tree's binary rows straight into ``out`` (float32 boxes are
-    copied as they are: they are already rounded outward). Returns the number of wide rows."""
-    n = rows_f.shape[0]
-    boxes = np.empty((n, 12))
-    refs = np.empty((n, 2), np.int64)
-    for r in range(n):
-        for c in range(12):
-            boxes[r, c] = rows_f[r, c]
-        refs[r, 0] = rows_i[r, 12]
-        refs[r, 1] = rows_i[r, 13]
-    cnt = np.full(1, n, np.int64)
-    wb, wr, _ = widen(boxes, refs, cnt)
-    for r in range(wb.shape[0]):
-        for c in range(24):
-            out_f[r, c] = np.float32(wb[r, c])
-        for c in range(4):
-            out_i[r, 24 + c] = wr[r, c]
-            out_i[r, 28 + c] = 0
-    return wb.shape[0]
-
-
-def wide_top(rows_f: np.ndarray, rows_i: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """4-wide traversal rows (:func:`tracer.blas.widen`) of a top level's binary rows, as flat float32
-    and int32 views. The binary rows stay the level's own (refits update them in place); this copy is
-    made at each commit, O(rows) (well under 1 ms at 20,000 instances)."""
-    out = aligned_rows(len(rows_f), WIDE)
-    w = _wide_top(rows_f, rows_i, out, out.view(np.int32))
-    out = out[:w]
-    return out.ravel(), out.view(np.int32).ravel()

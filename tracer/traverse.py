@@ -34,8 +34,8 @@ class SceneArrays(NamedTuple):
     """Everything a query needs, as arrays (structure of arrays, packed at commit).
 
     Geometry store (append-only; indices local to a geometry, offsets below):
-    ``bvh_f`` (32 R,) f4 and ``bvh_i`` (32 R,) i4, two flat views of the same 4-wide BLAS rows
-    (:func:`tracer.blas.pack_wide`, 32 values per row); ``tri_v`` (9 M,) f4 — triangle vertices in
+    ``bvh_f`` (16 R,) f4 and ``bvh_i`` (16 R,) i4, two flat views of the same BLAS child-box rows
+    (:func:`tracer.blas.pack_rows`, 16 values per row); ``tri_v`` (9 M,) f4 — triangle vertices in
     leaf order, 9 values each (exact: the geometry's vertices are float32; all arithmetic on them is
     float64); ``tri_prim`` (M,) i4 — original
     triangle index of each row; ``prim_slot`` (M,) i4 — the inverse (original index -> local row);
@@ -45,9 +45,8 @@ class SceneArrays(NamedTuple):
     Instances (indexed by instance id): ``inst_kind`` (I,) i4 (-1: removed), ``inst_geom`` (I,) i4,
     ``world_from_object`` and ``object_from_world`` (I, 3, 4) f8 (affine rows).
 
-    Top levels over instance ids: solids ``top_f, top_i, top_items`` as 4-wide rows like the BLAS
-    (:func:`tracer.tlas.wide_top`, 32 values per row), sensors ``sen_f, sen_i, sen_items`` as binary
-    child-box rows (:func:`tracer.blas.pack_rows`, 16 values per row); leaves index ``*_items``.
+    Top levels over instance ids, flat child-box rows as in the BLAS: solids ``top_f, top_i, top_items``
+    and sensors ``sen_f, sen_i, sen_items`` (leaves index ``*_items``).
     """
 
     bvh_f: np.ndarray
@@ -114,47 +113,36 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stacks, tstacks):
     bv = 0.0
     if sa.top_f.shape[0] == 0:
         return best_t, best_inst, best_slot, bu, bv
-    ix, iy, iz, ixe, iye, ize, _, _, _ = ray_inverse(dx, dy, dz)
+    ix, iy, iz, ixe, iye, ize, xl, yl, zl = ray_inverse(dx, dy, dz)
     bf = sa.top_f
     bi = sa.top_i
     items = sa.top_items
     m = sa.object_from_world
     stack = stacks[0]
     tstack = tstacks[0]
-    # 4-wide rows (tracer.blas.widen): near/far planes by direction sign
-    xl = 0 if ix >= 0.0 else 12
-    yl = 4 if iy >= 0.0 else 16
-    zl = 8 if iz >= 0.0 else 20
-    xf = 12 - xl
-    yf = 20 - yl
-    zf = 28 - zl
     sp = 0
     ref = 0
     while True:
         if ref >= 0:
-            r = 32 * ref
-            sp0 = sp
-            for c in range(4):
-                tn = 0.0
-                tf = best_t
-                tn = max(tn, (bf[r + xl + c] - ox) * ix)
-                tf = min(tf, (bf[r + xf + c] - ox) * ixe)
-                tn = max(tn, (bf[r + yl + c] - oy) * iy)
-                tf = min(tf, (bf[r + yf + c] - oy) * iye)
-                tn = max(tn, (bf[r + zl + c] - oz) * iz)
-                tf = min(tf, (bf[r + zf + c] - oz) * ize)
-                if tn <= tf:
-                    pos = sp
-                    while pos > sp0 and tstack[pos - 1] < tn:
-                        stack[pos] = stack[pos - 1]
-                        tstack[pos] = tstack[pos - 1]
-                        pos -= 1
-                    stack[pos] = bi[r + 24 + c]
-                    tstack[pos] = tn
-                    sp += 1
-            if sp > sp0:
-                sp -= 1
-                ref = stack[sp]
+            r = 16 * ref
+            hl, tl = slab(bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
+            hr, tr = slab(bf, r + 6, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
+            if hl and hr:
+                if tr < tl:
+                    stack[sp] = bi[r + 12]
+                    tstack[sp] = tl
+                    ref = bi[r + 13]
+                else:
+                    stack[sp] = bi[r + 13]
+                    tstack[sp] = tr
+                    ref = bi[r + 12]
+                sp += 1
+                continue
+            if hl:
+                ref = bi[r + 12]
+                continue
+            if hr:
+                ref = bi[r + 13]
                 continue
         else:
             x = -ref - 1

@@ -106,7 +106,7 @@ def ray_inverse(dx, dy, dz):
 def traverse(sa, g, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
     """Closest (or, with ``any_hit``, first found) hit of the object-space ray in geometry ``g``.
 
-    4-wide rows (:func:`tracer.blas.widen`), nearest child first, a pending child is skipped
+    Child-box rows (:func:`tracer.blas.collapse`), nearer child first, a pending child is skipped
     when its entry distance is beyond the best hit so far. Returns ``(hit, t, slot, u, v)``;
     ``slot`` is the triangle's index in ``sa.tri_v`` (9 values each).
     """
@@ -119,26 +119,9 @@ def traverse(sa, g, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
 @njit(cache=True, error_model="numpy", _nrt=False)
 def traverse_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
     """:func:`traverse` on explicit arrays (a separate function: LLVM optimises the loop better when
-    the arrays are plain arguments than when they are fields of the scene tuple).
-
-    4-wide rows (:func:`tracer.blas.widen`): the four child boxes are slab-tested from SoA planes, the
-    near plane chosen by the sign of the direction (no min/max per axis); the children hit are pushed
-    in order of entry distance (insertion into the few new stack entries), and the nearest is popped
-    at once.
-    """
+    the arrays are plain arguments than when they are fields of the scene tuple)."""
     kx, ky, kz, sx, sy, sz = ray_setup(dx, dy, dz)
-    ix = 1.0 / dx
-    iy = 1.0 / dy
-    iz = 1.0 / dz
-    ixe = ix * BOX_EPS
-    iye = iy * BOX_EPS
-    ize = iz * BOX_EPS
-    xl = 0 if ix >= 0.0 else 12
-    yl = 4 if iy >= 0.0 else 16
-    zl = 8 if iz >= 0.0 else 20
-    xf = 12 - xl
-    yf = 20 - yl
-    zf = 28 - zl
+    ix, iy, iz, ixe, iye, ize, xl, yl, zl = ray_inverse(dx, dy, dz)
     best_t = t_max
     best = -1
     bu = 0.0
@@ -147,29 +130,25 @@ def traverse_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hi
     ref = 0
     while True:
         if ref >= 0:
-            r = 32 * (row0 + ref)
-            sp0 = sp
-            for c in range(4):
-                tn = 0.0
-                tf = best_t
-                tn = max(tn, (bf[r + xl + c] - ox) * ix)
-                tf = min(tf, (bf[r + xf + c] - ox) * ixe)
-                tn = max(tn, (bf[r + yl + c] - oy) * iy)
-                tf = min(tf, (bf[r + yf + c] - oy) * iye)
-                tn = max(tn, (bf[r + zl + c] - oz) * iz)
-                tf = min(tf, (bf[r + zf + c] - oz) * ize)
-                if tn <= tf:
-                    pos = sp
-                    while pos > sp0 and tstack[pos - 1] < tn:
-                        stack[pos] = stack[pos - 1]
-                        tstack[pos] = tstack[pos - 1]
-                        pos -= 1
-                    stack[pos] = bi[r + 24 + c]
-                    tstack[pos] = tn
-                    sp += 1
-            if sp > sp0:
-                sp -= 1
-                ref = stack[sp]
+            r = 16 * (row0 + ref)
+            hl, tl = slab(bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
+            hr, tr = slab(bf, r + 6, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
+            if hl and hr:
+                if tr < tl:
+                    stack[sp] = bi[r + 12]
+                    tstack[sp] = tl
+                    ref = bi[r + 13]
+                else:
+                    stack[sp] = bi[r + 13]
+                    tstack[sp] = tr
+                    ref = bi[r + 12]
+                sp += 1
+                continue
+            if hl:
+                ref = bi[r + 12]
+                continue
+            if hr:
+                ref = bi[r + 13]
                 continue
         else:
             x = -ref - 1
