@@ -10,7 +10,11 @@ need: a SHA-256 over numpy arrays) does not load numba and the kernels.
 
 from __future__ import annotations
 
+import hashlib
 import importlib
+import os
+import sys
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
@@ -27,3 +31,24 @@ def __getattr__(name: str) -> Any:
     if name in _WHERE:
         return getattr(importlib.import_module(_WHERE[name]), name)
     raise AttributeError(f"module 'tracer' has no attribute {name!r}")
+
+
+def _numba_cache_dir(root: Path = Path(__file__).parent) -> Path:
+    """A numba cache directory keyed by the content of every tracer source file.
+
+    numba checks a cached kernel against its own file only: a kernel compiled with a callee from
+    another module (``transport`` calling ``sources``) would outlive an edit of that callee and run
+    the old code. Keying the directory by all tracer sources makes any edit start a fresh cache.
+    """
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        digest.update(path.relative_to(root).as_posix().encode() + b"\0" + path.read_bytes())
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return base / "lumenlink" / "numba" / digest.hexdigest()[:16]
+
+
+if not os.environ.get("NUMBA_CACHE_DIR"):  # a directory the user chose is left alone
+    if "numba" in sys.modules:
+        sys.modules["numba"].config.CACHE_DIR = str(_numba_cache_dir())
+    else:
+        os.environ["NUMBA_CACHE_DIR"] = str(_numba_cache_dir())
