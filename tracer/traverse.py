@@ -27,7 +27,7 @@ from numba import njit, prange
 
 from tracer.blas import STACK_SIZE
 from tracer.kinds import dispatch
-from tracer.kinds.mesh import ray_inverse, slab
+from tracer.kinds.mesh import prefetch, ray_inverse, slab
 
 
 class SceneArrays(NamedTuple):
@@ -125,6 +125,11 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stacks, tstacks):
     while True:
         if ref >= 0:
             r = 16 * ref
+            # both children's rows (or their instance ids) are fetched while the slabs are tested
+            cl = np.int64(bi[r + 12])
+            cr = np.int64(bi[r + 13])
+            prefetch(bf, 16 * cl if cl >= 0 else 0)
+            prefetch(bf, 16 * cr if cr >= 0 else 0)
             hl, tl = slab(bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
             hr, tr = slab(bf, r + 6, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
             if hl and hr:
