@@ -56,7 +56,11 @@ def canonical_arrays(
 
 def geometry_id(vertices: np.ndarray, triangles: np.ndarray, normals: np.ndarray | None = None) -> str:
     """Lowercase hex SHA-256 content hash of a mesh, as DESIGN.md defines it."""
-    v, f, n = canonical_arrays(vertices, triangles, normals)
+    return hash_canonical(*canonical_arrays(vertices, triangles, normals))
+
+
+def hash_canonical(v: np.ndarray, f: np.ndarray, n: np.ndarray | None) -> str:
+    """The id of arrays that `canonical_arrays` already returned (no second validation on a hot path)."""
     h = hashlib.sha256(PREFIX)
     h.update(struct.pack("<II", len(v), len(f)))
     h.update(v.tobytes())

@@ -16,8 +16,6 @@ unchanged. Units: metres in the world (the tracer itself is unit-free).
 
 from __future__ import annotations
 
-import hashlib
-import struct
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -29,7 +27,7 @@ import numpy as np
 from tracer import cache as blas_cache
 from tracer.blas import build_meshes, collapse, gather_triangles, leaf_order_f32, pack_rows, refit
 from tracer.errors import NotCommittedError, TracerError, UnknownIdError
-from tracer.geometry_id import PREFIX, canonical_arrays
+from tracer.geometry_id import canonical_arrays, hash_canonical
 from tracer.kinds import SENSOR_KINDS, disk_sensor, mesh, rect_sensor
 from tracer.tlas import build_top, refit_top, world_boxes
 from tracer.traverse import SceneArrays, any_batch, closest_batch
@@ -112,19 +110,6 @@ def _empty_store() -> dict[str, np.ndarray]:
         "tri_v": np.empty((0, 9), np.float32), "tri_prim": np.empty(0, np.int32), "prim_slot": np.empty(0, np.int32),
         "tri_n": np.empty((0, 9), np.float32),
     }
-
-
-def _hash_canonical(v: np.ndarray, f: np.ndarray, n: np.ndarray | None) -> str:
-    """:func:`tracer.geometry_id.geometry_id` of arrays that are already canonical
-    (``canonical_arrays``): the same bytes hashed, without validating and converting the mesh a second
-    time (a test checks that the two agree)."""
-    h = hashlib.sha256(PREFIX)
-    h.update(struct.pack("<II", len(v), len(f)))
-    h.update(v.tobytes())
-    h.update(f.tobytes())
-    if n is not None:
-        h.update(n.tobytes())
-    return h.hexdigest()
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -291,7 +276,7 @@ class Scene:
             v, f, n = canonical_arrays(vertices, triangles, normals)
         except ValueError as exc:
             raise TracerError(f"add_geometry: {exc}") from None
-        gid = _hash_canonical(v, f, n)
+        gid = hash_canonical(v, f, n)
         if gid in self._geoms:
             return gid
         box = mesh.object_bounds_of(v) if len(f) else np.array([np.inf] * 3 + [-np.inf] * 3)
