@@ -35,7 +35,7 @@ from tracer.rng import path_key, uniform
 from tracer.sources import AREA, P_I0, intensity_toward, pick_light, sample_area_point
 from tracer.spawn import offset_ray_origin
 from tracer.surfaces import LAMBERTIAN, onb, sample_cosine
-from tracer.traverse import intersect_any, intersect_closest
+from tracer.traverse import any_with_stacks, closest_with_stacks, new_stacks
 
 RR_DEPTH = 3
 MAX_BOUNCES = 10_000
@@ -60,7 +60,7 @@ class QueryArrays(NamedTuple):
 
 
 @njit(cache=True, error_model="numpy")
-def direct_illuminance(sa, L, x, y, z, nx, ny, nz, u0, u1, u2, u3):
+def direct_illuminance(sa, L, x, y, z, nx, ny, nz, u0, u1, u2, u3, stack, tstack):
     """Estimate of the direct illuminance (lx) at point x on a surface with unit normal n, from one light.
 
     x must already be off any surface (shadow rays start there).
@@ -80,7 +80,7 @@ def direct_illuminance(sa, L, x, y, z, nx, ny, nz, u0, u1, u2, u3):
         cos_l = -(dx * lnx + dy * lny + dz * lnz) / dist
         if cos_x <= 0.0 or cos_l <= 0.0:
             return 0.0
-        if intersect_any(sa, x, y, z, dx, dy, dz, 1.0 - SHADOW_SHORTEN):
+        if any_with_stacks(sa, x, y, z, dx, dy, dz, 1.0 - SHADOW_SHORTEN, stack, tstack):
             return 0.0
         return L.par[j, P_I0] / math.pi * cos_l * cos_x / d2 * L.a_area[j] / pj
     dx, dy, dz = L.par[j, 0] - x, L.par[j, 1] - y, L.par[j, 2] - z
@@ -94,13 +94,13 @@ def direct_illuminance(sa, L, x, y, z, nx, ny, nz, u0, u1, u2, u3):
     inten = intensity_toward(L, j, -dx / dist, -dy / dist, -dz / dist)
     if inten <= 0.0:
         return 0.0
-    if intersect_any(sa, x, y, z, dx, dy, dz, 1.0):
+    if any_with_stacks(sa, x, y, z, dx, dy, dz, 1.0, stack, tstack):
         return 0.0
     return inten * cos_x / d2 / pj
 
 
 @njit(cache=True, error_model="numpy")
-def trace_path(sa, M, L, Q, q, key, counters):
+def trace_path(sa, M, L, Q, q, key, counters, stack, tstack):
     """One backward path from query patch q: an unbiased estimate of its mean illuminance (lx)."""
     if Q.kind[q] == 0:
         r = math.sqrt(uniform(key, 0))
@@ -113,12 +113,13 @@ def trace_path(sa, M, L, Q, q, key, counters):
     z = Q.o[q, 2] + s * Q.a[q, 2] + t * Q.b[q, 2]
     nx, ny, nz = Q.n[q, 0], Q.n[q, 1], Q.n[q, 2]
     e = direct_illuminance(sa, L, x, y, z, nx, ny, nz, uniform(key, 2), uniform(key, 3), uniform(key, 4),
-                           uniform(key, 5))
+                           uniform(key, 5), stack, tstack)
     dx, dy, dz = sample_cosine(nx, ny, nz, uniform(key, 6), uniform(key, 7))
     dim = 8
     w = 1.0
     for bounce in range(MAX_BOUNCES):
-        t_hit, inst, prim, hu, hv, ngx, ngy, ngz = intersect_closest(sa, x, y, z, dx, dy, dz, math.inf)
+        t_hit, inst, prim, hu, hv, ngx, ngy, ngz = closest_with_stacks(sa, x, y, z, dx, dy, dz, math.inf, stack,
+                                                                       tstack)
         if inst < 0:
             break
         if M.kind[inst] != LAMBERTIAN:
@@ -132,7 +133,7 @@ def trace_path(sa, M, L, Q, q, key, counters):
             fx, fy, fz = -fx, -fy, -fz
         sx, sy, sz = offset_ray_origin(px, py, pz, ngx, ngy, ngz, fx, fy, fz)
         e += w * direct_illuminance(sa, L, sx, sy, sz, fx, fy, fz, uniform(key, dim), uniform(key, dim + 1),
-                                    uniform(key, dim + 2), uniform(key, dim + 3))
+                                    uniform(key, dim + 2), uniform(key, dim + 3), stack, tstack)
         dx, dy, dz = sample_cosine(fx, fy, fz, uniform(key, dim + 4), uniform(key, dim + 5))
         dim += 6
         x, y, z = sx, sy, sz
@@ -161,11 +162,12 @@ def backward_batches(sa, M, L, Q, seed, batch0, n_batches, paths):
     cnt = np.zeros((n_batches, len(COUNTERS)), np.int64)
     for b in prange(n_batches):
         counters = cnt[b]
+        stack, tstack = new_stacks()
         for q in range(k):
             acc = 0.0
             for i in range(paths):
                 key = path_key(seed, batch0 + b, q * paths + i)
-                acc += trace_path(sa, M, L, Q, q, key, counters)
+                acc += trace_path(sa, M, L, Q, q, key, counters, stack, tstack)
             out[b, q] = acc / paths
     return out, cnt
 

@@ -45,7 +45,7 @@ from tracer.surfaces import (
     refract,
     sample_cosine,
 )
-from tracer.traverse import intersect_closest, sensor_crossings, shading_normal
+from tracer.traverse import closest_with_stacks, new_stacks, sensor_crossings, shading_normal
 
 COUNTERS = ("rejected", "truncated", "stack_overflow", "sensor_buffer_full", "unsupported_material")
 C_REJECTED, C_TRUNCATED, C_STACK, C_SENSOR_FULL, C_UNSUPPORTED = range(5)
@@ -106,7 +106,7 @@ def _medium_ior(M, med, depth):
 
 
 @njit(cache=True, error_model="numpy")
-def trace_photon(sa, M, L, S, key, w, tally, counters, med, c_inst, c_t, c_u, c_v, c_cos,
+def trace_photon(sa, M, L, S, key, w, tally, counters, med, c_inst, c_t, c_u, c_v, c_cos, stack, tstack,
                  specular, fresnel, absorption, scattering):
     """Trace one photon of initial weight `w` (lm) and add what sensors record to `tally`."""
     dim = 1
@@ -126,7 +126,7 @@ def trace_photon(sa, M, L, S, key, w, tally, counters, med, c_inst, c_t, c_u, c_
     depth = 0
     bounce = 0
     while True:
-        t, inst, prim, hu, hv, ngx, ngy, ngz = intersect_closest(sa, ox, oy, oz, dx, dy, dz, math.inf)
+        t, inst, prim, hu, hv, ngx, ngy, ngz = closest_with_stacks(sa, ox, oy, oz, dx, dy, dz, math.inf, stack, tstack)
         t_end = t
         scattered = False
         sig_a = 0.0
@@ -299,10 +299,11 @@ def forward_batches(sa, M, L, S, n_bins, seed, batch0, n_batches, photons, specu
         c_u = np.empty(SENSOR_CAP)
         c_v = np.empty(SENSOR_CAP)
         c_cos = np.empty(SENSOR_CAP)
+        stack, tstack = new_stacks()
         tally = out[b]
         counters = cnt[b]
         for i in range(photons):
             key = path_key(seed, batch0 + b, i)
-            trace_photon(sa, M, L, S, key, w0, tally, counters, med, c_inst, c_t, c_u, c_v, c_cos,
+            trace_photon(sa, M, L, S, key, w0, tally, counters, med, c_inst, c_t, c_u, c_v, c_cos, stack, tstack,
                          specular, fresnel, absorption, scattering)
     return out, cnt

@@ -104,8 +104,8 @@ def point_to_world(sa, inst, px, py, pz):
             m[inst, 2, 0] * px + m[inst, 2, 1] * py + m[inst, 2, 2] * pz + m[inst, 2, 3])
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
-def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stacks, tstacks):
+@njit(cache=True, error_model="numpy", inline="always")
+def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
     best_t = t_max
     best_inst = -1
     best_slot = -1
@@ -118,8 +118,6 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stacks, tstacks):
     bi = sa.top_i
     items = sa.top_items
     m = sa.object_from_world
-    stack = stacks[0]
-    tstack = tstacks[0]
     sp = 0
     ref = 0
     while True:
@@ -156,7 +154,7 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stacks, tstacks):
                 inst = items[q]
                 rox, roy, roz, rdx, rdy, rdz = _to_object(m, inst, ox, oy, oz, dx, dy, dz)
                 hit, t, slot, u, v = dispatch.intersect_solid(sa, inst, rox, roy, roz, rdx, rdy, rdz,
-                                                              best_t, any_hit, stacks[1], tstacks[1])
+                                                              best_t, any_hit, stack, tstack)
                 if hit:
                     best_t = t
                     best_inst = inst
@@ -177,16 +175,21 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stacks, tstacks):
     return best_t, best_inst, best_slot, bu, bv
 
 
-def new_stacks() -> tuple[np.ndarray, np.ndarray]:
-    """Traversal stacks for the ``*_with_stacks`` functions: ``(stacks, tstacks)``, (2, STACK_SIZE)."""
-    return np.empty((2, STACK_SIZE), np.int64), np.empty((2, STACK_SIZE))
+@njit(cache=True, error_model="numpy")
+def new_stacks():
+    """Traversal stacks for the ``*_with_stacks`` functions: ``(stack, tstack)``, (3 STACK_SIZE,) each.
+
+    The binary top level uses the first STACK_SIZE entries (its depth is below that); a 4-wide bottom
+    level the rest (it pushes up to three entries per level of about half the binary depth)."""
+    return np.empty(3 * STACK_SIZE, np.int64), np.empty(3 * STACK_SIZE)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
-def closest_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, stacks, tstacks):
-    """:func:`intersect_closest` with caller-provided traversal stacks (:func:`new_stacks`), which
-    saves two small allocations per call in a loop over many rays."""
-    t, inst, slot, u, v = _closest(sa, ox, oy, oz, dx, dy, dz, t_max, False, stacks, tstacks)
+@njit(cache=True, error_model="numpy", inline="always")
+def closest_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, stack, tstack):
+    """:func:`intersect_closest` with caller-provided traversal stacks (:func:`new_stacks`): the form for
+    jitted loops over many rays. It is inlined into its caller, so the scene tuple (some 200 words)
+    is not copied per ray (a real call costs more than a small scene's whole traversal)."""
+    t, inst, slot, u, v = _closest(sa, ox, oy, oz, dx, dy, dz, t_max, False, stack, tstack)
     if inst < 0:
         return np.inf, -1, -1, 0.0, 0.0, 0.0, 0.0, 0.0
     prim = dispatch.primitive_solid(sa, inst, slot)
@@ -206,24 +209,22 @@ def intersect_closest(sa, ox, oy, oz, dx, dy, dz, t_max):
         (``p = (1-u-v) v0 + u v1 + v v2``); ``ng`` the unit world-space geometric normal of the
         object-space ``(v1-v0) x (v2-v0)`` (zeros on a miss).
     """
-    stacks = np.empty((2, STACK_SIZE), np.int64)
-    tstacks = np.empty((2, STACK_SIZE))
-    return closest_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, stacks, tstacks)
+    stack, tstack = new_stacks()
+    return closest_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, stack, tstack)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
-def any_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, stacks, tstacks):
-    """:func:`intersect_any` with caller-provided traversal stacks (:func:`new_stacks`)."""
-    t, inst, slot, u, v = _closest(sa, ox, oy, oz, dx, dy, dz, t_max, True, stacks, tstacks)
+@njit(cache=True, error_model="numpy", inline="always")
+def any_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, stack, tstack):
+    """:func:`intersect_any` with caller-provided traversal stacks (:func:`new_stacks`); inlined."""
+    t, inst, slot, u, v = _closest(sa, ox, oy, oz, dx, dy, dz, t_max, True, stack, tstack)
     return inst >= 0
 
 
 @njit(cache=True, error_model="numpy")
 def intersect_any(sa, ox, oy, oz, dx, dy, dz, t_max):
     """True when any solid instance is hit with ``0 < t < t_max`` (shadow rays; sensors ignored)."""
-    stacks = np.empty((2, STACK_SIZE), np.int64)
-    tstacks = np.empty((2, STACK_SIZE))
-    return any_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, stacks, tstacks)
+    stack, tstack = new_stacks()
+    return any_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, stack, tstack)
 
 
 @njit(cache=True, error_model="numpy")
@@ -300,7 +301,7 @@ def sensor_crossings(sa, ox, oy, oz, dx, dy, dz, t_max, out_inst, out_t, out_u, 
     return count
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def shading_normal(sa, inst_id, prim_id, u, v):
     """Unit world-space shading normal: the interpolated vertex normal, the geometric one where the
     mesh has no normals (or they cancel)."""
@@ -308,7 +309,7 @@ def shading_normal(sa, inst_id, prim_id, u, v):
     return normal_to_world(sa, inst_id, nx, ny, nz)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def hit_point(sa, inst_id, prim_id, u, v):
     """World-space surface point from barycentrics: more accurate than ``o + t d`` for spawning, as
     its error depends on the vertex magnitudes only, not on how far the ray came."""
@@ -320,10 +321,10 @@ BLOCK = 256
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def _closest_block(sa, o, d, t_max, out_t, out_inst, out_prim, out_u, out_v, out_n, lo, hi, stacks, tstacks):
+def _closest_block(sa, o, d, t_max, out_t, out_inst, out_prim, out_u, out_v, out_n, lo, hi, stack, tstack):
     for i in range(lo, hi):
         t, inst, prim, u, v, nx, ny, nz = closest_with_stacks(
-            sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t_max[i], stacks, tstacks)
+            sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t_max[i], stack, tstack)
         out_t[i] = t
         out_inst[i] = inst
         out_prim[i] = prim
@@ -335,9 +336,9 @@ def _closest_block(sa, o, d, t_max, out_t, out_inst, out_prim, out_u, out_v, out
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def _any_block(sa, o, d, t_max, out, lo, hi, stacks, tstacks):
+def _any_block(sa, o, d, t_max, out, lo, hi, stack, tstack):
     for i in range(lo, hi):
-        out[i] = any_with_stacks(sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t_max[i], stacks, tstacks)
+        out[i] = any_with_stacks(sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t_max[i], stack, tstack)
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
@@ -347,10 +348,9 @@ def closest_batch(sa, o, d, t_max, out_t, out_inst, out_prim, out_u, out_v, out_
     k = o.shape[0]
     nb = (k + BLOCK - 1) // BLOCK
     for b in prange(nb):
-        stacks = np.empty((2, STACK_SIZE), np.int64)
-        tstacks = np.empty((2, STACK_SIZE))
+        stack, tstack = new_stacks()
         _closest_block(sa, o, d, t_max, out_t, out_inst, out_prim, out_u, out_v, out_n, b * BLOCK,
-                       min(k, (b + 1) * BLOCK), stacks, tstacks)
+                       min(k, (b + 1) * BLOCK), stack, tstack)
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
@@ -359,6 +359,5 @@ def any_batch(sa, o, d, t_max, out):
     k = o.shape[0]
     nb = (k + BLOCK - 1) // BLOCK
     for b in prange(nb):
-        stacks = np.empty((2, STACK_SIZE), np.int64)
-        tstacks = np.empty((2, STACK_SIZE))
-        _any_block(sa, o, d, t_max, out, b * BLOCK, min(k, (b + 1) * BLOCK), stacks, tstacks)
+        stack, tstack = new_stacks()
+        _any_block(sa, o, d, t_max, out, b * BLOCK, min(k, (b + 1) * BLOCK), stack, tstack)

@@ -12,7 +12,7 @@ from numba import njit
 from tracer.kinds import disk_sensor, mesh, rect_sensor
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", inline="always")
 def intersect_solid(sa, inst, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
     """``(hit, t, slot, u, v)`` of the ray with solid instance ``inst`` (closest, or any with ``any_hit``)."""
     kind = sa.inst_kind[inst]
