@@ -30,7 +30,7 @@ from tracer.blas import aligned_rows, build_meshes, collapse, gather_triangles, 
 from tracer.errors import NotCommittedError, TracerError, UnknownIdError
 from tracer.geometry_id import canonical_arrays, hash_canonical
 from tracer.kinds import SENSOR_KINDS, disk_sensor, mesh, rect_sensor
-from tracer.tlas import build_top, refit_top, world_boxes
+from tracer.tlas import TopLevel, build_top, refit_top, world_boxes
 from tracer.traverse import SceneArrays, any_batch, closest_batch
 
 #: BLAS build parameters: largest leaf and the cost of a triangle test relative to a node visit
@@ -249,8 +249,8 @@ class Scene:
         self._moved: dict[str, set[int]] = {"top": set(), "sen": set()}
         self._struct = {"top": True, "sen": True}
         self._refits = {"top": (0, 0), "sen": (0, 0)}  # (refit commits, instances moved) since build
-        self._levels = {"top": build_top(np.empty(0, np.int64), self._wbox)}
-        self._levels["sen"] = self._levels["top"]
+        self._levels = {"top": build_top(np.empty(0, np.int64), self._wbox),
+                        "sen": build_top(np.empty(0, np.int64), self._wbox, wide=False)}
         self._inst_changed = True
         self._arrays: SceneArrays | None = None
         self._changed = True
@@ -448,15 +448,12 @@ class Scene:
             moved = self._moved[level]
             if not (self._struct[level] or moved):
                 continue
-            n_level = len(self._levels[level][2])
+            n_level = len(self._levels[level].items)
             commits, count = self._refits[level]
             if (not self._struct[level] and self.tlas_refit and len(moved) <= max(16, n_level // 64)
                     and commits < MAX_REFITS and count + len(moved) <= max(16, n_level // 8)):
-                rows, _, items, links = self._levels[level]
-                rows = rows.copy()  # published arrays are never written: a running query keeps its own
-                refit_top(rows, rows.view(np.int32), items, links, np.fromiter(moved, np.int64, len(moved)),
-                          self._wbox)
-                self._levels[level] = (rows, rows.view(np.int32), items, links)
+                self._levels[level] = refit_top(self._levels[level], np.fromiter(moved, np.int64, len(moved)),
+                                                self._wbox)
                 self._refits[level] = (commits + 1, count + len(moved))
                 modes[level] = "refit"
             else:
@@ -464,7 +461,7 @@ class Scene:
                     keep = (kind >= 0) & ~np.isin(kind, list(SENSOR_KINDS)) & (self._wbox[:n, 0] <= self._wbox[:n, 3])
                 else:
                     keep = np.isin(kind, list(SENSOR_KINDS))
-                self._levels[level] = build_top(np.flatnonzero(keep), self._wbox)
+                self._levels[level] = build_top(np.flatnonzero(keep), self._wbox, wide=level == "top")
                 self._refits[level] = (0, 0)
                 modes[level] = "rebuild"
             self._struct[level] = False
@@ -545,7 +542,7 @@ class Scene:
         order, node_box, node_a, node_n, node_cnt = build_meshes(tri_v, tri_off, MESH_MAX_LEAF, MESH_ISECT_COST)
         # geometry g's nodes are rows 2*tri_off[g] .. + node_cnt[g] of the build arrays
         node_off = 2 * tri_off[:-1]
-        rows, row_cnt = pack_wide(*collapse(node_box, node_a, node_n, node_off, node_cnt))
+        rows, row_cnt, _ = pack_wide(*collapse(node_box, node_a, node_n, node_off, node_cnt))
         base = np.repeat(tri_off[:-1], g_tris)
         leaf_rows = base + order  # batch row of the original triangle at each leaf position
         prim_slot = np.empty(m, np.int32)
@@ -578,8 +575,8 @@ class Scene:
             tri_n = g.normals[g.triangles.astype(np.int64)].reshape(m, 9)[order].astype(np.float32)
         else:
             tri_n = np.zeros((m, 9), np.float32)
-        rows, row_cnt = pack_wide(*collapse(node_box, node_a, node_n, np.zeros(1, np.int64),
-                                            np.array([len(node_a)], np.int64)))
+        rows, row_cnt, _ = pack_wide(*collapse(node_box, node_a, node_n, np.zeros(1, np.int64),
+                                               np.array([len(node_a)], np.int64)))
         arrs = {"bvh": rows, "tri_v": tri_v.astype(np.float32),
                 "tri_prim": order.astype(np.int32), "prim_slot": prim_slot, "tri_n": tri_n}
         return [g], arrs, row_cnt, np.array([m], np.int64)
@@ -627,9 +624,9 @@ class Scene:
         return out
 
 
-def _flat(level: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    rows_f, rows_i, items, _ = level
-    return rows_f.ravel(), rows_i.ravel(), items
+def _flat(level: TopLevel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    rows = level.binary if level.wide is None else level.wide
+    return rows.ravel(), rows.view(np.int32).ravel(), level.items
 
 
 def _run_threads(threads: int | None, fn: Callable[[], None]) -> None:

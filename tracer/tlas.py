@@ -12,10 +12,12 @@ transform can never cull a ray that the object-space test would hit.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
-from tracer.blas import _down32, _up32, build_bvh_range, collapse, pack_rows
+from tracer.blas import _down32, _up32, aligned_rows, build_bvh_range, collapse, pack_rows, pack_wide, requantize
 
 #: an instance visit (transform + BLAS root) costs about this many node visits (SAH)
 INSTANCE_COST = 2.0
@@ -104,12 +106,13 @@ def _build_top(ids, boxes):
 
 
 @njit(cache=True, error_model="numpy")
-def refit_top(rows_f, rows_i, items, links, ids, boxes):
-    """Refit the top level in place after instances ``ids`` moved (their ``boxes`` are current).
+def _refit_binary(rows_f, rows_i, items, links, ids, boxes, touched):
+    """Refit the binary rows in place after instances ``ids`` moved (their ``boxes`` are current).
 
     ``rows_f``/``rows_i``: the (R, 16) rows and their int32 view; ``links``: the last four arrays
-    of :func:`build_top`. Each moved instance's leaf box is recomputed from its items, then every
-    ancestor's box, up to the root. Boxes are rounded outward to float32, as when built.
+    of :func:`_build_top`. Each moved instance's leaf box is recomputed from its items, then every
+    ancestor's box, up to the root. Boxes are rounded outward to float32, as when built. Rows
+    written are marked in ``touched``.
     """
     row_parent, row_pslot, item_row, item_slot = links
     for q in range(ids.shape[0]):
@@ -131,6 +134,7 @@ def refit_top(rows_f, rows_i, items, links, ids, boxes):
             hi2 = max(hi2, boxes[it, 5])
         while True:
             c = 6 * slot
+            touched[r] = True
             rows_f[r, c] = _down32(lo0)
             rows_f[r, c + 1] = _down32(lo1)
             rows_f[r, c + 2] = _down32(lo2)
@@ -150,13 +154,42 @@ def refit_top(rows_f, rows_i, items, links, ids, boxes):
             r = p
 
 
-def build_top(ids: np.ndarray, boxes: np.ndarray):
-    """Build the top level over instances ``ids`` with world boxes ``boxes[ids]``.
+class TopLevel(NamedTuple):
+    """A top level: binary child-box rows (refitted on moves), the 4-wide rows traversal reads
+    (``None`` for a level traversed in binary form), leaf items and what refits need."""
 
-    Returns ``(rows_f, rows_i, items, links)``: child-box rows (:func:`tracer.blas.pack_rows`, (R, 16)
-    float32 and its int32 view; no rows when there are no instances), leaves index ``items``
-    (instance ids), and ``links`` for :func:`refit_top`.
-    """
+    binary: np.ndarray   # (R, 16) float32, int32 view for the refs
+    wide: np.ndarray | None   # (W, 16) float32, :func:`tracer.blas.pack_wide`
+    items: np.ndarray    # (n,) int32 instance ids, in leaf order
+    links: tuple         # binary row parents and leaf positions, for refits
+    wsrc: np.ndarray | None   # wide slot -> binary (row, slot); see tracer.blas.widen
+    wide_of: np.ndarray | None   # binary row -> the wide row its boxes sit in
+
+
+def build_top(ids: np.ndarray, boxes: np.ndarray, wide: bool = True) -> TopLevel:
+    """Build the top level over instances ``ids`` with world boxes ``boxes[ids]`` (4-wide rows too
+    when ``wide``; no rows when there are no instances)."""
     b, refs, items, *links = _build_top(np.ascontiguousarray(ids, np.int64), boxes)
     rows = pack_rows(b, refs)
-    return rows, rows.view(np.int32), items, tuple(links)
+    if not wide:
+        return TopLevel(rows, None, items, tuple(links), None, None)
+    wrows, _, wsrc = pack_wide(b, refs, np.array([len(b)], np.int64))
+    wide_of = np.zeros(len(b), np.int64)
+    w, c = np.nonzero(wsrc >= 0)
+    wide_of[wsrc[w, c] >> 1] = w
+    return TopLevel(rows, wrows, items, tuple(links), wsrc, wide_of)
+
+
+def refit_top(level: TopLevel, ids: np.ndarray, boxes: np.ndarray) -> TopLevel:
+    """The top level refitted after instances ``ids`` moved (their ``boxes`` are current): the moved
+    leaves and their ancestors in the binary rows, then the wide rows holding any of them. New
+    arrays are returned; the published ones are never written (a running query keeps its own)."""
+    rows = level.binary.copy()
+    touched = np.zeros(len(rows), np.bool_)
+    _refit_binary(rows, rows.view(np.int32), level.items, level.links, ids, boxes, touched)
+    if level.wide is None or level.wide_of is None:
+        return level._replace(binary=rows)
+    wide = aligned_rows(len(level.wide))
+    wide[:] = level.wide
+    requantize(wide, wide.view(np.uint8), level.wsrc, rows, np.unique(level.wide_of[touched]))
+    return level._replace(binary=rows, wide=wide)

@@ -27,7 +27,7 @@ from numba import njit, prange
 
 from tracer.blas import STACK_SIZE
 from tracer.kinds import dispatch
-from tracer.kinds.mesh import prefetch, ray_inverse, slab
+from tracer.kinds.mesh import MISS, order4, prefetch, push3, ray_inverse, slab, slab4
 
 
 class SceneArrays(NamedTuple):
@@ -106,6 +106,8 @@ def point_to_world(sa, inst, px, py, pz):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
+    """Top-level traversal over the 4-wide rows ``sa.top_f`` (as a bottom level's, leaves hold
+    instance ids): each instance hit is entered in object space through :mod:`tracer.kinds.dispatch`."""
     best_t = t_max
     best_inst = -1
     best_slot = -1
@@ -123,29 +125,12 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
     while True:
         if ref >= 0:
             r = 16 * ref
-            # both children's rows (or their instance ids) are fetched while the slabs are tested
-            cl = np.int64(bi[r + 12])
-            cr = np.int64(bi[r + 13])
-            prefetch(bf, 16 * cl if cl >= 0 else 0)
-            prefetch(bf, 16 * cr if cr >= 0 else 0)
-            hl, tl = slab(bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
-            hr, tr = slab(bf, r + 6, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
-            if hl and hr:
-                if tr < tl:
-                    stack[sp] = bi[r + 12]
-                    tstack[sp] = tl
-                    ref = bi[r + 13]
-                else:
-                    stack[sp] = bi[r + 13]
-                    tstack[sp] = tr
-                    ref = bi[r + 12]
-                sp += 1
-                continue
-            if hl:
-                ref = bi[r + 12]
-                continue
-            if hr:
-                ref = bi[r + 13]
+            t0, t1, t2, t3 = slab4(bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
+            r0, r1, r2, r3, t1, t2, t3, ref = order4(t0, t1, t2, t3, bi, r)
+            if ref != MISS:
+                sp = push3(stack, tstack, sp, r1, r2, r3, t1, t2, t3)
+                if ref >= 0:
+                    prefetch(bf, 16 * ref)
                 continue
         else:
             x = -ref - 1
@@ -177,11 +162,12 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
 
 @njit(cache=True, error_model="numpy")
 def new_stacks():
-    """Traversal stacks for the ``*_with_stacks`` functions: ``(stack, tstack)``, (3 STACK_SIZE,) each.
+    """Traversal stacks for the ``*_with_stacks`` functions: ``(stack, tstack)``, (4 STACK_SIZE,) each.
 
-    The binary top level uses the first STACK_SIZE entries (its depth is below that); a 4-wide bottom
-    level the rest (it pushes up to three entries per level of about half the binary depth)."""
-    return np.empty(3 * STACK_SIZE, np.int64), np.empty(3 * STACK_SIZE)
+    The top level uses the first half, a bottom level the second (:data:`tracer.kinds.mesh.STACK_BASE`):
+    a 4-wide level pushes up to three entries per level, of about half the binary depth, which
+    :func:`tracer.blas.check_topology` keeps below STACK_SIZE."""
+    return np.empty(4 * STACK_SIZE, np.int64), np.empty(4 * STACK_SIZE)
 
 
 @njit(cache=True, error_model="numpy", inline="always")

@@ -97,11 +97,49 @@ def slab4(typingctx, bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, t
     return sig, codegen
 
 
+#: where a bottom level's entries start in the traversal stacks (the top level's lie below)
+STACK_BASE = 2 * STACK_SIZE
+#: :func:`order4`'s nearest reference when no box is hit (references are >= -(16 * 2**27))
+MISS = np.int64(-(1 << 62))
+
+
 @njit(cache=True, error_model="numpy", inline="always")
 def _order(ta, ra, tb, rb):
     """Compare-exchange of a sorting network: the nearer pair first (selects, no branch)."""
     s = tb < ta
     return (tb if s else ta), (rb if s else ra), (ta if s else tb), (ra if s else rb)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def order4(t0, t1, t2, t3, bi, r):
+    """Sort the four entry distances of wide row ``r`` (from :func:`slab4`) with their references:
+    ``(r0, r1, r2, r3, t1, t2, t3, nearest)``, nearest = r0, or :data:`MISS` when no box is hit."""
+    r0 = np.int64(bi[r + 12])
+    r1 = np.int64(bi[r + 13])
+    r2 = np.int64(bi[r + 14])
+    r3 = np.int64(bi[r + 15])
+    t0, r0, t1, r1 = _order(t0, r0, t1, r1)
+    t2, r2, t3, r3 = _order(t2, r2, t3, r3)
+    t0, r0, t2, r2 = _order(t0, r0, t2, r2)
+    t1, r1, t3, r3 = _order(t1, r1, t3, r3)
+    t1, r1, t2, r2 = _order(t1, r1, t2, r2)
+    return r0, r1, r2, r3, t1, t2, t3, (r0 if t0 < np.inf else MISS)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def push3(stack, tstack, sp, r1, r2, r3, t1, t2, t3):
+    """Push the farther hits of a sorted wide row, farthest first, without branches (the entries
+    past ``sp`` are scratch: all three are written, the hits kept). Returns the new ``sp``."""
+    stack[sp] = r3
+    tstack[sp] = t3
+    sp += np.int64(t3 < np.inf)
+    stack[sp] = r2
+    tstack[sp] = t2
+    sp += np.int64(t2 < np.inf)
+    stack[sp] = r1
+    tstack[sp] = t1
+    sp += np.int64(t1 < np.inf)
+    return sp
 
 
 @njit(cache=True, error_model="numpy")
@@ -212,7 +250,7 @@ def traverse_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hi
     hits sorted by entry distance with a branch-free network; the nearest is visited next, the
     others pushed farthest first (a pending entry is skipped when it starts beyond the best hit).
     ``stack``, ``tstack``: as from :func:`tracer.traverse.new_stacks`; a bottom level uses the entries
-    from STACK_SIZE on (the top level those below), so no view of the arrays is made per ray.
+    from :data:`STACK_BASE` on (the top level those below), so no view of the arrays is made per ray.
     """
     kx, ky, kz, sx, sy, sz = ray_setup(dx, dy, dz)
     ix, iy, iz, ixe, iye, ize, xl, yl, zl = ray_inverse(dx, dy, dz)
@@ -220,33 +258,15 @@ def traverse_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hi
     best = -1
     bu = 0.0
     bv = 0.0
-    sp = STACK_SIZE
+    sp = STACK_BASE
     ref = 0
     while True:
         if ref >= 0:
             r = 16 * (row0 + ref)
             t0, t1, t2, t3 = slab4(bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
-            r0 = np.int64(bi[r + 12])
-            r1 = np.int64(bi[r + 13])
-            r2 = np.int64(bi[r + 14])
-            r3 = np.int64(bi[r + 15])
-            t0, r0, t1, r1 = _order(t0, r0, t1, r1)
-            t2, r2, t3, r3 = _order(t2, r2, t3, r3)
-            t0, r0, t2, r2 = _order(t0, r0, t2, r2)
-            t1, r1, t3, r3 = _order(t1, r1, t3, r3)
-            t1, r1, t2, r2 = _order(t1, r1, t2, r2)
-            if t0 < np.inf:
-                # the slots past sp are scratch: write all three, keep the hits
-                stack[sp] = r3
-                tstack[sp] = t3
-                sp += np.int64(t3 < np.inf)
-                stack[sp] = r2
-                tstack[sp] = t2
-                sp += np.int64(t2 < np.inf)
-                stack[sp] = r1
-                tstack[sp] = t1
-                sp += np.int64(t1 < np.inf)
-                ref = r0
+            r0, r1, r2, r3, t1, t2, t3, ref = order4(t0, t1, t2, t3, bi, r)
+            if ref != MISS:
+                sp = push3(stack, tstack, sp, r1, r2, r3, t1, t2, t3)
                 if ref >= 0:
                     prefetch(bf, 16 * (row0 + ref))
                 else:
@@ -266,7 +286,7 @@ def traverse_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hi
                         return True, best_t, best, bu, bv
         # pop the nearest pending child that may still hold a nearer hit
         found = False
-        while sp > STACK_SIZE:
+        while sp > STACK_BASE:
             sp -= 1
             if tstack[sp] <= best_t:
                 ref = stack[sp]
