@@ -15,7 +15,9 @@ For traversal, :func:`collapse` and :func:`pack_rows` turn each tree into *child
 64-byte float32 row per interior node holding both children's boxes and references (leaves are
 encoded in the reference), so a ray tests both children from one cache line and never fetches a
 child it misses. The boxes are exact in float32 because the vertices are float32 (the geometry id
-hashes them so); :func:`pack_rows` still rounds outward. The top level uses the same rows.
+hashes them so); :func:`pack_rows` still rounds outward. Traversal reads :func:`pack_wide`'s 4-wide
+rows made from them: four boxes quantised to 8 bits in one 64-byte row. The top level is built by
+the same code (:mod:`tracer.tlas`).
 
 Indices are local to one geometry; the scene adds per-geometry offsets at traversal time, so the
 packed store grows by appending and never rewrites what is there.

@@ -34,8 +34,8 @@ class SceneArrays(NamedTuple):
     """Everything a query needs, as arrays (structure of arrays, packed at commit).
 
     Geometry store (append-only; indices local to a geometry, offsets below):
-    ``bvh_f`` (16 R,) f4 and ``bvh_i`` (16 R,) i4, two flat views of the same BLAS child-box rows
-    (:func:`tracer.blas.pack_rows`, 16 values per row); ``tri_v`` (9 M,) f4 — triangle vertices in
+    ``bvh_f`` (16 R,) f4 and ``bvh_i`` (16 R,) i4, two flat views of the same 64-byte-aligned 4-wide
+    quantised BLAS rows (:func:`tracer.blas.pack_wide`, 16 values per row); ``tri_v`` (9 M,) f4 — triangle vertices in
     leaf order, 9 values each (exact: the geometry's vertices are float32; all arithmetic on them is
     float64); ``tri_prim`` (M,) i4 — original
     triangle index of each row; ``prim_slot`` (M,) i4 — the inverse (original index -> local row);
@@ -45,8 +45,9 @@ class SceneArrays(NamedTuple):
     Instances (indexed by instance id): ``inst_kind`` (I,) i4 (-1: removed), ``inst_geom`` (I,) i4,
     ``world_from_object`` and ``object_from_world`` (I, 3, 4) f8 (affine rows).
 
-    Top levels over instance ids, flat child-box rows as in the BLAS: solids ``top_f, top_i, top_items``
-    and sensors ``sen_f, sen_i, sen_items`` (leaves index ``*_items``).
+    Top levels over instance ids: solids ``top_f, top_i, top_items`` in 4-wide rows as in the BLAS,
+    sensors ``sen_f, sen_i, sen_items`` in binary child-box rows (:func:`tracer.blas.pack_rows`);
+    leaves index ``*_items``.
     """
 
     bvh_f: np.ndarray
