@@ -27,7 +27,7 @@ from numba import njit, prange
 
 from tracer.blas import STACK_SIZE
 from tracer.kinds import dispatch
-from tracer.kinds.mesh import MISS, order4, prefetch, push3, ray_inverse, slab, slab4
+from tracer.kinds.mesh import MISS, order4, pop_nearer, prefetch, push3, ray_inverse, slab, slab4
 
 
 class SceneArrays(NamedTuple):
@@ -127,7 +127,7 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
         if ref >= 0:
             r = 16 * ref
             t0, t1, t2, t3 = slab4(bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
-            r0, r1, r2, r3, t1, t2, t3, ref = order4(t0, t1, t2, t3, bi, r)
+            ref, r1, r2, r3, t1, t2, t3 = order4(t0, t1, t2, t3, bi, r)
             if ref != MISS:
                 sp = push3(stack, tstack, sp, r1, r2, r3, t1, t2, t3)
                 if ref >= 0:
@@ -149,14 +149,8 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
                     bv = v
                     if any_hit:
                         return best_t, best_inst, best_slot, bu, bv
-        found = False
-        while sp > 0:
-            sp -= 1
-            if tstack[sp] <= best_t:
-                ref = stack[sp]
-                found = True
-                break
-        if not found:
+        ref, sp = pop_nearer(stack, tstack, sp, 0, best_t)
+        if ref == MISS:
             break
     return best_t, best_inst, best_slot, bu, bv
 

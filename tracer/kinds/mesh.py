@@ -28,7 +28,8 @@ def prefetch(typingctx, arr, idx):
     """Hint the CPU to fetch the cache line of ``arr[idx]`` (``llvm.prefetch``, read, keep in all levels).
 
     Incoherent rays through a large BVH wait on memory for almost every row (one cache miss per row);
-    asking for both children's rows as soon as a row is read overlaps their latency with the slab tests.
+    asking for the next row (or leaf) as soon as it is chosen overlaps its latency with the sorting
+    and stack work.
     Never faults (an address past the array is a harmless hint) and changes no result.
     """
     def codegen(context, builder, sig, args):
@@ -113,7 +114,7 @@ def _order(ta, ra, tb, rb):
 @njit(cache=True, error_model="numpy", inline="always")
 def order4(t0, t1, t2, t3, bi, r):
     """Sort the four entry distances of wide row ``r`` (from :func:`slab4`) with their references:
-    ``(r0, r1, r2, r3, t1, t2, t3, nearest)``, nearest = r0, or :data:`MISS` when no box is hit."""
+    ``(nearest, r1, r2, r3, t1, t2, t3)``, nearest :data:`MISS` when no box is hit."""
     r0 = np.int64(bi[r + 12])
     r1 = np.int64(bi[r + 13])
     r2 = np.int64(bi[r + 14])
@@ -123,7 +124,18 @@ def order4(t0, t1, t2, t3, bi, r):
     t0, r0, t2, r2 = _order(t0, r0, t2, r2)
     t1, r1, t3, r3 = _order(t1, r1, t3, r3)
     t1, r1, t2, r2 = _order(t1, r1, t2, r2)
-    return r0, r1, r2, r3, t1, t2, t3, (r0 if t0 < np.inf else MISS)
+    return (r0 if t0 < np.inf else MISS), r1, r2, r3, t1, t2, t3
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def pop_nearer(stack, tstack, sp, base, best_t):
+    """``(ref, sp)``: the last pending entry above ``base`` that starts no farther than ``best_t``
+    (entries beyond it are dropped), or :data:`MISS` when none is left."""
+    while sp > base:
+        sp -= 1
+        if tstack[sp] <= best_t:
+            return stack[sp], sp
+    return MISS, sp
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -140,51 +152,6 @@ def push3(stack, tstack, sp, r1, r2, r3, t1, t2, t3):
     tstack[sp] = t1
     sp += np.int64(t1 < np.inf)
     return sp
-
-
-@njit(cache=True, error_model="numpy")
-def box_hit(box, i, ox, oy, oz, ix, iy, iz, t_max):
-    """Slab test of the box ``box[i, 0:6]`` against a ray with inverse direction ``(ix, iy, iz)``.
-
-    Returns ``(hit, t_near)`` for the segment ``0 <= t <= t_max``. A NaN slab (origin on the slab
-    plane of an axis the ray is parallel to) is ignored, which is conservative.
-    """
-    tn = 0.0
-    tf = t_max
-    if ix >= 0.0:
-        t0 = (box[i, 0] - ox) * ix
-        t1 = (box[i, 3] - ox) * ix
-    else:
-        t0 = (box[i, 3] - ox) * ix
-        t1 = (box[i, 0] - ox) * ix
-    t1 *= BOX_EPS
-    if t0 > tn:
-        tn = t0
-    if t1 < tf:
-        tf = t1
-    if iy >= 0.0:
-        t0 = (box[i, 1] - oy) * iy
-        t1 = (box[i, 4] - oy) * iy
-    else:
-        t0 = (box[i, 4] - oy) * iy
-        t1 = (box[i, 1] - oy) * iy
-    t1 *= BOX_EPS
-    if t0 > tn:
-        tn = t0
-    if t1 < tf:
-        tf = t1
-    if iz >= 0.0:
-        t0 = (box[i, 2] - oz) * iz
-        t1 = (box[i, 5] - oz) * iz
-    else:
-        t0 = (box[i, 5] - oz) * iz
-        t1 = (box[i, 2] - oz) * iz
-    t1 *= BOX_EPS
-    if t0 > tn:
-        tn = t0
-    if t1 < tf:
-        tf = t1
-    return tn <= tf, tn
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -231,9 +198,9 @@ def ray_inverse(dx, dy, dz):
 def traverse(sa, g, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
     """Closest (or, with ``any_hit``, first found) hit of the object-space ray in geometry ``g``.
 
-    Child-box rows (:func:`tracer.blas.collapse`), nearer child first, a pending child is skipped
-    when its entry distance is beyond the best hit so far. Returns ``(hit, t, slot, u, v)``;
-    ``slot`` is the triangle's index in ``sa.tri_v`` (9 values each).
+    Nearer children first; a pending child is skipped when its entry distance is beyond the best hit
+    so far. Returns ``(hit, t, slot, u, v)``; ``slot`` is the triangle's index in ``sa.tri_v``
+    (9 values each).
     """
     if sa.geom_ntri[g] == 0:
         return False, 0.0, -1, 0.0, 0.0
@@ -243,8 +210,8 @@ def traverse(sa, g, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def traverse_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
-    """:func:`traverse` on explicit arrays (a separate function: LLVM optimises the loop better when
-    the arrays are plain arguments than when they are fields of the scene tuple).
+    """:func:`traverse` on explicit arrays (LLVM optimises the loop better on plain array arguments
+    than on fields of the scene tuple).
 
     Wide rows (:func:`tracer.blas.pack_wide`): the four boxes are tested at once (:func:`slab4`), the
     hits sorted by entry distance with a branch-free network; the nearest is visited next, the
@@ -264,7 +231,7 @@ def traverse_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hi
         if ref >= 0:
             r = 16 * (row0 + ref)
             t0, t1, t2, t3 = slab4(bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
-            r0, r1, r2, r3, t1, t2, t3, ref = order4(t0, t1, t2, t3, bi, r)
+            ref, r1, r2, r3, t1, t2, t3 = order4(t0, t1, t2, t3, bi, r)
             if ref != MISS:
                 sp = push3(stack, tstack, sp, r1, r2, r3, t1, t2, t3)
                 if ref >= 0:
@@ -284,15 +251,8 @@ def traverse_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hi
                     bv = v
                     if any_hit:
                         return True, best_t, best, bu, bv
-        # pop the nearest pending child that may still hold a nearer hit
-        found = False
-        while sp > STACK_BASE:
-            sp -= 1
-            if tstack[sp] <= best_t:
-                ref = stack[sp]
-                found = True
-                break
-        if not found:
+        ref, sp = pop_nearer(stack, tstack, sp, STACK_BASE, best_t)
+        if ref == MISS:
             break
     return best >= 0, best_t, best, bu, bv
 
