@@ -166,10 +166,9 @@ def new_stacks():
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def closest_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, stack, tstack):
-    """:func:`intersect_closest` with caller-provided traversal stacks (:func:`new_stacks`): the form for
-    jitted loops over many rays. It is inlined into its caller, so the scene tuple (some 200 words)
-    is not copied per ray (a real call costs more than a small scene's whole traversal)."""
+def _closest_hit(sa, ox, oy, oz, dx, dy, dz, t_max, stack, tstack):
+    """:func:`closest_with_stacks`, inlined: for the batch loops below, where a real call per ray would
+    copy the scene tuple (some 200 words; more than a small scene's whole traversal costs)."""
     t, inst, slot, u, v = _closest(sa, ox, oy, oz, dx, dy, dz, t_max, False, stack, tstack)
     if inst < 0:
         return np.inf, -1, -1, 0.0, 0.0, 0.0, 0.0, 0.0
@@ -177,6 +176,14 @@ def closest_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, stack, tstack):
     nx, ny, nz = dispatch.normal_solid(sa, inst, slot)
     wx, wy, wz = normal_to_world(sa, inst, nx, ny, nz)
     return t, inst, prim, u, v, wx, wy, wz
+
+
+@njit(cache=True, error_model="numpy")
+def closest_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, stack, tstack):
+    """:func:`intersect_closest` with caller-provided traversal stacks (:func:`new_stacks`): the form for
+    jitted loops over many rays (light transport). A real function, compiled once: inlined, the whole
+    two-level traversal was compiled again into every transport variant (twice the cold compile)."""
+    return _closest_hit(sa, ox, oy, oz, dx, dy, dz, t_max, stack, tstack)
 
 
 @njit(cache=True, error_model="numpy")
@@ -194,9 +201,9 @@ def intersect_closest(sa, ox, oy, oz, dx, dy, dz, t_max):
     return closest_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, stack, tstack)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def any_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, stack, tstack):
-    """:func:`intersect_any` with caller-provided traversal stacks (:func:`new_stacks`); inlined."""
+    """:func:`intersect_any` with caller-provided traversal stacks (:func:`new_stacks`)."""
     t, inst, slot, u, v = _closest(sa, ox, oy, oz, dx, dy, dz, t_max, True, stack, tstack)
     return inst >= 0
 
@@ -304,7 +311,7 @@ BLOCK = 256
 @njit(cache=True, error_model="numpy", _nrt=False)
 def _closest_block(sa, o, d, t_max, out_t, out_inst, out_prim, out_u, out_v, out_n, lo, hi, stack, tstack):
     for i in range(lo, hi):
-        t, inst, prim, u, v, nx, ny, nz = closest_with_stacks(
+        t, inst, prim, u, v, nx, ny, nz = _closest_hit(
             sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t_max[i], stack, tstack)
         out_t[i] = t
         out_inst[i] = inst
@@ -319,7 +326,9 @@ def _closest_block(sa, o, d, t_max, out_t, out_inst, out_prim, out_u, out_v, out
 @njit(cache=True, error_model="numpy", _nrt=False)
 def _any_block(sa, o, d, t_max, out, lo, hi, stack, tstack):
     for i in range(lo, hi):
-        out[i] = any_with_stacks(sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t_max[i], stack, tstack)
+        t, inst, slot, u, v = _closest(sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t_max[i], True,
+                                       stack, tstack)
+        out[i] = inst >= 0
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
