@@ -609,9 +609,9 @@ def widen(boxes, refs, row_cnt):
 @njit(cache=True, error_model="numpy")
 def _fits(origin, scale, lo, hi):
     """Quantised planes ``(qlo, qhi)`` enclosing ``[lo, hi]`` on the grid ``origin + q scale``, or
-    ``(-1, -1)`` when 255 steps do not reach ``hi``. ``origin + q scale`` is exact in float64 (q has
-    8 bits, scale is a power of two not far below origin's last float32 digit), so the tests below
-    are the very values traversal computes."""
+    ``(-1, -1)`` when 255 steps do not reach ``hi``. The tests compute ``origin + q scale`` as traversal
+    does (float64; the product is exact, so a fused multiply-add gives the same), so they hold for the
+    very planes traversal tests."""
     qlo = min(max(np.int64(math.floor((lo - origin) / scale)), 0), 255)
     while qlo > 0 and origin + qlo * scale > lo:
         qlo -= 1
@@ -635,7 +635,7 @@ def _quantize(wboxes, wrows, out_f, out_b):
                 if wboxes[k, 4 * a + c] <= wboxes[k, 4 * (a + 3) + c]:
                     lo = min(lo, wboxes[k, 4 * a + c])
                     hi = max(hi, wboxes[k, 4 * (a + 3) + c])
-            if lo > hi:   # no child box (a top level whose instances all moved away): an empty grid
+            if lo > hi:   # no child box (widen gives every row one; kept safe): an empty grid
                 lo = 0.0
                 hi = 0.0
             origin = np.float64(_down32(lo))

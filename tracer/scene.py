@@ -519,11 +519,9 @@ class Scene:
             n_tris += int(g_tris.sum())
             for k, v in arrs.items():
                 new[k].append(v)
-        self._store = {k: np.concatenate(v) if len(v) > 1 else v[0] for k, v in new.items()}
-        if self._store["bvh"].ctypes.data % 64:   # concatenate does not keep the rows on cache lines
-            bvh = aligned_rows(len(self._store["bvh"]))
-            bvh[:] = self._store["bvh"]
-            self._store["bvh"] = bvh
+        # the BLAS rows are joined straight into a 64-byte aligned buffer (one cache line per row)
+        outs = {"bvh": aligned_rows(sum(len(r) for r in new["bvh"]))}
+        self._store = {k: np.concatenate(v, out=outs.get(k)) if len(v) > 1 else v[0] for k, v in new.items()}
         self._g_node0, self._g_tri0, self._g_ntri, self._g_hasn = node0, tri0, ntri, hasn
         self._n_built = G
         return len(to_build), len(loaded)
