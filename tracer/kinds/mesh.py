@@ -216,6 +216,16 @@ def traverse(sa, g, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
                          t_max, any_hit, stack, tstack)
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _prefetch_ref(bf, tri, row0, tri0, ref):
+    """Ask for the row, or the leaf's first triangle, that ``ref`` names: a child that is pushed is
+    fetched while its siblings are visited, so popping it rarely waits on memory."""
+    if ref >= 0:
+        prefetch(bf, 16 * (row0 + ref))
+    else:
+        prefetch(tri, 9 * (tri0 + ((-ref - 1) >> 4)))
+
+
 @njit(cache=True, error_model="numpy", _nrt=False)
 def traverse_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
     """:func:`traverse` on explicit arrays (LLVM optimises the loop better on plain array arguments
@@ -242,12 +252,14 @@ def traverse_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hi
             n, t1, t2, t3, c0, c1, c2, c3 = slab4(bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
             if n > 0:
                 ref = np.int64(bi[r + 12 + c0])
+                _prefetch_ref(bf, tri, row0, tri0, ref)
                 if n > 1:
-                    sp = push3(stack, tstack, sp, bi[r + 12 + c1], bi[r + 12 + c2], bi[r + 12 + c3], t1, t2, t3)
-                if ref >= 0:
-                    prefetch(bf, 16 * (row0 + ref))
-                else:
-                    prefetch(tri, 9 * (tri0 + ((-ref - 1) >> 4)))
+                    r1 = np.int64(bi[r + 12 + c1])
+                    r2 = np.int64(bi[r + 12 + c2])
+                    sp = push3(stack, tstack, sp, r1, r2, bi[r + 12 + c3], t1, t2, t3)
+                    _prefetch_ref(bf, tri, row0, tri0, r1)
+                    if n > 2:
+                        _prefetch_ref(bf, tri, row0, tri0, r2)
                 continue
         else:
             x = -ref - 1
