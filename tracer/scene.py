@@ -30,8 +30,9 @@ from tracer.blas import aligned_rows, build_meshes, collapse, gather_triangles, 
 from tracer.errors import NotCommittedError, TracerError, UnknownIdError
 from tracer.geometry_id import canonical_arrays, hash_canonical
 from tracer.kinds import SENSOR_KINDS, disk_sensor, mesh, rect_sensor
+from tracer.lanes import any_batch, closest_batch
 from tracer.tlas import TopLevel, build_top, refit_top, world_boxes
-from tracer.traverse import SceneArrays, any_batch, closest_batch
+from tracer.traverse import SceneArrays
 
 #: BLAS build parameters: largest leaf and the cost of a triangle test relative to a node visit
 MESH_MAX_LEAF = 4

@@ -23,7 +23,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from tracer.blas import STACK_SIZE
 from tracer.kinds import dispatch
@@ -166,10 +166,11 @@ def new_stacks():
     return np.empty(4 * STACK_SIZE, np.int64), np.empty(4 * STACK_SIZE)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _closest_hit(sa, ox, oy, oz, dx, dy, dz, t_max, stack, tstack):
-    """:func:`closest_with_stacks`, inlined: for the batch loops below, where a real call per ray would
-    copy the scene tuple (some 200 words; more than a small scene's whole traversal costs)."""
+@njit(cache=True, error_model="numpy")
+def closest_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, stack, tstack):
+    """:func:`intersect_closest` with caller-provided traversal stacks (:func:`new_stacks`): the form for
+    jitted loops over many rays (light transport). A real function, compiled once: inlined, the whole
+    two-level traversal was compiled again into every transport variant (twice the cold compile)."""
     t, inst, slot, u, v = _closest(sa, ox, oy, oz, dx, dy, dz, t_max, False, stack, tstack)
     if inst < 0:
         return np.inf, -1, -1, 0.0, 0.0, 0.0, 0.0, 0.0
@@ -177,14 +178,6 @@ def _closest_hit(sa, ox, oy, oz, dx, dy, dz, t_max, stack, tstack):
     nx, ny, nz = dispatch.normal_solid(sa, inst, slot)
     wx, wy, wz = normal_to_world(sa, inst, nx, ny, nz)
     return t, inst, prim, u, v, wx, wy, wz
-
-
-@njit(cache=True, error_model="numpy")
-def closest_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, stack, tstack):
-    """:func:`intersect_closest` with caller-provided traversal stacks (:func:`new_stacks`): the form for
-    jitted loops over many rays (light transport). A real function, compiled once: inlined, the whole
-    two-level traversal was compiled again into every transport variant (twice the cold compile)."""
-    return _closest_hit(sa, ox, oy, oz, dx, dy, dz, t_max, stack, tstack)
 
 
 @njit(cache=True, error_model="numpy")
@@ -304,51 +297,3 @@ def hit_point(sa, inst_id, prim_id, u, v):
     its error depends on the vertex magnitudes only, not on how far the ray came."""
     px, py, pz = dispatch.point_object(sa, inst_id, prim_id, u, v)
     return point_to_world(sa, inst_id, px, py, pz)
-
-
-BLOCK = 256
-
-
-@njit(cache=True, error_model="numpy", _nrt=False)
-def _closest_block(sa, o, d, t_max, out_t, out_inst, out_prim, out_u, out_v, out_n, lo, hi, stack, tstack):
-    for i in range(lo, hi):
-        t, inst, prim, u, v, nx, ny, nz = _closest_hit(
-            sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t_max[i], stack, tstack)
-        out_t[i] = t
-        out_inst[i] = inst
-        out_prim[i] = prim
-        out_u[i] = u
-        out_v[i] = v
-        out_n[i, 0] = nx
-        out_n[i, 1] = ny
-        out_n[i, 2] = nz
-
-
-@njit(cache=True, error_model="numpy", _nrt=False)
-def _any_block(sa, o, d, t_max, out, lo, hi, stack, tstack):
-    for i in range(lo, hi):
-        t, inst, slot, u, v = _closest(sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t_max[i], True,
-                                       stack, tstack)
-        out[i] = inst >= 0
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def closest_batch(sa, o, d, t_max, out_t, out_inst, out_prim, out_u, out_v, out_n):
-    """Batched :func:`intersect_closest` over rays ``o[i], d[i]`` (k, 3), ``t_max`` (k,); parallel
-    over blocks of rays (each block runs in a plain compiled loop: faster than a parfor body)."""
-    k = o.shape[0]
-    nb = (k + BLOCK - 1) // BLOCK
-    for b in prange(nb):
-        stack, tstack = new_stacks()
-        _closest_block(sa, o, d, t_max, out_t, out_inst, out_prim, out_u, out_v, out_n, b * BLOCK,
-                       min(k, (b + 1) * BLOCK), stack, tstack)
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def any_batch(sa, o, d, t_max, out):
-    """Batched :func:`intersect_any`; parallel over blocks of rays."""
-    k = o.shape[0]
-    nb = (k + BLOCK - 1) // BLOCK
-    for b in prange(nb):
-        stack, tstack = new_stacks()
-        _any_block(sa, o, d, t_max, out, b * BLOCK, min(k, (b + 1) * BLOCK), stack, tstack)

@@ -1,0 +1,350 @@
+"""Batched closest-hit and any-hit queries with several rays in flight on each core.
+
+One ray's traversal is a chain of dependent loads: the next row's address is known only once the
+current row is tested and sorted, and an incoherent ray misses the cache on almost every row. Here a
+core keeps :data:`LANES` rays in flight and advances them in turn by one step each (one row, or one
+leaf): while one ray waits for its row, the others compute, and the row asked for by a step
+(``prefetch``) has the other lanes' steps to arrive in. The answers are those of
+:func:`tracer.traverse.closest_with_stacks` / :func:`tracer.traverse.any_with_stacks` ray by ray.
+
+Each lane's state lives in two small arrays (``F`` floats, ``I`` integers; field indices below),
+its stacks in its own part of the flat stack arrays (top level, then bottom level, as in
+:func:`tracer.traverse.new_stacks`). Meshes are walked step by step here; any other solid kind is
+intersected in one go through :mod:`tracer.kinds.dispatch`, so a new kind needs no change here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from tracer.blas import STACK_SIZE
+from tracer.kinds import dispatch, mesh
+from tracer.kinds.mesh import MISS, STACK_BASE, pop_nearer, prefetch, push3, ray_inverse, slab4
+from tracer.traverse import _to_object, new_stacks, normal_to_world
+from tracer.triangle import intersect_triangle, ray_setup
+
+#: rays in flight per core
+LANES = 4
+#: rays per parallel block
+BLOCK = 256
+_SPAN = 4 * STACK_SIZE   # one lane's part of the stack arrays
+
+# F: float fields
+OX, OY, OZ, DX, DY, DZ = 0, 1, 2, 3, 4, 5               # world ray
+WIX = 6                                                 # world ix, iy, iz, ixe, iye, ize: 6..11
+BEST_T, BU, BV = 12, 13, 14
+CO = 15                                                 # object-space origin 15..17, direction 18..20
+CIX = 21                                                # object-space ix .. ize: 21..26
+SX = 27                                                 # triangle shear sx, sy, sz: 27..29
+NF = 30
+# I: integer fields
+RAY, STATE, TREF, TSP, Q, QEND, BREF, BSP = 0, 1, 2, 3, 4, 5, 6, 7
+WXL = 8                                                 # world near planes 8..10
+CXL = 11                                                # object near planes 11..13
+KX = 14                                                 # triangle axes 14..16 (KZ < 0: not made yet)
+ROW0, TRI0, INST, BEST_INST, BEST_SLOT = 17, 18, 19, 20, 21
+NI = 22
+# STATE values
+TOP, ITEMS, BOTTOM, DONE = 0, 1, 2, 3
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _start(F, I, L, ray, o, d, t_max):
+    """Load ray ``ray`` into lane ``L``: at the top level's root."""
+    F[L, OX] = o[ray, 0]
+    F[L, OY] = o[ray, 1]
+    F[L, OZ] = o[ray, 2]
+    F[L, DX] = d[ray, 0]
+    F[L, DY] = d[ray, 1]
+    F[L, DZ] = d[ray, 2]
+    ix, iy, iz, ixe, iye, ize, xl, yl, zl = ray_inverse(d[ray, 0], d[ray, 1], d[ray, 2])
+    F[L, WIX] = ix
+    F[L, WIX + 1] = iy
+    F[L, WIX + 2] = iz
+    F[L, WIX + 3] = ixe
+    F[L, WIX + 4] = iye
+    F[L, WIX + 5] = ize
+    I[L, WXL] = xl
+    I[L, WXL + 1] = yl
+    I[L, WXL + 2] = zl
+    F[L, BEST_T] = t_max[ray]
+    F[L, BU] = 0.0
+    F[L, BV] = 0.0
+    I[L, RAY] = ray
+    I[L, STATE] = TOP
+    I[L, TREF] = 0
+    I[L, TSP] = L * _SPAN
+    I[L, BEST_INST] = -1
+    I[L, BEST_SLOT] = -1
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _pop_top(I, F, L, stack, tstack):
+    """Next pending top-level entry, or DONE."""
+    ref, sp = pop_nearer(stack, tstack, I[L, TSP], L * _SPAN, F[L, BEST_T])
+    I[L, TSP] = sp
+    if ref == MISS:
+        I[L, STATE] = DONE
+    else:
+        I[L, TREF] = ref
+        I[L, STATE] = TOP
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _step_top(sa, F, I, L, stack, tstack):
+    """Visit one top-level row; a leaf reached becomes the lane's item range."""
+    ref = I[L, TREF]
+    if ref < 0:
+        x = -ref - 1
+        I[L, Q] = x >> 4
+        I[L, QEND] = (x >> 4) + (x & 15)
+        I[L, STATE] = ITEMS
+        return
+    bf = sa.top_f
+    bi = sa.top_i
+    r = 16 * ref
+    n, t1, t2, t3, c0, c1, c2, c3 = slab4(bf, r, F[L, OX], F[L, OY], F[L, OZ], F[L, WIX], F[L, WIX + 1],
+                                          F[L, WIX + 2], F[L, WIX + 3], F[L, WIX + 4], F[L, WIX + 5],
+                                          I[L, WXL], I[L, WXL + 1], I[L, WXL + 2], F[L, BEST_T])
+    if n > 0:
+        ref = np.int64(bi[r + 12 + c0])
+        I[L, TREF] = ref
+        if ref >= 0:
+            prefetch(bf, 16 * ref)
+        I[L, TSP] = push3(stack, tstack, I[L, TSP], bi[r + 12 + c1], bi[r + 12 + c2], bi[r + 12 + c3], t1, t2, t3)
+        return
+    _pop_top(I, F, L, stack, tstack)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _step_items(sa, F, I, L, stack, tstack, any_hit, scratch, tscratch):
+    """Enter the next mesh instance of the current top-level leaf (other kinds are intersected at
+    once); when the leaf is exhausted, go back to the top level's stack."""
+    q = I[L, Q]
+    end = I[L, QEND]
+    m = sa.object_from_world
+    while q < end:
+        inst = sa.top_items[q]
+        q += 1
+        rox, roy, roz, rdx, rdy, rdz = _to_object(m, inst, F[L, OX], F[L, OY], F[L, OZ], F[L, DX], F[L, DY],
+                                                  F[L, DZ])
+        if sa.inst_kind[inst] == mesh.KIND:
+            g = sa.inst_geom[inst]
+            if sa.geom_ntri[g] == 0:
+                continue
+            row0 = sa.geom_node0[g]
+            prefetch(sa.bvh_f, 16 * row0)
+            F[L, CO] = rox
+            F[L, CO + 1] = roy
+            F[L, CO + 2] = roz
+            F[L, CO + 3] = rdx
+            F[L, CO + 4] = rdy
+            F[L, CO + 5] = rdz
+            ix, iy, iz, ixe, iye, ize, xl, yl, zl = ray_inverse(rdx, rdy, rdz)
+            F[L, CIX] = ix
+            F[L, CIX + 1] = iy
+            F[L, CIX + 2] = iz
+            F[L, CIX + 3] = ixe
+            F[L, CIX + 4] = iye
+            F[L, CIX + 5] = ize
+            I[L, CXL] = xl
+            I[L, CXL + 1] = yl
+            I[L, CXL + 2] = zl
+            I[L, KX + 2] = -1
+            I[L, ROW0] = row0
+            I[L, TRI0] = sa.geom_tri0[g]
+            I[L, INST] = inst
+            I[L, BREF] = 0
+            I[L, BSP] = L * _SPAN + STACK_BASE
+            I[L, Q] = q
+            I[L, STATE] = BOTTOM
+            return
+        hit, t, slot, u, v = dispatch.intersect_solid(sa, inst, rox, roy, roz, rdx, rdy, rdz, F[L, BEST_T],
+                                                      any_hit, scratch, tscratch)
+        if hit:
+            F[L, BEST_T] = t
+            F[L, BU] = u
+            F[L, BV] = v
+            I[L, BEST_INST] = inst
+            I[L, BEST_SLOT] = slot
+            if any_hit:
+                I[L, STATE] = DONE
+                return
+    I[L, Q] = q
+    _pop_top(I, F, L, stack, tstack)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _step_bottom(sa, F, I, L, stack, tstack, any_hit):
+    """Visit one row or one leaf of the current instance's bottom level (as
+    :func:`tracer.kinds.mesh.traverse_rows`); when its stack is empty, resume the leaf's items."""
+    ref = I[L, BREF]
+    row0 = I[L, ROW0]
+    tri0 = I[L, TRI0]
+    bf = sa.bvh_f
+    bi = sa.bvh_i
+    tri = sa.tri_v
+    if ref >= 0:
+        r = 16 * (row0 + ref)
+        n, t1, t2, t3, c0, c1, c2, c3 = slab4(bf, r, F[L, CO], F[L, CO + 1], F[L, CO + 2], F[L, CIX],
+                                              F[L, CIX + 1], F[L, CIX + 2], F[L, CIX + 3], F[L, CIX + 4],
+                                              F[L, CIX + 5], I[L, CXL], I[L, CXL + 1], I[L, CXL + 2],
+                                              F[L, BEST_T])
+        if n > 0:
+            ref = np.int64(bi[r + 12 + c0])
+            I[L, BREF] = ref
+            if ref >= 0:
+                prefetch(bf, 16 * (row0 + ref))
+            else:
+                prefetch(tri, 9 * (tri0 + ((-ref - 1) >> 4)))
+            I[L, BSP] = push3(stack, tstack, I[L, BSP], bi[r + 12 + c1], bi[r + 12 + c2], bi[r + 12 + c3],
+                              t1, t2, t3)
+            return
+    else:
+        if I[L, KX + 2] < 0:
+            kx, ky, kz, sx, sy, sz = ray_setup(F[L, CO + 3], F[L, CO + 4], F[L, CO + 5])
+            I[L, KX] = kx
+            I[L, KX + 1] = ky
+            I[L, KX + 2] = kz
+            F[L, SX] = sx
+            F[L, SX + 1] = sy
+            F[L, SX + 2] = sz
+        kx = I[L, KX]
+        ky = I[L, KX + 1]
+        kz = I[L, KX + 2]
+        sx = F[L, SX]
+        sy = F[L, SX + 1]
+        sz = F[L, SX + 2]
+        ox = F[L, CO]
+        oy = F[L, CO + 1]
+        oz = F[L, CO + 2]
+        x = -ref - 1
+        first = tri0 + (x >> 4)
+        for j in range(first, first + (x & 15)):
+            hit, t, u, v = intersect_triangle(tri, j, ox, oy, oz, kx, ky, kz, sx, sy, sz, F[L, BEST_T])
+            if hit:
+                F[L, BEST_T] = t
+                F[L, BU] = u
+                F[L, BV] = v
+                I[L, BEST_INST] = I[L, INST]
+                I[L, BEST_SLOT] = j
+                if any_hit:
+                    I[L, STATE] = DONE
+                    return
+    ref, sp = pop_nearer(stack, tstack, I[L, BSP], L * _SPAN + STACK_BASE, F[L, BEST_T])
+    I[L, BSP] = sp
+    if ref == MISS:
+        I[L, STATE] = ITEMS
+    else:
+        I[L, BREF] = ref
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _block(sa, o, d, t_max, any_hit, lo, hi, F, I, stack, tstack, scratch, tscratch, out_t, out_inst, out_slot,
+           out_u, out_v):
+    """Rays ``lo .. hi-1``, :data:`LANES` at a time; raw results (``out_slot``: the kind's slot)."""
+    nxt = lo
+    active = 0
+    for L in range(LANES):
+        if nxt < hi:
+            _start(F, I, L, nxt, o, d, t_max)
+            nxt += 1
+            active += 1
+        else:
+            I[L, STATE] = DONE
+            I[L, RAY] = -1
+    if sa.top_f.shape[0] == 0:
+        for L in range(LANES):
+            I[L, STATE] = DONE
+    L = 0
+    while active > 0:
+        st = I[L, STATE]
+        if st == BOTTOM:
+            _step_bottom(sa, F, I, L, stack, tstack, any_hit)
+        elif st == TOP:
+            _step_top(sa, F, I, L, stack, tstack)
+        elif st == ITEMS:
+            _step_items(sa, F, I, L, stack, tstack, any_hit, scratch, tscratch)
+        elif I[L, RAY] >= 0:
+            ray = I[L, RAY]
+            out_t[ray] = F[L, BEST_T]
+            out_inst[ray] = I[L, BEST_INST]
+            out_slot[ray] = I[L, BEST_SLOT]
+            out_u[ray] = F[L, BU]
+            out_v[ray] = F[L, BV]
+            if nxt < hi:
+                _start(F, I, L, nxt, o, d, t_max)
+                if sa.top_f.shape[0] == 0:
+                    I[L, STATE] = DONE
+                nxt += 1
+            else:
+                I[L, RAY] = -1
+                active -= 1
+        L += 1
+        if L == LANES:
+            L = 0
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _finish_closest(sa, lo, hi, out_t, out_inst, out_slot, out_u, out_v, out_n):
+    """Raw results -> the public ones (primitive id, world normal; ``inf``/-1/zeros on a miss)."""
+    for i in range(lo, hi):
+        inst = out_inst[i]
+        if inst < 0:
+            out_t[i] = np.inf
+            out_slot[i] = -1
+            out_u[i] = 0.0
+            out_v[i] = 0.0
+            out_n[i, 0] = 0.0
+            out_n[i, 1] = 0.0
+            out_n[i, 2] = 0.0
+            continue
+        slot = out_slot[i]
+        out_slot[i] = dispatch.primitive_solid(sa, inst, slot)
+        nx, ny, nz = dispatch.normal_solid(sa, inst, slot)
+        out_n[i, 0], out_n[i, 1], out_n[i, 2] = normal_to_world(sa, inst, nx, ny, nz)
+
+
+@njit(cache=True, error_model="numpy")
+def _lane_state():
+    stack = np.empty(LANES * _SPAN, np.int64)
+    tstack = np.empty(LANES * _SPAN)
+    scratch, tscratch = new_stacks()
+    return np.empty((LANES, NF)), np.empty((LANES, NI), np.int64), stack, tstack, scratch, tscratch
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def closest_batch(sa, o, d, t_max, out_t, out_inst, out_prim, out_u, out_v, out_n):
+    """Batched :func:`tracer.traverse.intersect_closest` over rays ``o[i], d[i]`` (k, 3), ``t_max`` (k,);
+    parallel over blocks of rays, :data:`LANES` rays in flight in each."""
+    k = o.shape[0]
+    nb = (k + BLOCK - 1) // BLOCK
+    for b in prange(nb):
+        lo = b * BLOCK
+        hi = min(k, lo + BLOCK)
+        F, I, stack, tstack, scratch, tscratch = _lane_state()
+        _block(sa, o, d, t_max, False, lo, hi, F, I, stack, tstack, scratch, tscratch, out_t, out_inst, out_prim,
+               out_u, out_v)
+        _finish_closest(sa, lo, hi, out_t, out_inst, out_prim, out_u, out_v, out_n)
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def any_batch(sa, o, d, t_max, out):
+    """Batched :func:`tracer.traverse.intersect_any`; parallel over blocks of rays."""
+    k = o.shape[0]
+    nb = (k + BLOCK - 1) // BLOCK
+    for b in prange(nb):
+        lo = b * BLOCK
+        hi = min(k, lo + BLOCK)
+        F, I, stack, tstack, scratch, tscratch = _lane_state()
+        n = hi - lo
+        t = np.empty(n)
+        inst = np.empty(n, np.int64)
+        slot = np.empty(n, np.int64)
+        u = np.empty(n)
+        v = np.empty(n)
+        _block(sa, o[lo:hi], d[lo:hi], t_max[lo:hi], True, 0, n, F, I, stack, tstack, scratch, tscratch, t, inst,
+               slot, u, v)
+        for i in range(n):
+            out[lo + i] = inst[i] >= 0
