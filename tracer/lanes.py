@@ -11,6 +11,10 @@ Each lane's state lives in two small arrays (``F`` floats, ``I`` integers; field
 its stacks in its own part of the flat stack arrays (top level, then bottom level, as in
 :func:`tracer.traverse.new_stacks`). Meshes are walked step by step here; any other solid kind is
 intersected in one go through :mod:`tracer.kinds.dispatch`, so a new kind needs no change here.
+
+A block of rays that all start at one point (a camera, a point source) is traced one ray after the
+other instead: such rays walk the same rows in the same order, find them in the cache, and only pay
+for the lanes' bookkeeping (measured: 1.3x faster for scattered rays, 10-15 % slower for camera rays).
 """
 
 from __future__ import annotations
@@ -21,7 +25,7 @@ from numba import njit, prange
 from tracer.blas import STACK_SIZE
 from tracer.kinds import dispatch, mesh
 from tracer.kinds.mesh import MISS, STACK_BASE, pop_nearer, prefetch, push3, ray_inverse, slab4
-from tracer.traverse import _to_object, new_stacks, normal_to_world
+from tracer.traverse import _closest, _to_object, new_stacks, normal_to_world
 from tracer.triangle import intersect_triangle, ray_setup
 
 #: rays in flight per core
@@ -287,6 +291,34 @@ def _block(sa, o, d, t_max, any_hit, lo, hi, F, I, stack, tstack, scratch, tscra
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
+def _serial_block(sa, o, d, t_max, any_hit, lo, hi, stack, tstack, out_t, out_inst, out_slot, out_u, out_v):
+    """:func:`_block` one ray after the other (rays from one point, see the module's docstring)."""
+    for i in range(lo, hi):
+        out_t[i], out_inst[i], out_slot[i], out_u[i], out_v[i] = _closest(
+            sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t_max[i], any_hit, stack, tstack)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _one_origin(o, lo, hi):
+    """True when rays ``lo .. hi-1`` all start at the same point."""
+    for i in range(lo + 1, hi):
+        if o[i, 0] != o[lo, 0] or o[i, 1] != o[lo, 1] or o[i, 2] != o[lo, 2]:
+            return False
+    return True
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _trace_block(sa, o, d, t_max, any_hit, lo, hi, out_t, out_inst, out_slot, out_u, out_v):
+    """Rays ``lo .. hi-1`` in lanes, or one after the other when they share their origin."""
+    F, I, stack, tstack, scratch, tscratch = _lane_state()
+    if _one_origin(o, lo, hi):
+        _serial_block(sa, o, d, t_max, any_hit, lo, hi, scratch, tscratch, out_t, out_inst, out_slot, out_u, out_v)
+    else:
+        _block(sa, o, d, t_max, any_hit, lo, hi, F, I, stack, tstack, scratch, tscratch, out_t, out_inst, out_slot,
+               out_u, out_v)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _finish_closest(sa, lo, hi, out_t, out_inst, out_slot, out_u, out_v, out_n):
     """Raw results -> the public ones (primitive id, world normal; ``inf``/-1/zeros on a miss)."""
     for i in range(lo, hi):
@@ -317,15 +349,13 @@ def _lane_state():
 @njit(parallel=True, cache=True, error_model="numpy")
 def closest_batch(sa, o, d, t_max, out_t, out_inst, out_prim, out_u, out_v, out_n):
     """Batched :func:`tracer.traverse.intersect_closest` over rays ``o[i], d[i]`` (k, 3), ``t_max`` (k,);
-    parallel over blocks of rays, :data:`LANES` rays in flight in each."""
+    parallel over blocks of rays, :data:`LANES` rays in flight in each (unless they share an origin)."""
     k = o.shape[0]
     nb = (k + BLOCK - 1) // BLOCK
     for b in prange(nb):
         lo = b * BLOCK
         hi = min(k, lo + BLOCK)
-        F, I, stack, tstack, scratch, tscratch = _lane_state()
-        _block(sa, o, d, t_max, False, lo, hi, F, I, stack, tstack, scratch, tscratch, out_t, out_inst, out_prim,
-               out_u, out_v)
+        _trace_block(sa, o, d, t_max, False, lo, hi, out_t, out_inst, out_prim, out_u, out_v)
         _finish_closest(sa, lo, hi, out_t, out_inst, out_prim, out_u, out_v, out_n)
 
 
@@ -337,14 +367,12 @@ def any_batch(sa, o, d, t_max, out):
     for b in prange(nb):
         lo = b * BLOCK
         hi = min(k, lo + BLOCK)
-        F, I, stack, tstack, scratch, tscratch = _lane_state()
         n = hi - lo
         t = np.empty(n)
         inst = np.empty(n, np.int64)
         slot = np.empty(n, np.int64)
         u = np.empty(n)
         v = np.empty(n)
-        _block(sa, o[lo:hi], d[lo:hi], t_max[lo:hi], True, 0, n, F, I, stack, tstack, scratch, tscratch, t, inst,
-               slot, u, v)
+        _trace_block(sa, o[lo:hi], d[lo:hi], t_max[lo:hi], True, 0, n, t, inst, slot, u, v)
         for i in range(n):
             out[lo + i] = inst[i] >= 0

@@ -86,7 +86,8 @@ def test_vector_slab_test_sorts_the_hits_of_a_scalar_slab_test() -> None:
     """slab4 (vector slab test and sorting network) against the same test lane by lane in numpy:
     the same boxes hit, nearest first, each entry distance at most 3 ulp below the scalar one."""
     rng = np.random.default_rng(11)
-    tri = rng.uniform(-1, 1, (4000, 3, 3)).astype(np.float32).astype(np.float64) * 0.05 + rng.uniform(-1, 1, (4000, 1, 3))
+    tri = rng.uniform(-1, 1, (4000, 3, 3)).astype(np.float32).astype(np.float64) * 0.05
+    tri += rng.uniform(-1, 1, (4000, 1, 3))
     rows, _, _ = pack_wide(*_binary_rows(tri))
     k = 1000
     o = rng.uniform(-1.5, 1.5, (k, 3))
@@ -109,7 +110,7 @@ def test_vector_slab_test_sorts_the_hits_of_a_scalar_slab_test() -> None:
     assert np.array_equal(n, hit.sum(axis=2))
     assert np.bincount(n.ravel(), minlength=5).min() > 40   # rows with 0, 1, 2, 3 and 4 hits, all tested
     slots = got[..., 4:8].astype(int)
-    for i, w in zip(*np.nonzero(n)):
+    for i, w in zip(*np.nonzero(n), strict=True):
         s = slots[i, w, :n[i, w]]
         assert set(s) == set(np.flatnonzero(hit[i, w]))
         t_ref = near[i, w, s]
