@@ -24,7 +24,7 @@ from numba import njit, prange
 
 from tracer.blas import STACK_SIZE
 from tracer.kinds import dispatch, mesh
-from tracer.kinds.mesh import MISS, STACK_BASE, pop_nearer, prefetch, push3, ray_inverse, slab4
+from tracer.kinds.mesh import MISS, STACK_BASE, pop_nearer, prefetch, prefetch_ref, push3, ray_inverse, slab4
 from tracer.traverse import _closest, _to_object, new_stacks, normal_to_world
 from tracer.triangle import intersect_triangle, ray_setup
 
@@ -36,10 +36,10 @@ _SPAN = 4 * STACK_SIZE   # one lane's part of the stack arrays
 
 # F: float fields
 OX, OY, OZ, DX, DY, DZ = 0, 1, 2, 3, 4, 5               # world ray
-WIX = 6                                                 # world ix, iy, iz, ixe, iye, ize: 6..11
+WIX = 6                                                 # world ix, iy, iz, ixe, iye, ize: 6..11 (_set_ray)
 BEST_T, BU, BV = 12, 13, 14
 CO = 15                                                 # object-space origin 15..17, direction 18..20
-CIX = 21                                                # object-space ix .. ize: 21..26
+CIX = 21                                                # object-space ix .. ize: 21..26 (_set_ray)
 SX = 27                                                 # triangle shear sx, sy, sz: 27..29
 NF = 30
 # I: integer fields
@@ -54,24 +54,31 @@ TOP, ITEMS, BOTTOM, DONE = 0, 1, 2, 3
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _set_ray(F, I, L, f, i, ox, oy, oz, dx, dy, dz):
+    """Store a ray in lane ``L``: origin and direction at ``F[L, f : f+6]``, its slab constants
+    (:func:`tracer.kinds.mesh.ray_inverse`) at ``F[L, f+6 : f+12]`` and ``I[L, i : i+3]``."""
+    F[L, f] = ox
+    F[L, f + 1] = oy
+    F[L, f + 2] = oz
+    F[L, f + 3] = dx
+    F[L, f + 4] = dy
+    F[L, f + 5] = dz
+    ix, iy, iz, ixe, iye, ize, xl, yl, zl = ray_inverse(dx, dy, dz)
+    F[L, f + 6] = ix
+    F[L, f + 7] = iy
+    F[L, f + 8] = iz
+    F[L, f + 9] = ixe
+    F[L, f + 10] = iye
+    F[L, f + 11] = ize
+    I[L, i] = xl
+    I[L, i + 1] = yl
+    I[L, i + 2] = zl
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _start(F, I, L, ray, o, d, t_max):
     """Load ray ``ray`` into lane ``L``: at the top level's root."""
-    F[L, OX] = o[ray, 0]
-    F[L, OY] = o[ray, 1]
-    F[L, OZ] = o[ray, 2]
-    F[L, DX] = d[ray, 0]
-    F[L, DY] = d[ray, 1]
-    F[L, DZ] = d[ray, 2]
-    ix, iy, iz, ixe, iye, ize, xl, yl, zl = ray_inverse(d[ray, 0], d[ray, 1], d[ray, 2])
-    F[L, WIX] = ix
-    F[L, WIX + 1] = iy
-    F[L, WIX + 2] = iz
-    F[L, WIX + 3] = ixe
-    F[L, WIX + 4] = iye
-    F[L, WIX + 5] = ize
-    I[L, WXL] = xl
-    I[L, WXL + 1] = yl
-    I[L, WXL + 2] = zl
+    _set_ray(F, I, L, OX, WXL, o[ray, 0], o[ray, 1], o[ray, 2], d[ray, 0], d[ray, 1], d[ray, 2])
     F[L, BEST_T] = t_max[ray]
     F[L, BU] = 0.0
     F[L, BV] = 0.0
@@ -139,22 +146,7 @@ def _step_items(sa, F, I, L, stack, tstack, any_hit, scratch, tscratch):
                 continue
             row0 = sa.geom_node0[g]
             prefetch(sa.bvh_f, 16 * row0)
-            F[L, CO] = rox
-            F[L, CO + 1] = roy
-            F[L, CO + 2] = roz
-            F[L, CO + 3] = rdx
-            F[L, CO + 4] = rdy
-            F[L, CO + 5] = rdz
-            ix, iy, iz, ixe, iye, ize, xl, yl, zl = ray_inverse(rdx, rdy, rdz)
-            F[L, CIX] = ix
-            F[L, CIX + 1] = iy
-            F[L, CIX + 2] = iz
-            F[L, CIX + 3] = ixe
-            F[L, CIX + 4] = iye
-            F[L, CIX + 5] = ize
-            I[L, CXL] = xl
-            I[L, CXL + 1] = yl
-            I[L, CXL + 2] = zl
+            _set_ray(F, I, L, CO, CXL, rox, roy, roz, rdx, rdy, rdz)
             I[L, KX + 2] = -1
             I[L, ROW0] = row0
             I[L, TRI0] = sa.geom_tri0[g]
@@ -198,10 +190,9 @@ def _step_bottom(sa, F, I, L, stack, tstack, any_hit):
         if n > 0:
             ref = np.int64(bi[r + 12 + c0])
             I[L, BREF] = ref
-            if ref >= 0:
-                prefetch(bf, 16 * (row0 + ref))
-            else:
-                prefetch(tri, 9 * (tri0 + ((-ref - 1) >> 4)))
+            prefetch_ref(bf, tri, row0, tri0, ref)
+            # pushed without testing n > 1: with the lanes' branches interleaved, that test was
+            # mispredicted often enough to cost more than the three stores it saves
             I[L, BSP] = push3(stack, tstack, I[L, BSP], bi[r + 12 + c1], bi[r + 12 + c2], bi[r + 12 + c3],
                               t1, t2, t3)
             return

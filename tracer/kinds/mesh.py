@@ -217,7 +217,7 @@ def traverse(sa, g, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _prefetch_ref(bf, tri, row0, tri0, ref):
+def prefetch_ref(bf, tri, row0, tri0, ref):
     """Ask for the row, or the leaf's first triangle, that ``ref`` names: a child that is pushed is
     fetched while its siblings are visited, so popping it rarely waits on memory."""
     if ref >= 0:
@@ -252,14 +252,14 @@ def traverse_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hi
             n, t1, t2, t3, c0, c1, c2, c3 = slab4(bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
             if n > 0:
                 ref = np.int64(bi[r + 12 + c0])
-                _prefetch_ref(bf, tri, row0, tri0, ref)
+                prefetch_ref(bf, tri, row0, tri0, ref)
                 if n > 1:
                     r1 = np.int64(bi[r + 12 + c1])
                     r2 = np.int64(bi[r + 12 + c2])
                     sp = push3(stack, tstack, sp, r1, r2, bi[r + 12 + c3], t1, t2, t3)
-                    _prefetch_ref(bf, tri, row0, tri0, r1)
+                    prefetch_ref(bf, tri, row0, tri0, r1)
                     if n > 2:
-                        _prefetch_ref(bf, tri, row0, tri0, r2)
+                        prefetch_ref(bf, tri, row0, tri0, r2)
                 continue
         else:
             x = -ref - 1
