@@ -338,32 +338,16 @@ def _lane_state():
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def closest_batch(sa, o, d, t_max, out_t, out_inst, out_prim, out_u, out_v, out_n):
-    """Batched :func:`tracer.traverse.intersect_closest` over rays ``o[i], d[i]`` (k, 3), ``t_max`` (k,);
-    parallel over blocks of rays, :data:`LANES` rays in flight in each (unless they share an origin)."""
+def batch(sa, o, d, t_max, any_hit, out_t, out_inst, out_prim, out_u, out_v, out_n):
+    """Batched :func:`tracer.traverse.intersect_closest` (or, with ``any_hit``, the first hit found, as
+    :func:`tracer.traverse.intersect_any`: then ``out_inst >= 0`` is the answer) over rays ``o[i], d[i]``
+    (k, 3), ``t_max`` (k,); parallel over blocks of rays, :data:`LANES` rays in flight in each (unless
+    they share an origin). One kernel for both queries: each compiles the traversal twice (lanes and
+    one by one), which is a cold-compile cost worth paying once."""
     k = o.shape[0]
     nb = (k + BLOCK - 1) // BLOCK
     for b in prange(nb):
         lo = b * BLOCK
         hi = min(k, lo + BLOCK)
-        _trace_block(sa, o, d, t_max, False, lo, hi, out_t, out_inst, out_prim, out_u, out_v)
+        _trace_block(sa, o, d, t_max, any_hit, lo, hi, out_t, out_inst, out_prim, out_u, out_v)
         _finish_closest(sa, lo, hi, out_t, out_inst, out_prim, out_u, out_v, out_n)
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def any_batch(sa, o, d, t_max, out):
-    """Batched :func:`tracer.traverse.intersect_any`; parallel over blocks of rays."""
-    k = o.shape[0]
-    nb = (k + BLOCK - 1) // BLOCK
-    for b in prange(nb):
-        lo = b * BLOCK
-        hi = min(k, lo + BLOCK)
-        n = hi - lo
-        t = np.empty(n)
-        inst = np.empty(n, np.int64)
-        slot = np.empty(n, np.int64)
-        u = np.empty(n)
-        v = np.empty(n)
-        _trace_block(sa, o[lo:hi], d[lo:hi], t_max[lo:hi], True, 0, n, t, inst, slot, u, v)
-        for i in range(n):
-            out[lo + i] = inst[i] >= 0

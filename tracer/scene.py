@@ -30,7 +30,7 @@ from tracer.blas import aligned_rows, build_meshes, collapse, gather_triangles, 
 from tracer.errors import NotCommittedError, TracerError, UnknownIdError
 from tracer.geometry_id import canonical_arrays, hash_canonical
 from tracer.kinds import SENSOR_KINDS, disk_sensor, mesh, rect_sensor
-from tracer.lanes import any_batch, closest_batch
+from tracer.lanes import batch
 from tracer.tlas import TopLevel, build_top, refit_top, world_boxes
 from tracer.traverse import SceneArrays
 
@@ -605,22 +605,19 @@ class Scene:
         threads : int or None
             Number of threads (None: numba's current setting); 1 for per-core measurements.
         """
-        sa = self.arrays()
-        o, d, tm = _check_rays(origins, directions, t_max)
-        k = len(o)
-        out = Hits(np.empty(k), np.empty(k, np.int64), np.empty(k, np.int64), np.empty(k), np.empty(k),
-                   np.empty((k, 3)))
-        _run_threads(threads, lambda: closest_batch(sa, o, d, tm, out.t, out.instance, out.primitive, out.u, out.v,
-                                                     out.normal))
-        return out
+        return self._trace(origins, directions, t_max, threads, any_hit=False)
 
     def occluded(self, origins: Any, directions: Any, t_max: Any = np.inf, *, threads: int | None = None) -> np.ndarray:
         """(k,) bool: does any solid lie on ``origins[i] + t directions[i]``, ``0 < t < t_max``?"""
+        return self._trace(origins, directions, t_max, threads, any_hit=True).instance >= 0
+
+    def _trace(self, origins: Any, directions: Any, t_max: Any, threads: int | None, any_hit: bool) -> Hits:
         sa = self.arrays()
         o, d, tm = _check_rays(origins, directions, t_max)
-        out = np.empty(len(o), np.bool_)
-        _run_threads(threads, lambda: any_batch(sa, o, d, tm, out))
-        return out
+        k = len(o)
+        h = Hits(np.empty(k), np.empty(k, np.int64), np.empty(k, np.int64), np.empty(k), np.empty(k), np.empty((k, 3)))
+        _run_threads(threads, lambda: batch(sa, o, d, tm, any_hit, h.t, h.instance, h.primitive, h.u, h.v, h.normal))
+        return h
 
 
 def _flat(level: TopLevel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
