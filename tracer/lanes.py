@@ -24,7 +24,7 @@ from numba import njit, prange
 
 from tracer.blas import STACK_SIZE
 from tracer.kinds import dispatch, mesh
-from tracer.kinds.mesh import MISS, STACK_BASE, pop_nearer, prefetch, prefetch_ref, push3, ray_inverse, slab4
+from tracer.kinds.mesh import MISS, STACK_BASE, pop_nearer, prefetch, prefetch_ref, push3, ray_inverse, slab4_sorted
 from tracer.traverse import _closest, _to_object, new_stacks, normal_to_world
 from tracer.triangle import intersect_triangle, ray_setup
 
@@ -115,7 +115,7 @@ def _step_top(sa, F, I, L, stack, tstack):
     bf = sa.top_f
     bi = sa.top_i
     r = 16 * ref
-    n, t1, t2, t3, c0, c1, c2, c3 = slab4(bf, r, F[L, OX], F[L, OY], F[L, OZ], F[L, WIX], F[L, WIX + 1],
+    n, t1, t2, t3, c0, c1, c2, c3 = slab4_sorted(bf, r, F[L, OX], F[L, OY], F[L, OZ], F[L, WIX], F[L, WIX + 1],
                                           F[L, WIX + 2], F[L, WIX + 3], F[L, WIX + 4], F[L, WIX + 5],
                                           I[L, WXL], I[L, WXL + 1], I[L, WXL + 2], F[L, BEST_T])
     if n > 0:
@@ -183,7 +183,7 @@ def _step_bottom(sa, F, I, L, stack, tstack, any_hit):
     tri = sa.tri_v
     if ref >= 0:
         r = 16 * (row0 + ref)
-        n, t1, t2, t3, c0, c1, c2, c3 = slab4(bf, r, F[L, CO], F[L, CO + 1], F[L, CO + 2], F[L, CIX],
+        n, t1, t2, t3, c0, c1, c2, c3 = slab4_sorted(bf, r, F[L, CO], F[L, CO + 1], F[L, CO + 2], F[L, CIX],
                                               F[L, CIX + 1], F[L, CIX + 2], F[L, CIX + 3], F[L, CIX + 4],
                                               F[L, CIX + 5], I[L, CXL], I[L, CXL + 1], I[L, CXL + 2],
                                               F[L, BEST_T])

@@ -27,7 +27,7 @@ from numba import njit
 
 from tracer.blas import STACK_SIZE
 from tracer.kinds import dispatch
-from tracer.kinds.mesh import MISS, pop_nearer, prefetch, push3, ray_inverse, slab, slab4
+from tracer.kinds.mesh import MISS, order4, pop_nearer, prefetch, push3, ray_inverse, slab, slab4
 
 
 class SceneArrays(NamedTuple):
@@ -126,11 +126,10 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
     while True:
         if ref >= 0:
             r = 16 * ref
-            n, t1, t2, t3, c0, c1, c2, c3 = slab4(bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
-            if n > 0:
-                ref = np.int64(bi[r + 12 + c0])
-                if n > 1:
-                    sp = push3(stack, tstack, sp, bi[r + 12 + c1], bi[r + 12 + c2], bi[r + 12 + c3], t1, t2, t3)
+            t0, t1, t2, t3 = slab4(bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
+            ref, r1, r2, r3, t1, t2, t3 = order4(t0, t1, t2, t3, bi, r)
+            if ref != MISS:
+                sp = push3(stack, tstack, sp, r1, r2, r3, t1, t2, t3)
                 if ref >= 0:
                     prefetch(bf, 16 * ref)
                 continue

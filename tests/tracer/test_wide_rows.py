@@ -9,7 +9,7 @@ from numba import njit
 
 from tracer import tlas
 from tracer.blas import build_meshes, collapse, gather_triangles, pack_wide, widen
-from tracer.kinds.mesh import BOX_EPS, ray_inverse, slab4
+from tracer.kinds.mesh import BOX_EPS, ray_inverse, slab4_sorted
 
 
 def _dequantise(rows: np.ndarray) -> np.ndarray:
@@ -75,7 +75,7 @@ def _slab4_all(rows_f, o, d, t_max):
     for i in range(len(o)):
         ix, iy, iz, ixe, iye, ize, xl, yl, zl = ray_inverse(d[i, 0], d[i, 1], d[i, 2])
         for w in range(len(rows_f) // 16):
-            n, t1, t2, t3, c0, c1, c2, c3 = slab4(rows_f, 16 * w, o[i, 0], o[i, 1], o[i, 2], ix, iy, iz,
+            n, t1, t2, t3, c0, c1, c2, c3 = slab4_sorted(rows_f, 16 * w, o[i, 0], o[i, 1], o[i, 2], ix, iy, iz,
                                                   ixe, iye, ize, xl, yl, zl, t_max[i])
             out[i, w, 0], out[i, w, 1], out[i, w, 2], out[i, w, 3] = n, t1, t2, t3
             out[i, w, 4], out[i, w, 5], out[i, w, 6], out[i, w, 7] = c0, c1, c2, c3
@@ -83,7 +83,7 @@ def _slab4_all(rows_f, o, d, t_max):
 
 
 def test_vector_slab_test_sorts_the_hits_of_a_scalar_slab_test() -> None:
-    """slab4 (vector slab test and sorting network) against the same test lane by lane in numpy:
+    """slab4_sorted (vector slab test and sorting network) against the same test lane by lane in numpy:
     the same boxes hit, nearest first, each entry distance at most 3 ulp below the scalar one."""
     rng = np.random.default_rng(11)
     tri = rng.uniform(-1, 1, (4000, 3, 3)).astype(np.float32).astype(np.float64) * 0.05

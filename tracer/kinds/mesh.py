@@ -43,82 +43,112 @@ def prefetch(typingctx, arr, idx):
     return types.void(arr, types.int64), codegen
 
 
+def _slab_lanes(context, builder, sig, args):
+    """LLVM IR of the slab test of a wide row's four boxes: their entry distances, a 4-lane vector.
+
+    Each plane of four 8-bit grid steps is loaded at once and dequantised exactly (``origin + q
+    scale``), then the same operations as :func:`slab` follow lane by lane: NaN slabs are ignored, the
+    far distances are enlarged by :data:`BOX_EPS`; a box the segment ``0 <= t <= t_max`` misses gets
+    ``inf``. (numba leaves four scalar slab tests unvectorised; this is the vector form.)
+    """
+    ary = context.make_array(sig.args[0])(context, builder, args[0])
+    _, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, t_max = args
+    dbl = ir.DoubleType()
+    i32 = ir.IntType(32)
+    i64 = ir.IntType(64)
+    d4 = ir.VectorType(dbl, 4)
+    undef = ir.Constant(d4, ir.Undefined)
+    lanes0 = ir.Constant(ir.VectorType(i32, 4), [0, 0, 0, 0])
+    row = builder.gep(ary.data, [r], inbounds=True)
+    qbase = builder.gep(builder.bitcast(row, cgutils.voidptr_t), [i64(24)], inbounds=True)
+
+    def splat(x):
+        return builder.shuffle_vector(builder.insert_element(undef, x, i32(0)), undef, lanes0)
+
+    def plane(p, origin, scale):
+        ptr = builder.bitcast(builder.gep(qbase, [builder.mul(p, i64(4))], inbounds=True),
+                              ir.VectorType(ir.IntType(8), 4).as_pointer())
+        q = builder.uitofp(builder.load(ptr, align=1), d4)
+        return builder.fadd(builder.fmul(q, scale), origin)
+
+    tn = splat(dbl(0.0))
+    tf = splat(t_max)
+    for a, (near, o, inv, inve) in enumerate(((xl, ox, ix, ixe), (yl, oy, iy, iye), (zl, oz, iz, ize))):
+        far = builder.sub(i64(2 * a + 3), near)
+        origin = splat(builder.fpext(builder.load(builder.gep(row, [i64(a)], inbounds=True)), dbl))
+        scale = splat(builder.fpext(builder.load(builder.gep(row, [i64(3 + a)], inbounds=True)), dbl))
+        so = splat(o)
+        t0 = builder.fmul(builder.fsub(plane(near, origin, scale), so), splat(inv))
+        t1 = builder.fmul(builder.fsub(plane(far, origin, scale), so), splat(inve))
+        # max(tn, t0) / min(tf, t1) keeping tn / tf when t0 / t1 is NaN, as slab() does
+        tn = builder.select(builder.fcmp_ordered(">", t0, tn), t0, tn)
+        tf = builder.select(builder.fcmp_ordered("<", t1, tf), t1, tf)
+    return builder.select(builder.fcmp_ordered("<=", tn, tf), tn, ir.Constant(d4, [math.inf] * 4))
+
+
+_SLAB_ARGS = (types.int64,) + (types.float64,) * 9 + (types.int64,) * 3 + (types.float64,)
+
+
 @intrinsic
 def slab4(typingctx, bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, t_max):
     """Slab test of the four child boxes of the wide row at ``bf[r]`` (:func:`tracer.blas.pack_wide`)
-    and the hits sorted nearest first, in 4-lane double-precision vector code without a branch.
+    in one pass of 4-lane double-precision vector code (:func:`_slab_lanes`).
 
-    Arguments as for :func:`slab` (``xl`` etc.: the near plane, 0/1/2 or 3/4/5). Each plane of four
-    8-bit grid steps is loaded at once and dequantised exactly (``origin + q scale``), then the
-    same operations as :func:`slab` follow lane by lane: NaN slabs are ignored, the far distances are
-    enlarged by :data:`BOX_EPS`. The entry distances of the boxes hit are finite and non-negative, so
-    their bit patterns order as integers: the child's slot replaces their two lowest bits, misses
-    become ``inf``, and a 5-comparator network sorts these four keys in the vector registers. The
-    distances returned have those two bits cleared: at most 3 ulp below the exact entry, so culling a
-    pending box beyond the best hit stays conservative.
+    Arguments as for :func:`slab` (``xl`` etc.: the near plane, 0/1/2 or 3/4/5). Returns the four
+    entry distances, ``inf`` for a box the segment ``0 <= t <= t_max`` misses.
+    """
+    sig = types.UniTuple(types.float64, 4)(bf, *_SLAB_ARGS)
+
+    def codegen(context, builder, sig, args):
+        res = _slab_lanes(context, builder, sig, args)
+        vals = [builder.extract_element(res, ir.IntType(32)(c)) for c in range(4)]
+        return context.make_tuple(builder, sig.return_type, vals)
+    return sig, codegen
+
+
+@intrinsic
+def slab4_sorted(typingctx, bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, t_max):
+    """:func:`slab4` with the hits sorted nearest first in the vector registers, without a branch.
+
+    The entry distances of the boxes hit are finite and non-negative, so their bit patterns order as
+    integers: the child's slot replaces their two lowest bits, misses become ``inf``, and a
+    5-comparator network sorts these four keys. The distances returned have those two bits cleared:
+    at most 3 ulp below the exact entry, so culling a pending box beyond the best hit stays
+    conservative.
 
     Returns ``(n, t1, t2, t3, c0, c1, c2, c3)``: the number of boxes hit, the entry distances of the
     second to fourth nearest (``inf`` past ``n``) and the slots (0-3) of all four, nearest first
-    (those past ``n`` are meaningless).
-    (numba neither vectorises the four scalar tests nor keeps a scalar sorting network free of
-    branches.)
+    (those past ``n`` are meaningless). For :mod:`tracer.lanes`, whose interleaved rays defeat branch
+    prediction; a single ray's walk is faster with :func:`order4`'s branches, which the CPU predicts
+    and runs ahead of (10 % on coherent rays).
     """
-    f8 = types.float64
     i8 = types.int64
-    sig = types.Tuple((i8, f8, f8, f8, i8, i8, i8, i8))(bf, i8, f8, f8, f8, f8, f8, f8, f8, f8, f8, i8, i8, i8, f8)
+    f8 = types.float64
+    sig = types.Tuple((i8, f8, f8, f8, i8, i8, i8, i8))(bf, *_SLAB_ARGS)
 
     def codegen(context, builder, sig, args):
-        ary = context.make_array(sig.args[0])(context, builder, args[0])
-        _, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, t_max = args
-        dbl = ir.DoubleType()
+        res = _slab_lanes(context, builder, sig, args)
         i32 = ir.IntType(32)
         i64 = ir.IntType(64)
-        d4 = ir.VectorType(dbl, 4)
+        d4 = ir.VectorType(ir.DoubleType(), 4)
         l4 = ir.VectorType(i64, 4)
-        undef = ir.Constant(d4, ir.Undefined)
-        lanes0 = ir.Constant(ir.VectorType(i32, 4), [0, 0, 0, 0])
-        row = builder.gep(ary.data, [r], inbounds=True)
-        qbase = builder.gep(builder.bitcast(row, cgutils.voidptr_t), [i64(24)], inbounds=True)
-
-        def splat(x):
-            return builder.shuffle_vector(builder.insert_element(undef, x, i32(0)), undef, lanes0)
-
-        def plane(p, origin, scale):
-            ptr = builder.bitcast(builder.gep(qbase, [builder.mul(p, i64(4))], inbounds=True),
-                                  ir.VectorType(ir.IntType(8), 4).as_pointer())
-            q = builder.uitofp(builder.load(ptr, align=1), d4)
-            return builder.fadd(builder.fmul(q, scale), origin)
+        inf = ir.Constant(d4, [math.inf] * 4)
+        hit = builder.fcmp_ordered("<", res, inf)   # (an entry at inf would make a NaN key)
 
         def lanes(*ix):
             return ir.Constant(ir.VectorType(i32, 4), list(ix))
 
-        tn = splat(dbl(0.0))
-        tf = splat(t_max)
-        for a, (near, o, inv, inve) in enumerate(((xl, ox, ix, ixe), (yl, oy, iy, iye), (zl, oz, iz, ize))):
-            far = builder.sub(i64(2 * a + 3), near)
-            origin = splat(builder.fpext(builder.load(builder.gep(row, [i64(a)], inbounds=True)), dbl))
-            scale = splat(builder.fpext(builder.load(builder.gep(row, [i64(3 + a)], inbounds=True)), dbl))
-            so = splat(o)
-            t0 = builder.fmul(builder.fsub(plane(near, origin, scale), so), splat(inv))
-            t1 = builder.fmul(builder.fsub(plane(far, origin, scale), so), splat(inve))
-            # max(tn, t0) / min(tf, t1) keeping tn / tf when t0 / t1 is NaN, as slab() does
-            tn = builder.select(builder.fcmp_ordered(">", t0, tn), t0, tn)
-            tf = builder.select(builder.fcmp_ordered("<", t1, tf), t1, tf)
-        inf = ir.Constant(d4, [math.inf] * 4)
-        res = builder.select(builder.fcmp_ordered("<=", tn, tf), tn, inf)
-        hit = builder.fcmp_ordered("<", res, inf)
         ctpop = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.IntType(4), [ir.IntType(4)]),
                                                "llvm.ctpop.i4")
         n = builder.zext(builder.call(ctpop, [builder.bitcast(hit, ir.IntType(4))]), i64)
         bits = builder.and_(builder.bitcast(res, l4), ir.Constant(l4, [-4] * 4))
         v = builder.select(hit, builder.bitcast(builder.or_(bits, ir.Constant(l4, [0, 1, 2, 3])), d4), inf)
         # (0,1)(2,3), (0,2)(1,3), (1,2): each a swap, a min, a max and a blend of two vectors
+        undef = ir.Constant(d4, ir.Undefined)
         for swap, blend in (((1, 0, 3, 2), (0, 5, 2, 7)), ((2, 3, 0, 1), (0, 1, 6, 7)), ((0, 2, 1, 3), (0, 1, 6, 3))):
             w = builder.shuffle_vector(v, undef, lanes(*swap))
             lt = builder.fcmp_ordered("<", v, w)
-            lo = builder.select(lt, v, w)
-            hi = builder.select(lt, w, v)
-            v = builder.shuffle_vector(lo, hi, lanes(*blend))
+            v = builder.shuffle_vector(builder.select(lt, v, w), builder.select(lt, w, v), lanes(*blend))
         keys = builder.bitcast(v, l4)
         slots = builder.and_(keys, ir.Constant(l4, [3] * 4))
         t = builder.bitcast(builder.and_(keys, ir.Constant(l4, [-4] * 4)), d4)   # the slot cleared: <= the distance
@@ -130,8 +160,33 @@ def slab4(typingctx, bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, t
 
 #: where a bottom level's entries start in the traversal stacks (the top level's lie below)
 STACK_BASE = 2 * STACK_SIZE
-#: :func:`pop_nearer`'s reference when no entry is left (references are >= -(16 * 2**27))
+#: :func:`order4`'s nearest reference when no box is hit, :func:`pop_nearer`'s when no entry is left
+#: (references are >= -(16 * 2**27))
 MISS = np.int64(-(1 << 62))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _order(ta, ra, tb, rb):
+    """Compare-exchange of a sorting network: the nearer pair first."""
+    s = tb < ta
+    return (tb if s else ta), (rb if s else ra), (ta if s else tb), (ra if s else rb)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def order4(t0, t1, t2, t3, bi, r):
+    """Sort the four entry distances of wide row ``r`` (from :func:`slab4`) with their references:
+    ``(nearest, r1, r2, r3, t1, t2, t3)``, nearest :data:`MISS` when no box is hit. (LLVM compiles
+    the network to branches, which the CPU predicts well along one ray's walk.)"""
+    r0 = np.int64(bi[r + 12])
+    r1 = np.int64(bi[r + 13])
+    r2 = np.int64(bi[r + 14])
+    r3 = np.int64(bi[r + 15])
+    t0, r0, t1, r1 = _order(t0, r0, t1, r1)
+    t2, r2, t3, r3 = _order(t2, r2, t3, r3)
+    t0, r0, t2, r2 = _order(t0, r0, t2, r2)
+    t1, r1, t3, r3 = _order(t1, r1, t3, r3)
+    t1, r1, t2, r2 = _order(t1, r1, t2, r2)
+    return (r0 if t0 < np.inf else MISS), r1, r2, r3, t1, t2, t3
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -218,8 +273,7 @@ def traverse(sa, g, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def prefetch_ref(bf, tri, row0, tri0, ref):
-    """Ask for the row, or the leaf's first triangle, that ``ref`` names: a child that is pushed is
-    fetched while its siblings are visited, so popping it rarely waits on memory."""
+    """Ask for the row, or the leaf's first triangle, that ``ref`` names, as soon as it is chosen."""
     if ref >= 0:
         prefetch(bf, 16 * (row0 + ref))
     else:
@@ -249,17 +303,11 @@ def traverse_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hi
     while True:
         if ref >= 0:
             r = 16 * (row0 + ref)
-            n, t1, t2, t3, c0, c1, c2, c3 = slab4(bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
-            if n > 0:
-                ref = np.int64(bi[r + 12 + c0])
+            t0, t1, t2, t3 = slab4(bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
+            ref, r1, r2, r3, t1, t2, t3 = order4(t0, t1, t2, t3, bi, r)
+            if ref != MISS:
+                sp = push3(stack, tstack, sp, r1, r2, r3, t1, t2, t3)
                 prefetch_ref(bf, tri, row0, tri0, ref)
-                if n > 1:
-                    r1 = np.int64(bi[r + 12 + c1])
-                    r2 = np.int64(bi[r + 12 + c2])
-                    sp = push3(stack, tstack, sp, r1, r2, bi[r + 12 + c3], t1, t2, t3)
-                    prefetch_ref(bf, tri, row0, tri0, r1)
-                    if n > 2:
-                        prefetch_ref(bf, tri, row0, tri0, r2)
                 continue
         else:
             x = -ref - 1
