@@ -1,0 +1,68 @@
+"""A/B wall time of ``Scene.intersect`` between two checkouts, for work on the traversal.
+
+Wall times on this shared machine swing by 30 % from one minute to the next, so two runs made one
+after the other compare the neighbours' load as much as the code. Here both checkouts load the same
+scene and rays (``bench/instructions.py``) in two worker processes, and the driver asks them in turn,
+A B B A A B ..., for one timed pass each: each ratio B/A compares two passes made seconds apart.
+It prints the median ratio (< 1: B is faster) and its range::
+
+    .venv/bin/python bench/ab.py /path/to/checkout_a /path/to/checkout_b scene3 incoherent 8
+
+Each checkout needs ``bench/instructions.py`` and its own ``.venv`` (a symbolic link to this one will
+do); ``git worktree add`` makes a checkout of an older commit. One thread each.
+"""
+
+from __future__ import annotations
+
+import os
+import statistics
+import subprocess
+import sys
+import time
+
+
+def worker(checkout: str, scene: str, rays: str) -> None:
+    """Load the scene and rays with the code of ``checkout``, then time one pass per line read from stdin."""
+    sys.path.insert(0, checkout)
+    from bench.instructions import scene_and_rays
+
+    s, o, d = scene_and_rays(scene, rays)
+    s.intersect(o[:100], d[:100], threads=1)   # compile or load the kernels outside the timing
+    print("ready", flush=True)
+    for _ in sys.stdin:
+        t0 = time.perf_counter()
+        s.intersect(o, d, threads=1)
+        print(time.perf_counter() - t0, flush=True)
+
+
+def main(a: str, b: str, scene: str, rays: str, n: int) -> None:
+    env = dict(os.environ, NUMBA_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    procs = [subprocess.Popen([f"{r}/.venv/bin/python", __file__, "--worker", r, scene, rays], cwd=r, env=env,
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True) for r in (a, b)]
+    for p in procs:
+        if p.stdout is None or p.stdout.readline().strip() != "ready":
+            raise SystemExit(f"worker {p.args[0]} did not start")
+    times: list[list[float]] = [[], []]
+    for i in range(n):
+        for k in ((0, 1) if i % 2 == 0 else (1, 0)):
+            p = procs[k]
+            assert p.stdin is not None and p.stdout is not None
+            p.stdin.write("go\n")
+            p.stdin.flush()
+            times[k].append(float(p.stdout.readline()))
+    for p in procs:
+        assert p.stdin is not None
+        p.stdin.close()
+        p.wait()
+    ratio = [tb / ta for ta, tb in zip(*times, strict=True)]
+    print(f"{scene} {rays}: A {statistics.median(times[0]) * 1e3:.0f} ms, B {statistics.median(times[1]) * 1e3:.0f} ms,"
+          f" B/A median {statistics.median(ratio):.3f} (range {min(ratio):.3f} to {max(ratio):.3f}, {n} pairs)")
+
+
+if __name__ == "__main__":
+    if len(sys.argv) == 5 and sys.argv[1] == "--worker":
+        worker(*sys.argv[2:5])
+    elif len(sys.argv) in (5, 6):
+        main(*sys.argv[1:5], int(sys.argv[5]) if len(sys.argv) == 6 else 8)
+    else:
+        raise SystemExit("usage: ab.py CHECKOUT_A CHECKOUT_B SCENE RAYS [PAIRS]")
