@@ -116,8 +116,8 @@ def _step_top(sa, F, I, L, stack, tstack):
     bi = sa.top_i
     r = 16 * ref
     n, t1, t2, t3, c0, c1, c2, c3 = slab4_sorted(bf, r, F[L, OX], F[L, OY], F[L, OZ], F[L, WIX], F[L, WIX + 1],
-                                          F[L, WIX + 2], F[L, WIX + 3], F[L, WIX + 4], F[L, WIX + 5],
-                                          I[L, WXL], I[L, WXL + 1], I[L, WXL + 2], F[L, BEST_T])
+                                                 F[L, WIX + 2], F[L, WIX + 3], F[L, WIX + 4], F[L, WIX + 5],
+                                                 I[L, WXL], I[L, WXL + 1], I[L, WXL + 2], F[L, BEST_T])
     if n > 0:
         ref = np.int64(bi[r + 12 + c0])
         I[L, TREF] = ref
@@ -184,9 +184,9 @@ def _step_bottom(sa, F, I, L, stack, tstack, any_hit):
     if ref >= 0:
         r = 16 * (row0 + ref)
         n, t1, t2, t3, c0, c1, c2, c3 = slab4_sorted(bf, r, F[L, CO], F[L, CO + 1], F[L, CO + 2], F[L, CIX],
-                                              F[L, CIX + 1], F[L, CIX + 2], F[L, CIX + 3], F[L, CIX + 4],
-                                              F[L, CIX + 5], I[L, CXL], I[L, CXL + 1], I[L, CXL + 2],
-                                              F[L, BEST_T])
+                                                     F[L, CIX + 1], F[L, CIX + 2], F[L, CIX + 3], F[L, CIX + 4],
+                                                     F[L, CIX + 5], I[L, CXL], I[L, CXL + 1], I[L, CXL + 2],
+                                                     F[L, BEST_T])
         if n > 0:
             ref = np.int64(bi[r + 12 + c0])
             I[L, BREF] = ref
