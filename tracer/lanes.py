@@ -25,7 +25,7 @@ from numba import njit, prange
 from tracer.blas import STACK_SIZE
 from tracer.kinds import dispatch, mesh
 from tracer.kinds.mesh import MISS, STACK_BASE, pop_nearer, prefetch, prefetch_ref, push3, ray_inverse, slab4_sorted
-from tracer.traverse import _closest, _to_object, new_stacks, normal_to_world
+from tracer.traverse import _closest, _to_object, new_stacks, public_hit
 from tracer.triangle import intersect_triangle, ray_setup
 
 #: rays in flight per core
@@ -311,22 +311,10 @@ def _trace_block(sa, o, d, t_max, any_hit, lo, hi, out_t, out_inst, out_slot, ou
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def _finish_closest(sa, lo, hi, out_t, out_inst, out_slot, out_u, out_v, out_n):
-    """Raw results -> the public ones (primitive id, world normal; ``inf``/-1/zeros on a miss)."""
+    """Raw results -> the public ones (:func:`tracer.traverse.public_hit`)."""
     for i in range(lo, hi):
-        inst = out_inst[i]
-        if inst < 0:
-            out_t[i] = np.inf
-            out_slot[i] = -1
-            out_u[i] = 0.0
-            out_v[i] = 0.0
-            out_n[i, 0] = 0.0
-            out_n[i, 1] = 0.0
-            out_n[i, 2] = 0.0
-            continue
-        slot = out_slot[i]
-        out_slot[i] = dispatch.primitive_solid(sa, inst, slot)
-        nx, ny, nz = dispatch.normal_solid(sa, inst, slot)
-        out_n[i, 0], out_n[i, 1], out_n[i, 2] = normal_to_world(sa, inst, nx, ny, nz)
+        (out_t[i], out_inst[i], out_slot[i], out_u[i], out_v[i],
+         out_n[i, 0], out_n[i, 1], out_n[i, 2]) = public_hit(sa, out_t[i], out_inst[i], out_slot[i], out_u[i], out_v[i])
 
 
 @njit(cache=True, error_model="numpy")
@@ -340,14 +328,15 @@ def _lane_state():
 @njit(parallel=True, cache=True, error_model="numpy")
 def batch(sa, o, d, t_max, any_hit, out_t, out_inst, out_prim, out_u, out_v, out_n):
     """Batched :func:`tracer.traverse.intersect_closest` (or, with ``any_hit``, the first hit found, as
-    :func:`tracer.traverse.intersect_any`: then ``out_inst >= 0`` is the answer) over rays ``o[i], d[i]``
-    (k, 3), ``t_max`` (k,); parallel over blocks of rays, :data:`LANES` rays in flight in each (unless
-    they share an origin). One kernel for both queries: each compiles the traversal twice (lanes and
-    one by one), which is a cold-compile cost worth paying once."""
+    :func:`tracer.traverse.intersect_any`: then ``out_inst >= 0`` is the answer, the rest is raw) over
+    rays ``o[i], d[i]`` (k, 3), ``t_max`` (k,); parallel over blocks of rays, :data:`LANES` rays in
+    flight in each (unless they share an origin). One kernel for both queries: each compiles the
+    traversal twice (lanes and one by one), which is a cold-compile cost worth paying once."""
     k = o.shape[0]
     nb = (k + BLOCK - 1) // BLOCK
     for b in prange(nb):
         lo = b * BLOCK
         hi = min(k, lo + BLOCK)
         _trace_block(sa, o, d, t_max, any_hit, lo, hi, out_t, out_inst, out_prim, out_u, out_v)
-        _finish_closest(sa, lo, hi, out_t, out_inst, out_prim, out_u, out_v, out_n)
+        if not any_hit:   # an any-hit answer needs no primitive id nor normal
+            _finish_closest(sa, lo, hi, out_t, out_inst, out_prim, out_u, out_v, out_n)

@@ -171,6 +171,13 @@ def closest_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, stack, tstack):
     jitted loops over many rays (light transport). A real function, compiled once: inlined, the whole
     two-level traversal was compiled again into every transport variant (twice the cold compile)."""
     t, inst, slot, u, v = _closest(sa, ox, oy, oz, dx, dy, dz, t_max, False, stack, tstack)
+    return public_hit(sa, t, inst, slot, u, v)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def public_hit(sa, t, inst, slot, u, v):
+    """A traversal's raw result (the kind's ``slot``) -> ``(t, inst_id, prim_id, u, v, ngx, ngy, ngz)``
+    as :func:`intersect_closest` returns it (``inf``, -1 and zeros on a miss)."""
     if inst < 0:
         return np.inf, -1, -1, 0.0, 0.0, 0.0, 0.0, 0.0
     prim = dispatch.primitive_solid(sa, inst, slot)
