@@ -285,7 +285,8 @@ def test_push_while_a_query_runs_leaves_both_intact(world) -> None:
     assert client.get(url).json()["status"] == "running"
     push_floor(client, sid, rev + 1, dx=0.0)
     state = wait_job(client, url)
-    assert state["status"] == "succeeded" and state["result"]["stop_reason"] == "max_seconds"
+    # it stops on its own budget: 3 s, or the server's 4M photons when the machine traces them faster
+    assert state["status"] == "succeeded" and state["result"]["stop_reason"] in ("max_seconds", "max_photons")
     assert state["result"]["revision"] == rev and state["current"] is False
     assert np.all(np.isfinite(state["result"]["lux"]))
     # the service's scene never held the query's receivers, and the next query sees the new revision
