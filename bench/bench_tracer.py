@@ -11,7 +11,8 @@ Sections
 3. Closest-hit throughput against Intel Embree (embreex, same process, same rays): a ~1M-triangle
    mesh and the 302k-triangle scene, 1M incoherent and 1M camera rays; ours on one thread and on
    two; trimesh's pure-numpy intersector on a small subset; instancing overhead (two levels against
-   one flattened BVH over the same world-space triangles).
+   one flattened BVH over the same world-space triangles). The two-level scene is also traced by
+   Embree with instancing (:mod:`bench.embree_instances`), the peer with the same structure.
 4. Cold start: seconds to compile every kernel (empty numba cache), and to import and run once with
    the cache warm (fresh subprocesses).
 
@@ -230,9 +231,38 @@ def world_triangles(scene: tracer.Scene) -> np.ndarray:
     return np.concatenate(out)
 
 
+def embree_instanced(scene: tracer.Scene):
+    """Embree over the same instances (one Embree scene per geometry, a top scene over them):
+    ``(scene, our instance id of each Embree instance, build s)``, or None without embreex."""
+    from bench import embree_instances
+
+    if not embree_instances.available():
+        return None
+    ids = list(scene.instances())
+    geoms = sorted({scene.instance_geometry(i) for i in ids})
+    slot = {g: k for k, g in enumerate(geoms)}
+    t0 = time.perf_counter()
+    es = embree_instances.InstancedScene([scene.geometry_arrays(g)[:2] for g in geoms],
+                                         [(slot[scene.instance_geometry(i)], scene.instance_transform(i)) for i in ids])
+    return es, np.array(ids + [-1]), time.perf_counter() - t0
+
+
+def time_embree_instanced(es, o, d, repeats: int) -> tuple[float, np.ndarray]:
+    es.intersect(o[:8], d[:8])   # compile the driver loop outside the timing
+    ts = []
+    inst = None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        _, inst = es.intersect(o, d)
+        ts.append(time.perf_counter() - t0)
+    return len(o) / statistics.median(ts) / 1e6, inst
+
+
 def throughput(name: str, scene: tracer.Scene, rays: dict, repeats: int, tri_world: np.ndarray,
-               trimesh_rays: int) -> list[dict]:
+               trimesh_rays: int, instanced: bool = False) -> list[dict]:
+    """Rows of the throughput table; with ``instanced``, Embree also traces the scene's instances."""
     es = embree_scene(tri_world)
+    ei = embree_instanced(scene) if instanced else None
     rows = []
     for kind, (o, d) in rays.items():
         ours1, h = time_ours(scene, o, d, 1, repeats)
@@ -247,10 +277,16 @@ def throughput(name: str, scene: tracer.Scene, rays: dict, repeats: int, tri_wor
                        hit_agreement=float(np.mean(hit_e == (h.instance >= 0))),
                        t_max_rel_diff=float(np.max(np.abs(res["tfar"][both] - h.t[both]) / h.t[both])) if both.any()
                        else 0.0)
+        if ei is not None:
+            emb_i, id_i = time_embree_instanced(ei[0], o, d, repeats)
+            row.update(embree_inst_1t_mrays=emb_i, ratio_inst_1t=ours1 / emb_i, embree_inst_build_s=ei[2],
+                       inst_agreement=float(np.mean(ei[1][id_i] == h.instance)))
         if trimesh_rays:
             row["trimesh_mrays"] = time_trimesh(tri_world, o[:trimesh_rays], d[:trimesh_rays])
             row["trimesh_rays"] = trimesh_rays
         rows.append(row)
+    if ei is not None:
+        ei[0].close()
     return rows
 
 
@@ -368,7 +404,8 @@ def run(quick: bool = False) -> dict:
     c = np.full(3, scene3_world / 2)
     s3_rays = {"incoherent": incoherent_rays(rng, k, np.zeros(3), np.full(3, scene3_world)),
                "camera": camera_rays(k, c + np.array([0.3, -1.6, 0.4]) * scene3_world, c, 50.0)}
-    rows += throughput(f"paper scene 3 ({len(tri3):,} tri, 2 levels)", scene3, s3_rays, reps, tri3, tm_rays)
+    rows += throughput(f"paper scene 3 ({len(tri3):,} tri, 2 levels)", scene3, s3_rays, reps, tri3, tm_rays,
+                       instanced=True)
     flat = tracer.Scene()
     flat.add_instance(flat.add_geometry(tri3.reshape(-1, 3), np.arange(len(tri3) * 3).reshape(-1, 3)), np.eye(4))
     flat.commit()
@@ -426,19 +463,30 @@ def markdown(r: dict) -> str:
                      f"{_f(s['move_commit_s'] * 1e3, 2)} | {_f(s['move_rebuild_commit_s'] * 1e3, 1)} | "
                      f"{_f(s['ingest_s'], 2)} |")
     lines += ["", "### Closest-hit throughput (Mrays/s, same rays, same process)", "",
-              "Embree via embreex (its `run` loops over rays on one thread; its BVH is built outside the timing); "
-              "trimesh = `trimesh.ray.ray_triangle` (pure numpy) on a subset. Ratio = ours / Embree, one thread "
-              "each.", "",
-              "| scene | rays | ours 1 thread | ours 2 threads | Embree 1 thread | ratio | trimesh | hit agreement |",
-              "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |"]
+              "Embree via embreex (its `run` loops over rays on one thread; its BVH is built outside the timing) over "
+              "the world-space triangles: one flat BVH. *Embree, 2 levels*: Embree over the same instances (one "
+              "Embree scene per geometry, an instance per object with its transform; `bench/embree_instances.py`, "
+              "`rtcIntersect1` per ray from a compiled loop), the peer with our structure. trimesh = "
+              "`trimesh.ray.ray_triangle` (pure numpy) on a subset. Ratios = ours / Embree, one thread each.", "",
+              "| scene | rays | ours 1 thread | ours 2 threads | Embree flat, 1 thread | ratio | "
+              "Embree 2 levels, 1 thread | ratio | trimesh | hit agreement |",
+              "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
     for t in r["throughput"]:
         lines.append(f"| {t['scene']} | {t['rays']} ({t['n_rays']:,}) | {_f(t['ours_1t_mrays'], 2)} | "
                      f"{_f(t['ours_2t_mrays'], 2)} | {_f(t.get('embree_1t_mrays'), 2)} | {_f(t.get('ratio_1t'), 2)} | "
+                     f"{_f(t.get('embree_inst_1t_mrays'), 2)} | {_f(t.get('ratio_inst_1t'), 2)} | "
                      f"{_f(t.get('trimesh_mrays'), 4)} | {_f(t.get('hit_agreement'), 5)} |")
     over = [t for t in r["throughput"] if "instancing_overhead" in t]
     if over:
         lines += ["", "Instancing overhead (one flattened BVH over the same world-space triangles vs two levels, "
                   "one thread): " + ", ".join(f"{t['rays']} ×{t['instancing_overhead']:.2f}" for t in over) + "."]
+    inst = [t for t in r["throughput"] if "embree_inst_1t_mrays" in t]
+    if inst:
+        lines += ["", "Embree's own instancing overhead on this scene (its flat BVH vs its two levels, one thread): "
+                  + ", ".join(f"{t['rays']} ×{t['embree_1t_mrays'] / t['embree_inst_1t_mrays']:.2f}" for t in inst)
+                  + f"; same instance hit by both engines for {min(t['inst_agreement'] for t in inst):.5f} of the "
+                  f"rays; Embree's two-level build {inst[0]['embree_inst_build_s']:.2f} s (through ctypes, one call "
+                  "per object)."]
     if "embree_build_1m_s" in r:
         lines += ["", f"BVH build of the {r['throughput'][0]['scene']}: ours {r['ours_build_1m_s']:.2f} s, "
                   f"Embree {r['embree_build_1m_s']:.2f} s (embreex default device)."]
