@@ -10,7 +10,7 @@ thread, so no worker spins)::
 
 Scenes: ``mesh`` (the benchmark's 1M-triangle bumpy sphere), ``scene3`` (the paper's scene 3, two
 levels), ``flat3`` (scene 3 as one flattened BVH). Rays: ``incoherent`` or ``camera``, as in
-``bench/bench_tracer.py``.
+``bench/bench_tracer.py``, or ``point`` (random directions from the scene's centre).
 """
 
 from __future__ import annotations
@@ -60,8 +60,11 @@ def scene_and_rays(name: str, kind: str) -> tuple[tracer.Scene, np.ndarray, np.n
         o, d = incoherent_rays(rng, RAYS, lo, hi)
     elif kind == "camera":
         o, d = camera_rays(RAYS, eye, target, fov)
+    elif kind == "point":   # one origin, random directions: a point source's rays
+        d = rng.normal(size=(RAYS, 3))
+        o = np.tile((lo + hi) / 2, (RAYS, 1))
     else:
-        raise SystemExit(f"unknown rays {kind!r}: incoherent or camera")
+        raise SystemExit(f"unknown rays {kind!r}: incoherent, camera or point")
     return s, o, d
 
 

@@ -1,6 +1,7 @@
-"""The batch queries keep several rays in flight per core (tracer.lanes); each ray's answer must be
-the one-ray-at-a-time traversal's (tracer.traverse), whatever the batch size, the mix of rays that
-finish early and late, or a scene with nothing to hit."""
+"""The batch queries keep several rays in flight per core (tracer.lanes), or trace a camera's coherent
+rays one after the other; each ray's answer must be the one-ray-at-a-time traversal's
+(tracer.traverse), whatever the batch size, the mix of rays that finish early and late, or a scene
+with nothing to hit."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from numba import njit
 
 import tracer
 from tracer import reference
-from tracer.lanes import LANES
+from tracer.lanes import LANES, _coherent
 from tracer.traverse import intersect_any, intersect_closest
 
 
@@ -42,19 +43,38 @@ def _scene(rng):
     return scene
 
 
+def _camera(rng: np.random.Generator, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """``k`` rays from one point through a grid of pixels 0.01 rad apart, row after row, aimed at the
+    scene."""
+    eye = rng.uniform(-4, 4, 3)
+    w = int(np.ceil(np.sqrt(k)))
+    i = np.arange(k)
+    fwd = -eye / np.linalg.norm(eye)
+    right = np.cross(fwd, [0.3, 0.4, 0.866])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, fwd)
+    x = ((i % w - w / 2) * 0.01)[:, None]
+    y = ((i // w - w / 2) * 0.01)[:, None]
+    return np.tile(eye, (k, 1)), (fwd + x * right + y * up) * rng.uniform(0.5, 2.0)
+
+
 @pytest.mark.parametrize("k", [1, LANES - 1, LANES + 1, 300, 1000])
-@pytest.mark.parametrize("one_origin", [False, True])
-def test_batch_equals_one_ray_at_a_time(k: int, one_origin: bool) -> None:
-    """Scattered rays run in lanes; rays from one point one after the other (tracer.lanes)."""
+@pytest.mark.parametrize("rays", ["scattered", "point", "camera"])
+def test_batch_equals_one_ray_at_a_time(k: int, rays: str) -> None:
+    """Scattered rays, and a point source's, run in lanes; a camera's one after the other."""
     rng = np.random.default_rng(k)
     scene = _scene(rng)
-    o = np.tile(rng.uniform(-4, 4, 3), (k, 1)) if one_origin else rng.uniform(-4, 4, (k, 3))
-    d = (rng.uniform(-2, 2, (k, 3)) - o) * rng.uniform(0.2, 5.0, (k, 1))
+    if rays == "camera":
+        o, d = _camera(rng, k)
+    else:
+        o = np.tile(rng.uniform(-4, 4, 3), (k, 1)) if rays == "point" else rng.uniform(-4, 4, (k, 3))
+        d = (rng.uniform(-2, 2, (k, 3)) - o) * rng.uniform(0.2, 5.0, (k, 1))
+    assert _coherent(o, d, 0, k) == (rays == "camera" or k == 1)
     t_max = np.where(rng.random(k) < 0.3, rng.uniform(0, 1, k), np.inf)
     hits = scene.intersect(o, d, t_max, threads=1)
     occ = scene.occluded(o, d, t_max, threads=1)
     t, inst, prim, uv, n, occ1 = _one_by_one(scene.arrays(), o, d, t_max)
-    if k >= 300:   # hits and misses, on whole rays and on segments
+    if k >= 300 and rays != "camera":   # hits and misses, on whole rays and on segments
         for seg in (t_max < np.inf, t_max == np.inf):
             assert 0.02 < np.isfinite(t[seg]).mean() < 0.98
     assert np.array_equal(hits.t, t) and np.array_equal(hits.instance, inst) and np.array_equal(hits.primitive, prim)
@@ -72,3 +92,11 @@ def test_nothing_to_hit() -> None:
         assert np.all(np.isinf(hits.t)) and np.all(hits.instance == -1) and np.all(hits.primitive == -1)
         assert not scene.occluded(o, d).any()
         assert len(scene.intersect(np.zeros((0, 3)), np.zeros((0, 3))).t) == 0
+
+
+def test_camera_rays_hit_and_miss() -> None:
+    """The camera batches above test hits and misses both (else their agreement would prove little)."""
+    rng = np.random.default_rng(1000)
+    scene = _scene(rng)
+    o, d = _camera(rng, 1000)
+    assert 0.05 < np.isfinite(scene.intersect(o, d).t).mean() < 0.95
