@@ -325,7 +325,7 @@ def _world_triangles(scene, inst: int) -> np.ndarray:
 # ----------------------------------------------------------------------------------------------------------- kernels
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _find(cdf, lo, n, u):
     """Smallest k in [0, n) with cdf[lo + k] > u (binary search)."""
     a, b = 0, n - 1
@@ -338,7 +338,7 @@ def _find(cdf, lo, n, u):
     return a
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def pick_light(L, u):
     """Index of a light chosen with probability ∝ its flux, and that probability."""
     n = L.cdf.shape[0]
@@ -347,7 +347,7 @@ def pick_light(L, u):
     return j, p
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _interval(grid, lo, n, x):
     """Index k in [0, n-2] with grid[lo+k] <= x <= grid[lo+k+1] (clamped)."""
     a, b = 0, n - 2
@@ -360,7 +360,7 @@ def _interval(grid, lo, n, x):
     return a
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def gonio_intensity(L, j, dx, dy, dz):
     """Intensity in cd of goniometric light j toward unit direction d (bilinear in C, γ)."""
     c0, g0, t0 = L.g_off[j, 0], L.g_off[j, 1], L.g_off[j, 2]
@@ -387,7 +387,7 @@ def gonio_intensity(L, j, dx, dy, dz):
     return (1 - tc) * (1 - tg) * i00 + (1 - tc) * tg * i01 + tc * (1 - tg) * i10 + tc * tg * i11
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def spot_profile(L, j, dx, dy, dz):
     """Relative intensity f in [0, 1] of spot light j toward unit direction d."""
     p = L.par[j]
@@ -401,7 +401,7 @@ def spot_profile(L, j, dx, dy, dz):
     return x * x * (3.0 - 2.0 * x)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def intensity_toward(L, j, dx, dy, dz):
     """Intensity in cd of point-like light j (point, spot, goniometric) toward unit direction d; 0 otherwise."""
     k = L.kind[j]
@@ -414,7 +414,7 @@ def intensity_toward(L, j, dx, dy, dz):
     return 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def sample_area_point(L, j, u0, u1, u2):
     """A point on area light j, uniform over its area: (x, y, z, nx, ny, nz) with the front normal."""
     first, count = L.a_off[j, 0], L.a_off[j, 1]
@@ -429,7 +429,7 @@ def sample_area_point(L, j, u0, u1, u2):
     return x, y, z, L.tri_n[k, 0], L.tri_n[k, 1], L.tri_n[k, 2]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def sample_emission(L, j, u0, u1, u2, u3, u4):
     """Emit one photon from light j.
 

@@ -4,7 +4,7 @@ This is the paper's scheme (section 4): a photon leaves a source; the top level 
 instances and their bottom levels the closest hit (`tracer.traverse.intersect_closest`); on the way
 the current medium absorbs (continuous weight exp(−σa t)) or scatters it (free-flight sampling,
 Henyey–Greenstein); every sensor the segment crosses records the photon's weight if it arrives on
-its front side (`sensor_crossings`; sensors change nothing); at the surface the material reflects,
+its front side (`sensor_crossings_with_stack`; sensors change nothing); at the surface the material reflects,
 refracts or absorbs it and sets the medium it continues in (a stack of the solids it is inside).
 
 Estimation. A photon's weight is luminous flux (lm): Φ_total / N × f at emission (see
@@ -45,7 +45,7 @@ from tracer.surfaces import (
     refract,
     sample_cosine,
 )
-from tracer.traverse import closest_with_stacks, new_stacks, sensor_crossings, shading_normal
+from tracer.traverse import closest_with_stacks, new_stacks, sensor_crossings_with_stack, shading_normal
 
 COUNTERS = ("rejected", "truncated", "stack_overflow", "sensor_buffer_full", "unsupported_material")
 C_REJECTED, C_TRUNCATED, C_STACK, C_SENSOR_FULL, C_UNSUPPORTED = range(5)
@@ -70,7 +70,7 @@ class SensorArrays(NamedTuple):
     nv: np.ndarray
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _arrival_normal(ngx, ngy, ngz, dx, dy, dz):
     """The geometric normal turned to the side the ray arrives from."""
     if dx * ngx + dy * ngy + dz * ngz > 0.0:
@@ -78,7 +78,7 @@ def _arrival_normal(ngx, ngy, ngz, dx, dy, dz):
     return ngx, ngy, ngz
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _specular_normal(sa, inst, prim, hu, hv, fx, fy, fz):
     """Shading normal turned to the arrival side `f` (unit); the geometric one where they disagree."""
     sx, sy, sz = shading_normal(sa, inst, prim, hu, hv)
@@ -89,7 +89,7 @@ def _specular_normal(sa, inst, prim, hu, hv, fx, fy, fz):
     return sx, sy, sz
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _reflect_specular(sa, inst, prim, hu, hv, dx, dy, dz, fx, fy, fz):
     """Specular reflection about the shading normal; about the geometric one if that would go below the surface."""
     nx, ny, nz = _specular_normal(sa, inst, prim, hu, hv, fx, fy, fz)
@@ -100,12 +100,12 @@ def _reflect_specular(sa, inst, prim, hu, hv, dx, dy, dz, fx, fy, fz):
     return rx * inv, ry * inv, rz * inv
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _medium_ior(M, med, depth):
     return M.par[med[depth - 1], 0] if depth > 0 else 1.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def trace_photon(sa, M, L, S, key, w, tally, counters, med, c_inst, c_t, c_u, c_v, c_cos, stack, tstack,
                  specular, fresnel, absorption, scattering):
     """Trace one photon of initial weight `w` (lm) and add what sensors record to `tally`."""
@@ -144,7 +144,7 @@ def trace_photon(sa, M, L, S, key, w, tally, counters, med, c_inst, c_t, c_u, c_
                             t_end = ts
                             scattered = True
         # sensors along (0, t_end): they record and change nothing
-        nc = sensor_crossings(sa, ox, oy, oz, dx, dy, dz, t_end, c_inst, c_t, c_u, c_v, c_cos)
+        nc = sensor_crossings_with_stack(sa, ox, oy, oz, dx, dy, dz, t_end, c_inst, c_t, c_u, c_v, c_cos, stack)
         if nc == c_inst.shape[0]:
             counters[C_SENSOR_FULL] += 1
         for c in range(nc):

@@ -39,7 +39,7 @@ def normal_solid(sa, inst, slot):
     return 0.0, 0.0, 1.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def shading_normal_object(sa, inst, prim, u, v):
     """Object-space shading normal ``(nx, ny, nz, interpolated)`` of primitive ``prim`` at ``(u, v)``."""
     kind = sa.inst_kind[inst]
@@ -48,7 +48,7 @@ def shading_normal_object(sa, inst, prim, u, v):
     return 0.0, 0.0, 1.0, False
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def point_object(sa, inst, prim, u, v):
     """Object-space surface point of primitive ``prim`` at ``(u, v)``."""
     kind = sa.inst_kind[inst]
@@ -59,7 +59,7 @@ def point_object(sa, inst, prim, u, v):
     return 0.0, 0.0, 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def cross_sensor(sa, inst, ox, oy, oz, dx, dy, dz, t_max):
     """``(hit, t, u, v)`` of the segment with sensor instance ``inst``."""
     kind = sa.inst_kind[inst]

@@ -351,7 +351,7 @@ def object_normal(sa, g, slot):
     return e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def object_shading_normal(sa, g, prim, u, v):
     """Object-space interpolated vertex normal of triangle ``prim``; geometric where there is none."""
     slot = sa.geom_tri0[g] + sa.prim_slot[sa.geom_tri0[g] + prim]
@@ -367,7 +367,7 @@ def object_shading_normal(sa, g, prim, u, v):
     return nx, ny, nz, False
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def object_point(sa, g, prim, u, v):
     """Object-space point of triangle ``prim`` at barycentrics ``(u, v)``."""
     slot = sa.geom_tri0[g] + sa.prim_slot[sa.geom_tri0[g] + prim]

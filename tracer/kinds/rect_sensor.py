@@ -15,7 +15,7 @@ SENSOR = True
 OBJECT_BOUNDS = np.array([0.0, 0.0, 0.0, 1.0, 1.0, 0.0])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def cross(ox, oy, oz, dx, dy, dz, t_max):
     """``(hit, t, u, v)`` of the object-space segment ``0 < t < t_max`` with the unit square."""
     if dz == 0.0:
