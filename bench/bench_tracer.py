@@ -170,16 +170,6 @@ def camera_rays(k: int, eye: np.ndarray, target: np.ndarray, fov_deg: float) -> 
     return np.broadcast_to(eye, d.shape).copy(), d
 
 
-def time_ours(scene: tracer.Scene, o, d, threads: int, repeats: int) -> tuple[float, tracer.Hits]:
-    ts = []
-    hits = None
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        hits = scene.intersect(o, d, threads=threads)
-        ts.append(time.perf_counter() - t0)
-    return len(o) / statistics.median(ts) / 1e6, hits
-
-
 def embree_scene(triangles_world: np.ndarray):
     """An embreex scene over world-space triangles (m, 3, 3), or None when embreex is missing."""
     try:
@@ -190,19 +180,6 @@ def embree_scene(triangles_world: np.ndarray):
     es = rtcore_scene.EmbreeScene()
     TriangleMesh(es, np.ascontiguousarray(triangles_world, np.float32))
     return es
-
-
-def time_embree(es, o, d, repeats: int) -> tuple[float, dict]:
-    o32 = np.ascontiguousarray(o, np.float32)
-    d32 = np.ascontiguousarray(d, np.float32)
-    es.run(o32[:8], d32[:8], output=1)  # commit (BVH build) outside the timing
-    ts = []
-    res = None
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        res = es.run(o32, d32, output=1)
-        ts.append(time.perf_counter() - t0)
-    return len(o) / statistics.median(ts) / 1e6, res
 
 
 def time_trimesh(triangles_world: np.ndarray, o, d) -> float | None:
@@ -247,15 +224,18 @@ def embree_instanced(scene: tracer.Scene):
     return es, np.array(ids + [-1]), time.perf_counter() - t0
 
 
-def time_embree_instanced(es, o, d, repeats: int) -> tuple[float, np.ndarray]:
-    es.intersect(o[:8], d[:8])   # compile the driver loop outside the timing
-    ts = []
-    inst = None
+def interleaved(calls: dict, repeats: int) -> tuple[dict, dict]:
+    """Time each call once per round, the calls one after the other in every round (ours and the
+    peers seconds apart, so a change in the shared machine's load hits all alike). Returns the
+    seconds of each call in each round and each call's last result."""
+    times: dict = {k: [] for k in calls}
+    last: dict = {}
     for _ in range(repeats):
-        t0 = time.perf_counter()
-        _, inst = es.intersect(o, d)
-        ts.append(time.perf_counter() - t0)
-    return len(o) / statistics.median(ts) / 1e6, inst
+        for k, call in calls.items():
+            t0 = time.perf_counter()
+            last[k] = call()
+            times[k].append(time.perf_counter() - t0)
+    return times, last
 
 
 def throughput(name: str, scene: tracer.Scene, rays: dict, repeats: int, tri_world: np.ndarray,
@@ -263,31 +243,54 @@ def throughput(name: str, scene: tracer.Scene, rays: dict, repeats: int, tri_wor
     """Rows of the throughput table; with ``instanced``, Embree also traces the scene's instances."""
     es = embree_scene(tri_world)
     ei = embree_instanced(scene) if instanced else None
-    rows = []
-    for kind, (o, d) in rays.items():
-        ours1, h = time_ours(scene, o, d, 1, repeats)
-        ours2, _ = time_ours(scene, o, d, 2, repeats)
-        row = {"scene": name, "rays": kind, "n_rays": len(o), "ours_1t_mrays": ours1, "ours_2t_mrays": ours2,
-               "hit_fraction": float(np.mean(h.instance >= 0))}
-        if es is not None:
-            emb, res = time_embree(es, o, d, repeats)
-            hit_e = res["geomID"] >= 0
-            both = hit_e & (h.instance >= 0)
-            row.update(embree_1t_mrays=emb, ratio_1t=ours1 / emb,
-                       hit_agreement=float(np.mean(hit_e == (h.instance >= 0))),
-                       t_max_rel_diff=float(np.max(np.abs(res["tfar"][both] - h.t[both]) / h.t[both])) if both.any()
-                       else 0.0)
-        if ei is not None:
-            emb_i, id_i = time_embree_instanced(ei[0], o, d, repeats)
-            row.update(embree_inst_1t_mrays=emb_i, ratio_inst_1t=ours1 / emb_i, embree_inst_build_s=ei[2],
-                       inst_agreement=float(np.mean(ei[1][id_i] == h.instance)))
+    rows = [throughput_row(name, kind, scene, o, d, es, ei, repeats) for kind, (o, d) in rays.items()]
+    for row, (o, d) in zip(rows, rays.values(), strict=True):
         if trimesh_rays:
             row["trimesh_mrays"] = time_trimesh(tri_world, o[:trimesh_rays], d[:trimesh_rays])
             row["trimesh_rays"] = trimesh_rays
-        rows.append(row)
     if ei is not None:
         ei[0].close()
     return rows
+
+
+def throughput_row(name: str, kind: str, scene: tracer.Scene, o: np.ndarray, d: np.ndarray, es, ei,
+                   repeats: int) -> dict:
+    """One row: rates are medians over the rounds of :func:`interleaved`; a ratio is the median of
+    the rounds' ratios."""
+    o32 = np.ascontiguousarray(o, np.float32)
+    d32 = np.ascontiguousarray(d, np.float32)
+    calls = {"ours_1t": lambda: scene.intersect(o, d, threads=1),
+             "ours_2t": lambda: scene.intersect(o, d, threads=2)}
+    if es is not None:
+        es.run(o32[:8], d32[:8], output=1)   # commit (BVH build) outside the timing
+        calls["embree"] = lambda: es.run(o32, d32, output=1)
+    if ei is not None:
+        ei[0].intersect(o[:8], d[:8])   # compile the driver loop outside the timing
+        calls["embree_inst"] = lambda: ei[0].intersect(o, d)
+    times, last = interleaved(calls, repeats)
+
+    def rate(k: str) -> float:
+        return len(o) / statistics.median(times[k]) / 1e6
+
+    def ratio(k: str) -> float:   # ours (one thread) / the peer, as speeds
+        return statistics.median(tp / to for to, tp in zip(times["ours_1t"], times[k], strict=True))
+
+    h = last["ours_1t"]
+    row = {"scene": name, "rays": kind, "n_rays": len(o), "rounds": repeats, "ours_1t_mrays": rate("ours_1t"),
+           "ours_2t_mrays": rate("ours_2t"), "hit_fraction": float(np.mean(h.instance >= 0))}
+    if es is not None:
+        res = last["embree"]
+        hit_e = res["geomID"] >= 0
+        both = hit_e & (h.instance >= 0)
+        row.update(embree_1t_mrays=rate("embree"), ratio_1t=ratio("embree"),
+                   hit_agreement=float(np.mean(hit_e == (h.instance >= 0))),
+                   t_max_rel_diff=float(np.max(np.abs(res["tfar"][both] - h.t[both]) / h.t[both])) if both.any()
+                   else 0.0)
+    if ei is not None:
+        ids = ei[1][last["embree_inst"][1]]
+        row.update(embree_inst_1t_mrays=rate("embree_inst"), ratio_inst_1t=ratio("embree_inst"),
+                   embree_inst_build_s=ei[2], inst_agreement=float(np.mean(ids == h.instance)))
+    return row
 
 
 # ---------------------------------------------------------------- cold start
@@ -379,7 +382,7 @@ def run(quick: bool = False) -> dict:
 
     # 3. throughput
     k = 40_000 if quick else 1_000_000
-    reps = 1 if quick else 3
+    reps = 1 if quick else 5
     tm_rays = 200 if quick else 2_000
     nu = 200 if quick else 1000
     v, f = bumpy_sphere(nu, nu // 2)
@@ -463,11 +466,13 @@ def markdown(r: dict) -> str:
                      f"{_f(s['move_commit_s'] * 1e3, 2)} | {_f(s['move_rebuild_commit_s'] * 1e3, 1)} | "
                      f"{_f(s['ingest_s'], 2)} |")
     lines += ["", "### Closest-hit throughput (Mrays/s, same rays, same process)", "",
+              "Each round times ours and the peers one after the other on the same rays; rates are medians over "
+              "the rounds, a ratio (ours / Embree, one thread each) the median of the rounds' ratios. "
               "Embree via embreex (its `run` loops over rays on one thread; its BVH is built outside the timing) over "
               "the world-space triangles: one flat BVH. *Embree, 2 levels*: Embree over the same instances (one "
               "Embree scene per geometry, an instance per object with its transform; `bench/embree_instances.py`, "
               "`rtcIntersect1` per ray from a compiled loop), the peer with our structure. trimesh = "
-              "`trimesh.ray.ray_triangle` (pure numpy) on a subset. Ratios = ours / Embree, one thread each.", "",
+              "`trimesh.ray.ray_triangle` (pure numpy) on a subset.", "",
               "| scene | rays | ours 1 thread | ours 2 threads | Embree flat, 1 thread | ratio | "
               "Embree 2 levels, 1 thread | ratio | trimesh | hit agreement |",
               "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
