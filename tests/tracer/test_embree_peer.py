@@ -2,7 +2,8 @@
 
 A peer that answered a different question would make its speed meaningless: on random instanced
 scenes (mirrored, non-uniformly scaled) it must hit the same instance at the same distance as our
-tracer, up to Embree's float32 arithmetic. Needs the bench extra (embreex); skipped without it.
+tracer, up to Embree's float32 arithmetic. The agreement test needs the bench extra (embreex) and is
+skipped without it.
 """
 
 from __future__ import annotations
@@ -11,13 +12,12 @@ import numpy as np
 import pytest
 
 import tracer
+from bench import embree_instances
 from tracer import reference
-
-pytest.importorskip("embreex")
-from bench import embree_instances  # noqa: E402
 
 
 def test_instanced_embree_agrees_with_ours() -> None:
+    pytest.importorskip("embreex")
     rng = np.random.default_rng(7)
     scene = tracer.Scene()
     geoms, insts = [], []
