@@ -135,8 +135,10 @@ class InstancedScene:
 _intersect1 = _LIB.rtcIntersect1 if _LIB is not None else None
 
 
-@njit(cache=False)
+@njit(cache=False)   # it calls a ctypes function, which numba cannot cache
 def _trace(scene, o, d, rf, ru, addr, out_t, out_inst):
+    """One ``rtcIntersect1`` per ray through the record at ``addr`` (``rf``/``ru``: its float and
+    unsigned views; field offsets of ``RTCRayHit`` in 4-byte words)."""
     for i in range(o.shape[0]):
         rf[0] = o[i, 0]
         rf[1] = o[i, 1]
