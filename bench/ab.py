@@ -1,4 +1,5 @@
-"""A/B wall time of ``Scene.intersect`` between two checkouts, for work on the traversal.
+"""A/B wall time of ``Scene.intersect`` (or of photon tracing) between two checkouts, for work on the
+traversal.
 
 Wall times on this shared machine swing by 30 % from one minute to the next, so two runs made one
 after the other compare the neighbours' load as much as the code. Here both checkouts load the same
@@ -8,8 +9,12 @@ It prints the median ratio (< 1: B is faster) and its range::
 
     .venv/bin/python bench/ab.py /path/to/checkout_a /path/to/checkout_b scene3 incoherent 8
 
-Each checkout needs ``bench/instructions.py`` and its own ``.venv`` (a symbolic link to this one will
-do); ``git worktree add`` makes a checkout of an older commit. One thread each.
+Scene ``room`` with rays ``photons`` times forward photon tracing instead: 200,000 photons through
+the diffuse room of ``bench/bench_transport.py`` (``Simulation.illuminance``, nine floor points).
+
+Each checkout needs ``bench/instructions.py`` (``bench/bench_transport.py`` for the room) and its own
+``.venv`` (a symbolic link to this one will do); ``git worktree add`` makes a checkout of an older
+commit. One thread each.
 """
 
 from __future__ import annotations
@@ -19,19 +24,38 @@ import statistics
 import subprocess
 import sys
 import time
+from collections.abc import Callable
+
+
+def one_pass(scene: str, rays: str) -> Callable[[], object]:
+    """The work of one timed pass, loaded with the code on ``sys.path`` and run once outside the timing."""
+    if scene == "room":
+        if rays != "photons":
+            raise SystemExit("scene room takes rays 'photons'")
+        from bench.bench_transport import floor_points, room_scene
+        from tracer.simulate import Simulation
+
+        s, room = room_scene()
+        sim = Simulation(s, {room: {"type": "lambertian", "reflectance": 0.5}},
+                         [{"type": "point", "position": [2.0, 2.0, 2.5], "intensity_cd": 1000.0}])
+        pts, nrm = floor_points(3)
+        sim.illuminance(pts, nrm, max_photons=1000, estimator="forward")
+        return lambda: sim.illuminance(pts, nrm, max_photons=200_000, estimator="forward")
+    from bench.instructions import scene_and_rays
+
+    sc, o, d = scene_and_rays(scene, rays)
+    sc.intersect(o[:100], d[:100], threads=1)
+    return lambda: sc.intersect(o, d, threads=1)
 
 
 def worker(checkout: str, scene: str, rays: str) -> None:
-    """Load the scene and rays with the code of ``checkout``, then time one pass per line read from stdin."""
+    """Load the work with the code of ``checkout``, then time one pass per line read from stdin."""
     sys.path.insert(0, checkout)
-    from bench.instructions import scene_and_rays
-
-    s, o, d = scene_and_rays(scene, rays)
-    s.intersect(o[:100], d[:100], threads=1)   # compile or load the kernels outside the timing
+    work = one_pass(scene, rays)
     print("ready", flush=True)
     for _ in sys.stdin:
         t0 = time.perf_counter()
-        s.intersect(o, d, threads=1)
+        work()
         print(time.perf_counter() - t0, flush=True)
 
 
