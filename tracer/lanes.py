@@ -302,13 +302,14 @@ def _coherent(o, d, lo, hi):
     """True when rays ``lo .. hi-1`` all start at one point and neighbours point nearly the same way
     (:data:`COHERENT`)."""
     s = 0.0
+    a = 1.0 / math.sqrt(d[lo, 0] ** 2 + d[lo, 1] ** 2 + d[lo, 2] ** 2)   # 1 / |d| of the previous ray
     for i in range(lo + 1, hi):
         if o[i, 0] != o[lo, 0] or o[i, 1] != o[lo, 1] or o[i, 2] != o[lo, 2]:
             return False
-        a = 1.0 / math.sqrt(d[i - 1, 0] ** 2 + d[i - 1, 1] ** 2 + d[i - 1, 2] ** 2)
         b = 1.0 / math.sqrt(d[i, 0] ** 2 + d[i, 1] ** 2 + d[i, 2] ** 2)
         s += ((d[i, 0] * b - d[i - 1, 0] * a) ** 2 + (d[i, 1] * b - d[i - 1, 1] * a) ** 2
               + (d[i, 2] * b - d[i - 1, 2] * a) ** 2)
+        a = b
     return s <= COHERENT * (hi - lo - 1)
 
 
