@@ -384,6 +384,18 @@ class Scene:
         m[:3] = self._wfo[i]
         return m
 
+    def instance_bounds(self, i: int) -> np.ndarray:
+        """(2, 3) world-space box ``[lo, hi]`` the top level holds for instance ``i`` as last committed.
+
+        It encloses every surface of the instance: for a mesh, the box of its transformed vertices (or,
+        above :data:`tracer.tlas.EXACT_MAX_TRIANGLES`, of its BVH's transformed second-level boxes), so
+        a rotated part's box is not the loose box of its rotated object box. ``lo > hi`` for an empty mesh.
+        """
+        i = self._instance(i)
+        if i in self._dirty_ids or self._arrays is None:
+            raise NotCommittedError(f"instance {i} changed since the last commit: call commit() first")
+        return self._wbox[i].reshape(2, 3).copy()
+
     def is_sensor(self, i: int) -> bool:
         """True when instance ``i`` is a sensor."""
         return int(self._kind[self._instance(i)]) in SENSOR_KINDS
@@ -440,7 +452,10 @@ class Scene:
         t1 = time.perf_counter()
         if self._dirty_ids:
             ids = np.fromiter(self._dirty_ids, np.int64, len(self._dirty_ids))
-            world_boxes(ids, self._wfo, self._obox, self._wbox)
+            rows = self._store["bvh"]
+            world_boxes(ids, self._wfo, self._obox, self._kind, mesh.KIND, self._igeom, self._g_node0, self._g_tri0,
+                        self._g_ntri, rows.ravel(), rows.view(np.int32).ravel(), rows.view(np.uint8).ravel(),
+                        self._store["tri_v"].ravel(), self._wbox)
             self._dirty_ids = set()
         n = self._n_ids
         kind = self._kind[:n]

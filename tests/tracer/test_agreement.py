@@ -136,3 +136,25 @@ def test_large_meshes_deep_trees(rng: np.random.Generator) -> None:
     ref = reference.intersect(scene, o, d)
     assert_same_hits(scene, ours, ref, o, d)
     assert not np.isin(ours.primitive, np.arange(50)).any()
+
+
+def test_large_rotated_meshes_match_brute_force(rng: np.random.Generator) -> None:
+    # meshes above tlas.EXACT_MAX_TRIANGLES are bounded by their BVH's transformed second level:
+    # random affine instances (mirrored, sheared) of a soup and of a thin strip must lose no hit
+    from tracer.tlas import EXACT_MAX_TRIANGLES
+
+    scene = tracer.Scene()
+    soup = reference.random_mesh(rng, EXACT_MAX_TRIANGLES + 200)
+    k = np.arange(EXACT_MAX_TRIANGLES + 300)
+    strip = (np.stack([k / len(k), 0.02 * (k % 2) + 0.1 * np.sin(k / 40), 0.1 * np.cos(k / 50)], 1),
+             np.stack([k[:-2], k[1:-1], k[2:]], 1))
+    for v, f in (soup, strip):
+        g = scene.add_geometry(v, f)
+        for _ in range(3):
+            scene.add_instance(g, reference.random_affine(rng, spread=1.5))
+    scene.commit()
+    o, d = _random_rays(rng, 300, spread=2.0)
+    ours = scene.intersect(o, d)
+    ref = reference.intersect(scene, o, d)
+    assert np.isfinite(ref.t).sum() > 50
+    assert_same_hits(scene, ours, ref, o, d)

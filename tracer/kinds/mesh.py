@@ -65,18 +65,29 @@ def _slab_lanes(context, builder, sig, args):
     def splat(x):
         return builder.shuffle_vector(builder.insert_element(undef, x, i32(0)), undef, lanes0)
 
+    fma = cgutils.get_or_insert_function(builder.module, ir.FunctionType(d4, [d4, d4, d4]), "llvm.fma.v4f64")
+
     def plane(p, origin, scale):
         ptr = builder.bitcast(builder.gep(qbase, [builder.mul(p, i64(4))], inbounds=True),
                               ir.VectorType(ir.IntType(8), 4).as_pointer())
         q = builder.uitofp(builder.load(ptr, align=1), d4)
-        return builder.fadd(builder.fmul(q, scale), origin)
+        return builder.call(fma, [q, scale, origin])   # exact either way (tracer.blas._quantize): one op
+
+    # origin and scale: two 4-float loads widened at once, each value then splat from its lane
+    f4p = ir.VectorType(ir.FloatType(), 4).as_pointer()
+    head = builder.fpext(builder.load(builder.bitcast(row, f4p), align=4), d4)                # ox oy oz sx
+    tail = builder.fpext(builder.load(builder.bitcast(builder.gep(row, [i64(2)], inbounds=True), f4p),
+                                      align=4), d4)                                          # oz sx sy sz
+
+    def lane(v, c):
+        return builder.shuffle_vector(v, undef, ir.Constant(ir.VectorType(i32, 4), [c] * 4))
 
     tn = splat(dbl(0.0))
     tf = splat(t_max)
     for a, (near, o, inv, inve) in enumerate(((xl, ox, ix, ixe), (yl, oy, iy, iye), (zl, oz, iz, ize))):
         far = builder.sub(i64(2 * a + 3), near)
-        origin = splat(builder.fpext(builder.load(builder.gep(row, [i64(a)], inbounds=True)), dbl))
-        scale = splat(builder.fpext(builder.load(builder.gep(row, [i64(3 + a)], inbounds=True)), dbl))
+        origin = lane(head, a)
+        scale = lane(head, 3) if a == 0 else lane(tail, a + 1)
         so = splat(o)
         t0 = builder.fmul(builder.fsub(plane(near, origin, scale), so), splat(inv))
         t1 = builder.fmul(builder.fsub(plane(far, origin, scale), so), splat(inve))
