@@ -132,7 +132,8 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
             t0, t1, t2, t3 = slab4(bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
             ref, r1, r2, r3, t1, t2, t3 = order4(t0, t1, t2, t3, bi, r)
             if ref != MISS:
-                sp = push3(stack, tstack, sp, r1, r2, r3, t1, t2, t3)
+                if t1 < np.inf:
+                    sp = push3(stack, tstack, sp, r1, r2, r3, t1, t2, t3)
                 if ref >= 0:
                     prefetch(bf, 16 * ref)
                 continue

@@ -317,7 +317,8 @@ def traverse_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hi
             t0, t1, t2, t3 = slab4(bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
             ref, r1, r2, r3, t1, t2, t3 = order4(t0, t1, t2, t3, bi, r)
             if ref != MISS:
-                sp = push3(stack, tstack, sp, r1, r2, r3, t1, t2, t3)
+                if t1 < np.inf:
+                    sp = push3(stack, tstack, sp, r1, r2, r3, t1, t2, t3)
                 prefetch_ref(bf, tri, row0, tri0, ref)
                 continue
         else:
