@@ -10,11 +10,13 @@ thread, so no worker spins)::
 
 Scenes: ``mesh`` (the benchmark's 1M-triangle bumpy sphere), ``scene3`` (the paper's scene 3, two
 levels), ``flat3`` (scene 3 as one flattened BVH). Rays: ``incoherent`` or ``camera``, as in
-``bench/bench_tracer.py``, or ``point`` (random directions from the scene's centre).
+``bench/bench_tracer.py``, or ``point`` (random directions from the scene's centre). 200,000 rays, or
+``BENCH_RAYS`` (the benchmark traces 1,000,000: a camera's rays are then more coherent).
 """
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -32,7 +34,7 @@ from bench.bench_tracer import (  # noqa: E402
     world_triangles,
 )
 
-RAYS = 200_000
+RAYS = int(os.environ.get("BENCH_RAYS", 200_000))
 
 
 def scene_and_rays(name: str, kind: str) -> tuple[tracer.Scene, np.ndarray, np.ndarray]:

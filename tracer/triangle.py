@@ -43,9 +43,9 @@ def ray_setup(dx, dy, dz):
         kx, ky = ky, kx
     dkx = dx if kx == 0 else (dy if kx == 1 else dz)
     dky = dx if ky == 0 else (dy if ky == 1 else dz)
-    sx = dkx / dkz
-    sy = dky / dkz
     sz = 1.0 / dkz
+    sx = dkx * sz   # one division per ray, not three: any shear works, as long as every triangle gets the same
+    sy = dky * sz
     return kx, ky, kz, sx, sy, sz
 
 
