@@ -119,11 +119,19 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
     bv = 0.0
     if sa.top_f.shape[0] == 0:
         return best_t, best_inst, best_slot, bu, bv
+    items = sa.top_items
+    m = sa.object_from_world
+    if items.shape[0] == 1:   # one instance: its bottom level's first row tests what its box would
+        inst = items[0]
+        rox, roy, roz, rdx, rdy, rdz = _to_object(m, inst, ox, oy, oz, dx, dy, dz)
+        hit, t, slot, u, v = dispatch.intersect_solid(sa, inst, rox, roy, roz, rdx, rdy, rdz, best_t, any_hit, stack,
+                                                      tstack)
+        if hit:
+            return t, inst, slot, u, v
+        return best_t, best_inst, best_slot, bu, bv
     ix, iy, iz, ixe, iye, ize, xl, yl, zl = ray_inverse(dx, dy, dz)
     bf = sa.top_f
     bi = sa.top_i
-    items = sa.top_items
-    m = sa.object_from_world
     sp = 0
     ref = 0
     while True:

@@ -158,3 +158,23 @@ def test_large_rotated_meshes_match_brute_force(rng: np.random.Generator) -> Non
     ref = reference.intersect(scene, o, d)
     assert np.isfinite(ref.t).sum() > 50
     assert_same_hits(scene, ours, ref, o, d)
+
+
+@pytest.mark.parametrize("seed", [4, 5])
+def test_one_instance_scene_matches_brute_force(seed: int) -> None:
+    # a top level with one instance is entered without its box test (tracer.traverse._closest)
+    rng = np.random.default_rng(seed)
+    scene = tracer.Scene()
+    v, f = reference.random_mesh(rng, 200)
+    scene.add_instance(scene.add_geometry(v, f), reference.random_affine(rng, spread=0.2, mirror=True))
+    scene.commit()
+    o, d = _random_rays(rng, 400, spread=2.0)
+    ours = scene.intersect(o, d)
+    ref = reference.intersect(scene, o, d)
+    assert 50 < np.isfinite(ref.t).sum() < 350   # hits and misses both
+    assert_same_hits(scene, ours, ref, o, d)
+    hit = np.isfinite(ref.t)
+    short = np.where(hit, ref.t * 0.999, 1e3)
+    assert np.all(scene.intersect(o, d, short).instance == -1)
+    assert not scene.occluded(o, d, short).any()
+    np.testing.assert_array_equal(scene.occluded(o, d, np.where(hit, ref.t * 1.001, 1e3)), hit)
