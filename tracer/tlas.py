@@ -55,21 +55,18 @@ def _grow(m, i, x0, y0, z0, x1, y1, z1, acc):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _grow_row(m, i, rows_f, rows_b, r, c, acc):
-    """Widen ``acc`` by child ``c`` of wide row ``r`` (its quantised box, which encloses the child's
-    exact box); False when the slot is empty."""
+    """Widen ``acc`` by child ``c`` of wide row ``r``: its quantised box, which encloses the child's exact
+    box (an empty slot, inverted on every axis, adds nothing)."""
     q = 64 * r + 24 + c
     if rows_b[q] > rows_b[q + 12] or rows_b[q + 4] > rows_b[q + 16] or rows_b[q + 8] > rows_b[q + 20]:
-        return False
+        return
     f = 16 * r
-    lo = np.empty(3)
-    hi = np.empty(3)
-    for a in range(3):
-        o = np.float64(rows_f[f + a])
-        s = np.float64(rows_f[f + 3 + a])
-        lo[a] = o + rows_b[q + 4 * a] * s
-        hi[a] = o + rows_b[q + 4 * (a + 3)] * s
-    _grow(m, i, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], acc)
-    return True
+    _grow(m, i, rows_f[f] + rows_b[q] * np.float64(rows_f[f + 3]),
+          rows_f[f + 1] + rows_b[q + 4] * np.float64(rows_f[f + 4]),
+          rows_f[f + 2] + rows_b[q + 8] * np.float64(rows_f[f + 5]),
+          rows_f[f] + rows_b[q + 12] * np.float64(rows_f[f + 3]),
+          rows_f[f + 1] + rows_b[q + 16] * np.float64(rows_f[f + 4]),
+          rows_f[f + 2] + rows_b[q + 20] * np.float64(rows_f[f + 5]), acc)
 
 
 @njit(cache=True, error_model="numpy")
