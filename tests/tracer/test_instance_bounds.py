@@ -49,30 +49,28 @@ def _area(box: np.ndarray) -> float:
     return float(2 * (e[0] * e[1] + e[1] * e[2] + e[2] * e[0]))
 
 
-def test_small_mesh_box_is_its_transformed_vertices_box() -> None:
-    v, f = _diagonal_strip(40)
+def _rotated_strip_box(n_triangles: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(committed box, world vertices, corner box) of a diagonal strip rotated onto x."""
+    v, f = _diagonal_strip(n_triangles)
     m = _diagonal_to_x()
     scene = tracer.Scene()
     i = scene.add_instance(scene.add_geometry(v, f), m)
     scene.commit()
-    box = scene.instance_bounds(i)
-    w = _world(v, m)
+    return scene.instance_bounds(i), _world(v, m), _corner_box(v, m)
+
+
+def test_small_mesh_box_is_its_transformed_vertices_box() -> None:
+    box, w, corners = _rotated_strip_box(40)
     np.testing.assert_allclose(box, np.stack([w.min(0), w.max(0)]), rtol=0, atol=10 * PAD * np.abs(w).max())
     assert np.all(box[0] <= w.min(0)) and np.all(box[1] >= w.max(0))
-    assert _area(box) < 0.05 * _area(_corner_box(v, m))
+    assert _area(box) < 0.05 * _area(corners)
 
 
 def test_large_mesh_box_encloses_it_and_is_tighter_than_the_corner_box() -> None:
-    v, f = _diagonal_strip(EXACT_MAX_TRIANGLES * 4)
-    m = _diagonal_to_x()
-    scene = tracer.Scene()
-    i = scene.add_instance(scene.add_geometry(v, f), m)
-    scene.commit()
-    box = scene.instance_bounds(i)
-    w = _world(v, m)
+    box, w, corners = _rotated_strip_box(EXACT_MAX_TRIANGLES * 4)
     assert np.all(box[0] <= w.min(0)) and np.all(box[1] >= w.max(0))
     # 16 second-level boxes of side about 1/16 along the diagonal, against the rotated unit cube
-    assert _area(box) < 0.25 * _area(_corner_box(v, m))
+    assert _area(box) < 0.25 * _area(corners)
 
 
 def test_random_affine_boxes_enclose_every_vertex(rng: np.random.Generator) -> None:
