@@ -13,11 +13,15 @@ plane for near distances and away from it for far ones; ``t_max`` rounded up. So
 that the float64 test keeps, at any coordinate magnitude (far from the origin the boxes only grow by
 float32's rounding of the origin).
 
-What it leaves to the real change: 8-wide rows in the top level and in :mod:`tracer.lanes`, the stack
+Scenes ``mesh`` and ``flat3`` (one BVH) compare whole walks; ``scene3`` (two levels) makes only the top level
+8-wide and walks each instance's bottom level as today (:func:`tracer.traverse._closest` against
+:func:`walk8_top`).
+
+What it leaves to the real change: 8-wide rows in both levels of the scene and in :mod:`tracer.lanes`, the stack
 bound (an 8-wide level pushes up to seven entries), :func:`tracer.tlas.world_boxes` and refits on the new
 rows, a cache version, and the test suite for the float32 test. Delete this probe when that lands::
 
-    NUMBA_NUM_THREADS=1 .venv/bin/python bench/wide8_probe.py [mesh|flat3 ...]
+    NUMBA_NUM_THREADS=1 BENCH_RAYS=1000000 .venv/bin/python bench/wide8_probe.py [mesh|flat3|scene3 ...]
 
 Writes ``bench/results/wide8_probe.json``.
 """
@@ -41,7 +45,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from bench.bench_tracer import bumpy_sphere, world_triangles  # noqa: E402
 from bench.instructions import scene_and_rays  # noqa: E402
 from tracer import blas  # noqa: E402
+from tracer.kinds import dispatch  # noqa: E402
 from tracer.kinds.mesh import MISS, prefetch, traverse_rows  # noqa: E402
+from tracer.traverse import _closest, _to_object, new_stacks  # noqa: E402
 from tracer.triangle import intersect_triangle, ray_setup  # noqa: E402
 
 WIDTH = 8
@@ -249,6 +255,120 @@ def rays4(bf, bi, tri, o, d, out, stack, tstack):
                                False, stack, tstack)[1]
 
 
+@njit(cache=True, error_model="numpy", _nrt=False)
+def walk8_top(sa, nf, ni, ox, oy, oz, dx, dy, dz, stack, tstack, tbuf, bstack, btstack):
+    """Closest-hit distance through an 8-wide top level over ``sa``'s instances (leaves: positions in
+    ``sa.top_items``), each instance's bottom level walked as today (:mod:`tracer.kinds.dispatch`)."""
+    ix = 1.0 / dx
+    iy = 1.0 / dy
+    iz = 1.0 / dz
+    onx, ofx = _origin(ox, ix)
+    ony, ofy = _origin(oy, iy)
+    onz, ofz = _origin(oz, iz)
+    fx, fy, fz = np.float32(ix), np.float32(iy), np.float32(iz)
+    fxe, fye, fze = np.float32(ix * FAR), np.float32(iy * FAR), np.float32(iz * FAR)
+    xl = 0 if ix >= 0.0 else 3
+    yl = 1 if iy >= 0.0 else 4
+    zl = 2 if iz >= 0.0 else 5
+    best_t = np.inf
+    m_ = sa.object_from_world
+    sp = 0
+    ref = 0
+    while True:
+        if ref >= 0:
+            r = 64 * ref
+            m = slab8(nf, r, onx, ony, onz, ofx, ofy, ofz, fx, fy, fz, fxe, fye, fze, xl, yl, zl,
+                      blas._up32(best_t), tbuf)
+            if m != 0:
+                c = lowest_bit(m)
+                m &= m - 1
+                ref = np.int64(ni[r + 48 + c])
+                tn = tbuf[c]
+                while m != 0:
+                    c = lowest_bit(m)
+                    m &= m - 1
+                    t2 = tbuf[c]
+                    r2 = np.int64(ni[r + 48 + c])
+                    if t2 < tn:
+                        stack[sp] = ref
+                        tstack[sp] = tn
+                        ref = r2
+                        tn = t2
+                    else:
+                        stack[sp] = r2
+                        tstack[sp] = t2
+                    sp += 1
+                if ref >= 0:
+                    prefetch(nf, 64 * ref)
+                continue
+        else:
+            x = -ref - 1
+            for q in range(x >> 4, (x >> 4) + (x & 15)):
+                inst = sa.top_items[q]
+                rox, roy, roz, rdx, rdy, rdz = _to_object(m_, inst, ox, oy, oz, dx, dy, dz)
+                hit, t, _, _, _ = dispatch.intersect_solid(sa, inst, rox, roy, roz, rdx, rdy, rdz, best_t, False,
+                                                           bstack, btstack)
+                if hit:
+                    best_t = t
+        ref = MISS
+        while sp > 0:
+            sp -= 1
+            if tstack[sp] <= best_t:
+                ref = stack[sp]
+                break
+        if ref == MISS:
+            return best_t
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def rays8_top(sa, nf, ni, o, d, out, stack, tstack, tbuf, bstack, btstack):
+    for i in range(o.shape[0]):
+        out[i] = walk8_top(sa, nf, ni, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], stack, tstack, tbuf,
+                           bstack, btstack)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def rays4_top(sa, o, d, out, bstack, btstack):
+    for i in range(o.shape[0]):
+        out[i] = _closest(sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], np.inf, False, bstack, btstack)[0]
+
+
+def top8(binary: np.ndarray) -> np.ndarray:
+    """8-wide rows of a top level from its binary child-box rows (:func:`tracer.blas.pack_rows`)."""
+    boxes = binary[:, :12].astype(np.float64)
+    refs = binary.view(np.int32)[:, 12:14].astype(np.int64)
+    wb, wr = widen8(boxes, refs)
+    rows8 = blas.aligned_rows(4 * len(wb)).reshape(-1, 64)
+    pack8(wb, wr, rows8, rows8.view(np.int32))
+    return rows8
+
+
+def time_top(scene, o: np.ndarray, d: np.ndarray) -> dict:
+    """Today's two-level walk against one whose top level is 8-wide (bottom levels as today), alternating."""
+    sa = scene.arrays()
+    rows8 = top8(scene._levels["top"].binary)
+    nf, ni = rows8.reshape(-1), rows8.view(np.int32).reshape(-1)
+    stack, tstack, tbuf = np.empty(1024, np.int64), np.empty(1024), np.empty(WIDTH, np.float32)
+    bstack, btstack = new_stacks()
+    t4, t8 = np.empty(len(o)), np.empty(len(o))
+    rays4_top(sa, o[:10], d[:10], t4, bstack, btstack)
+    rays8_top(sa, nf, ni, o[:10], d[:10], t8, stack, tstack, tbuf, bstack, btstack)
+    ratios, s4, s8 = [], [], []
+    for _ in range(ROUNDS):
+        t0 = time.perf_counter()
+        rays4_top(sa, o, d, t4, bstack, btstack)
+        a = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        rays8_top(sa, nf, ni, o, d, t8, stack, tstack, tbuf, bstack, btstack)
+        b = time.perf_counter() - t0
+        ratios.append(a / b)
+        s4.append(len(o) / a / 1e6)
+        s8.append(len(o) / b / 1e6)
+    return {"rays": len(o), "top_rows8": len(rows8), "mrays4": statistics.median(s4), "mrays8": statistics.median(s8),
+            "speedup": statistics.median(ratios), "speedup_range": [min(ratios), max(ratios)],
+            "same_hits": bool(np.array_equal(t4, t8))}
+
+
 def layouts(tri_v: np.ndarray) -> dict:
     """Both layouts of one BVH over ``tri_v`` (m, 9), and the triangles in leaf order."""
     order, nb, na, nn, nc = blas.build_meshes(tri_v, np.array([0, len(tri_v)]), 4, 1.0)
@@ -290,6 +410,12 @@ def probe(name: str) -> dict:
     lay = None
     for kind in ("camera", "incoherent"):
         scene, o, d = scene_and_rays(name, kind)
+        if name == "scene3":   # two levels: only the top level 8-wide
+            r = out[kind] = time_top(scene, o, d)
+            print(f"{name} {kind}: 4-wide top {r['mrays4']:.3f} Mrays/s, 8-wide top {r['mrays8']:.3f}, speed-up"
+                  f" {r['speedup']:.2f} ({r['speedup_range'][0]:.2f}-{r['speedup_range'][1]:.2f}), same hits:"
+                  f" {r['same_hits']}")
+            continue
         if lay is None:
             if name == "mesh":
                 v, f = bumpy_sphere(1000, 500)
@@ -308,7 +434,7 @@ def probe(name: str) -> dict:
 
 
 def main() -> None:
-    names = sys.argv[1:] or ["mesh", "flat3"]
+    names = sys.argv[1:] or ["mesh", "flat3", "scene3"]
     res = {"rounds": ROUNDS, "scenes": [probe(n) for n in names]}
     path = Path(__file__).resolve().parent / "results" / "wide8_probe.json"
     path.write_text(json.dumps(res, indent=1))
