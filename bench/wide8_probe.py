@@ -46,7 +46,7 @@ from bench.bench_tracer import bumpy_sphere, world_triangles  # noqa: E402
 from bench.instructions import scene_and_rays  # noqa: E402
 from tracer import blas  # noqa: E402
 from tracer.kinds import dispatch  # noqa: E402
-from tracer.kinds.mesh import MISS, prefetch, traverse_rows  # noqa: E402
+from tracer.kinds.mesh import MISS, pop_nearer, prefetch, traverse_rows  # noqa: E402
 from tracer.traverse import _closest, _to_object, new_stacks  # noqa: E402
 from tracer.triangle import intersect_triangle, ray_setup  # noqa: E402
 
@@ -179,21 +179,50 @@ def _origin(o, inv):
     return blas._down32(o), blas._up32(o)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
-def walk8(nf, ni, tri, ox, oy, oz, dx, dy, dz, stack, tstack, tbuf):
-    """Closest-hit distance along the ray through the 8-wide rows (nearest child first)."""
-    kx, ky, kz, sx, sy, sz = ray_setup(dx, dy, dz)
+@njit(cache=True, error_model="numpy", inline="always")
+def ray8(ox, oy, oz, dx, dy, dz):
+    """Per-ray constants of :func:`slab8`: near and far origins, inverse direction and times :data:`FAR`
+    (float32), near-plane offsets."""
     ix = 1.0 / dx
     iy = 1.0 / dy
     iz = 1.0 / dz
     onx, ofx = _origin(ox, ix)
     ony, ofy = _origin(oy, iy)
     onz, ofz = _origin(oz, iz)
-    fx, fy, fz = np.float32(ix), np.float32(iy), np.float32(iz)
-    fxe, fye, fze = np.float32(ix * FAR), np.float32(iy * FAR), np.float32(iz * FAR)
-    xl = 0 if ix >= 0.0 else 3
-    yl = 1 if iy >= 0.0 else 4
-    zl = 2 if iz >= 0.0 else 5
+    return (onx, ony, onz, ofx, ofy, ofz, np.float32(ix), np.float32(iy), np.float32(iz), np.float32(ix * FAR),
+            np.float32(iy * FAR), np.float32(iz * FAR), 0 if ix >= 0.0 else 3, 1 if iy >= 0.0 else 4,
+            2 if iz >= 0.0 else 5)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def descend8(ni, r, m, tbuf, stack, tstack, sp):
+    """``(ref, sp)``: the nearest child of row ``r`` among the hits ``m`` (a mask, not 0), the others pushed."""
+    c = lowest_bit(m)
+    m &= m - 1
+    ref = np.int64(ni[r + 48 + c])
+    tn = tbuf[c]
+    while m != 0:
+        c = lowest_bit(m)
+        m &= m - 1
+        t2 = tbuf[c]
+        r2 = np.int64(ni[r + 48 + c])
+        if t2 < tn:
+            stack[sp] = ref
+            tstack[sp] = tn
+            ref = r2
+            tn = t2
+        else:
+            stack[sp] = r2
+            tstack[sp] = t2
+        sp += 1
+    return ref, sp
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def walk8(nf, ni, tri, ox, oy, oz, dx, dy, dz, stack, tstack, tbuf):
+    """Closest-hit distance along the ray through the 8-wide rows (nearest child first)."""
+    kx, ky, kz, sx, sy, sz = ray_setup(dx, dy, dz)
+    onx, ony, onz, ofx, ofy, ofz, fx, fy, fz, fxe, fye, fze, xl, yl, zl = ray8(ox, oy, oz, dx, dy, dz)
     best_t = np.inf
     sp = 0
     ref = 0
@@ -203,24 +232,7 @@ def walk8(nf, ni, tri, ox, oy, oz, dx, dy, dz, stack, tstack, tbuf):
             m = slab8(nf, r, onx, ony, onz, ofx, ofy, ofz, fx, fy, fz, fxe, fye, fze, xl, yl, zl,
                       blas._up32(best_t), tbuf)
             if m != 0:
-                c = lowest_bit(m)
-                m &= m - 1
-                ref = np.int64(ni[r + 48 + c])
-                tn = tbuf[c]
-                while m != 0:   # push all but the nearest
-                    c = lowest_bit(m)
-                    m &= m - 1
-                    t2 = tbuf[c]
-                    r2 = np.int64(ni[r + 48 + c])
-                    if t2 < tn:
-                        stack[sp] = ref
-                        tstack[sp] = tn
-                        ref = r2
-                        tn = t2
-                    else:
-                        stack[sp] = r2
-                        tstack[sp] = t2
-                    sp += 1
+                ref, sp = descend8(ni, r, m, tbuf, stack, tstack, sp)
                 if ref >= 0:
                     prefetch(nf, 64 * ref)
                 else:
@@ -232,12 +244,7 @@ def walk8(nf, ni, tri, ox, oy, oz, dx, dy, dz, stack, tstack, tbuf):
                 hit, t, _, _ = intersect_triangle(tri, j, ox, oy, oz, kx, ky, kz, sx, sy, sz, best_t)
                 if hit:
                     best_t = t
-        ref = MISS
-        while sp > 0:
-            sp -= 1
-            if tstack[sp] <= best_t:
-                ref = stack[sp]
-                break
+        ref, sp = pop_nearer(stack, tstack, sp, 0, best_t)
         if ref == MISS:
             return best_t
 
@@ -259,17 +266,7 @@ def rays4(bf, bi, tri, o, d, out, stack, tstack):
 def walk8_top(sa, nf, ni, ox, oy, oz, dx, dy, dz, stack, tstack, tbuf, bstack, btstack):
     """Closest-hit distance through an 8-wide top level over ``sa``'s instances (leaves: positions in
     ``sa.top_items``), each instance's bottom level walked as today (:mod:`tracer.kinds.dispatch`)."""
-    ix = 1.0 / dx
-    iy = 1.0 / dy
-    iz = 1.0 / dz
-    onx, ofx = _origin(ox, ix)
-    ony, ofy = _origin(oy, iy)
-    onz, ofz = _origin(oz, iz)
-    fx, fy, fz = np.float32(ix), np.float32(iy), np.float32(iz)
-    fxe, fye, fze = np.float32(ix * FAR), np.float32(iy * FAR), np.float32(iz * FAR)
-    xl = 0 if ix >= 0.0 else 3
-    yl = 1 if iy >= 0.0 else 4
-    zl = 2 if iz >= 0.0 else 5
+    onx, ony, onz, ofx, ofy, ofz, fx, fy, fz, fxe, fye, fze, xl, yl, zl = ray8(ox, oy, oz, dx, dy, dz)
     best_t = np.inf
     m_ = sa.object_from_world
     sp = 0
@@ -280,24 +277,7 @@ def walk8_top(sa, nf, ni, ox, oy, oz, dx, dy, dz, stack, tstack, tbuf, bstack, b
             m = slab8(nf, r, onx, ony, onz, ofx, ofy, ofz, fx, fy, fz, fxe, fye, fze, xl, yl, zl,
                       blas._up32(best_t), tbuf)
             if m != 0:
-                c = lowest_bit(m)
-                m &= m - 1
-                ref = np.int64(ni[r + 48 + c])
-                tn = tbuf[c]
-                while m != 0:
-                    c = lowest_bit(m)
-                    m &= m - 1
-                    t2 = tbuf[c]
-                    r2 = np.int64(ni[r + 48 + c])
-                    if t2 < tn:
-                        stack[sp] = ref
-                        tstack[sp] = tn
-                        ref = r2
-                        tn = t2
-                    else:
-                        stack[sp] = r2
-                        tstack[sp] = t2
-                    sp += 1
+                ref, sp = descend8(ni, r, m, tbuf, stack, tstack, sp)
                 if ref >= 0:
                     prefetch(nf, 64 * ref)
                 continue
@@ -310,12 +290,7 @@ def walk8_top(sa, nf, ni, ox, oy, oz, dx, dy, dz, stack, tstack, tbuf, bstack, b
                                                            bstack, btstack)
                 if hit:
                     best_t = t
-        ref = MISS
-        while sp > 0:
-            sp -= 1
-            if tstack[sp] <= best_t:
-                ref = stack[sp]
-                break
+        ref, sp = pop_nearer(stack, tstack, sp, 0, best_t)
         if ref == MISS:
             return best_t
 
