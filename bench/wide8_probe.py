@@ -17,6 +17,12 @@ Scenes ``mesh`` and ``flat3`` (one BVH) compare whole walks; ``scene3`` (two lev
 8-wide and walks each instance's bottom level as today (:func:`tracer.traverse._closest` against
 :func:`walk8_top`).
 
+Both walks here are single-ray walks. Built into the tracer (branch ``wide8``, 128-byte quantised rows,
+all tests passing in the 256-byte form), the 8-wide rows lost to today's walk of incoherent rays, which
+keeps four rays in flight (:mod:`tracer.lanes`): 1.15-1.21x slower (``bench/ab.py``), with twice the
+branch mispredictions; camera rays, walked one at a time, gained 0.86-0.94 (256-byte rows) or nothing
+(128-byte rows).
+
 What it leaves to the real change: 8-wide rows in both levels of the scene and in :mod:`tracer.lanes`, the stack
 bound (an 8-wide level pushes up to seven entries), :func:`tracer.tlas.world_boxes` and refits on the new
 rows, a cache version, and the test suite for the float32 test. Delete this probe when that lands::
