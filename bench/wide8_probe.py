@@ -314,40 +314,46 @@ def rays4_top(sa, o, d, out, bstack, btstack):
         out[i] = _closest(sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], np.inf, False, bstack, btstack)[0]
 
 
-def top8(binary: np.ndarray) -> np.ndarray:
-    """8-wide rows of a top level from its binary child-box rows (:func:`tracer.blas.pack_rows`)."""
-    boxes = binary[:, :12].astype(np.float64)
-    refs = binary.view(np.int32)[:, 12:14].astype(np.int64)
+def rows8_of(boxes: np.ndarray, refs: np.ndarray) -> np.ndarray:
+    """8-wide rows (64-byte aligned) of one tree's binary child-box rows (:func:`tracer.blas.collapse`)."""
     wb, wr = widen8(boxes, refs)
     rows8 = blas.aligned_rows(4 * len(wb)).reshape(-1, 64)
     pack8(wb, wr, rows8, rows8.view(np.int32))
     return rows8
 
 
+def alternate(run4, run8, n: int) -> dict:
+    """Time ``run4`` and ``run8`` (each traces the same ``n`` rays) in :data:`ROUNDS` alternating rounds:
+    median rates and the median of the rounds' speed-ups."""
+    ratios, s4, s8 = [], [], []
+    for _ in range(ROUNDS):
+        t0 = time.perf_counter()
+        run4()
+        a = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        run8()
+        b = time.perf_counter() - t0
+        ratios.append(a / b)
+        s4.append(n / a / 1e6)
+        s8.append(n / b / 1e6)
+    return {"rays": n, "mrays4": statistics.median(s4), "mrays8": statistics.median(s8),
+            "speedup": statistics.median(ratios), "speedup_range": [min(ratios), max(ratios)]}
+
+
 def time_top(scene, o: np.ndarray, d: np.ndarray) -> dict:
     """Today's two-level walk against one whose top level is 8-wide (bottom levels as today), alternating."""
     sa = scene.arrays()
-    rows8 = top8(scene._levels["top"].binary)
+    binary = scene._levels["top"].binary
+    rows8 = rows8_of(binary[:, :12].astype(np.float64), binary.view(np.int32)[:, 12:14].astype(np.int64))
     nf, ni = rows8.reshape(-1), rows8.view(np.int32).reshape(-1)
     stack, tstack, tbuf = np.empty(1024, np.int64), np.empty(1024), np.empty(WIDTH, np.float32)
     bstack, btstack = new_stacks()
     t4, t8 = np.empty(len(o)), np.empty(len(o))
-    rays4_top(sa, o[:10], d[:10], t4, bstack, btstack)
+    rays4_top(sa, o[:10], d[:10], t4, bstack, btstack)   # compile or load outside the timing
     rays8_top(sa, nf, ni, o[:10], d[:10], t8, stack, tstack, tbuf, bstack, btstack)
-    ratios, s4, s8 = [], [], []
-    for _ in range(ROUNDS):
-        t0 = time.perf_counter()
-        rays4_top(sa, o, d, t4, bstack, btstack)
-        a = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        rays8_top(sa, nf, ni, o, d, t8, stack, tstack, tbuf, bstack, btstack)
-        b = time.perf_counter() - t0
-        ratios.append(a / b)
-        s4.append(len(o) / a / 1e6)
-        s8.append(len(o) / b / 1e6)
-    return {"rays": len(o), "top_rows8": len(rows8), "mrays4": statistics.median(s4), "mrays8": statistics.median(s8),
-            "speedup": statistics.median(ratios), "speedup_range": [min(ratios), max(ratios)],
-            "same_hits": bool(np.array_equal(t4, t8))}
+    res = alternate(lambda: rays4_top(sa, o, d, t4, bstack, btstack),
+                    lambda: rays8_top(sa, nf, ni, o, d, t8, stack, tstack, tbuf, bstack, btstack), len(o))
+    return {**res, "top_rows8": len(rows8), "same_hits": bool(np.array_equal(t4, t8))}
 
 
 def layouts(tri_v: np.ndarray) -> dict:
@@ -355,10 +361,7 @@ def layouts(tri_v: np.ndarray) -> dict:
     order, nb, na, nn, nc = blas.build_meshes(tri_v, np.array([0, len(tri_v)]), 4, 1.0)
     boxes, refs, row_cnt = blas.collapse(nb, na, nn, np.zeros(1, np.int64), nc)
     wide4, _, _ = blas.pack_wide(boxes, refs, row_cnt)
-    wb, wr = widen8(boxes, refs)
-    rows8 = blas.aligned_rows(4 * len(wb)).reshape(-1, 64)
-    pack8(wb, wr, rows8, rows8.view(np.int32))
-    return {"rows4": wide4, "rows8": rows8, "tri": blas.leaf_order_f32(tri_v, order)}
+    return {"rows4": wide4, "rows8": rows8_of(boxes, refs), "tri": blas.leaf_order_f32(tri_v, order)}
 
 
 def time_pair(lay: dict, o: np.ndarray, d: np.ndarray) -> dict:
@@ -370,20 +373,9 @@ def time_pair(lay: dict, o: np.ndarray, d: np.ndarray) -> dict:
     b8, i8 = r8.reshape(-1), r8.view(np.int32).reshape(-1)
     rays4(b4, i4, tri, o[:10], d[:10], t4, stack, tstack)   # compile or load outside the timing
     rays8(b8, i8, tri, o[:10], d[:10], t8, stack, tstack, tbuf)
-    ratios, s4, s8 = [], [], []
-    for _ in range(ROUNDS):
-        t0 = time.perf_counter()
-        rays4(b4, i4, tri, o, d, t4, stack, tstack)
-        a = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        rays8(b8, i8, tri, o, d, t8, stack, tstack, tbuf)
-        b = time.perf_counter() - t0
-        ratios.append(a / b)
-        s4.append(len(o) / a / 1e6)
-        s8.append(len(o) / b / 1e6)
-    return {"rays": len(o), "mrays4": statistics.median(s4), "mrays8": statistics.median(s8),
-            "speedup": statistics.median(ratios), "speedup_range": [min(ratios), max(ratios)],
-            "same_hits": bool(np.array_equal(t4, t8))}
+    res = alternate(lambda: rays4(b4, i4, tri, o, d, t4, stack, tstack),
+                    lambda: rays8(b8, i8, tri, o, d, t8, stack, tstack, tbuf), len(o))
+    return {**res, "same_hits": bool(np.array_equal(t4, t8))}
 
 
 def probe(name: str) -> dict:
@@ -393,22 +385,19 @@ def probe(name: str) -> dict:
         scene, o, d = scene_and_rays(name, kind)
         if name == "scene3":   # two levels: only the top level 8-wide
             r = out[kind] = time_top(scene, o, d)
-            print(f"{name} {kind}: 4-wide top {r['mrays4']:.3f} Mrays/s, 8-wide top {r['mrays8']:.3f}, speed-up"
-                  f" {r['speedup']:.2f} ({r['speedup_range'][0]:.2f}-{r['speedup_range'][1]:.2f}), same hits:"
-                  f" {r['same_hits']}")
-            continue
-        if lay is None:
-            if name == "mesh":
-                v, f = bumpy_sphere(1000, 500)
-                tri_v = v.astype(np.float32).astype(np.float64)[f].reshape(-1, 9)
-            else:
-                tri_v = world_triangles(scene).reshape(-1, 9)
-            lay = layouts(tri_v)
-            out.update(rows4=len(lay["rows4"]), rows8=len(lay["rows8"]),
-                       bytes4=lay["rows4"].nbytes, bytes8=lay["rows8"].nbytes)
+        else:
+            if lay is None:
+                if name == "mesh":
+                    v, f = bumpy_sphere(1000, 500)
+                    tri_v = v.astype(np.float32).astype(np.float64)[f].reshape(-1, 9)
+                else:
+                    tri_v = world_triangles(scene).reshape(-1, 9)
+                lay = layouts(tri_v)
+                out.update(rows4=len(lay["rows4"]), rows8=len(lay["rows8"]),
+                           bytes4=lay["rows4"].nbytes, bytes8=lay["rows8"].nbytes)
+            r = out[kind] = time_pair(lay, o, d)
         del scene
-        r = out[kind] = time_pair(lay, o, d)
-        print(f"{name} {kind}: 4-wide f64 {r['mrays4']:.3f} Mrays/s, 8-wide f32 {r['mrays8']:.3f}, speed-up"
+        print(f"{name} {kind}: today {r['mrays4']:.3f} Mrays/s, 8-wide {r['mrays8']:.3f}, speed-up"
               f" {r['speedup']:.2f} ({r['speedup_range'][0]:.2f}-{r['speedup_range'][1]:.2f}), same hits:"
               f" {r['same_hits']}")
     return out
