@@ -2,9 +2,10 @@
 
 One ray's traversal is a chain of dependent loads: the next row's address is known only once the
 current row is tested and sorted, and an incoherent ray misses the cache on almost every row. Here a
-core keeps :data:`LANES` rays in flight and advances them in turn by one step each (one row, or one
-leaf): while one ray waits for its row, the others compute, and the row asked for by a step
-(``prefetch``) has the other lanes' steps to arrive in. The answers are those of
+core keeps :data:`LANES` rays in flight and advances them in turn by one step each (one row, one
+leaf, or asking for an instance then entering it): while one ray waits for its row, the others
+compute, and the row or transform asked for by a step (``prefetch``) has the other lanes' steps to
+arrive in. The answers are those of
 :func:`tracer.traverse.closest_with_stacks` / :func:`tracer.traverse.any_with_stacks` ray by ray.
 
 Each lane's state lives in two small arrays (``F`` floats, ``I`` integers; field indices below),
@@ -58,7 +59,7 @@ KX = 14                                                 # triangle axes 14..16 (
 ROW0, TRI0, INST, BEST_INST, BEST_SLOT = 17, 18, 19, 20, 21
 NI = 22
 # STATE values
-TOP, ITEMS, BOTTOM, DONE = 0, 1, 2, 3
+TOP, ITEMS, ENTER, BOTTOM, DONE = 0, 1, 2, 3, 4
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -131,52 +132,68 @@ def _step_top(sa, F, I, L, stack, tstack):
         I[L, TREF] = ref
         if ref >= 0:
             prefetch(bf, 16 * ref)
+        else:   # a leaf: its first instance's record (tracer.tlas.instance_records)
+            prefetch(sa.top_rec, 4 * ((-ref - 1) >> 4))
         I[L, TSP] = push3(stack, tstack, I[L, TSP], bi[r + 12 + c1], bi[r + 12 + c2], bi[r + 12 + c3], t1, t2, t3)
         return
     _pop_top(I, F, L, stack, tstack)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _step_items(sa, F, I, L, stack, tstack, any_hit, scratch, tscratch):
-    """Enter the next mesh instance of the current top-level leaf (other kinds are intersected at
-    once); when the leaf is exhausted, go back to the top level's stack."""
+def _step_items(sa, F, I, L, stack, tstack):
+    """Ask for the next instance of the current top-level leaf: its transform and, for a mesh, its
+    bottom level's first row, to be entered at the lane's next turn (:func:`_step_enter`), when they
+    have had the other lanes' steps to arrive; when the leaf is exhausted, go back to the top level's
+    stack."""
     q = I[L, Q]
     end = I[L, QEND]
-    m = sa.object_from_world
+    rec = sa.top_rec
     while q < end:
-        inst = sa.top_items[q]
-        q += 1
-        rox, roy, roz, rdx, rdy, rdz = _to_object(m, inst, F[L, OX], F[L, OY], F[L, OZ], F[L, DX], F[L, DY],
-                                                  F[L, DZ])
-        if sa.inst_kind[inst] == mesh.KIND:
-            g = sa.inst_geom[inst]
-            if sa.geom_ntri[g] == 0:
-                continue
-            row0 = sa.geom_node0[g]
-            prefetch(sa.bvh_f, 16 * row0)
-            _set_ray(F, I, L, CO, CXL, rox, roy, roz, rdx, rdy, rdz)
-            I[L, KX + 2] = -1
-            I[L, ROW0] = row0
-            I[L, TRI0] = sa.geom_tri0[g]
-            I[L, INST] = inst
-            I[L, BREF] = 0
-            I[L, BSP] = L * _SPAN + STACK_BASE
+        kind = rec[4 * q + 1]
+        if kind >= 0:
+            prefetch(sa.object_from_world, 12 * rec[4 * q])        # its 96 bytes span two lines
+            prefetch(sa.object_from_world, 12 * rec[4 * q] + 11)
+            if kind == mesh.KIND:
+                prefetch(sa.bvh_f, 16 * rec[4 * q + 2])
             I[L, Q] = q
-            I[L, STATE] = BOTTOM
+            I[L, STATE] = ENTER
             return
-        hit, t, slot, u, v = dispatch.intersect_solid(sa, inst, rox, roy, roz, rdx, rdy, rdz, F[L, BEST_T],
-                                                      any_hit, scratch, tscratch)
-        if hit:
-            F[L, BEST_T] = t
-            F[L, BU] = u
-            F[L, BV] = v
-            I[L, BEST_INST] = inst
-            I[L, BEST_SLOT] = slot
-            if any_hit:
-                I[L, STATE] = DONE
-                return
+        q += 1
     I[L, Q] = q
     _pop_top(I, F, L, stack, tstack)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _step_enter(sa, F, I, L, any_hit, scratch, tscratch):
+    """Enter instance ``Q`` of the current leaf (asked for by :func:`_step_items`): a mesh's bottom
+    level is walked step by step from the next turn on, any other kind intersected at once."""
+    q = I[L, Q]
+    rec = sa.top_rec
+    inst = rec[4 * q]
+    I[L, Q] = q + 1
+    I[L, STATE] = ITEMS
+    rox, roy, roz, rdx, rdy, rdz = _to_object(sa.object_from_world, inst, F[L, OX], F[L, OY], F[L, OZ], F[L, DX],
+                                              F[L, DY], F[L, DZ])
+    if rec[4 * q + 1] == mesh.KIND:
+        _set_ray(F, I, L, CO, CXL, rox, roy, roz, rdx, rdy, rdz)
+        I[L, KX + 2] = -1
+        I[L, ROW0] = rec[4 * q + 2]
+        I[L, TRI0] = rec[4 * q + 3]
+        I[L, INST] = inst
+        I[L, BREF] = 0
+        I[L, BSP] = L * _SPAN + STACK_BASE
+        I[L, STATE] = BOTTOM
+        return
+    hit, t, slot, u, v = dispatch.intersect_solid(sa, inst, rox, roy, roz, rdx, rdy, rdz, F[L, BEST_T], any_hit,
+                                                  scratch, tscratch)
+    if hit:
+        F[L, BEST_T] = t
+        F[L, BU] = u
+        F[L, BV] = v
+        I[L, BEST_INST] = inst
+        I[L, BEST_SLOT] = slot
+        if any_hit:
+            I[L, STATE] = DONE
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -268,7 +285,9 @@ def _block(sa, o, d, t_max, any_hit, lo, hi, F, I, stack, tstack, scratch, tscra
         elif st == TOP:
             _step_top(sa, F, I, L, stack, tstack)
         elif st == ITEMS:
-            _step_items(sa, F, I, L, stack, tstack, any_hit, scratch, tscratch)
+            _step_items(sa, F, I, L, stack, tstack)
+        elif st == ENTER:
+            _step_enter(sa, F, I, L, any_hit, scratch, tscratch)
         elif I[L, RAY] >= 0:
             ray = I[L, RAY]
             out_t[ray] = F[L, BEST_T]

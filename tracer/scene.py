@@ -31,7 +31,7 @@ from tracer.errors import NotCommittedError, TracerError, UnknownIdError
 from tracer.geometry_id import canonical_arrays, hash_canonical
 from tracer.kinds import SENSOR_KINDS, disk_sensor, mesh, rect_sensor
 from tracer.lanes import batch
-from tracer.tlas import TopLevel, build_top, refit_top, world_boxes
+from tracer.tlas import TopLevel, build_top, instance_records, refit_top, world_boxes
 from tracer.traverse import SceneArrays
 
 #: BLAS build parameters: largest leaf and the cost of a triangle test relative to a node visit
@@ -252,6 +252,7 @@ class Scene:
         self._refits = {"top": (0, 0), "sen": (0, 0)}  # (refit commits, instances moved) since build
         self._levels = {"top": build_top(np.empty(0, np.int64), self._wbox),
                         "sen": build_top(np.empty(0, np.int64), self._wbox, wide=False)}
+        self._top_rec = np.zeros(0, np.int64)   # instance_records of the solid top level's items
         self._inst_changed = True
         self._arrays: SceneArrays | None = None
         self._changed = True
@@ -478,6 +479,9 @@ class Scene:
                 else:
                     keep = np.isin(kind, list(SENSOR_KINDS))
                 self._levels[level] = build_top(np.flatnonzero(keep), self._wbox, wide=level == "top")
+                if level == "top":
+                    self._top_rec = instance_records(self._levels[level].items, self._kind, self._igeom,
+                                                     self._g_node0, self._g_tri0, self._g_ntri, mesh.KIND)
                 self._refits[level] = (0, 0)
                 modes[level] = "rebuild"
             self._struct[level] = False
@@ -492,7 +496,7 @@ class Scene:
             s["bvh"].ravel(), s["bvh"].view(np.int32).ravel(), s["tri_v"].ravel(),
             s["tri_prim"], s["prim_slot"], s["tri_n"],
             self._g_node0, self._g_tri0, self._g_ntri, self._g_hasn,
-            *inst, *_flat(self._levels["top"]), *_flat(self._levels["sen"]))
+            *inst, *_flat(self._levels["top"]), self._top_rec, *_flat(self._levels["sen"]))
         self._inst_changed = False
         self._changed = False
         t2 = time.perf_counter()

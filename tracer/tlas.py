@@ -116,6 +116,30 @@ def world_boxes(ids, world_from_object, object_box, inst_kind, mesh_kind, inst_g
 
 
 @njit(cache=True, error_model="numpy")
+def instance_records(items, inst_kind, inst_geom, g_row0, g_tri0, g_ntri, mesh_kind):
+    """``(4 n,)`` int64: for each top-level item ``q`` (leaf order), ``[inst, kind, row0, tri0]``: its
+    instance id, kind (-1: a mesh without triangles, nothing to enter) and, for a mesh, its bottom
+    level's first row and triangle.
+
+    Entering an instance through the ids took a chain of four dependent loads (item, instance,
+    geometry, row), each a likely cache miss for an incoherent ray; the record, next to its
+    neighbours in the leaf, is one load, and the row and the transform follow it together."""
+    out = np.zeros(4 * items.shape[0], np.int64)
+    for q in range(items.shape[0]):
+        i = items[q]
+        k = inst_kind[i]
+        out[4 * q] = i
+        out[4 * q + 1] = k
+        if k == mesh_kind:
+            g = inst_geom[i]
+            if g_ntri[g] == 0:
+                out[4 * q + 1] = -1
+            out[4 * q + 2] = g_row0[g]
+            out[4 * q + 3] = g_tri0[g]
+    return out
+
+
+@njit(cache=True, error_model="numpy")
 def _build_top(ids, boxes):
     n = ids.shape[0]
     bmin = np.empty((n, 3))

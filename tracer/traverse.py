@@ -29,7 +29,7 @@ import numpy as np
 from numba import njit
 
 from tracer.blas import STACK_SIZE
-from tracer.kinds import dispatch
+from tracer.kinds import dispatch, mesh
 from tracer.kinds.mesh import MISS, order4, pop_nearer, prefetch, push3, ray_inverse, slab, slab4
 
 
@@ -50,7 +50,8 @@ class SceneArrays(NamedTuple):
 
     Top levels over instance ids: solids ``top_f, top_i, top_items`` in 4-wide rows as in the BLAS,
     sensors ``sen_f, sen_i, sen_items`` in binary child-box rows (:func:`tracer.blas.pack_rows`);
-    leaves index ``*_items``.
+    leaves index ``*_items``. ``top_rec`` (4 n,) i8: the solid items' :func:`tracer.tlas.instance_records`
+    (what entering each one needs, in leaf order).
     """
 
     bvh_f: np.ndarray
@@ -70,6 +71,7 @@ class SceneArrays(NamedTuple):
     top_f: np.ndarray
     top_i: np.ndarray
     top_items: np.ndarray
+    top_rec: np.ndarray
     sen_f: np.ndarray
     sen_i: np.ndarray
     sen_items: np.ndarray
@@ -111,7 +113,8 @@ def point_to_world(sa, inst, px, py, pz):
 @njit(cache=True, error_model="numpy", inline="always")
 def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
     """Top-level traversal over the 4-wide rows ``sa.top_f`` (as a bottom level's, leaves hold
-    instance ids): each instance hit is entered in object space through :mod:`tracer.kinds.dispatch`."""
+    instance ids): each instance hit is entered in object space, a mesh straight from its record
+    (``sa.top_rec``), any other kind through :mod:`tracer.kinds.dispatch`."""
     best_t = t_max
     best_inst = -1
     best_slot = -1
@@ -120,6 +123,7 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
     if sa.top_f.shape[0] == 0:
         return best_t, best_inst, best_slot, bu, bv
     items = sa.top_items
+    rec = sa.top_rec
     m = sa.object_from_world
     if items.shape[0] == 1:   # one instance: its bottom level's first row tests what its box would
         inst = items[0]
@@ -149,10 +153,18 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
             x = -ref - 1
             first = x >> 4
             for q in range(first, first + (x & 15)):
-                inst = items[q]
+                inst = rec[4 * q]
+                kind = rec[4 * q + 1]
+                if kind < 0:
+                    continue
                 rox, roy, roz, rdx, rdy, rdz = _to_object(m, inst, ox, oy, oz, dx, dy, dz)
-                hit, t, slot, u, v = dispatch.intersect_solid(sa, inst, rox, roy, roz, rdx, rdy, rdz,
-                                                              best_t, any_hit, stack, tstack)
+                if kind == mesh.KIND:   # straight from the record (tracer.tlas.instance_records)
+                    hit, t, slot, u, v = mesh.traverse_rows(sa.bvh_f, sa.bvh_i, sa.tri_v, rec[4 * q + 2],
+                                                            rec[4 * q + 3], rox, roy, roz, rdx, rdy, rdz, best_t,
+                                                            any_hit, stack, tstack)
+                else:
+                    hit, t, slot, u, v = dispatch.intersect_solid(sa, inst, rox, roy, roz, rdx, rdy, rdz,
+                                                                  best_t, any_hit, stack, tstack)
                 if hit:
                     best_t = t
                     best_inst = inst

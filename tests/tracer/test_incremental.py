@@ -25,7 +25,20 @@ def _fresh(state: dict[int, tuple[tuple, np.ndarray]]) -> tuple[tracer.Scene, di
     return scene, ids
 
 
+def _assert_records(scene: tracer.Scene) -> None:
+    """Each top-level item's record (tracer.tlas.instance_records) names the item's instance, its kind
+    and its bottom level's first row and triangle, as the id-indexed arrays do."""
+    sa = scene.arrays()
+    rec = sa.top_rec.reshape(-1, 4)
+    g = sa.inst_geom[sa.top_items]
+    np.testing.assert_array_equal(rec[:, 0], sa.top_items)
+    np.testing.assert_array_equal(rec[:, 1], sa.inst_kind[sa.top_items])
+    np.testing.assert_array_equal(rec[:, 2], sa.geom_node0[g])
+    np.testing.assert_array_equal(rec[:, 3], sa.geom_tri0[g])
+
+
 def _assert_equivalent(inc: tracer.Scene, fresh: tracer.Scene, ids: dict[int, int], o, d) -> None:
+    _assert_records(inc)
     a = inc.intersect(o, d)
     b = fresh.intersect(o, d)
     np.testing.assert_array_equal(a.t, b.t)  # same BLAS, same transforms: bit-identical t
