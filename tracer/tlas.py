@@ -118,8 +118,9 @@ def world_boxes(ids, world_from_object, object_box, inst_kind, mesh_kind, inst_g
 @njit(cache=True, error_model="numpy")
 def instance_records(items, inst_kind, inst_geom, g_row0, g_tri0, g_ntri, mesh_kind):
     """``(4 n,)`` int64: for each top-level item ``q`` (leaf order), ``[inst, kind, row0, tri0]``: its
-    instance id, kind (-1: a mesh without triangles, nothing to enter) and, for a mesh, its bottom
-    level's first row and triangle.
+    instance id, kind and, for a mesh, its bottom level's first row and triangle. Kind -1 marks a mesh
+    without triangles, which has no rows to enter (an empty mesh has an empty box and is left out of
+    the top level today; the mark keeps a walk safe should that change).
 
     Entering an instance through the ids took a chain of four dependent loads (item, instance,
     geometry, row), each a likely cache miss for an incoherent ray; the record, next to its
