@@ -496,7 +496,8 @@ class Scene:
             s["bvh"].ravel(), s["bvh"].view(np.int32).ravel(), s["tri_v"].ravel(),
             s["tri_prim"], s["prim_slot"], s["tri_n"],
             self._g_node0, self._g_tri0, self._g_ntri, self._g_hasn,
-            *inst, *_flat(self._levels["top"]), self._top_rec, *_flat(self._levels["sen"]))
+            *inst, *_flat(self._levels["top"]), self._top_rec, *_flat8(self._levels["top"]),
+            *_flat(self._levels["sen"]))
         self._inst_changed = False
         self._changed = False
         t2 = time.perf_counter()
@@ -642,6 +643,11 @@ class Scene:
 def _flat(level: TopLevel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     rows = level.binary if level.wide is None else level.wide
     return rows.ravel(), rows.view(np.int32).ravel(), level.items
+
+
+def _flat8(level: TopLevel) -> tuple[np.ndarray, np.ndarray]:
+    rows = level.rows8 if level.rows8 is not None else np.zeros((0, 64), np.float32)
+    return rows.ravel(), rows.view(np.int32).ravel()
 
 
 def _run_threads(threads: int | None, fn: Callable[[], None]) -> None:

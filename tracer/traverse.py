@@ -28,9 +28,15 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from tracer.blas import STACK_SIZE
+from tracer import rows8
+from tracer.blas import STACK_SIZE, _up32
 from tracer.kinds import dispatch, mesh
-from tracer.kinds.mesh import MISS, order4, pop_nearer, prefetch, push3, ray_inverse, slab, slab4
+from tracer.kinds.mesh import MISS, pop_nearer, prefetch, ray_inverse, slab
+
+#: where the 8-wide top level's entries start in the traversal stacks (after a 4-wide top level's and a
+#: bottom level's, :func:`new_stacks`), and where :func:`tracer.rows8.slab8` leaves its distances
+TOP8_BASE = 4 * STACK_SIZE
+TOP8_DIST = TOP8_BASE + rows8.STACK
 
 
 class SceneArrays(NamedTuple):
@@ -51,7 +57,8 @@ class SceneArrays(NamedTuple):
     Top levels over instance ids: solids ``top_f, top_i, top_items`` in 4-wide rows as in the BLAS,
     sensors ``sen_f, sen_i, sen_items`` in binary child-box rows (:func:`tracer.blas.pack_rows`);
     leaves index ``*_items``. ``top_rec`` (4 n,) i8: the solid items' :func:`tracer.tlas.instance_records`
-    (what entering each one needs, in leaf order).
+    (what entering each one needs, in leaf order). ``top8_f, top8_i``: the solid top level again, in the
+    8-wide float32 rows that walks of one ray read (:mod:`tracer.rows8`; the lanes read ``top_f``).
     """
 
     bvh_f: np.ndarray
@@ -72,6 +79,8 @@ class SceneArrays(NamedTuple):
     top_i: np.ndarray
     top_items: np.ndarray
     top_rec: np.ndarray
+    top8_f: np.ndarray
+    top8_i: np.ndarray
     sen_f: np.ndarray
     sen_i: np.ndarray
     sen_items: np.ndarray
@@ -112,9 +121,9 @@ def point_to_world(sa, inst, px, py, pz):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
-    """Top-level traversal over the 4-wide rows ``sa.top_f`` (as a bottom level's, leaves hold
-    instance ids): each instance hit is entered in object space, a mesh straight from its record
-    (``sa.top_rec``), any other kind through :mod:`tracer.kinds.dispatch`."""
+    """Top-level traversal over the 8-wide rows ``sa.top8_f`` (:mod:`tracer.rows8`; leaves hold instance
+    ids): each instance hit is entered in object space, a mesh straight from its record (``sa.top_rec``),
+    any other kind through :mod:`tracer.kinds.dispatch`."""
     best_t = t_max
     best_inst = -1
     best_slot = -1
@@ -133,21 +142,22 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
         if hit:
             return t, inst, slot, u, v
         return best_t, best_inst, best_slot, bu, bv
-    ix, iy, iz, ixe, iye, ize, xl, yl, zl = ray_inverse(dx, dy, dz)
-    bf = sa.top_f
-    bi = sa.top_i
-    sp = 0
+    onx, ony, onz, ofx, ofy, ofz, ix, iy, iz, ixe, iye, ize, xl, yl, zl = rows8.ray8(ox, oy, oz, dx, dy, dz)
+    bf = sa.top8_f
+    bi = sa.top8_i
+    t32 = np.float64(_up32(best_t))
+    sp = TOP8_BASE
     ref = 0
     while True:
         if ref >= 0:
-            r = 16 * ref
-            t0, t1, t2, t3 = slab4(bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, best_t)
-            ref, r1, r2, r3, t1, t2, t3 = order4(t0, t1, t2, t3, bi, r)
-            if ref != MISS:
-                if t1 < np.inf:
-                    sp = push3(stack, tstack, sp, r1, r2, r3, t1, t2, t3)
+            r = rows8.ROW * ref
+            hits = rows8.slab8(bf, r, onx, ony, onz, ofx, ofy, ofz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, t32, tstack,
+                         TOP8_DIST)
+            if hits != 0:
+                ref, sp = rows8.descend8(bi, r, hits, stack, tstack, TOP8_DIST, sp)
                 if ref >= 0:
-                    prefetch(bf, 16 * ref)
+                    for line in range(0, rows8.ROW, 16):   # its four cache lines
+                        prefetch(bf, rows8.ROW * ref + line)
                 continue
         else:
             x = -ref - 1
@@ -167,13 +177,14 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
                                                                   best_t, any_hit, stack, tstack)
                 if hit:
                     best_t = t
+                    t32 = np.float64(_up32(best_t))
                     best_inst = inst
                     best_slot = slot
                     bu = u
                     bv = v
                     if any_hit:
                         return best_t, best_inst, best_slot, bu, bv
-        ref, sp = pop_nearer(stack, tstack, sp, 0, best_t)
+        ref, sp = pop_nearer(stack, tstack, sp, TOP8_BASE, best_t)
         if ref == MISS:
             break
     return best_t, best_inst, best_slot, bu, bv
@@ -181,12 +192,13 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
 
 @njit(cache=True, error_model="numpy")
 def new_stacks():
-    """Traversal stacks for the ``*_with_stacks`` functions: ``(stack, tstack)``, (4 STACK_SIZE,) each.
+    """Traversal stacks for the ``*_with_stacks`` functions: ``(stack, tstack)``, of the same length.
 
-    The top level uses the first half, a bottom level the second (:data:`tracer.kinds.mesh.STACK_BASE`):
-    a 4-wide level pushes up to three entries per level, of about half the binary depth, which
-    :func:`tracer.blas.check_topology` keeps below STACK_SIZE."""
-    return np.empty(4 * STACK_SIZE, np.int64), np.empty(4 * STACK_SIZE)
+    A 4-wide top level (:mod:`tracer.lanes`) uses the first quarter, a bottom level the second
+    (:data:`tracer.kinds.mesh.STACK_BASE`): a 4-wide level pushes up to three entries per level, of about
+    half the binary depth, which :func:`tracer.blas.check_topology` keeps below STACK_SIZE. The 8-wide
+    top level uses :data:`TOP8_BASE` on (:data:`tracer.rows8.STACK` entries, then 8 distances)."""
+    return np.empty(TOP8_DIST + 8, np.int64), np.empty(TOP8_DIST + 8)
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
