@@ -313,7 +313,7 @@ def _serial_block(sa, o, d, t_max, any_hit, lo, hi, stack, tstack, out_t, out_in
     """:func:`_block` one ray after the other (a camera's rays, see the module's docstring)."""
     for i in range(lo, hi):
         out_t[i], out_inst[i], out_slot[i], out_u[i], out_v[i] = _closest(
-            sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t_max[i], any_hit, stack, tstack)
+            sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t_max[i], any_hit, stack, tstack, True)
 
 
 @njit(cache=True, error_model="numpy", inline="always")

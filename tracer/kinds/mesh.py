@@ -293,9 +293,17 @@ def prefetch_ref(bf, tri, row0, tri0, ref):
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def traverse_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
+    """:func:`walk_rows` as a real function, compiled once: inlined into every caller, it made each
+    caller's compile longer (transport compiles a variant per effect set)."""
+    return walk_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def walk_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
     """:func:`traverse` on explicit arrays (LLVM optimises the loop better on plain array arguments
-    than on fields of the scene tuple). A real function: inlined, it made every caller's compile
-    longer (transport compiles a variant per effect set) for about 5 % fewer instructions per ray.
+    than on fields of the scene tuple), inlined: the batch kernel's walk of one ray enters instances
+    through it without a call (:func:`tracer.traverse._closest`), whose argument passing and register
+    spills cost 6 % of a camera ray's instructions in the paper's scene 3.
 
     Wide rows (:func:`tracer.blas.pack_wide`): the four boxes are tested at once (:func:`slab4`), the
     hits sorted by entry distance with a branch-free network; the nearest is visited next, the
@@ -303,8 +311,10 @@ def traverse_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hi
     ``stack``, ``tstack``: as from :func:`tracer.traverse.new_stacks`; a bottom level uses the entries
     from :data:`STACK_BASE` on (the top level those below), so no view of the arrays is made per ray.
     """
-    kx, ky, kz, sx, sy, sz = ray_setup(dx, dy, dz)
     ix, iy, iz, ixe, iye, ize, xl, yl, zl = ray_inverse(dx, dy, dz)
+    kz = -1   # the triangle test's setup, made at the first leaf (most instances entered have none)
+    kx = ky = 0
+    sx = sy = sz = 0.0
     best_t = t_max
     best = -1
     bu = 0.0
@@ -322,6 +332,8 @@ def traverse_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hi
                 prefetch_ref(bf, tri, row0, tri0, ref)
                 continue
         else:
+            if kz < 0:
+                kx, ky, kz, sx, sy, sz = ray_setup(dx, dy, dz)
             x = -ref - 1
             first = tri0 + (x >> 4)
             for j in range(first, first + (x & 15)):
