@@ -111,7 +111,7 @@ def layouts(tri_v: np.ndarray) -> dict:
     """Both layouts of one BVH over ``tri_v`` (m, 9), and the triangles in leaf order."""
     order, nb, na, nn, nc = blas.build_meshes(tri_v, np.array([0, len(tri_v)]), 4, 1.0)
     boxes, refs, row_cnt = blas.collapse(nb, na, nn, np.zeros(1, np.int64), nc)
-    wide4, _, _ = blas.pack_wide(boxes, refs, row_cnt)
+    wide4, _ = blas.pack_wide(boxes, refs, row_cnt)
     rows8, _ = pack8(blas.pack_rows(boxes, refs))
     return {"rows4": wide4, "rows8": rows8, "tri": blas.leaf_order_f32(tri_v, order)}
 

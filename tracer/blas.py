@@ -17,7 +17,7 @@ encoded in the reference), so a ray tests both children from one cache line and 
 child it misses. The boxes are exact in float32 because the vertices are float32 (the geometry id
 hashes them so); :func:`pack_rows` still rounds outward. Traversal reads :func:`pack_wide`'s 4-wide
 rows made from them: four boxes quantised to 8 bits in one 64-byte row. The top level is built by
-the same code (:mod:`tracer.tlas`).
+the same code and laid out in 8-wide float32 rows instead (:mod:`tracer.tlas`, :mod:`tracer.rows8`).
 
 Indices are local to one geometry; the scene adds per-geometry offsets at traversal time, so the
 packed store grows by appending and never rewrites what is there.
@@ -492,20 +492,19 @@ def collapse(node_box, node_a, node_n, node_off, node_cnt):
 
 @njit(cache=True, error_model="numpy")
 def _down32(x):
-    """Largest float32 <= x (x finite or infinite)."""
+    """Largest float32 <= x (x finite or infinite). Without a branch (both candidates, then a select): a
+    ray's setup rounds several values (:func:`tracer.rows8.ray8`), whose outcome no predictor can guess."""
     f = np.float32(x)
-    if np.float64(f) > x:
-        f = np.float32(x - abs(x) * 2.5e-7 - 1e-38)
-    return f
+    g = np.float32(x - abs(x) * 2.5e-7 - 1e-38)
+    return g if np.float64(f) > x else f
 
 
 @njit(cache=True, error_model="numpy")
 def _up32(x):
-    """Smallest float32 >= x."""
+    """Smallest float32 >= x (branch-free, as :func:`_down32`)."""
     f = np.float32(x)
-    if np.float64(f) < x:
-        f = np.float32(x + abs(x) * 2.5e-7 + 1e-38)
-    return f
+    g = np.float32(x + abs(x) * 2.5e-7 + 1e-38)
+    return g if np.float64(f) < x else f
 
 
 @njit(cache=True, error_model="numpy")
@@ -547,15 +546,12 @@ def widen(boxes, refs, row_cnt):
 
     Returns ``wboxes`` (W, 24) float64, SoA planes ``wboxes[w, 4 a + c]`` (``a`` = xmin, ymin, zmin,
     xmax, ymax, zmax; ``c`` the slot), ``wrefs`` (W, 4) int64 (as in :func:`collapse`, rows now wide
-    rows local to the geometry), ``wcnt`` (G,) int64, wide rows per geometry, and ``wsrc`` (W, 4)
-    int64: the binary row and slot each box came from (``2 row + slot``, -1 for an empty slot), which
-    lets a refit of the binary rows be carried over (:func:`requantize`).
+    rows local to the geometry) and ``wcnt`` (G,) int64, wide rows per geometry.
     """
     g_n = row_cnt.shape[0]
     total = boxes.shape[0]
     wboxes = np.empty((total, 24))
     wrefs = np.empty((total, 4), np.int64)
-    wsrc = np.empty((total, 4), np.int64)
     wcnt = np.zeros(g_n, np.int64)
     queue = np.empty(total + 1, np.int64)
     b0 = 0
@@ -578,7 +574,6 @@ def widen(boxes, refs, row_cnt):
                         r2 = refs[b0 + ref, cc]
                         for a in range(6):
                             wboxes[row, 4 * a + slot] = boxes[b0 + ref, 6 * cc + a]
-                        wsrc[row, slot] = 2 * (b0 + ref) + cc
                         if r2 >= 0:
                             queue[nw] = r2
                             wrefs[row, slot] = nw
@@ -590,20 +585,18 @@ def widen(boxes, refs, row_cnt):
                     for a in range(6):
                         wboxes[row, 4 * a + slot] = boxes[b, 6 * c + a]
                     wrefs[row, slot] = ref
-                    wsrc[row, slot] = 2 * b + c
                     slot += 1
             while slot < 4:
                 for a in range(3):
                     wboxes[row, 4 * a + slot] = np.inf
                     wboxes[row, 4 * (a + 3) + slot] = -np.inf
                 wrefs[row, slot] = -1
-                wsrc[row, slot] = -1
                 slot += 1
             k += 1
         wcnt[g] = nw
         b0 += n
         w0 += nw
-    return wboxes[:w0], wrefs[:w0], wcnt, wsrc[:w0]
+    return wboxes[:w0], wrefs[:w0], wcnt
 
 
 @njit(cache=True, error_model="numpy")
@@ -624,17 +617,16 @@ def _fits(origin, scale, lo, hi):
 
 
 @njit(cache=True, error_model="numpy")
-def _quantize(wboxes, wrows, out_f, out_b):
-    """Write the boxes ``wboxes[k]`` (as from :func:`widen`) quantised into row ``wrows[k]``."""
-    for k in range(wboxes.shape[0]):
-        w = wrows[k]
+def _quantize(wboxes, out_f, out_b):
+    """Write the boxes ``wboxes[w]`` (as from :func:`widen`) quantised into row ``w``."""
+    for w in range(wboxes.shape[0]):
         for a in range(3):
             lo = np.inf
             hi = -np.inf
             for c in range(4):
-                if wboxes[k, 4 * a + c] <= wboxes[k, 4 * (a + 3) + c]:
-                    lo = min(lo, wboxes[k, 4 * a + c])
-                    hi = max(hi, wboxes[k, 4 * (a + 3) + c])
+                if wboxes[w, 4 * a + c] <= wboxes[w, 4 * (a + 3) + c]:
+                    lo = min(lo, wboxes[w, 4 * a + c])
+                    hi = max(hi, wboxes[w, 4 * (a + 3) + c])
             if lo > hi:   # no child box (widen gives every row one; kept safe): an empty grid
                 lo = 0.0
                 hi = 0.0
@@ -650,8 +642,8 @@ def _quantize(wboxes, wrows, out_f, out_b):
                 scale = math.ldexp(1.0, e)
                 ok = True
                 for c in range(4):
-                    if wboxes[k, 4 * a + c] <= wboxes[k, 4 * (a + 3) + c]:
-                        qlo, qhi = _fits(origin, scale, wboxes[k, 4 * a + c], wboxes[k, 4 * (a + 3) + c])
+                    if wboxes[w, 4 * a + c] <= wboxes[w, 4 * (a + 3) + c]:
+                        qlo, qhi = _fits(origin, scale, wboxes[w, 4 * a + c], wboxes[w, 4 * (a + 3) + c])
                         if qlo < 0:
                             ok = False
                             break
@@ -661,35 +653,15 @@ def _quantize(wboxes, wrows, out_f, out_b):
             out_f[w, a] = np.float32(origin)
             out_f[w, 3 + a] = np.float32(scale)
             for c in range(4):
-                if wboxes[k, 4 * a + c] <= wboxes[k, 4 * (a + 3) + c]:
-                    qlo, qhi = _fits(origin, scale, wboxes[k, 4 * a + c], wboxes[k, 4 * (a + 3) + c])
+                if wboxes[w, 4 * a + c] <= wboxes[w, 4 * (a + 3) + c]:
+                    qlo, qhi = _fits(origin, scale, wboxes[w, 4 * a + c], wboxes[w, 4 * (a + 3) + c])
                 else:   # empty slot: an inverted box, never entered on this axis
                     qlo, qhi = 255, 0
                 out_b[w, 24 + 4 * a + c] = np.uint8(qlo)
                 out_b[w, 24 + 4 * (a + 3) + c] = np.uint8(qhi)
 
 
-@njit(cache=True, error_model="numpy")
-def requantize(rows, rows_b, wsrc, binary, wrows):
-    """Re-quantise the wide rows ``wrows`` from the current boxes of the binary rows ``binary`` ((R, 16)
-    float32, :func:`pack_rows`) they were widened from (``wsrc`` of :func:`widen`): how a refit of
-    the binary top level reaches its wide rows without widening again."""
-    wb = np.empty((wrows.shape[0], 24))
-    for k in range(wrows.shape[0]):
-        w = wrows[k]
-        for c in range(4):
-            src = wsrc[w, c]
-            for a in range(3):
-                if src < 0:
-                    wb[k, 4 * a + c] = np.inf
-                    wb[k, 4 * (a + 3) + c] = -np.inf
-                else:
-                    wb[k, 4 * a + c] = binary[src >> 1, 6 * (src & 1) + a]
-                    wb[k, 4 * (a + 3) + c] = binary[src >> 1, 6 * (src & 1) + 3 + a]
-    _quantize(wb, wrows, rows, rows_b)
-
-
-def pack_wide(boxes: np.ndarray, refs: np.ndarray, row_cnt: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def pack_wide(boxes: np.ndarray, refs: np.ndarray, row_cnt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """4-wide quantised traversal rows from binary child-box rows (:func:`collapse`).
 
     One 64-byte row (one cache line) per wide node: float32 ``origin`` (x, y, z) and power-of-two
@@ -699,14 +671,13 @@ def pack_wide(boxes: np.ndarray, refs: np.ndarray, row_cnt: np.ndarray) -> tuple
     12-15. A binary row takes 64 bytes for two children, a wide row for four: half the memory traffic
     of the binary layout per box tested (Ylitie, Karras and Laine, HPG 2017, compress the same way).
 
-    Returns the (W, 16) float32 rows (64-byte aligned), the wide rows per geometry and ``wsrc`` (see
-    :func:`widen`).
+    Returns the (W, 16) float32 rows (64-byte aligned) and the wide rows per geometry.
     """
-    wboxes, wrefs, wcnt, wsrc = widen(boxes, refs, row_cnt)
+    wboxes, wrefs, wcnt = widen(boxes, refs, row_cnt)
     out = aligned_rows(len(wboxes))
-    _quantize(wboxes, np.arange(len(wboxes)), out, out.view(np.uint8))
+    _quantize(wboxes, out, out.view(np.uint8))
     out.view(np.int32)[:, 12:16] = wrefs
-    return out, wcnt, wsrc
+    return out, wcnt
 
 
 @njit(cache=True, error_model="numpy")

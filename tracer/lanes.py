@@ -27,10 +27,11 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from tracer.blas import STACK_SIZE
+from tracer import rows8
+from tracer.blas import _up32
 from tracer.kinds import dispatch, mesh
 from tracer.kinds.mesh import MISS, STACK_BASE, pop_nearer, prefetch, prefetch_ref, push3, ray_inverse, slab4_sorted
-from tracer.traverse import _closest, _to_object, new_stacks, public_hit
+from tracer.traverse import TOP8_BASE, TOP8_DIST, _closest, _to_object, new_stacks, public_hit
 from tracer.triangle import intersect_triangle, ray_setup
 
 #: rays in flight per core
@@ -41,16 +42,17 @@ BLOCK = 256
 #: this (about 6 degrees between neighbours; a camera's neighbouring pixels are a fraction of a
 #: degree apart, random directions 2 on average)
 COHERENT = 0.01
-_SPAN = 4 * STACK_SIZE   # one lane's part of the stack arrays
+_SPAN = TOP8_DIST + 8   # one lane's part of the stack arrays, laid out as new_stacks()'s
 
 # F: float fields
 OX, OY, OZ, DX, DY, DZ = 0, 1, 2, 3, 4, 5               # world ray
-WIX = 6                                                 # world ix, iy, iz, ixe, iye, ize: 6..11 (_set_ray)
-BEST_T, BU, BV = 12, 13, 14
-CO = 15                                                 # object-space origin 15..17, direction 18..20
-CIX = 21                                                # object-space ix .. ize: 21..26 (_set_ray)
-SX = 27                                                 # triangle shear sx, sy, sz: 27..29
-NF = 30
+W8 = 6                                                  # its tracer.rows8.ray8 constants: 6..17 (_start)
+BEST_T, BU, BV = 18, 19, 20
+T32 = 21                                                # BEST_T rounded up to float32 (_set_best)
+CO = 22                                                 # object-space origin 22..24, direction 25..27
+CIX = 28                                                # object-space ix .. ize: 28..33 (_set_ray)
+SX = 34                                                 # triangle shear sx, sy, sz: 34..36
+NF = 37
 # I: integer fields
 RAY, STATE, TREF, TSP, Q, QEND, BREF, BSP = 0, 1, 2, 3, 4, 5, 6, 7
 WXL = 8                                                 # world near planes 8..10
@@ -85,24 +87,58 @@ def _set_ray(F, I, L, f, i, ox, oy, oz, dx, dy, dz):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _start(F, I, L, ray, o, d, t_max):
-    """Load ray ``ray`` into lane ``L``: at the top level's root."""
-    _set_ray(F, I, L, OX, WXL, o[ray, 0], o[ray, 1], o[ray, 2], d[ray, 0], d[ray, 1], d[ray, 2])
-    F[L, BEST_T] = t_max[ray]
+def _start(F, I, L, ray, o, d, t_max, single):
+    """Load ray ``ray`` into lane ``L``: at the top level's root, or with ``single`` (a top level of one
+    instance) at that instance, whose bottom level's first row tests what its box would."""
+    ox, oy, oz, dx, dy, dz = o[ray, 0], o[ray, 1], o[ray, 2], d[ray, 0], d[ray, 1], d[ray, 2]
+    F[L, OX] = ox
+    F[L, OY] = oy
+    F[L, OZ] = oz
+    F[L, DX] = dx
+    F[L, DY] = dy
+    F[L, DZ] = dz
+    _set_best(F, L, t_max[ray])
     F[L, BU] = 0.0
     F[L, BV] = 0.0
     I[L, RAY] = ray
-    I[L, STATE] = TOP
-    I[L, TREF] = 0
-    I[L, TSP] = L * _SPAN
+    I[L, TSP] = L * _SPAN + TOP8_BASE
     I[L, BEST_INST] = -1
     I[L, BEST_SLOT] = -1
+    if single:
+        I[L, Q] = 0
+        I[L, QEND] = 1
+        I[L, STATE] = ITEMS
+        return
+    I[L, STATE] = TOP
+    I[L, TREF] = 0
+    onx, ony, onz, ofx, ofy, ofz, ix, iy, iz, ixe, iye, ize, xl, yl, zl = rows8.ray8(ox, oy, oz, dx, dy, dz)
+    F[L, W8] = onx
+    F[L, W8 + 1] = ony
+    F[L, W8 + 2] = onz
+    F[L, W8 + 3] = ofx
+    F[L, W8 + 4] = ofy
+    F[L, W8 + 5] = ofz
+    F[L, W8 + 6] = ix
+    F[L, W8 + 7] = iy
+    F[L, W8 + 8] = iz
+    F[L, W8 + 9] = ixe
+    F[L, W8 + 10] = iye
+    F[L, W8 + 11] = ize
+    I[L, WXL] = xl
+    I[L, WXL + 1] = yl
+    I[L, WXL + 2] = zl
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _set_best(F, L, t):
+    F[L, BEST_T] = t
+    F[L, T32] = np.float64(_up32(t))
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _pop_top(I, F, L, stack, tstack):
     """Next pending top-level entry, or DONE."""
-    ref, sp = pop_nearer(stack, tstack, I[L, TSP], L * _SPAN, F[L, BEST_T])
+    ref, sp = pop_nearer(stack, tstack, I[L, TSP], L * _SPAN + TOP8_BASE, F[L, BEST_T])
     I[L, TSP] = sp
     if ref == MISS:
         I[L, STATE] = DONE
@@ -113,7 +149,7 @@ def _pop_top(I, F, L, stack, tstack):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _step_top(sa, F, I, L, stack, tstack):
-    """Visit one top-level row; a leaf reached becomes the lane's item range."""
+    """Visit one top-level row (8-wide, :mod:`tracer.rows8`); a leaf reached becomes the lane's item range."""
     ref = I[L, TREF]
     if ref < 0:
         x = -ref - 1
@@ -122,19 +158,19 @@ def _step_top(sa, F, I, L, stack, tstack):
         I[L, STATE] = ITEMS
         return
     bf = sa.top_f
-    bi = sa.top_i
-    r = 16 * ref
-    n, t1, t2, t3, c0, c1, c2, c3 = slab4_sorted(bf, r, F[L, OX], F[L, OY], F[L, OZ], F[L, WIX], F[L, WIX + 1],
-                                                 F[L, WIX + 2], F[L, WIX + 3], F[L, WIX + 4], F[L, WIX + 5],
-                                                 I[L, WXL], I[L, WXL + 1], I[L, WXL + 2], F[L, BEST_T])
-    if n > 0:
-        ref = np.int64(bi[r + 12 + c0])
+    r = rows8.ROW * ref
+    dist = L * _SPAN + TOP8_DIST
+    hits = rows8.slab8(bf, r, F[L, W8], F[L, W8 + 1], F[L, W8 + 2], F[L, W8 + 3], F[L, W8 + 4], F[L, W8 + 5],
+                       F[L, W8 + 6], F[L, W8 + 7], F[L, W8 + 8], F[L, W8 + 9], F[L, W8 + 10], F[L, W8 + 11],
+                       I[L, WXL], I[L, WXL + 1], I[L, WXL + 2], F[L, T32], tstack, dist)
+    if hits != 0:
+        ref, I[L, TSP] = rows8.descend8(sa.top_i, r, hits, stack, tstack, dist, I[L, TSP])
         I[L, TREF] = ref
         if ref >= 0:
-            prefetch(bf, 16 * ref)
+            for line in range(0, rows8.ROW, 16):
+                prefetch(bf, rows8.ROW * ref + line)
         else:   # a leaf: its first instance's record (tracer.tlas.instance_records)
             prefetch(sa.top_rec, 4 * ((-ref - 1) >> 4))
-        I[L, TSP] = push3(stack, tstack, I[L, TSP], bi[r + 12 + c1], bi[r + 12 + c2], bi[r + 12 + c3], t1, t2, t3)
         return
     _pop_top(I, F, L, stack, tstack)
 
@@ -187,7 +223,7 @@ def _step_enter(sa, F, I, L, any_hit, scratch, tscratch):
     hit, t, slot, u, v = dispatch.intersect_solid(sa, inst, rox, roy, roz, rdx, rdy, rdz, F[L, BEST_T], any_hit,
                                                   scratch, tscratch)
     if hit:
-        F[L, BEST_T] = t
+        _set_best(F, L, t)
         F[L, BU] = u
         F[L, BV] = v
         I[L, BEST_INST] = inst
@@ -244,7 +280,7 @@ def _step_bottom(sa, F, I, L, stack, tstack, any_hit):
         for j in range(first, first + (x & 15)):
             hit, t, u, v = intersect_triangle(tri, j, ox, oy, oz, kx, ky, kz, sx, sy, sz, F[L, BEST_T])
             if hit:
-                F[L, BEST_T] = t
+                _set_best(F, L, t)
                 F[L, BU] = u
                 F[L, BV] = v
                 I[L, BEST_INST] = I[L, INST]
@@ -264,11 +300,12 @@ def _step_bottom(sa, F, I, L, stack, tstack, any_hit):
 def _block(sa, o, d, t_max, any_hit, lo, hi, F, I, stack, tstack, scratch, tscratch, out_t, out_inst, out_slot,
            out_u, out_v):
     """Rays ``lo .. hi-1``, :data:`LANES` at a time; raw results (``out_slot``: the kind's slot)."""
+    single = sa.top_items.shape[0] == 1
     nxt = lo
     active = 0
     for L in range(LANES):
         if nxt < hi:
-            _start(F, I, L, nxt, o, d, t_max)
+            _start(F, I, L, nxt, o, d, t_max, single)
             nxt += 1
             active += 1
         else:
@@ -296,7 +333,7 @@ def _block(sa, o, d, t_max, any_hit, lo, hi, F, I, stack, tstack, scratch, tscra
             out_u[ray] = F[L, BU]
             out_v[ray] = F[L, BV]
             if nxt < hi:
-                _start(F, I, L, nxt, o, d, t_max)
+                _start(F, I, L, nxt, o, d, t_max, single)
                 if sa.top_f.shape[0] == 0:
                     I[L, STATE] = DONE
                 nxt += 1

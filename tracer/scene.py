@@ -496,8 +496,7 @@ class Scene:
             s["bvh"].ravel(), s["bvh"].view(np.int32).ravel(), s["tri_v"].ravel(),
             s["tri_prim"], s["prim_slot"], s["tri_n"],
             self._g_node0, self._g_tri0, self._g_ntri, self._g_hasn,
-            *inst, *_flat(self._levels["top"]), self._top_rec, *_flat8(self._levels["top"]),
-            *_flat(self._levels["sen"]))
+            *inst, *_flat(self._levels["top"]), self._top_rec, *_flat(self._levels["sen"]))
         self._inst_changed = False
         self._changed = False
         t2 = time.perf_counter()
@@ -561,7 +560,7 @@ class Scene:
         order, node_box, node_a, node_n, node_cnt = build_meshes(tri_v, tri_off, MESH_MAX_LEAF, MESH_ISECT_COST)
         # geometry g's nodes are rows 2*tri_off[g] .. + node_cnt[g] of the build arrays
         node_off = 2 * tri_off[:-1]
-        rows, row_cnt, _ = pack_wide(*collapse(node_box, node_a, node_n, node_off, node_cnt))
+        rows, row_cnt = pack_wide(*collapse(node_box, node_a, node_n, node_off, node_cnt))
         base = np.repeat(tri_off[:-1], g_tris)
         leaf_rows = base + order  # batch row of the original triangle at each leaf position
         prim_slot = np.empty(m, np.int32)
@@ -594,7 +593,7 @@ class Scene:
             tri_n = g.normals[g.triangles.astype(np.int64)].reshape(m, 9)[order].astype(np.float32)
         else:
             tri_n = np.zeros((m, 9), np.float32)
-        rows, row_cnt, _ = pack_wide(*collapse(node_box, node_a, node_n, np.zeros(1, np.int64),
+        rows, row_cnt = pack_wide(*collapse(node_box, node_a, node_n, np.zeros(1, np.int64),
                                                np.array([len(node_a)], np.int64)))
         arrs = {"bvh": rows, "tri_v": tri_v.astype(np.float32),
                 "tri_prim": order.astype(np.int32), "prim_slot": prim_slot, "tri_n": tri_n}
@@ -641,13 +640,8 @@ class Scene:
 
 
 def _flat(level: TopLevel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    rows = level.binary if level.wide is None else level.wide
+    rows = level.binary if level.rows8 is None else level.rows8
     return rows.ravel(), rows.view(np.int32).ravel(), level.items
-
-
-def _flat8(level: TopLevel) -> tuple[np.ndarray, np.ndarray]:
-    rows = level.rows8 if level.rows8 is not None else np.zeros((0, 64), np.float32)
-    return rows.ravel(), rows.view(np.int32).ravel()
 
 
 def _run_threads(threads: int | None, fn: Callable[[], None]) -> None:

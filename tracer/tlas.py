@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit
 
 from tracer import rows8
-from tracer.blas import _down32, _up32, aligned_rows, build_bvh_range, collapse, pack_rows, pack_wide, requantize
+from tracer.blas import _down32, _up32, aligned_rows, build_bvh_range, collapse, pack_rows
 
 #: an instance visit (transform + BLAS root) costs about this many node visits (SAH)
 INSTANCE_COST = 2.0
@@ -232,40 +232,29 @@ def _refit_binary(rows_f, rows_i, items, links, ids, boxes, touched):
 
 
 class TopLevel(NamedTuple):
-    """A top level: binary child-box rows (refitted on moves), the 4-wide rows the lanes read and the
-    8-wide rows single rays read (both ``None`` for a level traversed in binary form), leaf items and
-    what refits need."""
+    """A top level: binary child-box rows (refitted on moves), the 8-wide rows traversal reads (``None``
+    for a level traversed in binary form), leaf items and what refits need."""
 
     binary: np.ndarray   # (R, 16) float32, int32 view for the refs
-    wide: np.ndarray | None   # (W, 16) float32, :func:`tracer.blas.pack_wide`
     items: np.ndarray    # (n,) int32 instance ids, in leaf order
     links: tuple         # binary row parents and leaf positions, for refits
-    wsrc: np.ndarray | None   # wide slot -> binary (row, slot); see tracer.blas.widen
-    wide_of: np.ndarray | None   # binary row -> the wide row its boxes sit in
-    rows8: np.ndarray | None   # (W8, 64) float32, :func:`tracer.rows8.pack8`
+    rows8: np.ndarray | None   # (W, 64) float32, :func:`tracer.rows8.pack8`
     src8: np.ndarray | None   # 8-wide slot -> binary (row, slot)
     rows8_of: np.ndarray | None   # binary row -> the 8-wide row its boxes sit in
 
 
 def build_top(ids: np.ndarray, boxes: np.ndarray, wide: bool = True) -> TopLevel:
-    """Build the top level over instances ``ids`` with world boxes ``boxes[ids]`` (4-wide rows too
+    """Build the top level over instances ``ids`` with world boxes ``boxes[ids]`` (8-wide rows too
     when ``wide``; no rows when there are no instances)."""
     b, refs, items, *links = _build_top(np.ascontiguousarray(ids, np.int64), boxes)
     rows = pack_rows(b, refs)
     if not wide:
-        return TopLevel(rows, None, items, tuple(links), None, None, None, None, None)
-    wrows, _, wsrc = pack_wide(b, refs, np.array([len(b)], np.int64))
+        return TopLevel(rows, items, tuple(links), None, None, None)
     r8, src8 = rows8.pack8(rows)
-    return TopLevel(rows, wrows, items, tuple(links), wsrc, _row_of(wsrc, len(b)), r8, src8,
-                    _row_of(src8, len(b)))
-
-
-def _row_of(wsrc: np.ndarray, n: int) -> np.ndarray:
-    """Binary row -> the wide row its boxes sit in (both slots of a binary row go to one wide row)."""
-    out = np.zeros(n, np.int64)
-    w, c = np.nonzero(wsrc >= 0)
-    out[wsrc[w, c] >> 1] = w
-    return out
+    rows8_of = np.zeros(len(b), np.int64)   # (both slots of a binary row go to one 8-wide row)
+    w, c = np.nonzero(src8 >= 0)
+    rows8_of[src8[w, c] >> 1] = w
+    return TopLevel(rows, items, tuple(links), r8, src8, rows8_of)
 
 
 def refit_top(level: TopLevel, ids: np.ndarray, boxes: np.ndarray) -> TopLevel:
@@ -275,12 +264,9 @@ def refit_top(level: TopLevel, ids: np.ndarray, boxes: np.ndarray) -> TopLevel:
     rows = level.binary.copy()
     touched = np.zeros(len(rows), np.bool_)
     _refit_binary(rows, rows.view(np.int32), level.items, level.links, ids, boxes, touched)
-    if level.wide is None or level.wide_of is None or level.rows8 is None or level.rows8_of is None:
+    if level.rows8 is None or level.rows8_of is None:
         return level._replace(binary=rows)
-    wide = aligned_rows(len(level.wide))
-    wide[:] = level.wide
-    requantize(wide, wide.view(np.uint8), level.wsrc, rows, np.unique(level.wide_of[touched]))
     r8 = aligned_rows(4 * len(level.rows8)).reshape(-1, rows8.ROW)
     r8[:] = level.rows8
     rows8.refit8(r8, level.src8, rows, np.unique(level.rows8_of[touched]))
-    return level._replace(binary=rows, wide=wide, rows8=r8)
+    return level._replace(binary=rows, rows8=r8)

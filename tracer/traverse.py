@@ -33,10 +33,10 @@ from tracer.blas import STACK_SIZE, _up32
 from tracer.kinds import dispatch, mesh
 from tracer.kinds.mesh import MISS, pop_nearer, prefetch, ray_inverse, slab
 
-#: where the 8-wide top level's entries start in the traversal stacks (after a 4-wide top level's and a
-#: bottom level's, :func:`new_stacks`), and where :func:`tracer.rows8.slab8` leaves its distances
-TOP8_BASE = 4 * STACK_SIZE
-TOP8_DIST = TOP8_BASE + rows8.STACK
+#: where the top level's entries start in the traversal stacks (:func:`new_stacks`; a bottom level's from
+#: :data:`tracer.kinds.mesh.STACK_BASE`), and where :func:`tracer.rows8.slab8` leaves its distances
+TOP8_BASE = 0
+TOP8_DIST = mesh.STACK_BASE + 2 * STACK_SIZE
 
 
 class SceneArrays(NamedTuple):
@@ -54,11 +54,10 @@ class SceneArrays(NamedTuple):
     Instances (indexed by instance id): ``inst_kind`` (I,) i4 (-1: removed), ``inst_geom`` (I,) i4,
     ``world_from_object`` and ``object_from_world`` (I, 3, 4) f8 (affine rows).
 
-    Top levels over instance ids: solids ``top_f, top_i, top_items`` in 4-wide rows as in the BLAS,
-    sensors ``sen_f, sen_i, sen_items`` in binary child-box rows (:func:`tracer.blas.pack_rows`);
-    leaves index ``*_items``. ``top_rec`` (4 n,) i8: the solid items' :func:`tracer.tlas.instance_records`
-    (what entering each one needs, in leaf order). ``top8_f, top8_i``: the solid top level again, in the
-    8-wide float32 rows that walks of one ray read (:mod:`tracer.rows8`; the lanes read ``top_f``).
+    Top levels over instance ids: solids ``top_f, top_i, top_items`` in 8-wide float32 rows
+    (:mod:`tracer.rows8`), sensors ``sen_f, sen_i, sen_items`` in binary child-box rows
+    (:func:`tracer.blas.pack_rows`); leaves index ``*_items``. ``top_rec`` (4 n,) i8: the solid items'
+    :func:`tracer.tlas.instance_records` (what entering each one needs, in leaf order).
     """
 
     bvh_f: np.ndarray
@@ -79,8 +78,6 @@ class SceneArrays(NamedTuple):
     top_i: np.ndarray
     top_items: np.ndarray
     top_rec: np.ndarray
-    top8_f: np.ndarray
-    top8_i: np.ndarray
     sen_f: np.ndarray
     sen_i: np.ndarray
     sen_items: np.ndarray
@@ -121,7 +118,7 @@ def point_to_world(sa, inst, px, py, pz):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack, inline_mesh):
-    """Top-level traversal over the 8-wide rows ``sa.top8_f`` (:mod:`tracer.rows8`; leaves hold instance
+    """Top-level traversal over the 8-wide rows ``sa.top_f`` (:mod:`tracer.rows8`; leaves hold instance
     ids): each instance hit is entered in object space, a mesh straight from its record (``sa.top_rec``),
     any other kind through :mod:`tracer.kinds.dispatch`.
 
@@ -149,8 +146,8 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack, inline_m
             return t, inst, slot, u, v
         return best_t, best_inst, best_slot, bu, bv
     onx, ony, onz, ofx, ofy, ofz, ix, iy, iz, ixe, iye, ize, xl, yl, zl = rows8.ray8(ox, oy, oz, dx, dy, dz)
-    bf = sa.top8_f
-    bi = sa.top8_i
+    bf = sa.top_f
+    bi = sa.top_i
     t32 = np.float64(_up32(best_t))
     sp = TOP8_BASE
     ref = 0
@@ -203,10 +200,10 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack, inline_m
 def new_stacks():
     """Traversal stacks for the ``*_with_stacks`` functions: ``(stack, tstack)``, of the same length.
 
-    A 4-wide top level (:mod:`tracer.lanes`) uses the first quarter, a bottom level the second
-    (:data:`tracer.kinds.mesh.STACK_BASE`): a 4-wide level pushes up to three entries per level, of about
-    half the binary depth, which :func:`tracer.blas.check_topology` keeps below STACK_SIZE. The 8-wide
-    top level uses :data:`TOP8_BASE` on (:data:`tracer.rows8.STACK` entries, then 8 distances)."""
+    The top level uses the first :data:`tracer.rows8.STACK` entries, a bottom level the next 2 STACK_SIZE
+    (from :data:`tracer.kinds.mesh.STACK_BASE`: a 4-wide level pushes up to three entries per level, of about
+    half the binary depth, which :func:`tracer.blas.check_topology` keeps below STACK_SIZE), then 8 slots
+    for :func:`tracer.rows8.slab8`'s distances (:data:`TOP8_DIST`)."""
     return np.empty(TOP8_DIST + 8, np.int64), np.empty(TOP8_DIST + 8)
 
 

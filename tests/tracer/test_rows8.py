@@ -1,4 +1,4 @@
-"""The solid top level's 8-wide float32 rows (tracer.rows8), which walks of one ray read: each slot holds
+"""The solid top level's 8-wide float32 rows (tracer.rows8): each slot holds
 the binary row's box it came from, before and after a refit; every instance is reached exactly once; and
 the float32 slab test never misses a box the segment meets in exact arithmetic, nor reports an entry
 beyond the exact one (a pending row is culled by comparing that entry with the best hit)."""

@@ -1,5 +1,5 @@
-"""The 4-wide quantised rows (tracer.blas.pack_wide): every stored box encloses its child's exact box,
-whatever the coordinates' magnitude, and a refitted top level equals one widened afresh."""
+"""The 4-wide quantised rows of the bottom levels (tracer.blas.pack_wide): every stored box encloses its
+child's exact box, whatever the coordinates' magnitude (the top level's 8-wide rows: test_rows8.py)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 from numba import njit
 
-from tracer import tlas
 from tracer.blas import build_meshes, collapse, gather_triangles, pack_wide, widen
 from tracer.kinds.mesh import BOX_EPS, ray_inverse, slab4_sorted
 
@@ -35,8 +34,8 @@ def test_quantised_boxes_enclose_the_exact_ones(offset, size) -> None:
     c = offset + rng.uniform(0, size, (3000, 1, 3))
     tri = (c + rng.normal(0, size / 200, (3000, 3, 3))).astype(np.float32).astype(np.float64)
     boxes, refs, cnt = _binary_rows(tri)
-    wboxes, wrefs, _, _ = widen(boxes, refs, cnt)
-    rows, wcnt, _ = pack_wide(boxes, refs, cnt)
+    wboxes, wrefs, _ = widen(boxes, refs, cnt)
+    rows, wcnt = pack_wide(boxes, refs, cnt)
     assert rows.ctypes.data % 64 == 0
     assert wcnt[0] == len(rows) < len(boxes)   # fewer rows than the binary tree
     deq = _dequantise(rows)
@@ -50,23 +49,6 @@ def test_quantised_boxes_enclose_the_exact_ones(offset, size) -> None:
         assert np.all((wboxes[:, 4 * a:4 * a + 4] - lo)[full] <= step[full])
         assert np.all((hi - wboxes[:, 4 * (a + 3):4 * (a + 3) + 4])[full] <= step[full])
     assert np.array_equal(rows.view(np.int32)[:, 12:16], wrefs)
-
-
-def test_refitted_top_level_equals_a_fresh_widening() -> None:
-    rng = np.random.default_rng(3)
-    n = 500
-    lo = rng.uniform(-10, 10, (n, 3))
-    boxes = np.concatenate([lo, lo + rng.uniform(0.01, 1, (n, 3))], axis=1)
-    level = tlas.build_top(np.arange(n), boxes)
-    moved = rng.choice(n, 20, replace=False)
-    boxes[moved, :3] += 5.0
-    boxes[moved, 3:] += 5.0
-    refitted = tlas.refit_top(level, moved.astype(np.int64), boxes)
-    assert not np.array_equal(refitted.wide, level.wide)   # it did change, and the old arrays are kept
-    b = refitted.binary
-    fresh, _, _ = pack_wide(b[:, :12].astype(np.float64), b.view(np.int32)[:, 12:14].astype(np.int64),
-                            np.array([len(b)], np.int64))
-    assert np.array_equal(refitted.wide.view(np.uint8), fresh.view(np.uint8))
 
 
 @njit(error_model="numpy")
@@ -88,7 +70,7 @@ def test_vector_slab_test_sorts_the_hits_of_a_scalar_slab_test() -> None:
     rng = np.random.default_rng(11)
     tri = rng.uniform(-1, 1, (4000, 3, 3)).astype(np.float32).astype(np.float64) * 0.05
     tri += rng.uniform(-1, 1, (4000, 1, 3))
-    rows, _, _ = pack_wide(*_binary_rows(tri))
+    rows, _ = pack_wide(*_binary_rows(tri))
     k = 1000
     o = rng.uniform(-1.5, 1.5, (k, 3))
     d = rng.normal(size=(k, 3))

@@ -14,7 +14,7 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from tracer.blas import STACK_SIZE
+from tracer.rows8 import STACK
 from tracer.triangle import intersect_triangle, ray_setup
 
 KIND = 0
@@ -169,8 +169,8 @@ def slab4_sorted(typingctx, bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl
     return sig, codegen
 
 
-#: where a bottom level's entries start in the traversal stacks (the top level's lie below)
-STACK_BASE = 2 * STACK_SIZE
+#: where a bottom level's entries start in the traversal stacks (the 8-wide top level's lie below)
+STACK_BASE = STACK
 #: :func:`order4`'s nearest reference when no box is hit, :func:`pop_nearer`'s when no entry is left
 #: (references are >= -(16 * 2**27))
 MISS = np.int64(-(1 << 62))
