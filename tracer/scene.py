@@ -594,7 +594,7 @@ class Scene:
         else:
             tri_n = np.zeros((m, 9), np.float32)
         rows, row_cnt = pack_wide(*collapse(node_box, node_a, node_n, np.zeros(1, np.int64),
-                                               np.array([len(node_a)], np.int64)))
+                                            np.array([len(node_a)], np.int64)))
         arrs = {"bvh": rows, "tri_v": tri_v.astype(np.float32),
                 "tri_prim": order.astype(np.int32), "prim_slot": prim_slot, "tri_n": tri_n}
         return [g], arrs, row_cnt, np.array([m], np.int64)

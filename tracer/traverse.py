@@ -123,7 +123,7 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack, inline_m
     any other kind through :mod:`tracer.kinds.dispatch`.
 
     ``inline_mesh`` (a constant at each call site): walk a mesh's rows inlined (:func:`tracer.kinds.mesh.walk_rows`,
-    7 % fewer instructions per camera ray in the paper's scene 3) rather than through a call. Only the batch
+    6 % fewer instructions per camera ray in the paper's scene 3) rather than through a call. Only the batch
     kernel's walk does (:func:`tracer.lanes._serial_block`): each inlined copy adds compile time, and
     :func:`closest_with_stacks` and :func:`any_with_stacks` are compiled apart and called per transport variant.
     """

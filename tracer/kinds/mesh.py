@@ -14,7 +14,7 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from tracer.rows8 import STACK
+from tracer import rows8
 from tracer.triangle import intersect_triangle, ray_setup
 
 KIND = 0
@@ -170,7 +170,7 @@ def slab4_sorted(typingctx, bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl
 
 
 #: where a bottom level's entries start in the traversal stacks (the 8-wide top level's lie below)
-STACK_BASE = STACK
+STACK_BASE = rows8.STACK
 #: :func:`order4`'s nearest reference when no box is hit, :func:`pop_nearer`'s when no entry is left
 #: (references are >= -(16 * 2**27))
 MISS = np.int64(-(1 << 62))
