@@ -31,7 +31,7 @@ from tracer import rows8
 from tracer.blas import _up32
 from tracer.kinds import dispatch, mesh
 from tracer.kinds.mesh import MISS, STACK_BASE, pop_nearer, prefetch, prefetch_ref, push3, ray_inverse, slab4_sorted
-from tracer.traverse import TOP8_BASE, TOP8_DIST, _closest, _to_object, new_stacks, public_hit
+from tracer.traverse import STACK_LEN, TOP8_BASE, TOP8_DIST, _closest, _to_object, new_stacks, public_hit
 from tracer.triangle import intersect_triangle, ray_setup
 
 #: rays in flight per core
@@ -42,7 +42,7 @@ BLOCK = 256
 #: this (about 6 degrees between neighbours; a camera's neighbouring pixels are a fraction of a
 #: degree apart, random directions 2 on average)
 COHERENT = 0.01
-_SPAN = TOP8_DIST + 8   # one lane's part of the stack arrays, laid out as new_stacks()'s
+_SPAN = STACK_LEN   # one lane's part of the stack arrays, laid out as new_stacks()'s
 
 # F: float fields
 OX, OY, OZ, DX, DY, DZ = 0, 1, 2, 3, 4, 5               # world ray

@@ -37,6 +37,8 @@ from tracer.kinds.mesh import MISS, pop_nearer, prefetch, ray_inverse, slab
 #: :data:`tracer.kinds.mesh.STACK_BASE`), and where :func:`tracer.rows8.slab8` leaves its distances
 TOP8_BASE = 0
 TOP8_DIST = mesh.STACK_BASE + 2 * STACK_SIZE
+#: the stacks' length (:func:`new_stacks`; each lane of :mod:`tracer.lanes` has this much of its own)
+STACK_LEN = TOP8_DIST + rows8.WIDTH
 
 
 class SceneArrays(NamedTuple):
@@ -204,7 +206,7 @@ def new_stacks():
     (from :data:`tracer.kinds.mesh.STACK_BASE`: a 4-wide level pushes up to three entries per level, of about
     half the binary depth, which :func:`tracer.blas.check_topology` keeps below STACK_SIZE), then 8 slots
     for :func:`tracer.rows8.slab8`'s distances (:data:`TOP8_DIST`)."""
-    return np.empty(TOP8_DIST + 8, np.int64), np.empty(TOP8_DIST + 8)
+    return np.empty(STACK_LEN, np.int64), np.empty(STACK_LEN)
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
