@@ -41,7 +41,8 @@ __all__ = [
 
 
 def read_document(source: Any, *, sidecar: str | Path | None = None, write_sidecar: bool = True,
-                  length_unit: str = "mm", name: str | None = None) -> Document:
+                  length_unit: str = "mm", name: str | None = None, previous: list[dict] | None = None,
+                  previous_unit: str | None = None, tolerance: Any = None, reuse_geometry: bool = False) -> Document:
     """Read a STEP file or a cadquery assembly and give every node its UUID.
 
     Parameters
@@ -57,11 +58,16 @@ def read_document(source: Any, *, sidecar: str | Path | None = None, write_sidec
         Unit of a cadquery assembly (a STEP file declares its own).
     name : str, optional
         Document name for an assembly (default: the root's name).
+    previous, previous_unit, tolerance, reuse_geometry
+        The scene's tree to recognise the nodes in (``Pusher.scene_tree(name).nodes``), its unit, the
+        :class:`cad_adapter.identity.Tolerance` of "no change", and whether parts with the same B-rep keep
+        the scene's geometry ids; see :func:`cad_adapter.identity.identify`.
 
     Returns
     -------
     Document
-        Every node with ``uuid`` and ``match`` (carried, path, signature, children or new).
+        Every node with ``uuid`` and ``match`` (one of ``cad_adapter.matching.RULES``); ``reconciliation``
+        says how many nodes each rule matched and lists the ambiguous ones.
     """
     from .identity import identify
 
@@ -77,7 +83,8 @@ def read_document(source: Any, *, sidecar: str | Path | None = None, write_sidec
         from .assembly import read_assembly
 
         doc = read_assembly(source, length_unit=length_unit, name=name)
-    identify(doc, sidecar, write=write_sidecar)
+    identify(doc, sidecar, write=write_sidecar, previous=previous, previous_unit=previous_unit, tolerance=tolerance,
+             reuse_geometry=reuse_geometry)
     return doc
 
 

@@ -78,7 +78,7 @@ def read_assembly(assy: cq.Assembly, length_unit: str = "mm", name: str | None =
                 doc.parts[part] = Part(key=part, name=a.name, shape=_shape(shapes), color=color)
         node = Node(index=len(doc.nodes), name=str(a.name)[:500], parent=parent,
                     transform=location_matrix(a.loc.wrapped),
-                    part=part, color=color, carried_uuid=carried)
+                    part=part, color=color, carried_uuid=carried, product=str(a.name)[:500])
         doc.nodes.append(node)
         for child in a.children:
             walk(child, node.index, color)

@@ -58,27 +58,68 @@ def summary(result: Any, doc: Any, tess: Any, read_seconds: float) -> str:
     return "\n".join(lines)
 
 
+def identity_report(doc: Any) -> list[str]:
+    """Lines saying how the UUIDs were found: from where, nodes per rule, and every ambiguous node."""
+    rec = doc.reconciliation or {}
+    counts = ", ".join(f"{k} {v}" for k, v in (rec.get("matched") or {}).items() if v)
+    lines = [f"identity (memory: {rec.get('source', 'none')}): {counts}"]
+    detail = doc.reconciliation_detail or {}
+    if detail.get("snapped") or detail.get("reused_geometries"):
+        lines.append(f"  within tolerance: {detail.get('snapped', 0)} placement(s) kept, "
+                     f"{detail.get('reused_geometries', 0)} geometry id(s) kept (not meshed, not uploaded)")
+    for a in rec.get("ambiguous") or []:
+        lines.append(f"  [yellow]ambiguous:[/] {a['path']}: {a['reason']}")
+    return lines
+
+
+def orphan_report(answer: dict, previous: list[dict] | None) -> list[str]:
+    """Loud lines for assignments a push orphaned (or, in a dry run, would orphan), with node paths."""
+    paths = {r.get("uuid"): r.get("path") or r.get("name") for r in previous or []}
+    out = []
+    for o in answer.get("orphaned") or []:
+        where = paths.get(o.get("node")) or o.get("node")
+        out.append(f"[bold red]ORPHANED[/] {o.get('kind')} {o.get('id')} on removed node {where!r} "
+                   f"({o.get('node')}); it comes back if that node does, `DELETE /scenes/{{id}}/orphans` purges it")
+    return out
+
+
 def push_once(file: Path, scene: str, server: str, linear: float | None, angular: float | None, relative: bool,
               cache: TessellationCache, console: Console, json_out: bool = False,
-              transport: Any = None) -> int:
-    """Read, identify, tessellate and push one file; report on ``console`` (stderr) and stdout."""
-    from . import read_document
+              transport: Any = None, dry_run: bool = False) -> int:
+    """Read, identify against the scene, tessellate and push one file; report on ``console`` (stderr) and stdout.
+
+    ``dry_run``: print the reconciliation and the diff the push would make; change nothing (no upload,
+    no sidecar, no scene)."""
     from .client import Pusher
+    from .identity import identify
+    from .step_reader import read_step
     from .tessellate import tessellate
 
     try:
+        with Pusher(server, transport=transport) as pusher:
+            tree = pusher.scene_tree(scene)
+    except ServiceUnavailable as exc:
+        console.print(f"[red]error:[/] {exc}")
+        return EXIT_UNREACHABLE
+    except PushError as exc:
+        console.print(f"[red]error:[/] {exc}")
+        return EXIT_FAILED
+    previous = tree.nodes if tree is not None else None
+    try:
         t0 = time.perf_counter()
         with console.status(f"reading {file.name}", spinner="dots") if console.is_terminal else _null():
-            doc = read_document(file)
+            doc = read_step(file)
+            settings = Settings.default(doc.length_unit, linear, angular, relative)
+            same_settings = tree is not None and tree.tessellation is not None and all(
+                tree.tessellation.get(k) == v for k, v in settings.as_dict().items())
+            identify(doc, write=not dry_run, previous=previous, previous_unit=tree.length_unit if tree else None,
+                     reuse_geometry=same_settings)
         read_seconds = time.perf_counter() - t0
         for w in doc.warnings:
             console.print(f"[yellow]warning:[/] {w}")
-        counts: dict[str, int] = {}
-        for n in doc.nodes:
-            counts[n.match or "?"] = counts.get(n.match or "?", 0) + 1
-        console.print(f"{file.name}: {len(doc.nodes)} nodes, {len(doc.parts)} distinct parts, unit {doc.length_unit}; "
-                      "UUIDs " + ", ".join(f"{k} {v}" for k, v in counts.items()))
-        settings = Settings.default(doc.length_unit, linear, angular, relative)
+        console.print(f"{file.name}: {len(doc.nodes)} nodes, {len(doc.parts)} distinct parts, unit {doc.length_unit}")
+        for line in identity_report(doc):
+            console.print(line)
         with _progress(console) as bar:
             task = bar.add_task("tessellating", total=len(doc.parts))
             tess = tessellate(doc, settings, cache=cache,
@@ -103,7 +144,8 @@ def push_once(file: Path, scene: str, server: str, linear: float | None, angular
                 bar.update(task, completed=done, total=total)
 
             with Pusher(server, transport=transport, upload_progress=up) as pusher:
-                result = pusher.push(doc, tess, scene)
+                result = pusher.push(doc, tess, scene, base_revision=tree.revision if tree else None,
+                                     dry_run=dry_run)
     except RevisionConflict as exc:
         console.print(f"[red]conflict:[/] {exc}")
         return EXIT_CONFLICT
@@ -113,12 +155,29 @@ def push_once(file: Path, scene: str, server: str, linear: float | None, angular
     except (PushError, CadAdapterError) as exc:
         console.print(f"[red]error:[/] {exc}")
         return EXIT_FAILED
+    for line in orphan_report(result.answer, previous):
+        console.print(line)
     if json_out:
         sys.stdout.write(json.dumps(result.answer, indent=2) + "\n")
+    elif dry_run:
+        sys.stdout.write(dry_run_summary(result.answer) + "\n")
     else:
         sys.stdout.write(summary(result, doc, tess, read_seconds) + "\n")
     sys.stdout.flush()
     return EXIT_OK
+
+
+def dry_run_summary(a: dict) -> str:
+    """What a push would do: the diff, the bottom levels to build and meshes to upload; nothing was changed."""
+    lists = ("added", "removed", "moved", "geometry_changed", "renamed", "reparented", "recolored")
+    diff = ", ".join(f"{k.replace('_', ' ')} {len(a.get(k) or [])}" for k in lists if k in a)
+    return "\n".join([
+        f"dry run (nothing changed): scene {a.get('scene') or '(would be created)'} at revision {a.get('revision')}",
+        f"  diff: {diff}, unchanged {a.get('unchanged', '?')}",
+        f"  would build {len(a.get('blas_to_build') or [])} bottom level(s), upload "
+        f"{len(a.get('missing_geometries') or [])} mesh(es); would orphan {len(a.get('orphaned') or [])} "
+        f"assignment(s), restore {len(a.get('restored') or [])}",
+    ])
 
 
 class _null:
@@ -140,13 +199,14 @@ def _check_options(linear: float | None, angular: float | None, relative: bool, 
 
 def push(file: Path, scene: str, server: str, linear: float | None = None, angular: float | None = None,
          relative: bool = False, json_out: bool = False, *, transport: Any = None,
-         cache_dir: Path | None = None) -> int:
+         cache_dir: Path | None = None, dry_run: bool = False) -> int:
     """``lumenlink push FILE --scene NAME``: one push; returns the exit code."""
     console = Console(stderr=True, soft_wrap=True)
     if not _check_options(linear, angular, relative, console):
         return EXIT_INPUT
     cache = TessellationCache(cache_dir if cache_dir is not None else default_cache_dir())
-    return push_once(Path(file), scene, server, linear, angular, relative, cache, console, json_out, transport)
+    return push_once(Path(file), scene, server, linear, angular, relative, cache, console, json_out, transport,
+                     dry_run=dry_run)
 
 
 def _stamp(path: Path) -> tuple[int, int] | None:

@@ -155,9 +155,25 @@ class Pusher:
         resp = self._request("PUT", f"/geometries/{gid}", content=glb, headers={"content-type": MEDIA_TYPE})
         self._json(resp, f"uploading geometry {gid[:12]}", ok=(200, 201))
 
-    def push_document(self, scene_id: str, body: dict) -> dict:
-        """``PUT /scenes/{id}/document``; :class:`RevisionConflict` on 409 (after re-reading the revision)."""
-        resp = self._request("PUT", f"/scenes/{scene_id}/document", json=body)
+    def scene_tree(self, name: str) -> SceneTree | None:
+        """What the scene called ``name`` holds now (its nodes, for reconciliation), or None if there is none."""
+        info = self.scene_by_name(name)
+        if info is None:
+            return None
+        sid = str(info["id"])
+        summary = self._json(self._request("GET", f"/scenes/{sid}"), f"reading scene {name!r}")
+        nodes = self._json(self._request("GET", f"/scenes/{sid}/nodes"), f"reading the nodes of scene {name!r}")
+        if not isinstance(nodes, list):
+            raise PushError(f"GET /scenes/{sid}/nodes answered {type(nodes).__name__}, not a list")
+        return SceneTree(sid, int(summary["revision"]), summary.get("length_unit"), nodes,
+                         (summary.get("source") or {}).get("tessellation"))
+
+    def push_document(self, scene_id: str, body: dict, dry_run: bool = False) -> dict:
+        """``PUT /scenes/{id}/document``; :class:`RevisionConflict` on 409 (after re-reading the revision).
+
+        ``dry_run``: the service diffs and answers without changing the scene."""
+        resp = self._request("PUT", f"/scenes/{scene_id}/document", json=body,
+                             params={"dry_run": "true"} if dry_run else None)
         if resp.status_code == 409:
             try:
                 current = self.revision(scene_id)
@@ -169,7 +185,8 @@ class Pusher:
                 "Check what changed, then push again.", current_revision=current)
         return self._json(resp, "pushing the document")
 
-    def push(self, doc: Document, tess: Tessellation, scene: str, base_revision: int | None = None) -> PushResult:
+    def push(self, doc: Document, tess: Tessellation, scene: str, base_revision: int | None = None,
+             dry_run: bool = False) -> PushResult:
         """Push a document: scene, missing meshes, upload, tree.
 
         Parameters
@@ -181,6 +198,9 @@ class Pusher:
             Scene name (created if absent).
         base_revision : int, optional
             Revision the push is based on; default the scene's revision read just before pushing.
+        dry_run : bool
+            Upload nothing, change nothing: the answer is the diff the push would make (a scene that
+            does not exist yet is not created: the answer is then every node added).
 
         Raises
         ------
@@ -188,6 +208,8 @@ class Pusher:
         """
         seconds: dict[str, float] = {}
         t = time.perf_counter()
+        if dry_run:
+            return self._dry_run(doc, tess, scene, base_revision)
         info, created = self.find_or_create_scene(scene)
         scene_id = str(info["id"])
         if base_revision is None:
@@ -215,3 +237,43 @@ class Pusher:
         answer = self.push_document(scene_id, body)
         seconds["push"] = time.perf_counter() - t
         return PushResult(answer, scene_id, created, len(used), len(missing), sent, seconds)
+
+    def _dry_run(self, doc: Document, tess: Tessellation, scene: str, base_revision: int | None) -> PushResult:
+        t = time.perf_counter()
+        info = self.scene_by_name(scene)
+        body = build_push(doc, tess, base_revision)
+        used = sorted({n["geometry"] for n in body["nodes"] if n["geometry"]})
+        if info is None:  # nothing to diff against: everything would be added
+            answer = {"scene": None, "revision": 0, "base_revision": base_revision, "dry_run": True,
+                      "added": [n["uuid"] for n in body["nodes"]], "removed": [], "moved": [],
+                      "geometry_changed": [], "renamed": [], "reparented": [], "recolored": [],
+                      "unchanged": 0, "orphaned": [], "restored": [], "missing_geometries": used,
+                      "blas_to_build": used, "reconciliation": body.get("reconciliation")}
+            return PushResult(answer, "", False, len(used), 0, 0, {"dry_run": time.perf_counter() - t})
+        scene_id = str(info["id"])
+        if base_revision is None:
+            body["base_revision"] = self.revision(scene_id)
+        answer = self.push_document(scene_id, body, dry_run=True)
+        return PushResult(answer, scene_id, False, len(used), 0, 0, {"dry_run": time.perf_counter() - t})
+
+
+@dataclass
+class SceneTree:
+    """A scene's current tree as the service holds it (the memory identity is reconciled with).
+
+    Attributes
+    ----------
+    id : str
+    revision : int
+    length_unit : str or None
+    nodes : list of dict
+        ``GET /scenes/{id}/nodes``: uuid, parent, name, product, path, transform, world, geometry, signature.
+    tessellation : dict or None
+        The settings the scene's meshes were made with (``source.tessellation`` of its last push).
+    """
+
+    id: str
+    revision: int
+    length_unit: str | None
+    nodes: list[dict]
+    tessellation: dict | None

@@ -1,20 +1,23 @@
-"""Node identity: a UUID per node that survives edits, re-exports and re-imports.
+"""Node identity: a UUID per node that survives edits, re-exports, re-imports and "Save As".
 
-Sources, in order (the first that answers wins; ``Node.match`` records which):
+The memory is the scene: :func:`identify` reconciles the document with the tree the scene holds now
+(``GET /scenes/{id}/nodes``: names, product names, paths, placements, shape signatures, geometry ids), so
+a file saved under a new name and pushed to the same scene keeps every UUID. Where no scene tree is
+given (a first push, a document pushed to several scenes), the sidecar ``<document>.lumenlink.json``
+holds the same records. :mod:`cad_adapter.matching` does the matching: a global assignment by shape
+class, aligned placement and structure, never nearest-first; see its docstring for the rules.
 
-1. ``carried``   a UUID the document itself carries (cadquery node metadata ``uuid``, a STEP attribute).
-2. ``path``      the sidecar entry with the same occurrence path (a moved or edited part keeps its UUID).
-3. ``signature`` the sidecar entry whose part has the same geometric signature (volume, area, centroid
-                 and bounding box in the part's frame, within a relative tolerance); among several (a
-                 part used many times) the one whose recorded world position is nearest. A renamed part
-                 keeps its UUID this way, and so does a node whose parent was renamed.
-4. ``children``  an assembly node not found so far takes the UUID its matched children's former parent
-                 had (a renamed sub-assembly).
-5. ``new``       a fresh ``uuid4``.
+Changes are judged with tolerances, not bit equality (:class:`Tolerance`):
 
-The sidecar ``<document>.lumenlink.json`` records, per node, the UUID, the occurrence path, the parent's
-UUID and the signature. Entries of nodes that have disappeared are kept (``present: false``) so that a
-part deleted and restored later gets its UUID back, and with it what the simulation had assigned to it.
+* a node whose placement in its (same) parent differs from the old one by less than ``linear`` × the
+  model's diagonal and ``angular`` radians keeps the old placement, bit for bit (not a move);
+* a part whose B-rep is the same within ``shape_rtol`` in its own frame (volume, area, centroid, inertia
+  tensor, face/edge/vertex counts) keeps the old geometry id: it is neither tessellated nor uploaded,
+  and the service builds no bottom level (``Document.reuse``). Only when the scene's tessellation
+  settings are the ones asked for now.
+
+The sidecar keeps entries of nodes that have disappeared (``present: false``), so a part deleted and
+restored later gets its UUID back, and with it what the simulation had assigned to it.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ import json
 import math
 import os
 import tempfile
+import time
 import uuid as uuidlib
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,15 +37,43 @@ from OCP.Bnd import Bnd_Box
 from OCP.BRepBndLib import BRepBndLib
 from OCP.BRepGProp import BRepGProp
 from OCP.GProp import GProp_GProps
+from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_VERTEX
+from OCP.TopExp import TopExp
+from OCP.TopTools import TopTools_IndexedMapOfShape
 
 from .errors import IdentityError
-from .tree import Document
+from .matching import RULES, ShapeKey, Side, reconcile
+from .tree import UNIT_METRES, Document
 
-SIDECAR_FORMAT = "lumenlink-sidecar-v1"
+SIDECAR_FORMAT = "lumenlink-sidecar-v2"
+OLD_SIDECAR_FORMATS = ("lumenlink-sidecar-v1",)
 SIDECAR_SUFFIX = ".lumenlink.json"
-#: relative tolerance of the signature comparison (volumes, areas and lengths scaled by the part size)
-SIGNATURE_RTOL = 1e-5
-MATCH_KINDS = ("carried", "path", "signature", "children", "new")
+MATCH_KINDS = RULES
+
+
+@dataclass(frozen=True)
+class Tolerance:
+    """When a difference is no change.
+
+    Attributes
+    ----------
+    linear : float
+        Placement tolerance, a fraction of the model's diagonal (default 1e-6).
+    angular : float
+        Placement tolerance in radians (default 1e-9).
+    shape_rtol : float
+        Same B-rep: invariants equal within this fraction of the part's size (default 1e-6).
+    """
+
+    linear: float = 1e-6
+    angular: float = 1e-9
+    shape_rtol: float = 1e-6
+
+    def __post_init__(self) -> None:
+        for name in ("linear", "angular", "shape_rtol"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or not 0 <= v < 1:
+                raise IdentityError(f"tolerance {name} must be a number in [0, 1), got {v!r}")
 
 
 def sidecar_path(document: str | Path) -> Path:
@@ -79,84 +111,186 @@ def is_uuid(text: object) -> bool:
         return False
 
 
-@dataclass(frozen=True)
-class Signature:
-    """Geometric signature of a part in its own frame (document units).
+# ---------------------------------------------------------------- shape signatures
 
-    Attributes
-    ----------
-    volume, area : float
-    centroid : tuple of 3 float
-        Centre of volume (centre of area for a shell).
-    bbox : tuple of 6 float
-        xmin, ymin, zmin, xmax, ymax, zmax.
+def _count(shape, kind) -> int:
+    m = TopTools_IndexedMapOfShape()
+    TopExp.MapShapes_s(shape, kind, m)
+    return int(m.Extent())
+
+
+def shape_signature(shape) -> dict:
+    """What identity needs of a part's B-rep (document units, the part's own frame).
+
+    Returns
+    -------
+    dict
+        ``volume``, ``area``; ``moments`` (3, ascending: principal moments of inertia about the centroid,
+        unit density; of the surface for a shell); ``axes`` (9: the principal axes as rows); ``centroid``
+        (3); ``topology`` (faces, edges, vertices); ``bbox`` (6). The first four and ``topology`` do not
+        depend on the part's frame.
     """
-
-    volume: float
-    area: float
-    centroid: tuple[float, float, float]
-    bbox: tuple[float, float, float, float, float, float]
-
-    @property
-    def size(self) -> float:
-        b = self.bbox
-        return math.sqrt((b[3] - b[0]) ** 2 + (b[4] - b[1]) ** 2 + (b[5] - b[2]) ** 2)
-
-    def matches(self, other: Signature, rtol: float = SIGNATURE_RTOL) -> bool:
-        """Equal within ``rtol`` of the part's size (size³ for volumes, size² for areas)."""
-        s = max(self.size, other.size)
-        if s == 0:
-            return self == other
-        tol = rtol * s
-        return (abs(self.volume - other.volume) <= tol * s * s
-                and abs(self.area - other.area) <= tol * s
-                and all(abs(a - b) <= tol for a, b in zip(self.centroid, other.centroid, strict=True))
-                and all(abs(a - b) <= tol for a, b in zip(self.bbox, other.bbox, strict=True)))
-
-    def as_dict(self) -> dict:
-        return {"volume": self.volume, "area": self.area, "centroid": list(self.centroid), "bbox": list(self.bbox)}
-
-    @classmethod
-    def from_dict(cls, d: dict) -> Signature:
-        return cls(float(d["volume"]), float(d["area"]), tuple(float(x) for x in d["centroid"]),
-                   tuple(float(x) for x in d["bbox"]))
-
-
-def shape_signature(shape) -> Signature:
-    """Volume, area, centroid and tight bounding box of a shape (document units)."""
     vprops = GProp_GProps()
     BRepGProp.VolumeProperties_s(shape, vprops)
     sprops = GProp_GProps()
     BRepGProp.SurfaceProperties_s(shape, sprops)
-    volume = float(vprops.Mass())
-    props = vprops if abs(volume) > 0 else sprops
+    volume = abs(float(vprops.Mass()))
+    props = vprops if volume > 0 else sprops
     c = props.CentreOfMass()
+    m = props.MatrixOfInertia()
+    inertia = np.array([[m.Value(i, j) for j in (1, 2, 3)] for i in (1, 2, 3)], dtype=np.float64)
+    if float(vprops.Mass()) < 0:  # a solid with reversed orientation: OCCT gives negative mass
+        inertia = -inertia
+    moments, axes = np.linalg.eigh(0.5 * (inertia + inertia.T))
     box = Bnd_Box()
     BRepBndLib.AddOptimal_s(shape, box, False, False)
-    bbox = (0.0,) * 6 if box.IsVoid() else tuple(float(x) for x in box.Get())
-    return Signature(abs(volume), float(sprops.Mass()), (float(c.X()), float(c.Y()), float(c.Z())), bbox)
+    bbox = [0.0] * 6 if box.IsVoid() else [float(x) for x in box.Get()]
+    return {"volume": volume, "area": abs(float(sprops.Mass())),
+            "moments": [float(x) for x in np.maximum(moments, 0.0)],
+            "centroid": [float(c.X()), float(c.Y()), float(c.Z())],
+            "axes": [float(x) for x in axes.T.ravel()],
+            "topology": [_count(shape, TopAbs_FACE), _count(shape, TopAbs_EDGE), _count(shape, TopAbs_VERTEX)],
+            "bbox": bbox}
 
 
-def part_signature(doc: Document, key: str) -> Signature:
+def part_signature(doc: Document, key: str) -> dict:
+    """The part's :func:`shape_signature`, computed once per reading."""
     part = doc.parts[key]
     if part._signature is None:
         part._signature = shape_signature(part.shape)
     return part._signature
 
 
-@dataclass
-class _Entry:
-    uuid: str
-    path: str
-    name: str
-    parent: str | None
-    signature: Signature | None
-    world_centroid: tuple[float, float, float] | None
-    present: bool = True
+def shape_key(sig: dict | None) -> ShapeKey | None:
+    """The frame-independent part of a signature (None without one)."""
+    if not sig or sig.get("moments") is None:
+        return None
+    topo = sig.get("topology") or (0, 0, 0)
+    return ShapeKey(float(sig["volume"]), float(sig["area"]), tuple(float(x) for x in sig["moments"]),  # type: ignore[arg-type]
+                    tuple(int(x) for x in topo))  # type: ignore[arg-type]
 
 
-def load_sidecar(path: str | Path) -> list[_Entry]:
-    """Entries of a sidecar file; [] if there is none.
+def _inertia(sig: dict) -> np.ndarray:
+    axes = np.asarray(sig["axes"], dtype=np.float64).reshape(3, 3)
+    return axes.T @ np.diag(sig["moments"]) @ axes
+
+
+def same_brep(a: dict | None, b: dict | None, rtol: float) -> bool:
+    """Whether two signatures describe the same B-rep in the same frame, within ``rtol`` of its size."""
+    if not a or not b or a.get("axes") is None or b.get("axes") is None:
+        return False
+    ka, kb = shape_key(a), shape_key(b)
+    if ka is None or kb is None or not ka.matches(kb, rtol):
+        return False
+    if a.get("topology") and b.get("topology") and list(a["topology"]) != list(b["topology"]):
+        return False
+    s = max(ka.size, kb.size)
+    if np.linalg.norm(np.subtract(a["centroid"], b["centroid"])) > rtol * s:
+        return False
+    return bool(np.abs(_inertia(a) - _inertia(b)).max() <= rtol * (max(ka.moments[-1], kb.moments[-1]) + s ** 5))
+
+
+# ---------------------------------------------------------------- records (what the scene and the sidecar hold)
+
+def node_records(doc: Document, geometry: dict[str, str] | None = None) -> list[dict]:
+    """One record per node, in the shape ``GET /scenes/{id}/nodes`` answers (document units).
+
+    ``geometry`` maps part keys to geometry ids (after tessellation), where known.
+    """
+    out = []
+    for n in doc.nodes:
+        if n.uuid is None:
+            raise IdentityError("assign UUIDs (identify) before taking records", node=n.path)
+        out.append({
+            "uuid": n.uuid, "parent": doc.nodes[n.parent].uuid if n.parent is not None else None,
+            "name": n.name, "product": n.product, "path": n.path,
+            "transform": [float(x) for x in n.transform.ravel()],
+            "world": [float(x) for x in doc.world_transform(n.index).ravel()],
+            "geometry": (geometry or {}).get(n.part) if n.part else None,
+            "signature": part_signature(doc, n.part) if n.part is not None else None,
+            "leaf": n.part is not None,
+        })
+    return out
+
+
+def side_from_document(doc: Document) -> Side:
+    """The new side of a reconciliation (carried UUIDs as the only known ones)."""
+    n = len(doc.nodes)
+    world = np.stack([doc.world_transform(i) for i in range(n)]) if n else np.zeros((0, 4, 4))
+    keys, centroids, axes = [], np.zeros((n, 3)), np.zeros((n, 3, 3))
+    for i, node in enumerate(doc.nodes):
+        sig = part_signature(doc, node.part) if node.part is not None else None
+        keys.append(shape_key(sig))
+        if sig:
+            centroids[i] = sig["centroid"]
+            axes[i] = np.reshape(sig["axes"], (3, 3))
+    return Side(parent=np.array([-1 if x.parent is None else x.parent for x in doc.nodes], np.int64),
+                names=[x.name for x in doc.nodes], products=[x.product for x in doc.nodes], world=world,
+                local=np.stack([x.transform for x in doc.nodes]) if n else np.zeros((0, 4, 4)), keys=keys,
+                centroid=centroids, leaf=np.array([x.part is not None for x in doc.nodes], bool),
+                uuids=[x.carried_uuid.lower() if x.carried_uuid and is_uuid(x.carried_uuid.lower()) else None
+                       for x in doc.nodes],
+                paths=[x.path for x in doc.nodes], axes=axes)
+
+
+def side_from_records(records: list[dict], scale: float = 1.0) -> tuple[Side, list[dict]]:
+    """The old side from scene or sidecar records (and the records kept, one per uuid, in order);
+    ``scale`` converts their lengths to the new unit.
+
+    Raises
+    ------
+    IdentityError
+        A record without a valid uuid, or a parent that is not an earlier record.
+    """
+    index: dict[str, int] = {}
+    rows = []
+    for r in records:
+        if not isinstance(r, dict) or not is_uuid(r.get("uuid")):
+            raise IdentityError(f"a previous node record has no valid uuid: {str(r)[:200]}")
+        if r["uuid"] in index:
+            continue
+        index[r["uuid"]] = len(rows)
+        rows.append(r)
+    n = len(rows)
+    parent = np.full(n, -1, np.int64)
+    local, world = np.tile(np.eye(4), (n, 1, 1)), np.tile(np.eye(4), (n, 1, 1))
+    keys: list[ShapeKey | None] = []
+    centroids, axes = np.zeros((n, 3)), np.zeros((n, 3, 3))
+    leaf = np.zeros(n, bool)
+    for i, r in enumerate(rows):
+        p = r.get("parent")
+        if p is not None:
+            parent[i] = index.get(p, -1)
+        for name, arr in (("transform", local), ("world", world)):
+            if r.get(name) is not None:
+                arr[i] = np.asarray(r[name], dtype=np.float64).reshape(4, 4)
+        sig = r.get("signature")
+        keys.append(shape_key(sig))
+        if sig and sig.get("centroid") is not None:
+            centroids[i] = np.asarray(sig["centroid"], dtype=np.float64) * scale
+        if sig and sig.get("axes") is not None:
+            axes[i] = np.asarray(sig["axes"], dtype=np.float64).reshape(3, 3)
+        leaf[i] = bool(r.get("leaf", r.get("geometry") is not None or sig is not None))
+    if np.any(parent >= np.arange(n)):  # a parent after its child: recompute the order-dependent worlds
+        raise IdentityError("previous node records must list parents before their children")
+    local[:, :3, 3] *= scale
+    world[:, :3, 3] *= scale
+    if scale != 1.0:
+        keys = [None if k is None else ShapeKey(k.volume * scale ** 3, k.area * scale ** 2,
+                                                 tuple(m * scale ** 5 for m in k.moments),  # type: ignore[arg-type]
+                                                 k.topology) for k in keys]
+    missing_world = [i for i, r in enumerate(rows) if r.get("world") is None]
+    for i in missing_world:  # sidecars of v1 and hand-made records: compose the locals
+        world[i] = local[i] if parent[i] < 0 else world[parent[i]] @ local[i]
+    return Side(parent, [str(r.get("name") or "") for r in rows], [str(r.get("product") or "") for r in rows],
+                world, local, keys, centroids, leaf, [r["uuid"] for r in rows],
+                [str(r.get("path") or "") for r in rows], axes), rows
+
+
+# ---------------------------------------------------------------- sidecar
+
+def load_sidecar(path: str | Path) -> dict:
+    """The sidecar's content (``{"nodes": [records], ...}``); an empty one if there is none.
 
     Raises
     ------
@@ -165,131 +299,37 @@ def load_sidecar(path: str | Path) -> list[_Entry]:
     """
     p = Path(path)
     if not p.exists():
-        return []
+        return {"format": SIDECAR_FORMAT, "nodes": []}
     try:
         data = json.loads(p.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise IdentityError(f"{p}: the sidecar cannot be read ({exc}); move it away to start afresh "
                             "(every node then gets a new UUID)") from exc
-    if not isinstance(data, dict) or data.get("format") != SIDECAR_FORMAT or not isinstance(data.get("nodes"), list):
+    if (not isinstance(data, dict) or data.get("format") not in (SIDECAR_FORMAT, *OLD_SIDECAR_FORMATS)
+            or not isinstance(data.get("nodes"), list)):
         raise IdentityError(f"{p}: not a {SIDECAR_FORMAT} sidecar file")
-    out = []
-    try:
-        for e in data["nodes"]:
-            if not is_uuid(e["uuid"]):
-                raise IdentityError(f"{p}: entry {e.get('path')!r} has an invalid uuid {e['uuid']!r}")
-            sig = Signature.from_dict(e["signature"]) if e.get("signature") else None
-            wc = tuple(float(x) for x in e["world_centroid"]) if e.get("world_centroid") else None
-            out.append(_Entry(e["uuid"], str(e["path"]), str(e.get("name", "")), e.get("parent"), sig, wc,
-                              bool(e.get("present", True))))
-    except (KeyError, TypeError, ValueError) as exc:
-        raise IdentityError(f"{p}: malformed sidecar entry ({exc})") from exc
-    return out
+    for e in data["nodes"]:
+        if not isinstance(e, dict) or not is_uuid(e.get("uuid")):
+            raise IdentityError(f"{p}: entry {e.get('path') if isinstance(e, dict) else e!r} has an invalid uuid "
+                                f"{e.get('uuid') if isinstance(e, dict) else None!r}")
+        if data["format"] != SIDECAR_FORMAT:  # v1: paths and uuids only are trusted
+            e["signature"], e["world"] = None, None
+            e["leaf"] = e.get("world_centroid") is not None
+    return data
 
 
-def _world_centroid(doc: Document, index: int) -> tuple[float, float, float] | None:
-    node = doc.nodes[index]
-    if node.part is None:
-        return None
-    c = np.append(np.array(part_signature(doc, node.part).centroid), 1.0)
-    w = doc.world_transform(index) @ c
-    return (float(w[0]), float(w[1]), float(w[2]))
-
-
-def assign_uuids(doc: Document, previous: list[_Entry] | None = None) -> dict[str, int]:
-    """Give every node of ``doc`` a UUID (``Node.uuid``) and say how (``Node.match``).
-
-    Parameters
-    ----------
-    doc : Document
-        Modified in place.
-    previous : list, optional
-        Entries of the sidecar (:func:`load_sidecar`); None or [] on a first import.
-
-    Returns
-    -------
-    dict of str to int
-        How many nodes were matched each way (keys of :data:`MATCH_KINDS`).
-    """
-    previous = previous or []
-    claimed: set[str] = set()
-    for n in doc.nodes:
-        n.uuid, n.match = None, None
-    # 1. carried
-    for n in doc.nodes:
-        if n.carried_uuid is not None and is_uuid(n.carried_uuid) and n.carried_uuid.lower() not in claimed:
-            n.uuid, n.match = n.carried_uuid.lower(), "carried"
-            claimed.add(n.uuid)
-    # 2. occurrence path
-    by_path = {}
-    for e in previous:
-        by_path.setdefault(e.path, e)
-    for n in doc.nodes:
-        if n.uuid is None:
-            e = by_path.get(n.path)
-            if e is not None and e.uuid not in claimed:
-                n.uuid, n.match = e.uuid, "path"
-                claimed.add(e.uuid)
-    # 3. geometric signature, nearest recorded world position among equal signatures
-    with_sig = [e for e in previous if e.signature is not None]
-    for n in doc.nodes:
-        if n.uuid is None and n.part is not None and with_sig:
-            sig = part_signature(doc, n.part)
-            cands = [e for e in with_sig if e.uuid not in claimed and sig.matches(e.signature)]
-            if cands:
-                wc = np.array(_world_centroid(doc, n.index))
-                best = min(cands, key=lambda e: (float(np.sum((np.array(e.world_centroid or wc) - wc) ** 2)),
-                                                 e.path))
-                n.uuid, n.match = best.uuid, "signature"
-                claimed.add(best.uuid)
-    # 4. assemblies by their children's former parent (deepest first: a renamed chain resolves upwards)
-    parent_of = {e.uuid: e.parent for e in previous}
-    for n in sorted(doc.nodes, key=lambda n: -n.path.count("/")):
-        if n.uuid is None:
-            votes: dict[str, int] = {}
-            for c in doc.children(n.index):
-                p = parent_of.get(c.uuid) if c.uuid else None
-                if p is not None and p not in claimed:
-                    votes[p] = votes.get(p, 0) + 1
-            if votes:
-                best_parent = max(sorted(votes), key=lambda k: votes[k])
-                n.uuid, n.match = best_parent, "children"
-                claimed.add(best_parent)
-    # 5. new
-    for n in doc.nodes:
-        if n.uuid is None:
-            n.uuid, n.match = str(uuidlib.uuid4()), "new"
-    counts = dict.fromkeys(MATCH_KINDS, 0)
-    for n in doc.nodes:
-        counts[n.match] += 1
-    return counts
-
-
-def sidecar_entries(doc: Document, previous: list[_Entry] | None = None) -> list[dict]:
-    """The sidecar content for ``doc`` (after :func:`assign_uuids`), keeping absent former entries."""
-    out = []
-    for n in doc.nodes:
-        if n.uuid is None:
-            raise IdentityError("assign_uuids must run before the sidecar is written", node=n.path)
-        parent = doc.nodes[n.parent].uuid if n.parent is not None else None
-        sig = part_signature(doc, n.part).as_dict() if n.part is not None else None
-        wc = _world_centroid(doc, n.index)
-        out.append({"uuid": n.uuid, "path": n.path, "name": n.name, "parent": parent, "signature": sig,
-                    "world_centroid": list(wc) if wc else None, "present": True})
-    current = {n.uuid for n in doc.nodes}
-    for e in previous or []:
-        if e.uuid not in current:
-            out.append({"uuid": e.uuid, "path": e.path, "name": e.name, "parent": e.parent,
-                        "signature": e.signature.as_dict() if e.signature else None,
-                        "world_centroid": list(e.world_centroid) if e.world_centroid else None, "present": False})
-    return out
-
-
-def write_sidecar(path: str | Path, doc: Document, previous: list[_Entry] | None = None) -> Path:
+def write_sidecar(path: str | Path, doc: Document, previous: list[dict] | None = None,
+                  geometry: dict[str, str] | None = None) -> Path:
     """Write the sidecar atomically (a crash never leaves half a file, which would lose every UUID)."""
     p = Path(path)
-    data = {"format": SIDECAR_FORMAT, "document": doc.name, "length_unit": doc.length_unit,
-            "nodes": sidecar_entries(doc, previous)}
+    records = node_records(doc, geometry)
+    for r in records:
+        r["present"] = True
+    current = {r["uuid"] for r in records}
+    for e in previous or []:
+        if e.get("uuid") not in current:
+            records.append({**e, "present": False})
+    data = {"format": SIDECAR_FORMAT, "document": doc.name, "length_unit": doc.length_unit, "nodes": records}
     try:
         fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=p.name + ".", suffix=".tmp")
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
@@ -301,29 +341,125 @@ def write_sidecar(path: str | Path, doc: Document, previous: list[_Entry] | None
     return p
 
 
-def identify(doc: Document, sidecar: str | Path | None = None, write: bool = True) -> dict[str, int]:
-    """Assign UUIDs from carried ids and the sidecar, then record them in the sidecar.
+# ---------------------------------------------------------------- identify
+
+def _rotation_angle(a: np.ndarray, b: np.ndarray) -> float:
+    """Angle (rad) of the rotation between two 3×3 frames; exact to rounding near 0 (no arccos)."""
+    return float(np.linalg.norm(a - b) / math.sqrt(2.0))
+
+
+def identify(doc: Document, sidecar: str | Path | None = None, write: bool = True, *,
+             previous: list[dict] | None = None, previous_unit: str | None = None,
+             tolerance: Tolerance | None = None, reuse_geometry: bool = False) -> dict[str, int]:
+    """Give every node of ``doc`` its UUID (``Node.uuid``, ``Node.match``) and fill ``doc.reconciliation``.
 
     Parameters
     ----------
     doc : Document
+        Modified in place: UUIDs, rules, snapped placements, ``reuse`` (part key → geometry id).
     sidecar : path, optional
         Default: ``<doc.source>.lumenlink.json`` (in the user's cache when the document's folder is
-        read-only, see :func:`default_sidecar`); None and no source: no sidecar (carried UUIDs or new).
+        read-only); None and no source: no sidecar.
     write : bool
         Write the sidecar back.
+    previous : list of dict, optional
+        The scene's tree (``GET /scenes/{id}/nodes``); when it has nodes it is the memory, else the sidecar is.
+    previous_unit : str, optional
+        The unit of ``previous`` (the scene's); default the document's.
+    tolerance : Tolerance, optional
+    reuse_geometry : bool
+        Keep the old geometry id of parts whose B-rep is the same within tolerance (only where the old
+        meshes were made with the same tessellation settings: the caller knows).
 
     Returns
     -------
     dict of str to int
-        Match counts, as :func:`assign_uuids`.
+        Nodes matched by each rule (:data:`MATCH_KINDS`).
     """
+    t0 = time.perf_counter()
+    tol = tolerance or Tolerance()
     if sidecar is None and doc.source is not None:
         sidecar, warning = default_sidecar(doc.source)
         if warning:
             doc.warnings.append(warning)
-    previous = load_sidecar(sidecar) if sidecar is not None else []
-    counts = assign_uuids(doc, previous)
+    stored = load_sidecar(sidecar) if sidecar is not None else {"nodes": []}
+    from_scene = bool(previous)
+    records = previous if from_scene else [e for e in stored["nodes"]]
+    unit = previous_unit if from_scene else stored.get("length_unit")
+    scale = UNIT_METRES[unit] / UNIT_METRES[doc.length_unit] if unit in UNIT_METRES else 1.0
+    old, rows = side_from_records(records or [], scale)
+    new = side_from_document(doc)
+    rec = reconcile(old, new, same_place_rtol=tol.linear)
+    for i, node in enumerate(doc.nodes):
+        node.uuid, node.match = rec.uuids[i], rec.rule[i]
+        node.previous = rows[rec.old[i]] if rec.old[i] >= 0 else None
+    snapped = _snap_placements(doc, rec, old, tol)
+    doc.reuse = _reusable_geometry(doc, tol) if reuse_geometry and from_scene and scale == 1.0 else {}
+    counts = rec.counts()
+    doc.reconciliation = {
+        "matched": counts,
+        "ambiguous": [{"uuid": a["uuid"], "path": a["path"], "candidates": a["candidates"], "reason": a["reason"]}
+                      for a in rec.ambiguous],
+        "seconds": time.perf_counter() - t0,
+        "source": "scene" if from_scene else ("sidecar" if records else "none"),
+    }
+    doc.reconciliation_detail = {"alignment": rec.alignment.tolist(), "alignment_inliers": rec.alignment_inliers,
+                                 "snapped": snapped, "reused_geometries": len(set(doc.reuse.values()))}
     if sidecar is not None and write:
-        write_sidecar(sidecar, doc, previous)
+        write_sidecar(sidecar, doc, stored["nodes"])
     return counts
+
+
+def _snap_placements(doc: Document, rec, old: Side, tol: Tolerance) -> int:
+    """Give the old local placement (bit for bit) to nodes that moved less than the tolerance in the same parent."""
+    if len(old) == 0:
+        return 0
+    pts = old.world[:, :3, 3]
+    diag = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
+    leaves = [n for n in doc.nodes if n.part is not None]
+    if leaves:  # the model's size from its parts' boxes (node origins alone may all coincide)
+        corners = []
+        for n in leaves:
+            b = part_signature(doc, n.part)["bbox"]
+            w = doc.world_transform(n.index)
+            corners.append(w[:3, :3] @ np.array(b[:3]) + w[:3, 3])
+            corners.append(w[:3, :3] @ np.array(b[3:]) + w[:3, 3])
+        c = np.array(corners)
+        diag = max(diag, float(np.linalg.norm(c.max(axis=0) - c.min(axis=0))))
+    linear = tol.linear * (diag or 1.0)
+    snapped = 0
+    for i, node in enumerate(doc.nodes):
+        j = rec.old[i]
+        if j < 0:
+            continue
+        parent_old = old.parent[j]
+        parent_new = rec.old[node.parent] if node.parent is not None else -1
+        if parent_old != parent_new:
+            continue
+        a, b = node.transform, old.local[j]
+        if np.array_equal(a, b):
+            continue
+        if (np.linalg.norm(a[:3, 3] - b[:3, 3]) <= linear and _rotation_angle(a[:3, :3], b[:3, :3]) <= tol.angular
+                and np.allclose(a[3], b[3])):
+            node.transform = b.copy()
+            snapped += 1
+    return snapped
+
+
+def _reusable_geometry(doc: Document, tol: Tolerance) -> dict[str, str]:
+    """Parts whose every node matched an old node of one geometry id with the same B-rep in its frame."""
+    found: dict[str, str | None] = {}
+    for node in doc.nodes:
+        if node.part is None:
+            continue
+        prev = getattr(node, "previous", None)
+        gid = prev.get("geometry") if prev else None
+        ok = gid is not None and same_brep(part_signature(doc, node.part), prev.get("signature"), tol.shape_rtol)
+        if not ok:
+            found[node.part] = None
+        elif node.part not in found:
+            found[node.part] = gid
+        elif found[node.part] != gid:
+            found[node.part] = None
+    return {k: v for k, v in found.items() if v is not None}
+

@@ -22,7 +22,11 @@ def _clamp01(c: tuple[float, float, float] | None) -> list[float] | None:
     return [min(1.0, max(0.0, float(x))) for x in c]
 
 
-def build_push(doc: Document, tess: Tessellation, base_revision: int | None = None) -> dict:
+#: the signature fields the service keeps (DESIGN.md, identity)
+WIRE_SIGNATURE = ("volume", "area", "moments", "centroid", "axes", "topology")
+
+
+def build_push(doc: Document, tess: Tessellation, base_revision: int | None = None, identity: bool = True) -> dict:
     """The body of ``PUT /scenes/{id}/document`` (validates against ``service.schemas.DocumentPush``).
 
     Parameters
@@ -33,6 +37,9 @@ def build_push(doc: Document, tess: Tessellation, base_revision: int | None = No
         Of ``doc``'s parts (its settings are recorded in ``source.tessellation``).
     base_revision : int, optional
         The scene revision this tree is based on (None: unconditional push).
+    identity : bool
+        Add ``identity`` (product names and shape signatures by UUID, what the next push is reconciled
+        with) and ``reconciliation`` (how this push's UUIDs were found).
 
     Raises
     ------
@@ -56,6 +63,8 @@ def build_push(doc: Document, tess: Tessellation, base_revision: int | None = No
             mesh = tess.meshes.get(n.part)
             if mesh is not None:
                 gid = mesh.geometry_id
+            elif n.part in doc.reuse:
+                gid = doc.reuse[n.part]
             elif n.part in tess.failed:
                 failed.append(n.uuid)
         node: dict[str, Any] = {
@@ -73,5 +82,25 @@ def build_push(doc: Document, tess: Tessellation, base_revision: int | None = No
     if failed:
         tess_info["failed"] = " ".join(failed)
         tess_info["failed_count"] = len(failed)
-    return {"base_revision": base_revision, "length_unit": doc.length_unit,
-            "source": {"name": doc.name, "tessellation": tess_info}, "nodes": nodes}
+    out: dict[str, Any] = {"base_revision": base_revision, "length_unit": doc.length_unit,
+                           "source": {"name": doc.name, "tessellation": tess_info}}
+    if identity:
+        out["identity"] = identity_records(doc)
+        if doc.reconciliation:
+            out["reconciliation"] = doc.reconciliation
+    out["nodes"] = nodes  # last: the service decodes the header apart from the node list
+    return out
+
+
+def identity_records(doc: Document) -> dict[str, dict]:
+    """What the scene keeps per node for the next reconciliation: product name and shape signature."""
+    from .identity import part_signature
+
+    out: dict[str, dict] = {}
+    for n in doc.nodes:
+        sig = None
+        if n.part is not None:
+            s = part_signature(doc, n.part)
+            sig = {k: s[k] for k in WIRE_SIGNATURE}
+        out[str(n.uuid)] = {"product": n.product or None, "signature": sig}
+    return out

@@ -41,6 +41,7 @@ from OCP.XCAFDoc import (
 )
 
 from .errors import CadImportError, EmptyDocumentError
+from .matching import display_name
 from .tree import UNIT_METRES, Document, Node, Part, assign_paths
 
 #: STEP unit names (lower case, as ``FileUnits`` reports them) to the units a document may declare.
@@ -54,7 +55,6 @@ STEP_UNITS: dict[str, str] = {
 }
 
 UUID_RE = re.compile(r"[0-9a-fA-F]{8}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{12}")
-_AUTO_NAME = re.compile(r"^=>\[[0-9:]+\]$")  # XCAF's name for an unnamed component
 
 
 def check_step_file(path: str | Path) -> Path:
@@ -168,9 +168,9 @@ class _Walker:
         return key
 
     def add_node(self, name: str, parent: int | None, transform: np.ndarray, *, part: str | None = None,
-                 color=None, carried: str | None = None) -> int:
-        node = Node(index=len(self.doc.nodes), name=(name or "unnamed")[:500], parent=parent, transform=transform,
-                    part=part, color=color, carried_uuid=carried)
+                 color=None, carried: str | None = None, product: str = "") -> int:
+        node = Node(index=len(self.doc.nodes), name=display_name(name, product)[:500], parent=parent,
+                    transform=transform, part=part, color=color, carried_uuid=carried, product=product[:500])
         self.doc.nodes.append(node)
         return node.index
 
@@ -186,13 +186,14 @@ class _Walker:
             label = ref
             name = name or label_name(label)
             carried = carried or self.carried.get(label_entry(label))
+        product = label_name(label)
         if self.shape_tool.IsAssembly_s(label):
-            idx = self.add_node(name, None, transform, color=color, carried=carried)
+            idx = self.add_node(name, None, transform, color=color, carried=carried, product=product)
             self.walk_components(label, idx, color)
         else:
             key = self.part(label)
-            self.add_node(name or self.doc.parts[key].name, None, transform, part=key,
-                          color=color or self.doc.parts[key].color, carried=carried)
+            self.add_node(name, None, transform, part=key, color=color or self.doc.parts[key].color,
+                          carried=carried, product=product)
 
     def walk_components(self, label: TDF_Label, parent: int, inherited) -> None:
         comps = TDF_LabelSequence()
@@ -202,19 +203,19 @@ class _Walker:
             ref = TDF_Label()
             if not self.shape_tool.GetReferredShape_s(comp, ref):
                 continue
-            name = label_name(comp)
-            if not name or _AUTO_NAME.match(name):
-                name = label_name(ref)
+            name = label_name(comp)  # the instance's name; blank or a writer's id: the product's is shown
+            product = label_name(ref)
             transform = location_matrix(self.shape_tool.GetLocation_s(comp))
             color = _label_color(comp)
             carried = self.carried.get(label_entry(comp))
             if self.shape_tool.IsAssembly_s(ref):
-                idx = self.add_node(name, parent, transform, color=color, carried=carried)
+                idx = self.add_node(name, parent, transform, color=color, carried=carried, product=product)
                 self.walk_components(ref, idx, color or inherited)
             else:
                 key = self.part(ref)
                 self.add_node(name, parent, transform, part=key,
-                              color=color or self.doc.parts[key].color or inherited, carried=carried)
+                              color=color or self.doc.parts[key].color or inherited, carried=carried,
+                              product=product)
 
 
 def _file_unit(reader: STEPCAFControl_Reader) -> str | None:

@@ -141,8 +141,8 @@ class Tessellation:
     failed : dict of str to str
         Part key -> why it failed.
     warnings : list of str
-    meshed, cached : int
-        Parts meshed now, parts taken from the cache.
+    meshed, cached, reused : int
+        Parts meshed now, parts taken from the cache, parts whose scene mesh is kept (``Document.reuse``).
     seconds : float
     settings : Settings
         What the parts were meshed with.
@@ -154,6 +154,7 @@ class Tessellation:
     warnings: list[str] = field(default_factory=list)
     meshed: int = 0
     cached: int = 0
+    reused: int = 0
     seconds: float = 0.0
     settings: Settings | None = None
 
@@ -187,12 +188,27 @@ def has_faces(shape) -> bool:
     return TopExp_Explorer(shape, TopAbs_FACE).More()
 
 
+def _face_order(verts: list[np.ndarray], tris: list[np.ndarray]) -> list[int]:
+    """Faces sorted by where they are: area-weighted centroid on a grid of 1e-6 of the part's size, then
+    area and counts (concentric faces share a centroid). Independent of the order the file lists them in."""
+    lo = np.min([p.min(axis=0) for p in verts], axis=0)
+    hi = np.max([p.max(axis=0) for p in verts], axis=0)
+    q = max(float(np.linalg.norm(hi - lo)), 1e-300) * 1e-6
+    keys = []
+    for p, t in zip(verts, tris, strict=True):
+        a, b, c = p[t[:, 0]], p[t[:, 1]], p[t[:, 2]]
+        area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+        total = float(area.sum())
+        centre = ((a + b + c) / 3.0 * area[:, None]).sum(axis=0) / total if total > 0 else p.mean(axis=0)
+        keys.append((*np.round((centre - lo) / q).astype(np.int64).tolist(), round(total / (q * q)), len(p), len(t)))
+    return sorted(range(len(verts)), key=lambda k: keys[k])
+
+
 def _read_faces(shape) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """Collect every face's triangulation: vertices float64 (n,3), triangles int64 (m,3), normals float64."""
     verts: list[np.ndarray] = []
     tris: list[np.ndarray] = []
     norms: list[np.ndarray] = []
-    offset = 0
     missing = 0
     exp = TopExp_Explorer(shape, TopAbs_FACE)
     while exp.More():
@@ -224,11 +240,16 @@ def _read_faces(shape) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
             p = p @ a.T + b
             nn = nn @ a.T  # rotation (and uniform scale): normalised below
         verts.append(p)
-        tris.append(t + offset)
+        tris.append(t)
         norms.append(nn)
-        offset += n
     if not verts:
         return np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 3)), missing
+    # faces in an order of their own (where they lie), not the writer's: a re-export that lists the same
+    # faces in another order gives the same arrays, hence the same geometry id
+    order = _face_order(verts, tris)
+    verts, norms = [verts[k] for k in order], [norms[k] for k in order]
+    offsets = np.cumsum([0] + [len(verts[k]) for k in range(len(verts) - 1)])
+    tris = [tris[k] + offsets[j] for j, k in enumerate(order)]
     v = np.concatenate(verts)
     nn = np.concatenate(norms)
     length = np.linalg.norm(nn, axis=1, keepdims=True)
@@ -303,7 +324,7 @@ class TessellationCache:
 
     @staticmethod
     def key(digest: str, deflection: float, angular: float) -> str:
-        return hashlib.sha256(f"{digest}|{deflection!r}|{angular!r}|v1".encode()).hexdigest()
+        return hashlib.sha256(f"{digest}|{deflection!r}|{angular!r}|v2".encode()).hexdigest()  # v2: faces by place
 
     def get(self, key: str) -> Mesh | None:
         if key in self.memory:
@@ -362,6 +383,9 @@ def tessellate(doc: Document, settings: Settings, cache: TessellationCache | Non
     for done, part in enumerate(doc.parts.values(), start=1):
         label = part.name or part.key
         try:
+            if part.key in doc.reuse:  # the same B-rep as the scene's mesh (identity): nothing to mesh
+                out.reused += 1
+                continue
             if not has_faces(part.shape):
                 out.empty.append(part.key)
                 continue

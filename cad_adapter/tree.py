@@ -71,7 +71,11 @@ class Node:
     uuid : str or None
         The node's UUID once :func:`cad_adapter.identity.assign_uuids` ran.
     match : str or None
-        How the UUID was found: ``carried``, ``path``, ``signature``, ``children`` or ``new``.
+        How the UUID was found: one of :data:`cad_adapter.matching.RULES`.
+    product : str
+        The product's name (what the occurrence is an instance of); '' where the document has none.
+    previous : dict or None
+        The old node record this node was matched to (scene or sidecar), once identity ran.
     """
 
     index: int
@@ -84,6 +88,8 @@ class Node:
     carried_uuid: str | None = None
     uuid: str | None = None
     match: str | None = None
+    product: str = ""
+    previous: dict | None = field(default=None, repr=False)
 
 
 @dataclass
@@ -104,6 +110,10 @@ class Document:
         The file read, if any (the sidecar goes next to it).
     warnings : list of str
         Things the reader noticed and worked around (empty external references, unknown units, ...).
+    reuse : dict of str to str
+        Part key -> geometry id kept from the scene (same B-rep within tolerance: not tessellated again).
+    reconciliation : dict
+        How identity was found (the push's ``reconciliation``: nodes per rule, ambiguous ones).
     """
 
     name: str
@@ -112,6 +122,9 @@ class Document:
     parts: dict[str, Part]
     source: Path | None = None
     warnings: list[str] = field(default_factory=list)
+    reuse: dict[str, str] = field(default_factory=dict)
+    reconciliation: dict = field(default_factory=dict)
+    reconciliation_detail: dict = field(default_factory=dict)
 
     def children(self, index: int | None) -> list[Node]:
         """The nodes whose parent is ``index`` (None: the roots), in document order."""

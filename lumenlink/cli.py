@@ -52,11 +52,14 @@ def push(
     angular: Annotated[float | None, typer.Option(help="Angular deflection, radians (default 0.5).")] = None,
     relative: Annotated[bool, typer.Option(help="Linear deflection relative to each part's size.")] = False,
     json_out: Annotated[bool, typer.Option("--json", help="Print the service's answer as JSON.")] = False,
+    dry_run: Annotated[bool, typer.Option(
+        "--dry-run", help="Print how each node was recognised and the diff the push would make; change nothing "
+                          "(no upload, no sidecar, no scene).")] = False,
 ) -> None:
-    """Read a CAD document, upload missing meshes and push its tree to a scene."""
+    """Read a CAD document, recognise its nodes in the scene, upload missing meshes and push its tree."""
     code = _call(
         "cad_adapter.cli", "push", 4, file=file, scene=scene, server=server, linear=linear,
-        angular=angular, relative=relative, json_out=json_out,
+        angular=angular, relative=relative, json_out=json_out, dry_run=dry_run,
     )
     raise typer.Exit(code or 0)
 

@@ -6,6 +6,9 @@ Tables (one row per thing, keyed by scene):
 - ``revisions``: one row per accepted push that changed something (the diff summary, seconds).
 - ``nodes``: the current tree, one row per node uuid; a push writes only the rows that changed.
   Transforms are 16 little-endian float64 (exact round trip).
+- ``node_identity``: per scene and node uuid, what the CAD adapter matches a node by besides the
+  tree (product name, shape signature as JSON); a push writes only the records that changed and
+  deletes those of nodes that lost theirs. Keyed by value like the nodes (no foreign key to them).
 - ``geometries``: uploaded meshes (the arrays live in content-addressed files under the data dir).
 - ``materials``, ``lights``, ``sensors``, ``sim_objects``: assignments by uuid; they refer to a
   node uuid by value (no foreign key), so they outlive the node and are orphaned, not deleted.
@@ -67,6 +70,14 @@ nodes = Table(
     Column("transform", LargeBinary(128), nullable=False),
     Column("geometry", String(64), nullable=True),
     Column("color", JSON, nullable=True),
+)
+
+node_identity = Table(
+    "node_identity", metadata,
+    Column("scene_id", String(36), ForeignKey("scenes.id", ondelete="CASCADE"), primary_key=True),
+    Column("uuid", String(36), primary_key=True),
+    Column("product", String(500), nullable=True),
+    Column("signature", JSON, nullable=True),  # service.schemas.Signature as a dict, or null
 )
 
 geometries = Table(

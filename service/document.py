@@ -30,7 +30,7 @@ from service.tree import nodes_to_columns
 
 _UUID = re.compile(r"[0-9a-f]{8}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{12}")
 _NODE_KEYS = frozenset(("uuid", "parent", "name", "transform", "geometry", "color"))
-_TOP_KEYS = frozenset(("base_revision", "length_unit", "source", "nodes"))
+_TOP_KEYS = frozenset(("base_revision", "length_unit", "source", "identity", "reconciliation", "nodes"))
 MAX_NAME = 500  # as NodeIn.name
 
 
@@ -76,7 +76,7 @@ def _fast(body: bytes, known_uuids: Container[str], known_geometries: Container[
         return None
     if type(data) is not dict or not data.keys() <= _TOP_KEYS or type(data.get("nodes")) is not list:
         return None
-    start = body.find(b'"nodes"')
+    start = _nodes_key(body)
     if start < 0 or b"true" in body[start:] or b"false" in body[start:]:
         return None  # a boolean among the nodes: let the schema say where
     nodes = data.pop("nodes")
@@ -139,15 +139,28 @@ def _columns(nodes: list, known_uuids: Container[str], known_geometries: Contain
 # ---------------------------------------------------------------- incremental decoding
 
 _NODES_OPEN = re.compile(rb'"nodes"\s*:\s*\[\s*')
+_NODES_KEY = re.compile(rb'"nodes"\s*:\s*\[')
 SEPARATORS = (b"}, {", b"},{")
 _WS = b" \t\r\n"
 MAX_FRESH = 64  # at most this many changed nodes are decoded one by one; more: a full decode
 
 
+def _nodes_key(body: bytes) -> int:
+    """Offset of the ``"nodes": [`` member, or -1.
+
+    The header before it (``identity``, ``reconciliation``, ``source``) may hold the string
+    ``"nodes"`` as a value (a product or path named so); only the first occurrence followed by
+    ``: [`` is the member. Inside a JSON string that sequence cannot occur unescaped, and a
+    wrong guess only truncates the header into invalid JSON, which makes the callers decline.
+    """
+    m = _NODES_KEY.search(body)
+    return -1 if m is None else m.start()
+
+
 def _core(body: bytes) -> tuple[int, int, int] | None:
     """(offset of ``"nodes"``, start, end) of the node list's inside, without its outer braces:
     ``body[start:end]`` is ``n0}<sep>{n1}…{nk`` — or None when the body's last member is not the node list."""
-    at = body.find(b'"nodes"')
+    at = _nodes_key(body)
     if at < 0:
         return None
     m = _NODES_OPEN.match(body, at)

@@ -78,6 +78,7 @@ class ScenePublic(Wire):
     sensors: int
     sim_objects: int
     last_commit: dict[str, Any]  # what the last tracer commit in this process built or loaded
+    source: dict[str, Any] | None = None  # the last push's source: document name, tessellation settings
 
 
 class SceneListItem(Wire):
@@ -104,17 +105,80 @@ class NodeIn(Wire):
     color: tuple[Fraction, Fraction, Fraction] | None = None
 
 
+NonNegNum = Annotated[float, Strict(), Field(ge=0.0)]  # a finite JSON number >= 0 (no boolean, no string)
+Count = Annotated[int, Strict(), Field(ge=0)]
+
+
+class Signature(Wire):
+    """A part's frame-independent shape signature, as the CAD adapter measures it on the B-rep.
+
+    ``moments`` are the principal moments of inertia about the centroid (unit density), sorted
+    ascending, in document units⁵; ``centroid`` and ``axes`` (the principal axes as three rows,
+    ``None`` where they are not well defined) are in the part's own frame, document units.
+    """
+
+    volume: NonNegNum
+    area: NonNegNum
+    moments: Annotated[list[NonNegNum], Field(min_length=3, max_length=3)]
+    centroid: Annotated[list[Num], Field(min_length=3, max_length=3)]
+    axes: Annotated[list[Num], Field(min_length=9, max_length=9)] | None = None
+    topology: Annotated[list[Count], Field(min_length=3, max_length=3)] | None = None  # faces, edges, vertices
+
+    @model_validator(mode="after")
+    def _sorted(self) -> Signature:
+        m = self.moments
+        if not m[0] <= m[1] <= m[2]:
+            raise ValueError(f"moments must be sorted ascending, got {m}")
+        return self
+
+
+class IdentityIn(Wire):
+    """What the adapter matches a node by, besides its tree: the product it instantiates and its shape signature."""
+
+    product: Annotated[str, StringConstraints(max_length=500)] | None = None
+    signature: Signature | None = None
+
+
+class AmbiguousNode(Wire):
+    """A node the adapter could not match with certainty: the candidates it hesitated between, and why."""
+
+    uuid: Uuid
+    path: str
+    candidates: list[Uuid]
+    reason: str
+
+
+class Reconciliation(Wire):
+    """The adapter's report of how it matched the document against the scene; the service only
+    validates it and echoes it in the push answer."""
+
+    matched: dict[str, Count] = Field(default_factory=dict)  # rule name -> nodes matched by it
+    ambiguous: list[AmbiguousNode] = Field(default_factory=list)
+    seconds: NonNegNum | None = None
+    source: str | None = None
+
+
 class DocumentPush(Wire):
     """Body of ``PUT /scenes/{id}/document``.
 
     ``base_revision`` is the revision the client's tree is based on: a stale one gets 409
     (unless the pushed tree equals the current one, which is then a 200 no-op, so a retried
     push is harmless). Omitted or null: push unconditionally.
+
+    ``identity`` maps node uuids of this push to their identity records (product name, shape
+    signature); every key must be a node of this push (else 422). It is the whole set: a node
+    without an entry has no record afterwards, and omitting ``identity`` (or null) clears them
+    all. Records are not part of the tree: a push that changes only them stores them without a
+    new revision (also with a stale ``base_revision``, as the tree is the current one).
+    ``reconciliation`` is echoed in the answer. Clients put both before ``nodes``, which stays
+    the body's last member (`service.document` reuses the node bytes of the previous push).
     """
 
     base_revision: Annotated[int, Field(ge=0)] | None = None
     length_unit: LengthUnit = "m"
     source: Source | None = None
+    identity: dict[Uuid, IdentityIn] | None = None
+    reconciliation: Reconciliation | None = None
     nodes: list[NodeIn]
 
 
@@ -130,7 +194,13 @@ class StageSeconds(Wire):
 
 
 class PushPublic(Wire):
-    """The answer to a push: the diff by UUID, what was rebuilt, and the seconds of each stage."""
+    """The answer to a push: the diff by UUID, what was rebuilt, and the seconds of each stage.
+
+    A dry run (``?dry_run=true``) answers the same diff without changing anything: ``revision``
+    is the current one, ``orphaned``/``restored`` are the assignments the push would orphan or
+    restore, ``blas_built`` is 0, and it adds ``blas_to_build`` (geometry ids the scene's tracer
+    does not hold yet) and ``missing_geometries`` (ids not uploaded yet: no error in a dry run).
+    """
 
     scene: str
     revision: int
@@ -150,6 +220,10 @@ class PushPublic(Wire):
     seconds: dict[str, float]
     orphaned: list[OrphanPublic]
     restored: list[OrphanPublic]
+    reconciliation: Reconciliation | None = None  # the push's, echoed
+    dry_run: bool = False
+    blas_to_build: list[str] | None = None  # dry runs only
+    missing_geometries: list[str] | None = None  # dry runs only
 
 
 # ---------------------------------------------------------------- geometries

@@ -13,8 +13,14 @@ objects, all keyed by uuid). Every change runs under the scene's lock:
   (`service.document`): a byte-identical node list is recognised by one comparison, and
   otherwise only the nodes between the common prefix and suffix are parsed, so the cost of a
   push follows what changed plus a few linear, vectorized passes.
-- after a restart a scene is loaded on first use: tree, assignments, and a tracer scene whose
-  bottom levels come from the BLAS cache under the data directory (none rebuilt if intact).
+- a push also carries the nodes' identity records (product name, shape signature; what the CAD
+  adapter matches the next document by, served back by `nodes`). They are kept per node uuid in
+  memory and in ``node_identity``; a push compares them with the stored ones in memory and writes
+  only those that changed (in the push's transaction, or on their own when the tree is unchanged:
+  no new revision). A dry run (`push(..., dry_run=True)`) decodes, validates and diffs the same
+  way and answers what the push would do, changing nothing.
+- after a restart a scene is loaded on first use: tree, identity records, assignments, and a tracer
+  scene whose bottom levels come from the BLAS cache under the data directory (none rebuilt if intact).
 
 Domain errors are raised as `service.errors` exceptions; the routes stay thin.
 """
@@ -42,7 +48,7 @@ from service.document import NodeBytes, decode_document, decode_incremental, rem
 from service.errors import Conflict, Invalid, NotFound
 from service.live import LiveRegistry, LiveScene
 from service.meshes import MeshStore
-from service.schemas import LENGTH_UNITS, DocumentPush, Light, Material, ObjectCreate, Sensor
+from service.schemas import LENGTH_UNITS, DocumentPush, IdentityIn, Light, Material, ObjectCreate, Sensor
 from service.tree import Tree, TreeDiff, TreeError, apply_to_scene, diff_trees
 
 log = logging.getLogger("lumenlink.service")
@@ -94,6 +100,7 @@ class SceneState:
     objects: dict[str, dict] = field(default_factory=dict)
     last_commit: dict[str, Any] = field(default_factory=dict)
     node_bytes: NodeBytes | None = None  # where each node sits in the body that made `tree` (row i = chunk i)
+    identity: dict[str, IdentityIn] = field(default_factory=dict)  # node uuid -> its identity record, as stored
     live: LiveScene | None = None
     lock: threading.RLock = field(default_factory=threading.RLock)
 
@@ -175,7 +182,8 @@ class SceneManager:
         state = self.state(scene_id)
         with state.lock:
             with self.engine.begin() as conn:
-                for table in (db.materials, db.lights, db.sensors, db.sim_objects, db.nodes, db.revisions):
+                for table in (db.materials, db.lights, db.sensors, db.sim_objects, db.node_identity, db.nodes,
+                              db.revisions):
                     conn.execute(delete(table).where(table.c.scene_id == scene_id))
                 conn.execute(delete(db.scenes).where(db.scenes.c.id == scene_id))
             with self._lock:
@@ -212,6 +220,9 @@ class SceneManager:
             node_rows = conn.execute(select(db.nodes).where(db.nodes.c.scene_id == scene_id)
                                      .order_by(db.nodes.c.position)).all()
             mats = conn.execute(select(db.materials).where(db.materials.c.scene_id == scene_id)).all()
+            identity = {r.uuid: IdentityIn.model_validate({"product": r.product, "signature": r.signature})
+                        for r in conn.execute(select(db.node_identity)
+                                              .where(db.node_identity.c.scene_id == scene_id))}
             tables = {}
             for name, table in (("lights", db.lights), ("sensors", db.sensors), ("objects", db.sim_objects)):
                 tables[name] = {r.id: r.body for r in conn.execute(
@@ -224,7 +235,8 @@ class SceneManager:
                           [tuple(r.color) if r.color is not None else None for r in node_rows], unit)
         state = SceneState(scene_id, row.name, row.revision, row.length_unit, Tree.empty(unit),
                            self.new_tracer_scene(), materials={m.node: m.body for m in mats},
-                           lights=tables["lights"], sensors=tables["sensors"], objects=tables["objects"], lock=lock)
+                           lights=tables["lights"], sensors=tables["sensors"], objects=tables["objects"], lock=lock,
+                           identity=identity)
         diff = diff_trees(state.tree, tree)
         state.tree = tree
         apply_to_scene(state.tracer, state.instances, tree, diff, lambda g: self._ensure_geometry(state, g))
@@ -319,14 +331,21 @@ class SceneManager:
 
     # ------------------------------------------------------------ push
 
-    def push(self, scene_id: str, body: bytes) -> dict[str, Any]:
-        """Validate, diff, apply and store one pushed document; the answer of ``PUT /scenes/{id}/document``."""
+    def push(self, scene_id: str, body: bytes, dry_run: bool = False) -> dict[str, Any]:
+        """Validate, diff, apply and store one pushed document; the answer of ``PUT /scenes/{id}/document``.
+
+        With `dry_run` the body is decoded, validated and diffed exactly as for a push (a stale
+        ``base_revision`` is still 409, an invalid body still 4xx), but nothing changes — not the
+        database, the tree, the tracer scene, the identity records nor the live view — and
+        geometries not uploaded yet are listed (``missing_geometries``) instead of refused.
+        """
         t0 = time.perf_counter()
         state = self.state(scene_id)  # 404 before any work
         with state.lock, gc_paused():
             if self._states.get(scene_id) is not state:  # reloaded meanwhile (a failed store)
                 state = self.state(scene_id)
             node_bytes = state.node_bytes
+            missing: list[str] = []
             doc = same_nodes(body, node_bytes) if node_bytes is not None else None
             if doc is not None and doc.length_unit == state.tree.length_unit:
                 # byte-identical node list: the tree is the current one
@@ -350,29 +369,74 @@ class SceneManager:
                     new = Tree.build(*decoded.columns(), doc.length_unit, like=state.tree)
                 except TreeError as exc:
                     raise Invalid(str(exc), problems=exc.problems[:100]) from exc
-                missing = self.missing_geometries([g for g in set(new.geometries) if g is not None])
-                if missing:
+                missing = sorted(self.missing_geometries([g for g in set(new.geometries) if g is not None]))
+                if missing and not dry_run:
                     raise Invalid(f"{len(missing)} geometry id(s) are not uploaded yet (PUT /geometries/{{id}} "
-                                  f"first)", missing=sorted(missing))
-            answer = self._push_locked(state, doc, new, t0, t_decode)
+                                  f"first)", missing=missing)
+            identity = _identity_of(doc, new)  # 422 naming a key that is no node of this push
+            if dry_run:
+                return self._dry_run_locked(state, doc, new, missing, t0, t_decode)
+            answer = self._push_locked(state, doc, new, identity, t0, t_decode)
             # the tree is now exactly what these bytes describe, row for row
             state.node_bytes = node_bytes if node_bytes is not None else remember(body, state.tree.names)
             return answer
 
-    def _push_locked(self, state: SceneState, doc: DocumentPush, new: Tree, t0: float,
-                     t_decode: float) -> dict[str, Any]:
-        t_validate = time.perf_counter()
+    def _diff(self, state: SceneState, doc: DocumentPush, new: Tree) -> TreeDiff:
+        """The push's diff against the current tree; 409 if it changes the tree from a stale ``base_revision``."""
         diff = diff_trees(state.tree, new)
         if state.length_unit is None and len(new) == 0 and doc.length_unit != state.tree.length_unit:
             diff.length_unit_changed = False
-        t_diff = time.perf_counter()
         if doc.base_revision is not None and doc.base_revision != state.revision and not diff.is_empty():
             raise Conflict(f"base_revision {doc.base_revision} is stale: the scene is at revision {state.revision}",
                            current_revision=state.revision)
+        return diff
+
+    def _dry_run_locked(self, state: SceneState, doc: DocumentPush, new: Tree, missing: list[str], t0: float,
+                        t_decode: float) -> dict[str, Any]:
+        """What `_push_locked` would answer, computed without changing anything."""
+        t_validate = time.perf_counter()
+        diff = self._diff(state, doc, new)
+        t_diff = time.perf_counter()
+        added, removed = set(diff.added), set(diff.removed)
+        orphaned = state.orphans(only_nodes=removed) if removed else []
+        restored = state.orphans(only_nodes=added) if added else []
+        # the geometries `apply_to_scene` would add to the tracer scene, and those it would find there
+        to_build: set[str] = set()
+        reused: set[str] = set()
+        wanted = [new.geometries[new.index[u]] for u in list(diff.added) + diff.geometry_changed]
+        wanted += [body["geometry"] for body in state.objects.values() if body.get("attached_to") in added]
+        for g in wanted:
+            if g is not None:
+                (reused if g in state.geometries else to_build).add(g)
+        instances = sum(1 for g in new.geometries if g is not None) + sum(
+            1 for body in state.objects.values()
+            if body.get("attached_to") is None or body["attached_to"] in new.index)
+        seconds = {"decode": t_decode - t0, "validate": t_validate - t_decode, "diff": t_diff - t_validate,
+                   "blas": 0.0, "tlas": 0.0, "commit": 0.0, "store": 0.0}
+        seconds["total"] = time.perf_counter() - t0
+        out = self._answer(state, doc, diff, {}, seconds, orphaned, restored, blas_reused=len(reused))
+        out.update(instances=instances, dry_run=True, blas_to_build=sorted(to_build), missing_geometries=missing)
+        return out
+
+    def _push_locked(self, state: SceneState, doc: DocumentPush, new: Tree, identity: dict[str, IdentityIn], t0: float,
+                     t_decode: float) -> dict[str, Any]:
+        t_validate = time.perf_counter()
+        diff = self._diff(state, doc, new)
+        t_diff = time.perf_counter()
+        changes = _identity_changes(state.identity, identity)
         if diff.is_empty():
             state.tree = new  # the same tree; its rows now follow this body's order
+            t_store = time.perf_counter()
+            if changes is not None:  # only the identity records changed: stored, no new revision
+                try:
+                    with self.engine.begin() as conn:
+                        _store_identity(conn, state.id, *changes)
+                except Exception:
+                    self.forget(state.id)
+                    raise
+                state.identity = identity
             seconds = {"decode": t_decode - t0, "validate": t_validate - t_decode, "diff": t_diff - t_validate,
-                       "blas": 0.0, "tlas": 0.0, "commit": 0.0, "store": 0.0}
+                       "blas": 0.0, "tlas": 0.0, "commit": 0.0, "store": time.perf_counter() - t_store}
             seconds["total"] = time.perf_counter() - t0
             return self._answer(state, doc, diff, {}, seconds, [], [], blas_reused=0)
 
@@ -411,7 +475,7 @@ class SceneManager:
                    "tlas": commit["tlas_seconds"] + (t_applied - t_apply - load_seconds[0]),
                    "commit": t_commit - t_applied}
         try:
-            self._store(state, doc, old_tree, new, diff, seconds)
+            self._store(state, doc, old_tree, new, diff, seconds, changes)
         except Exception:
             self.forget(state.id)
             raise
@@ -421,13 +485,14 @@ class SceneManager:
         state.revision += 1
         state.length_unit = doc.length_unit
         state.last_commit = commit
+        state.identity = identity
         state.live = None
         self.live.notify(state.id, state.revision)
         return self._answer(state, doc, diff, commit, seconds, orphaned, restored,
                             blas_reused=len(apply_stats.reused_geometries))
 
     def _store(self, state: SceneState, doc: DocumentPush, old: Tree, new: Tree, diff: TreeDiff,
-               seconds: dict[str, float]) -> None:
+               seconds: dict[str, float], identity_changes: IdentityChanges | None = None) -> None:
         summary = diff.summary()
         summary = {k: (len(v) if isinstance(v, list) else v) for k, v in summary.items()}
         summary["seconds"] = {k: round(v, 6) for k, v in seconds.items()}
@@ -453,6 +518,8 @@ class SceneManager:
                                  "geometry": new.geometries[j],
                                  "color": _color(new.colors[j])})
                 conn.execute(insert(db.nodes), rows)
+            if identity_changes is not None:
+                _store_identity(conn, state.id, *identity_changes)
             conn.execute(insert(db.revisions).values(scene_id=state.id, revision=state.revision + 1, summary=summary))
 
     def _answer(self, state: SceneState, doc: DocumentPush, diff: TreeDiff, commit: dict, seconds: dict,
@@ -462,7 +529,9 @@ class SceneManager:
         out.update(blas_built=commit.get("blas_built", 0), blas_reused=blas_reused,
                    blas_loaded=commit.get("blas_loaded", 0),
                    instances=len(state.instances) + len(state.object_instances),
-                   seconds=seconds, orphaned=orphaned, restored=restored)
+                   seconds=seconds, orphaned=orphaned, restored=restored,
+                   reconciliation=doc.reconciliation.model_dump() if doc.reconciliation is not None else None,
+                   dry_run=False)
         return out
 
     # ------------------------------------------------------------ assignments
@@ -611,6 +680,7 @@ class SceneManager:
                 gid = state.objects[oid]["geometry"]
                 counts[gid] = counts.get(gid, 0) + 1
             with self.engine.connect() as conn:
+                source = conn.execute(select(db.scenes.c.source).where(db.scenes.c.id == state.id)).scalar()
                 if counts:
                     tri = dict(conn.execute(select(db.geometries.c.id, db.geometries.c.n_triangles)
                                             .where(db.geometries.c.id.in_(list(counts)))).all())
@@ -624,7 +694,7 @@ class SceneManager:
                     "default_material": dict(DEFAULT_MATERIAL),
                     "default_material_instances": n_instances - len(live.materials),
                     "lights": len(live.lights), "sensors": len(live.sensors), "sim_objects": len(state.objects),
-                    "last_commit": state.last_commit}
+                    "last_commit": state.last_commit, "source": source}
 
     def revisions(self, scene_id: str) -> list[dict[str, Any]]:
         """One entry per accepted push that changed the tree: its counts and stage seconds, oldest first."""
@@ -636,13 +706,32 @@ class SceneManager:
                  **r.summary} for r in rows]
 
     def nodes(self, scene_id: str) -> list[dict[str, Any]]:
+        """The current tree, one record per node in document order: the pushed fields, the tracer
+        instance, and what the CAD adapter reconciles a new document against — the occurrence
+        ``path`` (`Tree.paths`), ``world`` (root_from_node, 16 numbers row-major, in the document's
+        length unit) and the node's identity record (``product``, ``signature``; null without one)."""
         state = self.state(scene_id)
         with state.lock:
             t = state.tree
-            return [{"uuid": u, "parent": t.parents[i], "name": t.names[i],
-                     "transform": t.local[i].ravel().tolist(), "geometry": t.geometries[i],
-                     "color": _color(t.colors[i]),
-                     "instance": state.instances.get(u)} for i, u in enumerate(t.uuids)]
+            paths = t.paths()
+            local = t.local.reshape(-1, 16).tolist()
+            if t.world_doc is not None:
+                world_doc = t.world_doc
+            else:  # the world in metres with its translations back in document units
+                world_doc = t.world.copy()
+                world_doc[:, :3, 3] /= t.scale
+            world = world_doc.reshape(-1, 16).tolist()
+            identity = state.identity
+            out = []
+            for i, u in enumerate(t.uuids):
+                rec = identity.get(u)
+                out.append({"uuid": u, "parent": t.parents[i], "name": t.names[i], "transform": local[i],
+                            "geometry": t.geometries[i], "color": _color(t.colors[i]),
+                            "instance": state.instances.get(u), "path": paths[i], "world": world[i],
+                            "product": rec.product if rec is not None else None,
+                            "signature": rec.signature.model_dump(exclude_none=True)
+                            if rec is not None and rec.signature is not None else None})
+            return out
 
     def live_scene(self, scene_id: str) -> LiveScene:
         state = self.state(scene_id)
@@ -720,6 +809,51 @@ class SceneManager:
             if key in out:
                 out[key] = (lin @ np.asarray(out[key], dtype=float)).tolist()
         return out
+
+
+IdentityChanges = tuple[dict[str, IdentityIn], list[str], bool]
+
+
+def _identity_of(doc: DocumentPush, new: Tree) -> dict[str, IdentityIn]:
+    """The push's identity records (uuid -> record); 422 if a key is not the uuid of a node of the pushed tree `new`."""
+    if not doc.identity:
+        return {}
+    index = new.index
+    unknown = [u for u in doc.identity if u not in index]
+    if unknown:
+        more = f" (and {len(unknown) - 1} more)" if len(unknown) > 1 else ""
+        raise Invalid(f"identity: {unknown[0]} is not the uuid of a node in this push{more}", unknown=unknown[:100],
+                      errors=[{"loc": ["identity", u], "msg": "not the uuid of a node in this push",
+                               "type": "unknown_node"} for u in unknown[:100]])
+    return doc.identity
+
+
+def _identity_changes(old: dict[str, IdentityIn], new: dict[str, IdentityIn]) -> IdentityChanges | None:
+    """What to write so that the stored records `old` become `new`: (records to insert, uuids whose rows
+    to delete first, whether to delete every row of the scene instead), or None when they are equal.
+    One pass over the records in memory (model equality: field values only); only changed records reach
+    the database."""
+    if not new:
+        return ({}, [], True) if old else None
+    write = {u: r for u, r in new.items() if old.get(u) != r}
+    drop = [u for u in old if u not in new] + [u for u in write if u in old]
+    if not write and not drop:
+        return None
+    return write, drop, False
+
+
+def _store_identity(conn: Any, scene_id: str, write: dict[str, IdentityIn], drop: list[str], clear: bool) -> None:
+    """Apply `_identity_changes` to the ``node_identity`` table on `conn` (inside the caller's transaction)."""
+    c = db.node_identity.c
+    if clear:
+        conn.execute(delete(db.node_identity).where(c.scene_id == scene_id))
+    for i in range(0, len(drop), 500):
+        conn.execute(delete(db.node_identity).where(c.scene_id == scene_id).where(c.uuid.in_(drop[i:i + 500])))
+    if write:
+        conn.execute(insert(db.node_identity), [
+            {"scene_id": scene_id, "uuid": u, "product": r.product,
+             "signature": r.signature.model_dump(exclude_none=True) if r.signature is not None else None}
+            for u, r in write.items()])
 
 
 def _validate_photometry(fmt: str, text: str) -> None:

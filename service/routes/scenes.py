@@ -39,7 +39,15 @@ def delete_scene(scene_id: str, manager: Manager) -> Response:
 
 @router.get("/scenes/{scene_id}/nodes")
 def get_nodes(scene_id: str, manager: Manager) -> list[dict[str, Any]]:
-    """The current tree: one record per node, with its tracer instance id (null without geometry)."""
+    """The current tree: one record per node, in document order.
+
+    Each record: ``uuid``, ``parent``, ``name``, ``transform`` (local, 16 numbers row-major),
+    ``geometry``, ``color``, ``instance`` (its tracer instance id, null without geometry), and what
+    the CAD adapter reconciles a new document against: ``path`` (the occurrence path, names joined
+    by ``/``, ``[k]`` on names shared by siblings), ``world`` (root_from_node, 16 numbers row-major,
+    in the document's length unit), ``product`` and ``signature`` (the node's identity record from
+    the last push, null without one).
+    """
     return manager.nodes(scene_id)
 
 
@@ -55,12 +63,18 @@ def get_revisions(scene_id: str, manager: Manager) -> list[dict[str, Any]]:
     openapi_extra={"requestBody": {"required": True, "content": {"application/json": {
         "schema": DocumentPush.model_json_schema(ref_template="#/components/schemas/{model}")}}}},
 )
-async def push_document(scene_id: str, request: Request, manager: Manager) -> JSONResponse:
+async def push_document(scene_id: str, request: Request, manager: Manager, dry_run: bool = False) -> JSONResponse:
     """Push a CAD tree: validate, diff by UUID, rebuild only what changed, store one revision.
 
     The body (a `DocumentPush`) is decoded here rather than by FastAPI so that a 20,000-node
-    document is parsed once, straight from bytes.
+    document is parsed once, straight from bytes. Its identity records are stored (only those
+    that changed) and its ``reconciliation`` is echoed in the answer.
+
+    ``?dry_run=true``: validate and diff exactly as a push would (409 on a stale
+    ``base_revision``, 4xx on an invalid body) and answer the same diff with ``"dry_run": true``,
+    the assignments it would orphan or restore, ``blas_to_build`` and ``missing_geometries``
+    (not an error here); nothing is changed.
     """
     body = await request.body()
-    answer = await run_in_threadpool(manager.push, scene_id, body)
+    answer = await run_in_threadpool(manager.push, scene_id, body, dry_run)
     return JSONResponse(answer)

@@ -135,3 +135,69 @@ def test_watch_pushes_again_when_the_file_changes(service, tmp_path) -> None:
         scene = p.scene_by_name("watch-car")
         assert scene["revision"] == 2
     assert ids["lens"]
+
+
+def _xcaf_round_trip(src: Path, dst: Path) -> None:
+    """Read a STEP file into OCCT's XCAF document and write it again with OCCT's own writer (another writer:
+    instance ids renumbered, entities reordered), with no edit."""
+    from OCP.IFSelect import IFSelect_RetDone
+    from OCP.STEPCAFControl import STEPCAFControl_Writer
+    from OCP.STEPControl import STEPControl_AsIs
+
+    from cad_adapter.step_reader import read_xcaf
+
+    doc, _, _, _ = read_xcaf(src)
+    writer = STEPCAFControl_Writer()
+    writer.SetNameMode(True)
+    writer.SetColorMode(True)
+    assert writer.Transfer(doc, STEPControl_AsIs)
+    assert writer.Write(str(dst)) == IFSelect_RetDone
+
+
+def test_save_as_and_another_writer_keep_identity_and_dry_run_changes_nothing(service, tmp_path) -> None:
+    import shutil
+
+    import httpx
+    from cad_helpers import AS1
+
+    env = {"LUMENLINK_CACHE_DIR": str(tmp_path / "cache")}
+    lamp = tmp_path / "lamp.step"
+    shutil.copy(AS1, lamp)
+    first = run_cli("push", str(lamp), "--scene", "saveas", "--server", service, "--json", *COARSE_ARGS,
+                    env_extra=env)
+    assert first.returncode == 0, first.stderr
+    added = json.loads(first.stdout)["added"]
+    with httpx.Client(base_url=service) as http:
+        sid = next(s["id"] for s in http.get("/scenes").json() if s["name"] == "saveas")
+        before = http.get(f"/scenes/{sid}/nodes").json()
+        plate = next(n["uuid"] for n in before if n["name"] == "plate_1")
+        mirror = {"type": "mirror", "reflectance": 0.9}
+        assert http.put(f"/scenes/{sid}/materials/{plate}", json=mirror).status_code == 200
+        rev = http.get(f"/scenes/{sid}").json()["revision"]
+
+        # "Save As" under a new name (no sidecar beside it), then re-exported by OCCT's writer
+        rev2 = tmp_path / "lamp_rev2.step"
+        _xcaf_round_trip(lamp, rev2)
+        assert not (tmp_path / "lamp_rev2.step.lumenlink.json").exists()
+        dry = run_cli("push", str(rev2), "--scene", "saveas", "--server", service, "--json", "--dry-run",
+                      *COARSE_ARGS, env_extra=env)
+        assert dry.returncode == 0, dry.stderr
+        d = json.loads(dry.stdout)
+        assert d["dry_run"] is True and not d["added"] and not d["removed"]
+        assert http.get(f"/scenes/{sid}").json()["revision"] == rev  # nothing changed
+        assert http.get(f"/scenes/{sid}/nodes").json() == before
+        assert not (tmp_path / "lamp_rev2.step.lumenlink.json").exists()  # not even the sidecar
+
+        real = run_cli("push", str(rev2), "--scene", "saveas", "--server", service, "--json", *COARSE_ARGS,
+                       env_extra=env)
+        assert real.returncode == 0, real.stderr
+        a = json.loads(real.stdout)
+        # the push is exactly the user's edit: none
+        assert not a["added"] and not a["removed"] and not a["moved"] and not a["geometry_changed"]
+        assert a["blas_built"] == 0 and not a["orphaned"]
+        assert a["reconciliation"]["source"] == "scene" and a["reconciliation"]["matched"]["new"] == 0
+        after = {n["uuid"]: n for n in http.get(f"/scenes/{sid}/nodes").json()}
+        assert set(after) == set(added)
+        assert {n["uuid"]: n["geometry"] for n in before} == {u: n["geometry"] for u, n in after.items()}
+        mats = http.get(f"/scenes/{sid}/materials").json()
+        assert plate in json.dumps(mats)  # the material is still on the plate

@@ -49,11 +49,17 @@ class FakeService:
                 return httpx.Response(400, json={"title": "Bad Request", "detail": "hash mismatch"})
             self.meshes.add(m.group(1))
             return httpx.Response(201, json={"id": m.group(1)})
-        m = re.fullmatch(r"/scenes/([^/]+)(/document)?", path)
+        m = re.fullmatch(r"/scenes/([^/]+)(/document|/nodes)?", path)
         if m and m.group(1) in self.scenes:
             scene = self.scenes[m.group(1)]
             if method == "GET" and not m.group(2):
                 return httpx.Response(200, json=scene)
+            if method == "GET" and m.group(2) == "/nodes":  # the last pushed tree (records as the service keeps)
+                last = next((d for d in reversed(self.documents) if d.get("_scene") == scene["id"]), None)
+                return httpx.Response(200, json=[] if last is None else [
+                    {**n, "product": (last.get("identity") or {}).get(n["uuid"], {}).get("product"),
+                     "signature": (last.get("identity") or {}).get(n["uuid"], {}).get("signature")}
+                    for n in last["nodes"]])
             if method == "PUT" and m.group(2):
                 body = json.loads(request.content)
                 if self.bump_before_push:
@@ -66,7 +72,7 @@ class FakeService:
                     return httpx.Response(422, json={"title": "Unprocessable",
                                                      "detail": f"unknown geometry {missing[0]}"},
                                           headers={"content-type": "application/problem+json"})
-                self.documents.append(body)
+                self.documents.append({**body, "_scene": scene["id"]})
                 scene["revision"] += 1
                 return httpx.Response(200, json={"scene": scene["id"], "revision": scene["revision"],
                                                  "base_revision": body["base_revision"], "added": [], "removed": [],

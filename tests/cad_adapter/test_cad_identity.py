@@ -70,7 +70,7 @@ def test_reimport_keeps_every_uuid_by_path(tmp_path) -> None:
     a, side = first_import(tmp_path)
     b = read_assembly(rig())
     counts = identify(b, side)
-    assert counts["path"] == len(b.nodes)
+    assert counts["new"] == 0 and counts["shape"] + counts["placement"] == len(b.nodes)
     assert uuids(a) == uuids(b)
 
 
@@ -79,7 +79,7 @@ def test_moved_node_keeps_uuid(tmp_path) -> None:
     b = read_assembly(rig(moves={"peg_b": 7.0, "lens": 3.0}))
     identify(b, side)
     assert uuids(a) == uuids(b)
-    assert {n.match for n in b.nodes} == {"path"}
+    assert {n.match for n in b.nodes} <= {"shape", "placement"}
 
 
 def test_renamed_instance_keeps_uuid_by_signature_and_position(tmp_path) -> None:
@@ -89,7 +89,7 @@ def test_renamed_instance_keeps_uuid_by_signature_and_position(tmp_path) -> None
     identify(b, side)
     ua, ub = uuids(a), uuids(b)
     assert ub["rig/middle_peg"] == ua["rig/peg_b"]
-    assert next(n for n in b.nodes if n.name == "middle_peg").match == "signature"
+    assert next(n for n in b.nodes if n.name == "middle_peg").match == "placement"
     assert ub["rig/peg_a"] == ua["rig/peg_a"] and ub["rig/peg_c"] == ua["rig/peg_c"]
 
 
@@ -108,7 +108,7 @@ def test_renamed_subassembly_keeps_its_and_its_childrens_uuids(tmp_path) -> None
     assert ub["rig/headlamp"] == ua["rig/lamp"]
     assert ub["rig/headlamp/cup"] == ua["rig/lamp/cup"] and ub["rig/headlamp/lens"] == ua["rig/lamp/lens"]
     matches = {n.path: n.match for n in b.nodes}
-    assert matches["rig/headlamp"] == "children" and matches["rig/headlamp/lens"] == "signature"
+    assert matches["rig/headlamp"] == "shape" and matches["rig/headlamp/lens"] == "shape"
 
 
 def test_reordered_children_keep_uuids(tmp_path) -> None:
@@ -124,8 +124,8 @@ def test_deleted_then_restored_node_gets_its_uuid_back(tmp_path) -> None:
     b = read_assembly(rig(drop=("peg_b",)))
     identify(b, side)
     assert "rig/peg_b" not in uuids(b)
-    absent = [e for e in load_sidecar(side) if not e.present]
-    assert [e.path for e in absent] == ["rig/peg_b"]
+    absent = [e for e in load_sidecar(side)["nodes"] if not e["present"]]
+    assert [e["path"] for e in absent] == ["rig/peg_b"]
     c = read_assembly(rig())
     identify(c, side)
     assert uuids(c) == uuids(a)
@@ -149,7 +149,7 @@ def test_carried_uuid_wins_and_duplicate_falls_back(tmp_path) -> None:
     by = {n.path: n for n in b.nodes}
     assert by["rig/peg_a"].uuid == u and by["rig/peg_a"].match == "carried"
     # the second use of the same UUID is not trusted: peg_b keeps its sidecar UUID
-    assert by["rig/peg_b"].uuid == uuids(a)["rig/peg_b"] and by["rig/peg_b"].match == "path"
+    assert by["rig/peg_b"].uuid == uuids(a)["rig/peg_b"] and by["rig/peg_b"].match == "placement"
     assert len({n.uuid for n in b.nodes}) == len(b.nodes)
 
 
@@ -172,9 +172,9 @@ def test_corrupt_sidecar(tmp_path) -> None:
     with pytest.raises(IdentityError, match="cannot be read"):
         identify(read_assembly(rig()), side)
     side.write_text(json.dumps({"format": "something-else", "nodes": []}))
-    with pytest.raises(IdentityError, match="not a lumenlink-sidecar-v1"):
+    with pytest.raises(IdentityError, match="not a lumenlink-sidecar-v2"):
         identify(read_assembly(rig()), side)
-    side.write_text(json.dumps({"format": "lumenlink-sidecar-v1", "nodes": [{"uuid": "x", "path": "rig"}]}))
+    side.write_text(json.dumps({"format": "lumenlink-sidecar-v2", "nodes": [{"uuid": "x", "path": "rig"}]}))
     with pytest.raises(IdentityError, match="invalid uuid"):
         identify(read_assembly(rig()), side)
 
@@ -192,7 +192,7 @@ def test_step_reimport_and_renamed_occurrence(tmp_path) -> None:
     assert identify(a)["new"] == len(a.nodes)
     assert sidecar_path(path).exists()
     b = read_step(path)
-    assert identify(b)["path"] == len(b.nodes)
+    assert identify(b)["new"] == 0
     assert uuids(a) == uuids(b)
     # rename the plate's occurrence in the file itself
     path.write_text(path.read_text().replace("'plate_1'", "'base_plate'"))
@@ -200,7 +200,7 @@ def test_step_reimport_and_renamed_occurrence(tmp_path) -> None:
     identify(c)
     uc = uuids(c)
     assert uc["as1/base_plate"] == uuids(a)["as1/plate_1"]
-    assert next(n for n in c.nodes if n.name == "base_plate").match == "signature"
+    assert next(n for n in c.nodes if n.name == "base_plate").match == "shape"
     assert set(uc.values()) == set(uuids(a).values())
 
 

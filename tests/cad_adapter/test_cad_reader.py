@@ -62,7 +62,7 @@ def test_two_free_roots_and_face_colours() -> None:
     sig = doc.parts[next(n.part for n in doc.nodes if n.name == "red_cube")].shape
     from cad_adapter.identity import shape_signature
 
-    bbox = shape_signature(sig).bbox
+    bbox = shape_signature(sig)["bbox"]
     assert bbox[3] - bbox[0] == pytest.approx(0.01, rel=1e-6)
 
 

@@ -26,9 +26,9 @@ def test_lens_is_the_spherical_cap_of_its_radius(radius) -> None:
     sig = shape_signature(lens(radius).val().wrapped)
     a = LENS_APERTURE_MM
     h = radius - math.sqrt(radius**2 - a**2)
-    assert sig.volume == pytest.approx(math.pi * h * h * (3 * radius - h) / 3, rel=1e-6)
-    assert sig.area == pytest.approx(2 * math.pi * radius * h + math.pi * a * a, rel=1e-6)
-    assert sig.bbox[3] == pytest.approx(h, abs=1e-6) and sig.bbox[0] == pytest.approx(0.0, abs=1e-6)
+    assert sig["volume"] == pytest.approx(math.pi * h * h * (3 * radius - h) / 3, rel=1e-6)
+    assert sig["area"] == pytest.approx(2 * math.pi * radius * h + math.pi * a * a, rel=1e-6)
+    assert sig["bbox"][3] == pytest.approx(h, abs=1e-6) and sig["bbox"][0] == pytest.approx(0.0, abs=1e-6)
 
 
 def test_doors_turn_about_their_hinges() -> None:

@@ -113,7 +113,7 @@ def closed_checks(mesh, shape, deflection: float) -> None:
     vol = np.einsum("ij,ij->i", v[f[:, 0]], np.cross(v[f[:, 1]], v[f[:, 2]])).sum() / 6
     sig = shape_signature(shape)
     assert vol > 0
-    assert abs(vol - sig.volume) <= sig.area * deflection
+    assert abs(vol - sig["volume"]) <= sig["area"] * deflection
 
 
 def test_car_parts_are_closed_with_outward_normals() -> None:

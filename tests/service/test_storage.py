@@ -23,7 +23,7 @@ def test_migration_matches_the_declared_schema(tmp_path) -> None:
         assert diff == [], diff
         assert conn.execute(sa.text("PRAGMA journal_mode")).scalar() == "wal"
         assert conn.execute(sa.text("PRAGMA foreign_keys")).scalar() == 1
-        assert conn.execute(sa.text("SELECT version_num FROM alembic_version")).scalar() == "0001"
+        assert conn.execute(sa.text("SELECT version_num FROM alembic_version")).scalar() == "0002"
 
 
 def test_migrating_twice_is_harmless(tmp_path) -> None:
@@ -32,7 +32,7 @@ def test_migrating_twice_is_harmless(tmp_path) -> None:
     engine = db.open_engine(url)
     with engine.connect() as conn:
         assert set(sa.inspect(conn).get_table_names()) >= {"scenes", "revisions", "nodes", "geometries", "materials",
-                                                          "lights", "sensors", "sim_objects"}
+                                                          "lights", "sensors", "sim_objects", "node_identity"}
 
 
 def test_settings_from_the_environment(tmp_path, monkeypatch) -> None:

@@ -1,0 +1,645 @@
+"""Reconciling a document's tree with the tree held before: which new node is which old node.
+
+Pure arrays (numpy, scipy), no CAD kernel: the old side comes from the scene (``GET /scenes/{id}/nodes``)
+or the sidecar, the new side from the document just read. Both are :class:`Side` records.
+
+Matching is a global assignment, never nearest-first. The rules, in order (``Reconciliation.rule``):
+
+``carried``    the document carries the UUID (cadquery metadata, a STEP id).
+``shape``      a shape class (leaves: volume, area, principal moments, topology, all frame-independent;
+               assemblies: the multiset of their children's classes) with exactly one old and one new
+               member. These unambiguous pairs also give the rigid alignment of the whole model.
+``placement``  identical parts (or identical sub-assemblies): an optimal assignment
+               (``scipy.sparse.csgraph.min_weight_full_bipartite_matching``) on the distance between the
+               new centroid and the old one carried by the alignment (RANSAC + Kabsch over the ``shape``
+               pairs, so a model turned as a whole keeps every part's UUID).
+``structure``  an assembly whose children's old parent is one node (votes, then an assignment); a
+               reshaped part under a matched parent, by its placement in that parent and its product name.
+``path``       the same occurrence path (names from the root) as an unmatched old node.
+``new``        a fresh UUID.
+
+A pair is *ambiguous* when its placement does not set it clearly apart from another identical part, or
+when its instance name names another old part of the same class (two identical parts swapped). It keeps
+the UUID the placement gives, and is reported with its candidates: never a silent guess.
+"""
+
+from __future__ import annotations
+
+import re
+import uuid as uuidlib
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import sparse
+from scipy.optimize import linear_sum_assignment
+from scipy.sparse.csgraph import min_weight_full_bipartite_matching
+from scipy.spatial import cKDTree
+
+RULES = ("carried", "shape", "placement", "structure", "path", "new")
+#: relative tolerance of shape classes (frame-independent invariants of one part, scaled by its size)
+CLASS_RTOL = 1e-5
+#: a node moved less than this fraction of the model's diagonal (after alignment) sits where it was
+SAME_PLACE_RTOL = 1e-6
+#: names writers generate (blank instance names, renumbered ids): never evidence, never shown to people
+WRITER_ID = re.compile(r"^(?:|\d+|NAUO\d*|=>\[[0-9:]+\]|(?:SOLID|SHELL|COMPOUND|COMPONENT|PART|BODY)[_ ]?\d*|"
+                       r"OPEN_CASCADE_STEP_TRANSLATO-\d+|#\d+|I\d+)$", re.IGNORECASE)
+
+
+def is_writer_id(name: str | None) -> bool:
+    """Whether a name is one a STEP writer made up (blank, a number, ``NAUO61``), not a person."""
+    return name is None or WRITER_ID.match(name.strip()) is not None
+
+
+def display_name(instance: str | None, product: str | None) -> str:
+    """The name a person sees: the instance name, unless blank or a writer's id; then the product's."""
+    if instance and not is_writer_id(instance):
+        return instance
+    if product and not is_writer_id(product):
+        return product
+    return instance or product or "unnamed"
+
+
+@dataclass(frozen=True)
+class ShapeKey:
+    """Frame-independent invariants of a part: what stays when a writer moves the solid in its frame.
+
+    Attributes
+    ----------
+    volume, area : float
+        Document units³ and units².
+    moments : tuple of 3 float
+        Principal moments of inertia about the centroid (unit density), ascending, units⁵.
+    topology : tuple of 3 int
+        Faces, edges, vertices (0, 0, 0 where unknown).
+    """
+
+    volume: float
+    area: float
+    moments: tuple[float, float, float]
+    topology: tuple[int, int, int] = (0, 0, 0)
+
+    @property
+    def size(self) -> float:
+        """A length of the part: sqrt(area)."""
+        return float(np.sqrt(max(self.area, 0.0)))
+
+    def matches(self, other: ShapeKey, rtol: float = CLASS_RTOL) -> bool:
+        """Equal within ``rtol`` of the part's size (size³ for volumes, size² for areas, size⁵ for moments)."""
+        if self.topology != other.topology and 0 not in (sum(self.topology), sum(other.topology)):
+            return False
+        s = max(self.size, other.size)
+        if s == 0.0:
+            return self.volume == other.volume and self.area == other.area
+        close = (abs(self.volume - other.volume) <= rtol * (abs(self.volume) + s ** 3)
+                 and abs(self.area - other.area) <= rtol * (abs(self.area) + s ** 2))
+        return close and all(abs(a - b) <= rtol * (abs(a) + s ** 5)
+                             for a, b in zip(self.moments, other.moments, strict=True))
+
+
+@dataclass
+class Side:
+    """One tree as matching sees it (parents before children).
+
+    Attributes
+    ----------
+    parent : (n,) int64
+        Parent row, -1 for a root.
+    names, products : list of str
+        Instance names and product names (either may be blank).
+    world : (n, 4, 4) float64
+        ``root_from_node``, in the new document's unit.
+    local : (n, 4, 4) float64
+        ``parent_from_node``, same unit.
+    keys : list of ShapeKey or None
+        The part's invariants; None for an assembly (or a part without faces: see ``leaf``).
+    centroid : (n, 3) float64
+        A leaf's centre of volume in the part's frame (its origin where unknown).
+    leaf : (n,) bool
+        Shows a part (possibly without faces).
+    uuids : list of str or None
+        Known UUIDs (old side), or carried ones (new side), else None.
+    paths : list of str
+    axes : (n, 3, 3) float64 or None
+        A leaf's principal axes of inertia (rows) in the part's frame (zeros where unknown): one
+        unambiguous part then gives the model's rotation, even when the unambiguous parts lie on a line.
+    """
+
+    parent: np.ndarray
+    names: list[str]
+    products: list[str]
+    world: np.ndarray
+    local: np.ndarray
+    keys: list[ShapeKey | None]
+    centroid: np.ndarray
+    leaf: np.ndarray
+    uuids: list[str | None]
+    paths: list[str]
+    axes: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    @classmethod
+    def empty(cls) -> Side:
+        return cls(np.zeros(0, np.int64), [], [], np.zeros((0, 4, 4)), np.zeros((0, 4, 4)), [], np.zeros((0, 3)),
+                   np.zeros(0, bool), [], [])
+
+
+@dataclass
+class Reconciliation:
+    """Which old row each new row is (``old[i]``, -1 if none), the UUID it gets, and why.
+
+    Attributes
+    ----------
+    old : (n_new,) int64
+    uuids : list of str
+    rule : list of str
+        One of :data:`RULES` per new row.
+    ambiguous : list of dict
+        ``{"row", "path", "uuid", "candidates": [uuid, ...], "reason"}`` per ambiguous new row.
+    alignment : (4, 4) float64
+        ``new_from_old`` of the model as a whole.
+    alignment_inliers : int
+        Unambiguous pairs that agree with the alignment.
+    """
+
+    old: np.ndarray
+    uuids: list[str]
+    rule: list[str]
+    ambiguous: list[dict] = field(default_factory=list)
+    alignment: np.ndarray = field(default_factory=lambda: np.eye(4))
+    alignment_inliers: int = 0
+
+    def counts(self) -> dict[str, int]:
+        out = dict.fromkeys(RULES, 0)
+        for r in self.rule:
+            out[r] += 1
+        return out
+
+
+# ---------------------------------------------------------------- classes
+
+def shape_classes(keys: Sequence[ShapeKey | None], rtol: float = CLASS_RTOL) -> np.ndarray:
+    """A class id per key (-1 for None): keys equal within ``rtol`` share one.
+
+    Sorted by volume and swept with a window of open classes, so near-linear in the number of keys.
+    """
+    out = np.full(len(keys), -1, np.int64)
+    order = sorted((i for i, k in enumerate(keys) if k is not None), key=lambda i: keys[i].volume)  # type: ignore[union-attr]
+    reps: list[tuple[ShapeKey, int]] = []  # (representative, class) of the classes open in the window
+    n_classes = 0
+    for i in order:
+        k = keys[i]
+        assert k is not None
+        window = rtol * (abs(k.volume) + k.size ** 3) * 2
+        reps = [(r, c) for r, c in reps if k.volume - r.volume <= window]
+        for r, c in reps:
+            if k.matches(r, rtol):
+                out[i] = c
+                break
+        else:
+            out[i] = n_classes
+            reps.append((k, n_classes))
+            n_classes += 1
+    return out
+
+
+def content_classes(old: Side, new: Side) -> tuple[np.ndarray, np.ndarray]:
+    """Class ids over both sides: leaves by shape, assemblies by the multiset of their children's classes."""
+    leaf_cls = shape_classes(list(old.keys) + list(new.keys))
+    intern: dict[tuple, int] = {}
+    out = []
+    for side, base in ((old, 0), (new, len(old))):
+        cls = np.full(len(side), -1, np.int64)
+        children: list[list[int]] = [[] for _ in range(len(side))]
+        for i in range(len(side) - 1, -1, -1):
+            if side.leaf[i]:
+                c = leaf_cls[base + i]
+                key: tuple = ("part", int(c)) if c >= 0 else ("empty", side.products[i] or side.names[i])
+            else:
+                key = ("assembly", tuple(sorted(children[i])))
+            cls[i] = intern.setdefault(key, len(intern))
+            p = side.parent[i]
+            if p >= 0:
+                children[p].append(int(cls[i]))
+        out.append(cls)
+    return out[0], out[1]
+
+
+def world_centroids(side: Side) -> np.ndarray:
+    """(n, 3): a leaf's centroid in the world; an assembly's, the mean over its leaves (frame-independent)."""
+    n = len(side)
+    if n == 0:
+        return np.zeros((0, 3))
+    c = np.einsum("nij,nj->ni", side.world[:, :3, :3], side.centroid) + side.world[:, :3, 3]
+    total = np.where(side.leaf[:, None], c, 0.0)
+    count = side.leaf.astype(np.float64).copy()
+    for i in range(n - 1, -1, -1):
+        p = side.parent[i]
+        if p >= 0:
+            total[p] += total[i]
+            count[p] += count[i]
+    has = count > 0
+    c[has] = total[has] / count[has, None]
+    return c
+
+
+# ---------------------------------------------------------------- alignment
+
+def kabsch(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """The rigid 4×4 ``T`` minimising ``sum |T p - q|²`` over point pairs (k, 3); no reflection."""
+    cp, cq = p.mean(axis=0), q.mean(axis=0)
+    h = (p - cp).T @ (q - cq)
+    u, _, vt = np.linalg.svd(h)
+    d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
+    r = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    t = np.eye(4)
+    t[:3, :3] = r
+    t[:3, 3] = cq - r @ cp
+    return t
+
+
+def _apply(t: np.ndarray, p: np.ndarray) -> np.ndarray:
+    return p @ t[:3, :3].T + t[:3, 3]
+
+
+def robust_alignment(p: np.ndarray, q: np.ndarray, tol: float, seed: int = 0, rounds: int = 200,
+                     frames: list[np.ndarray] | None = None, score=None) -> tuple[np.ndarray, int]:
+    """``new_from_old`` of the model from unambiguous pairs ``p → q`` (k, 3), robust to parts moved alone.
+
+    Candidates: the identity, a pure translation by the median shift, RANSAC triples (Kabsch), and
+    ``frames`` (transforms proposed by single parts' principal axes). The candidate with most inliers
+    (within ``tol``) wins; ties (pairs on one line fix no rotation about it) go to ``score(t)`` (a count
+    of other parts it puts on an identical old part), then Kabsch refines on the inliers. Returns the
+    transform and its number of inliers.
+    """
+    k = len(p)
+    if k == 0:
+        return np.eye(4), 0
+
+    def inliers(t: np.ndarray) -> np.ndarray:
+        return np.linalg.norm(_apply(t, p) - q, axis=1) <= tol
+
+    def spread(a: np.ndarray) -> bool:  # points that fix a rotation: not all on one line
+        return len(a) >= 3 and np.linalg.svd(a - a.mean(axis=0), compute_uv=False)[1] > 10 * tol
+
+    shift = np.eye(4)
+    shift[:3, 3] = np.median(q - p, axis=0)
+    candidates = [np.eye(4), shift] + list(frames or [])
+    rng = np.random.default_rng(seed)
+    if k >= 3:
+        for _ in range(rounds if k > 3 else 1):
+            idx = rng.choice(k, 3, replace=False)
+            if spread(p[idx]):
+                candidates.append(kabsch(p[idx], q[idx]))
+    counts = [int(inliers(t).sum()) for t in candidates]
+    top = max(counts)
+    tied = [t for t, c in zip(candidates, counts, strict=True) if c == top]
+    best = tied[0]
+    if len(tied) > 1 and score is not None and not spread(p[inliers(best)]):
+        best = max(tied, key=score)  # first of the best: no rotation unless the parts say so
+    best_in = inliers(best)
+    if spread(p[best_in]):
+        refined = kabsch(p[best_in], q[best_in])
+        if inliers(refined).sum() >= best_in.sum():
+            best, best_in = refined, inliers(refined)
+    return best, int(best_in.sum())
+
+
+def frame_candidates(old: Side, new: Side, pairs: list[tuple[int, int]], c_old: np.ndarray,
+                     c_new: np.ndarray, limit: int = 16) -> list[np.ndarray]:
+    """Transforms that carry one unambiguous part's principal frame onto its new one (4 sign choices each).
+
+    Only parts whose three principal moments differ (otherwise the axes are not defined)."""
+    if old.axes is None or new.axes is None:
+        return []
+    out = []
+    for i, j in pairs[:limit]:
+        key = new.keys[i]
+        if key is None or not np.any(new.axes[i]) or not np.any(old.axes[j]):
+            continue
+        m = np.asarray(key.moments)
+        if min(m[1] - m[0], m[2] - m[1]) <= 1e-3 * max(m[2], 1e-300):
+            continue
+        a_old = old.world[j, :3, :3] @ old.axes[j].T  # columns: the principal axes in the world
+        a_new = new.world[i, :3, :3] @ new.axes[i].T
+        for signs in ((1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1)):
+            r = (a_new * np.array(signs)) @ a_old.T
+            if np.linalg.det(r) < 0:
+                continue
+            t = np.eye(4)
+            t[:3, :3] = r
+            t[:3, 3] = c_new[i] - r @ c_old[j]
+            out.append(t)
+    return out
+
+
+def placement_score(cls_old: np.ndarray, cls_new: np.ndarray, c_old: np.ndarray, c_new: np.ndarray, tol: float,
+                    sample: int = 2000, seed: int = 0):
+    """``score(t)``: how many of (a sample of) the parts in classes with several members land, carried back
+    by ``t``, on an old part of their class. Trees are built once, on the old side."""
+    rng = np.random.default_rng(seed)
+    classes = {}
+    for c in np.unique(cls_new[cls_new >= 0]):
+        olds = np.flatnonzero(cls_old == c)
+        if len(olds) > 1:
+            classes[int(c)] = cKDTree(c_old[olds])
+    news = np.flatnonzero(np.isin(cls_new, list(classes)))
+    if len(news) > sample:
+        news = rng.choice(news, sample, replace=False)
+
+    def score(t: np.ndarray) -> int:
+        back = np.linalg.inv(t)
+        pts = _apply(back, c_new[news])
+        hits = 0
+        for c in np.unique(cls_new[news]):
+            m = cls_new[news] == c
+            d, _ = classes[int(c)].query(pts[m], k=1)
+            hits += int(np.sum(d <= tol))
+        return hits
+
+    return score
+
+
+# ---------------------------------------------------------------- assignment
+
+def sparse_assignment(rows: np.ndarray, cols: np.ndarray, cost: np.ndarray, n_rows: int, n_cols: int,
+                      unmatched: float) -> np.ndarray:
+    """Optimal partial assignment over candidate edges: ``match[r]`` = col or -1.
+
+    Minimises the sum of the chosen edges' costs plus ``unmatched`` for every row and every column left
+    out, over a sparse candidate graph (no all-pairs matrix): rows and columns each get a dummy partner
+    (cost ``unmatched``), and each candidate edge (r, c) a zero-cost dummy edge (c', r') so that any
+    partial matching extends to a perfect one. Costs are shifted by 1 (scipy drops explicit zeros).
+    """
+    match = np.full(n_rows, -1, np.int64)
+    if len(rows) == 0 or n_rows == 0 or n_cols == 0:
+        return match
+    rows = np.asarray(rows, np.int64)
+    cols = np.asarray(cols, np.int64)
+    # left: real rows 0..R-1, column dummies R..R+C-1; right: real cols 0..C-1, row dummies C..C+R-1
+    r_n, c_n = n_rows, n_cols
+    li = np.concatenate([rows, np.arange(r_n), r_n + np.arange(c_n), r_n + cols])
+    ri = np.concatenate([cols, c_n + np.arange(r_n), np.arange(c_n), c_n + rows])
+    w = np.concatenate([np.asarray(cost, float), np.full(r_n, unmatched), np.full(c_n, unmatched),
+                        np.zeros(len(rows))]) + 1.0
+    g = sparse.coo_matrix((w, (li, ri)), shape=(r_n + c_n, r_n + c_n)).tocsr()
+    g.sum_duplicates()
+    left, right = min_weight_full_bipartite_matching(g)
+    del left
+    pairs = right[:r_n]
+    ok = pairs < c_n
+    match[ok] = pairs[ok]
+    return match
+
+
+def _dense_assignment(cost: np.ndarray, unmatched: float) -> np.ndarray:
+    """``match[r]`` for a small dense cost matrix with a cost for leaving a row or column out."""
+    r, c = cost.shape
+    big = np.full((r + c, c + r), 0.0)
+    big[:r, :c] = cost
+    big[:r, c:] = np.where(np.eye(r, dtype=bool), unmatched, np.inf)
+    big[r:, :c] = np.where(np.eye(c, dtype=bool), unmatched, np.inf)
+    big[np.isinf(big)] = 1e18
+    ri, ci = linear_sum_assignment(big)
+    match = np.full(r, -1, np.int64)
+    for a, b in zip(ri, ci, strict=True):
+        if a < r and b < c:
+            match[a] = b
+    return match
+
+
+# ---------------------------------------------------------------- the reconciliation
+
+class _State:
+    def __init__(self, old: Side, new: Side) -> None:
+        self.old, self.new = old, new
+        self.match = np.full(len(new), -1, np.int64)  # new row -> old row
+        self.taken = np.zeros(len(old), bool)
+        self.rule: list[str] = ["new"] * len(new)
+        self.ambiguous: dict[int, dict] = {}
+
+    def bind(self, i: int, j: int, rule: str) -> None:
+        self.match[i] = j
+        self.taken[j] = True
+        self.rule[i] = rule
+
+    def free_new(self) -> np.ndarray:
+        return self.match < 0
+
+    def free_old(self) -> np.ndarray:
+        return ~self.taken
+
+
+def _groups(cls: np.ndarray, mask: np.ndarray) -> dict[int, np.ndarray]:
+    idx = np.flatnonzero(mask & (cls >= 0))
+    if len(idx) == 0:
+        return {}
+    order = np.argsort(cls[idx], kind="stable")
+    idx = idx[order]
+    values, starts = np.unique(cls[idx], return_index=True)
+    return {int(v): g for v, g in zip(values, np.split(idx, starts[1:]), strict=True)}
+
+
+def reconcile(old: Side, new: Side, *, diagonal: float | None = None, same_place_rtol: float = SAME_PLACE_RTOL,
+              neighbours: int = 8, seed: int = 0) -> Reconciliation:
+    """Match the rows of ``new`` to those of ``old`` (see the module docstring for the rules).
+
+    Parameters
+    ----------
+    old, new : Side
+        In the same length unit.
+    diagonal : float, optional
+        The model's size (document units); default the diagonal of both sides' centroids' box.
+    same_place_rtol : float
+        A centroid within this fraction of ``diagonal`` (after alignment) has not moved.
+    neighbours : int
+        Candidates per node among identical parts (k nearest after alignment).
+    """
+    st = _State(old, new)
+    c_old, c_new = world_centroids(old), world_centroids(new)
+    if diagonal is None:
+        pts = np.concatenate([c_old, c_new]) if len(old) + len(new) else np.zeros((1, 3))
+        diagonal = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))) or 1.0
+    tol_same = same_place_rtol * diagonal
+    old_index = {u: j for j, u in enumerate(old.uuids) if u}
+
+    # 1. carried UUIDs (a UUID carried twice is trusted once: the first, in document order)
+    seen: set[str] = set()
+    for i, u in enumerate(new.uuids):
+        if u and u not in seen:
+            seen.add(u)
+            j = old_index.get(u, -1)
+            st.rule[i] = "carried"
+            if j >= 0 and not st.taken[j]:
+                st.match[i] = j
+                st.taken[j] = True
+    carried = np.array([r == "carried" for r in st.rule], bool)
+
+    # 2. classes; 1:1 classes are unambiguous pairs and give the alignment
+    cls_old, cls_new = content_classes(old, new)
+    g_old = _groups(cls_old, ~st.taken)
+    g_new = _groups(cls_new, ~carried)
+    anchors = [(int(g_new[c][0]), int(g_old[c][0])) for c in g_new if c in g_old
+               and len(g_new[c]) == 1 and len(g_old[c]) == 1]
+    for i, j in anchors:
+        st.bind(i, j, "shape")
+    pairs = [(i, j) for i, j in enumerate(st.match) if j >= 0]
+    p = np.array([c_old[j] for _, j in pairs]).reshape(-1, 3)
+    q = np.array([c_new[i] for i, _ in pairs]).reshape(-1, 3)
+    tol_align = max(1e-4 * diagonal, 10 * tol_same)
+    align, n_in = robust_alignment(p, q, tol=tol_align, seed=seed,
+                                   frames=frame_candidates(old, new, pairs, c_old, c_new),
+                                   score=placement_score(cls_old, cls_new, c_old, c_new, tol_align, seed=seed))
+    c_old_aligned = _apply(align, c_old) if len(old) else c_old
+
+    # 3. identical parts and identical sub-assemblies: optimal assignment on aligned distance
+    for c, news in g_new.items():
+        olds = g_old.get(c)
+        if olds is None or (len(news) == 1 and len(olds) == 1):
+            continue
+        news = news[st.match[news] < 0]
+        olds = olds[~st.taken[olds]]
+        if len(news) == 0 or len(olds) == 0:
+            continue
+        _assign_by_place(st, news, olds, c_new, c_old_aligned, diagonal, tol_same, neighbours)
+
+    # 4. structure: assemblies by their children's old parents; reshaped parts by parent and placement
+    for _ in range(2):
+        _assemblies_by_votes(st)
+        _reshaped_by_parent(st, diagonal)
+    _assemblies_by_votes(st)
+    # 5. occurrence path, then lone roots
+    free_old_paths: dict[str, int] = {}
+    for j in np.flatnonzero(~st.taken):
+        free_old_paths.setdefault(old.paths[j], int(j))
+    for i in np.flatnonzero(st.match < 0):
+        if st.rule[i] == "carried":
+            continue
+        j = free_old_paths.get(new.paths[i], -1)
+        if j >= 0 and not st.taken[j] and bool(old.leaf[j]) == bool(new.leaf[i]):
+            st.bind(int(i), j, "path")
+    roots_new = [i for i in np.flatnonzero(new.parent < 0) if st.match[i] < 0 and st.rule[i] != "carried"]
+    roots_old = [j for j in np.flatnonzero(old.parent < 0) if not st.taken[j]]
+    if len(roots_new) == 1 and len(roots_old) == 1 and not new.leaf[roots_new[0]] and not old.leaf[roots_old[0]]:
+        st.bind(int(roots_new[0]), int(roots_old[0]), "structure")
+
+    uuids = []
+    for i in range(len(new)):
+        if st.rule[i] == "carried":
+            uuids.append(str(new.uuids[i]).lower())
+        elif st.match[i] >= 0:
+            uuids.append(str(old.uuids[st.match[i]]))
+        else:
+            uuids.append(str(uuidlib.uuid4()))
+    ambiguous = []
+    for i, a in sorted(st.ambiguous.items()):
+        if st.match[i] >= 0:
+            ambiguous.append({"row": i, "path": new.paths[i], "uuid": uuids[i], **a})
+    return Reconciliation(st.match, uuids, st.rule, ambiguous, align, n_in)
+
+
+def _assign_by_place(st: _State, news: np.ndarray, olds: np.ndarray, c_new: np.ndarray, c_old: np.ndarray,
+                     diagonal: float, tol_same: float, neighbours: int) -> None:
+    """Identical parts: min-cost assignment of ``news`` to ``olds`` on aligned centroid distance."""
+    old, new = st.old, st.new
+    k = min(neighbours, len(olds))
+    tree = cKDTree(c_old[olds])
+    dist, nn = tree.query(c_new[news], k=k)
+    dist, nn = dist.reshape(len(news), k), nn.reshape(len(news), k)
+    rows = np.repeat(np.arange(len(news)), k)
+    cols = nn.ravel()
+    cost = dist.ravel() / diagonal
+    if len(news) * len(olds) <= 250_000:  # small: an exact dense assignment over every pair
+        full = np.linalg.norm(c_new[news][:, None, :] - c_old[olds][None, :, :], axis=2) / diagonal
+        match = _dense_assignment(full, unmatched=2.0)
+    else:
+        match = sparse_assignment(rows, cols, cost, len(news), len(olds), unmatched=2.0)
+    old_names: dict[str, int] = {}
+    for jj, j in enumerate(olds):
+        nm = old.names[j]
+        if not is_writer_id(nm):
+            old_names[nm] = -1 if nm in old_names else jj  # a name shared by several is no evidence
+    for ii, jj in enumerate(match):
+        if jj < 0:
+            continue
+        i, j = int(news[ii]), int(olds[jj])
+        st.bind(i, j, "placement")
+        d = float(np.linalg.norm(c_new[i] - c_old[j]))
+        others = [(float(dist[ii, m]), int(olds[nn[ii, m]])) for m in range(k) if nn[ii, m] != jj]
+        if d > tol_same and others and others[0][0] <= 2.0 * d + tol_same:
+            st.ambiguous[i] = {"candidates": [str(old.uuids[j])] + [str(old.uuids[o]) for _, o in others[:3]],
+                               "reason": f"moved {d:.6g} after the model's alignment, and another identical "
+                                         f"part was {others[0][0]:.6g} away"}
+        nm = new.names[i]
+        named = old_names.get(nm, -1) if not is_writer_id(nm) else -1
+        if named >= 0 and int(olds[named]) != j and old.names[j] != nm:
+            st.ambiguous[i] = {"candidates": [str(old.uuids[j]), str(old.uuids[olds[named]])],
+                               "reason": f"its placement is that of {old.paths[j]!r} but its name is that of "
+                                         f"{old.paths[olds[named]]!r} (identical parts swapped?)"}
+
+
+def _assemblies_by_votes(st: _State) -> None:
+    """Unmatched new assemblies take the old parent most of their matched children had (an assignment)."""
+    old, new = st.old, st.new
+    votes: dict[tuple[int, int], int] = {}
+    size = np.zeros(len(new), np.int64)
+    for i in range(len(new)):
+        p = new.parent[i]
+        if p < 0:
+            continue
+        size[p] += 1
+        if st.match[p] >= 0 or st.rule[p] == "carried" or st.match[i] < 0:
+            continue
+        op = old.parent[st.match[i]]
+        if op >= 0 and not st.taken[op] and not old.leaf[op]:
+            votes[(int(p), int(op))] = votes.get((int(p), int(op)), 0) + 1
+    if not votes:
+        return
+    keys = list(votes)
+    rows_u, rows = np.unique([a for a, _ in keys], return_inverse=True)
+    cols_u, cols = np.unique([b for _, b in keys], return_inverse=True)
+    cost = np.array([1.0 - votes[kk] / max(size[kk[0]], 1) for kk in keys])
+    match = sparse_assignment(rows, cols, cost, len(rows_u), len(cols_u), unmatched=1.0)
+    for r, c in enumerate(match):
+        if c >= 0:
+            st.bind(int(rows_u[r]), int(cols_u[c]), "structure")
+
+
+def _reshaped_by_parent(st: _State, diagonal: float) -> None:
+    """Unmatched new leaves under a matched parent take an unmatched old leaf of that parent.
+
+    The cost is the distance of their placements in the parent (origins, fraction of the diagonal) plus
+    0.5 when product names differ (0.25 when one is a writer's id, which says nothing): a part made
+    longer keeps its place and its product name.
+    """
+    old, new = st.old, st.new
+    old_children: dict[int, list[int]] = {}
+    for j in np.flatnonzero(~st.taken & old.leaf):
+        if old.parent[j] >= 0:
+            old_children.setdefault(int(old.parent[j]), []).append(int(j))
+    by_parent: dict[int, list[int]] = {}
+    for i in np.flatnonzero((st.match < 0) & new.leaf):
+        p = new.parent[i]
+        if p >= 0 and st.match[p] >= 0 and st.rule[i] != "carried":
+            by_parent.setdefault(int(st.match[p]), []).append(int(i))
+    for op, news in by_parent.items():
+        olds = [j for j in old_children.get(op, []) if not st.taken[j]]
+        if not olds:
+            continue
+        cost = np.zeros((len(news), len(olds)))
+        for a, i in enumerate(news):
+            for b, j in enumerate(olds):
+                d = float(np.linalg.norm(new.local[i, :3, 3] - old.local[j, :3, 3])) / diagonal
+                cost[a, b] = d + _name_penalty(new.products[i] or new.names[i], old.products[j] or old.names[j])
+        match = _dense_assignment(cost, unmatched=0.3)
+        for a, b in enumerate(match):
+            if b >= 0:
+                st.bind(news[a], olds[b], "structure")
+
+
+def _name_penalty(a: str, b: str) -> float:
+    if is_writer_id(a) or is_writer_id(b):
+        return 0.25
+    return 0.0 if a == b else 0.5
