@@ -98,12 +98,8 @@ def push_once(file: Path, scene: str, server: str, linear: float | None, angular
     try:
         with Pusher(server, transport=transport) as pusher:
             tree = pusher.scene_tree(scene)
-    except ServiceUnavailable as exc:
-        console.print(f"[red]error:[/] {exc}")
-        return EXIT_UNREACHABLE
-    except PushError as exc:
-        console.print(f"[red]error:[/] {exc}")
-        return EXIT_FAILED
+    except PushError as exc:  # ServiceUnavailable included
+        return _service_failure(exc, console)
     previous = tree.nodes if tree is not None else None
     try:
         t0 = time.perf_counter()
@@ -146,15 +142,8 @@ def push_once(file: Path, scene: str, server: str, linear: float | None, angular
             with Pusher(server, transport=transport, upload_progress=up) as pusher:
                 result = pusher.push(doc, tess, scene, base_revision=tree.revision if tree else None,
                                      dry_run=dry_run)
-    except RevisionConflict as exc:
-        console.print(f"[red]conflict:[/] {exc}")
-        return EXIT_CONFLICT
-    except ServiceUnavailable as exc:
-        console.print(f"[red]error:[/] {exc}")
-        return EXIT_UNREACHABLE
-    except (PushError, CadAdapterError) as exc:
-        console.print(f"[red]error:[/] {exc}")
-        return EXIT_FAILED
+    except CadAdapterError as exc:
+        return _service_failure(exc, console)
     for line in orphan_report(result.answer, previous):
         console.print(line)
     if json_out:
@@ -165,6 +154,15 @@ def push_once(file: Path, scene: str, server: str, linear: float | None, angular
         sys.stdout.write(summary(result, doc, tess, read_seconds) + "\n")
     sys.stdout.flush()
     return EXIT_OK
+
+
+def _service_failure(exc: CadAdapterError, console: Console) -> int:
+    """Report a failed exchange with the service; the exit code that says which kind."""
+    if isinstance(exc, RevisionConflict):
+        console.print(f"[red]conflict:[/] {exc}")
+        return EXIT_CONFLICT
+    console.print(f"[red]error:[/] {exc}")
+    return EXIT_UNREACHABLE if isinstance(exc, ServiceUnavailable) else EXIT_FAILED
 
 
 def dry_run_summary(a: dict) -> str:
