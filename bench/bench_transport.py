@@ -1,7 +1,8 @@
 """Light transport: photon throughput per effect set, and time to 1 % at 100 floor points beside Radiance.
 
-1. Throughput. The diffuse room below is traced forward on one thread with each effect set compiled
-   in (`force_effects`): the scene needs only `lambertian`, so every variant follows the very same
+1. Throughput. The diffuse room below is traced forward on one thread with each effect set forced
+   (`force_effects`; since issue 18 effects are branches on data in one kernel, so every row runs the same
+   machine code and the rows measure noise): the scene needs only `lambertian`, so every variant follows the very same
    photon paths (the RNG draws no extra numbers where no medium is entered) and the differences are
    the cost of compiled-in code alone. A glass-slab scene adds the sets a scene really needs
    ({lambertian, fresnel}, + absorption, + scattering). Compile times are measured in a fresh
@@ -129,9 +130,8 @@ for force in {variants!r}:
 sim.illuminance(pts, nrm, max_photons=1000, estimator="backward")
 from tracer.transport import forward_batches
 sizes = {{}}
-for sig in forward_batches.signatures:   # machine code of each variant (fresh cache: compiled, inspectable)
-    on = [n for n, t in zip(("specular", "fresnel", "absorption", "scattering"), sig[-4:]) if str(t) != "none"]
-    sizes["forward/" + (",".join(on) or "lambertian")] = len(forward_batches.inspect_asm(sig))
+for sig in forward_batches.signatures:   # machine code of the one kernel (fresh cache: compiled, inspectable)
+    sizes["forward/white"] = len(forward_batches.inspect_asm(sig))
 print(json.dumps({{"import_and_scene_seconds": t_import, "variants": compile_seconds(), "asm_chars": sizes}}))
 """
 

@@ -36,9 +36,13 @@ def serve(
     data_dir: Annotated[
         Path, typer.Option(envvar="LUMENLINK_DATA_DIR", help="SQLite file, meshes and BLAS cache.")
     ] = Path("./var"),
+    warm: Annotated[bool, typer.Option(
+        envvar="LUMENLINK_WARM_KERNELS",
+        help="Compile the light-transport kernels in the background from the start, so that the first query "
+             "does not wait for them (GET /health says when they are ready).")] = True,
 ) -> None:
     """Start the REST service (uvicorn)."""
-    _call("service.server", "run", 5, host=host, port=port, data_dir=data_dir)
+    _call("service.server", "run", 5, host=host, port=port, data_dir=data_dir, warm=warm)
 
 
 @app.command()

@@ -14,6 +14,8 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, Strict, StringConstraints, model_validator
 
+from service import optics
+
 UUID_PATTERN = r"^[0-9a-fA-F]{8}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{12}$"
 GEOMETRY_PATTERN = r"^[0-9a-f]{64}$"
 
@@ -249,45 +251,8 @@ class GeometryPublic(Wire):
 
 # ---------------------------------------------------------------- materials (DESIGN.md bodies)
 
-class Lambertian(Wire):
-    type: Literal["lambertian"]
-    reflectance: Fraction
-
-
-class Mirror(Wire):
-    type: Literal["mirror"]
-    reflectance: Fraction
-
-
-class Black(Wire):
-    type: Literal["black"]
-
-
-class Mix(Wire):
-    """Diffuse + specular mix: ``diffuse`` and ``specular`` reflectances, their sum at most 1."""
-
-    type: Literal["mix"]
-    diffuse: Fraction
-    specular: Fraction
-
-    @model_validator(mode="after")
-    def _energy(self) -> Mix:
-        if self.diffuse + self.specular > 1.0:
-            raise ValueError(f"diffuse + specular must be at most 1, got {self.diffuse + self.specular}")
-        return self
-
-
-class Dielectric(Wire):
-    """A solid: Fresnel surface, homogeneous medium inside (Henyey–Greenstein ``g``)."""
-
-    type: Literal["dielectric"]
-    ior: Annotated[float, Field(gt=0.0, le=10.0)]
-    absorption_per_m: NonNegative = 0.0
-    scattering_per_m: NonNegative = 0.0
-    g: Annotated[float, Field(gt=-1.0, lt=1.0)] = 0.0
-
-
-Material = Annotated[Lambertian | Mirror | Black | Mix | Dielectric, Field(discriminator="type")]
+# Material bodies are made from the tracer's typed specs, in one place: `service.optics`.
+Material = optics.Material
 
 
 class MaterialAssignment(Wire):

@@ -4,11 +4,10 @@
 requests:
 
 - one `Simulation` per scene, built from the scene's live snapshot on first use and reused while
-  nothing changes. It runs on a private copy of the snapshot's `tracer.Scene`, taken under the
-  service's scene lock: the forward estimator adds its receivers to the scene it traces for the
-  duration of a query, and the service mutates the live scene in place on the next push, so
-  sharing one object would let a push and a query corrupt each other. With the copy, a push never
-  waits for a query and a query never sees half a push. The sync service notifies every change
+  nothing changes. It is built under the service's scene lock and keeps the scene's committed
+  arrays (`tracer.Scene.arrays()`, which a later commit never changes: it publishes new ones), so
+  a query reads a fixed revision and changes nothing; nobody copies the scene: a push never waits
+  for a query and a query never sees half a push. The sync service notifies every change
   that alters what a query sees (a push, or an assignment, which keeps the revision number); the
   hub then bumps the scene's *generation* and drops what it holds for that scene. Results carry
   the revision they were computed at and the hub tells whether they are still current.
@@ -27,8 +26,6 @@ naming the missing part, never a made-up number.
 from __future__ import annotations
 
 import contextlib
-import copy
-import dataclasses
 import hashlib
 import json
 import threading
@@ -41,6 +38,7 @@ import numpy as np
 from service.errors import Invalid, NotFound, ServiceError, TooLarge
 from service.jobs import Budget, JobRunner
 from service.live import LiveRegistry, LiveScene
+from service.optics import to_spec
 
 #: Queries running at once in request threads (sync mode); more wait up to QUEUE_WAIT_SECONDS, then 503.
 MAX_CONCURRENT_QUERIES = 2
@@ -179,6 +177,7 @@ def result_payload(result: Any, revision: int) -> dict[str, Any]:
         "revision": int(revision),
         "estimator": str(result.estimator),
         "stop_reason": str(result.stop_reason),
+        "compile_seconds": float(getattr(result, "compile_seconds", 0.0)),
     }
 
 
@@ -234,10 +233,10 @@ class SimulationHub:
     @staticmethod
     def _build_default(live: LiveScene) -> Any:
         simulate = load_transport()
-        materials = {int(k): dict(v) for k, v in live.materials.items()}
         try:
+            materials = {int(k): to_spec(v) for k, v in live.materials.items()}
             return simulate.Simulation(live.tracer, materials, transport_lights(live),
-                                       default_material=dict(live.default_material))
+                                       default_material=to_spec(live.default_material))
         except ServiceError:
             raise
         except ValueError as exc:  # the transport refuses a body it cannot simulate, saying why
@@ -249,7 +248,7 @@ class SimulationHub:
         with self._lock:
             build_lock = self._scene_locks.setdefault(scene_id, threading.Lock())
         with build_lock:  # two first queries of one scene build it once
-            with self._scene_lock(scene_id):  # no push runs while we read and copy the snapshot
+            with self._scene_lock(scene_id):  # no push runs while we read the snapshot
                 generation = self.generation(scene_id)
                 live = self.live.get(scene_id)
                 key = (int(live.revision), generation, fingerprint(live))
@@ -257,12 +256,11 @@ class SimulationHub:
                     cached = self._cache.get(scene_id)
                 if cached is not None and cached.key == key:
                     return Prepared(cached.live, cached.simulation, generation)
-                private = dataclasses.replace(live, tracer=copy.deepcopy(live.tracer))
-            simulation = self._build(private)
+                simulation = self._build(live)
             with self._lock:
                 if self._generation.get(scene_id, 0) == generation:
-                    self._cache[scene_id] = _Cached(key, simulation, private)
-            return Prepared(private, simulation, generation)
+                    self._cache[scene_id] = _Cached(key, simulation, live)
+            return Prepared(live, simulation, generation)
 
     @staticmethod
     def check_query(prepared: Prepared, estimator: str, force_effects: tuple[str, ...]) -> None:

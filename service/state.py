@@ -869,26 +869,11 @@ def _validate_photometry(fmt: str, text: str) -> None:
 
 
 def scene_effects(live: LiveScene, uses_default: bool = True) -> list[str]:
-    """The scene's effect set, by the transport's rule (`tracer.effects.derive_effects`, mirrored here so a
-    summary needs no packed material table): Lambertian always; a mirror, or a mix with a specular part,
-    adds "specular"; a dielectric adds "fresnel", and "absorption"/"scattering" where its coefficients
-    are non-zero."""
-    try:
-        from tracer.effects import EFFECTS
-    except ImportError:  # pragma: no cover - the transport is part of the package
-        EFFECTS = ("lambertian", "specular", "fresnel", "absorption", "scattering")
-    effects = {"lambertian"}
-    for m in list(live.materials.values()) + ([live.default_material] if uses_default else []):
-        kind = m.get("type")
-        if kind == "mirror" or (kind == "mix" and m.get("specular", 0) > 0):
-            effects.add("specular")
-        elif kind == "dielectric":
-            effects.add("fresnel")
-            if m.get("absorption_per_m", 0) > 0:
-                effects.add("absorption")
-            if m.get("scattering_per_m", 0) > 0:
-                effects.add("scattering")
-    return [e for e in EFFECTS if e in effects] + sorted(effects - set(EFFECTS))
+    """The scene's effect set, by the transport's one rule (`tracer.effects.derive_effects`) over its
+    materials (and the default material where some instance uses it)."""
+    from tracer.effects import derive_effects
+
+    return derive_effects(list(live.materials.values()) + ([live.default_material] if uses_default else []))
 
 
 def validate_body(kind: str, body: Any) -> dict:

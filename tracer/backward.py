@@ -5,8 +5,8 @@ averaged over the patch is E = ∫ L(x, ω) cosθ dω, averaged over x. A path s
 x of the patch and
 
 - adds the direct illuminance at x from one light chosen in proportion to its flux (next-event
-  estimation: a shadow ray to a point source, or to a uniform point of an area emitter), divided
-  by the choice probability;
+  estimation: the light's `connect` gives one sample of its illuminance at x and the shadow ray to
+  the point it sampled, see `tracer.optics.lights.base`), divided by the choice probability;
 - leaves x in a cosine-distributed direction (pdf cosθ/π, so the estimator of E is π L: the π
   cancels against the Lambertian BRDF ρ/π of the next surface, leaving a path weight that is
   multiplied by ρ at each diffuse bounce);
@@ -18,9 +18,10 @@ so nothing is counted twice. Russian roulette after `RR_DEPTH` bounces survives 
 weight (≤ 1) as probability and divides by it: unbiased.
 
 Limits (why `Simulation` chooses the forward estimator for such scenes): point-like and collimated
-sources cannot be reached through mirrors or glass by a shadow ray, so only scenes whose surfaces
-are Lambertian or black and whose lights are point, spot, goniometric or area lights are traced
-backward.
+sources cannot be reached through mirrors or glass by a shadow ray, so only scenes whose surfaces are
+purely diffuse (each surface kind's `diffuse_only`; their albedo from `tracer.optics.surfaces.dispatch.albedo`)
+and whose lights can be connected to (each light kind's `CONNECTABLE`, sampled by `light_connect`) are
+traced backward.
 """
 
 from __future__ import annotations
@@ -31,15 +32,15 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
+from tracer.optics.frames import onb, sample_cosine
+from tracer.optics.lights import light_connect, pick_light
+from tracer.optics.surfaces.dispatch import albedo
 from tracer.rng import path_key, uniform
-from tracer.sources import AREA, P_I0, intensity_toward, pick_light, sample_area_point
 from tracer.spawn import offset_ray_origin
-from tracer.surfaces import LAMBERTIAN, onb, sample_cosine
 from tracer.traverse import any_with_stacks, closest_with_stacks, new_stacks
 
 RR_DEPTH = 3
 MAX_BOUNCES = 10_000
-SHADOW_SHORTEN = 1e-6  # a shadow ray toward an emitter point stops this fraction short of it
 
 COUNTERS = ("rejected", "truncated")
 
@@ -63,40 +64,19 @@ class QueryArrays(NamedTuple):
 def direct_illuminance(sa, L, x, y, z, nx, ny, nz, u0, u1, u2, u3, stack, tstack):
     """Estimate of the direct illuminance (lx) at point x on a surface with unit normal n, from one light.
 
-    x must already be off any surface (shadow rays start there).
+    x must already be off any surface (shadow rays start there). The light is picked in proportion to
+    its flux (u0) and asked for one sample of its illuminance at x (u1, u2, u3) and the shadow ray that
+    decides whether it arrives.
     """
     j, pj = pick_light(L, u0)
     if pj <= 0.0:
         return 0.0
-    k = L.kind[j]
-    if k == AREA:
-        lx, ly, lz, lnx, lny, lnz = sample_area_point(L, j, u1, u2, u3)
-        dx, dy, dz = lx - x, ly - y, lz - z
-        d2 = dx * dx + dy * dy + dz * dz
-        if not (d2 > 0.0):
-            return 0.0
-        dist = math.sqrt(d2)
-        cos_x = (dx * nx + dy * ny + dz * nz) / dist
-        cos_l = -(dx * lnx + dy * lny + dz * lnz) / dist
-        if cos_x <= 0.0 or cos_l <= 0.0:
-            return 0.0
-        if any_with_stacks(sa, x, y, z, dx, dy, dz, 1.0 - SHADOW_SHORTEN, stack, tstack):
-            return 0.0
-        return L.par[j, P_I0] / math.pi * cos_l * cos_x / d2 * L.a_area[j] / pj
-    dx, dy, dz = L.par[j, 0] - x, L.par[j, 1] - y, L.par[j, 2] - z
-    d2 = dx * dx + dy * dy + dz * dz
-    if not (d2 > 0.0):
+    e, sx, sy, sz, t_max = light_connect(L, j, x, y, z, nx, ny, nz, u1, u2, u3)
+    if e <= 0.0:
         return 0.0
-    dist = math.sqrt(d2)
-    cos_x = (dx * nx + dy * ny + dz * nz) / dist
-    if cos_x <= 0.0:
+    if any_with_stacks(sa, x, y, z, sx, sy, sz, t_max, stack, tstack):
         return 0.0
-    inten = intensity_toward(L, j, -dx / dist, -dy / dist, -dz / dist)
-    if inten <= 0.0:
-        return 0.0
-    if any_with_stacks(sa, x, y, z, dx, dy, dz, 1.0, stack, tstack):
-        return 0.0
-    return inten * cos_x / d2 / pj
+    return e / pj
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
@@ -122,9 +102,7 @@ def trace_path(sa, M, L, Q, q, key, counters, stack, tstack):
                                                                        tstack)
         if inst < 0:
             break
-        if M.kind[inst] != LAMBERTIAN:
-            break
-        w *= M.par[inst, 0]
+        w *= albedo(M, inst)   # only purely diffuse kinds reach here (Simulation.backward_applies)
         if w <= 0.0:
             break
         px, py, pz = x + t_hit * dx, y + t_hit * dy, z + t_hit * dz

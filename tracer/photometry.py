@@ -8,7 +8,7 @@ Conventions (type C photometry, as both formats define it):
   along +y.
 
 A light placed in a scene keeps this frame in world coordinates (γ = 0 along world −z, C = 0
-along world +x), see `tracer.sources`.
+along world +x), see `tracer.optics.lights.goniometric`.
 
 Whatever symmetry the file declares, `Photometry` holds the expanded table over C ∈ [0, 360]
 (first and last column equal) and γ ∈ [0, 180] (rows beyond the measured range are zero), in

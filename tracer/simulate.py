@@ -10,12 +10,13 @@ validated once. Its queries:
 
 Both estimators estimate exactly these patch averages, so they agree within their error bars:
 
-- ``"forward"`` (`tracer.transport`): photons from the sources, recorded by sensor instances added to
-  the scene for the query (`Scene.add_disk_sensor` / `add_rect_sensor`) and removed afterwards;
+- ``"forward"`` (`tracer.transport`): photons from the sources, recorded by the query's own receivers:
+  sensor instances (`Scene.add_disk_sensor` / `add_rect_sensor`) in a small scene of their own beside
+  the scene, which a query only reads (so queries on one scene may run at once, and nobody copies it);
 - ``"backward"`` (`tracer.backward`): paths from uniform points of each patch with next-event
-  estimation; only for scenes of Lambertian/black surfaces lit by point, spot, goniometric or area
-  lights. ``"auto"`` takes it for `illuminance` where it applies, and forward otherwise and for
-  grids; the result says which ran.
+  estimation; only where every surface is purely diffuse (its kind says so) and every light can be
+  reached by a shadow ray (its kind says so). ``"auto"`` takes it for `illuminance` where it applies,
+  and forward otherwise and for grids; the result says which ran.
 
 A query point may lie exactly on a surface (a receiver on the floor). The mesh is stored in float32,
 so the surface the rays meet may lie a little above or below the point given. `place_receivers`
@@ -53,11 +54,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from tracer.backward import QueryArrays, backward_batches, disk_queries
-from tracer.effects import EFFECTS, derive_effects, flags_for, with_forced
+from tracer.effects import EffectError, canonical, photon_state, with_forced
 from tracer.estimate import Estimate
-from tracer.sources import COLLIMATED_DISK, COLLIMATED_RECT, pack_lights
-from tracer.surfaces import NONE, MaterialArrays, pack_materials
-from tracer.transport import COUNTERS, SensorArrays, forward_batches
+from tracer.optics.lights import connectable, pack_lights
+from tracer.optics.surfaces.dispatch import backward_ok, effects_of, material_spec, pack_materials
+from tracer.scene import Scene
+from tracer.transport import COUNTERS, SensorArrays, forward_kernel
+from tracer.traverse import closest_each
 
 DEFAULT_RADIUS = 0.05          # m: disk receiver radius when the query gives none
 DEFAULT_MAX_SECONDS = 30.0     # s: budget of a query that states none
@@ -134,7 +137,7 @@ def probe_distance(p: np.ndarray) -> float:
     return 1e-6 + 2.0 ** -20 * float(np.max(np.abs(p)))
 
 
-def place_receivers(scene, points: np.ndarray, normals: np.ndarray, radius: float) -> np.ndarray:
+def place_receivers(sa, points: np.ndarray, normals: np.ndarray, radius: float) -> np.ndarray:
     """Receiver centres (k, 3): each point moved onto the surface it lies on (if any, within
     `probe_distance`) and then in front of it along its unit normal (see the module docstring).
 
@@ -142,31 +145,22 @@ def place_receivers(scene, points: np.ndarray, normals: np.ndarray, radius: floa
     than 1e-3 rad (float32 rounding of a facet the point lies on), 2 r sin(tilt), so that the whole
     disk of radius r stays in front of the facet the rays meet.
     """
+    k = len(points)
     h = np.array([probe_distance(p) for p in points])
-    origins = points + h[:, None] * normals
-    hits = scene.intersect(origins, -normals)
+    origins = np.ascontiguousarray(points + h[:, None] * normals)
+    hit_t, hit_inst, hit_normal = np.empty(k), np.empty(k, np.int64), np.empty((k, 3))
+    closest_each(sa, origins, np.ascontiguousarray(-normals), np.full(k, np.inf), hit_t, hit_inst, hit_normal)
     out = np.empty_like(points)
-    for i in range(len(points)):
+    for i in range(k):
         base = points[i]
         extra = 0.0
-        if hits.instance[i] >= 0 and hits.t[i] <= 2.0 * h[i]:
-            base = origins[i] - hits.t[i] * normals[i]
-            m = _facet_normal(scene, int(hits.instance[i]), int(hits.primitive[i]))
-            sin_tilt = float(np.linalg.norm(np.cross(m, normals[i])))
+        if hit_inst[i] >= 0 and hit_t[i] <= 2.0 * h[i]:
+            base = origins[i] - hit_t[i] * normals[i]
+            sin_tilt = float(np.linalg.norm(np.cross(hit_normal[i], normals[i])))
             if sin_tilt < 1e-3:
                 extra = 2.0 * radius * sin_tilt
         out[i] = base + (sensor_offset(base) + extra) * normals[i]
     return out
-
-
-def _facet_normal(scene, inst: int, prim: int) -> np.ndarray:
-    """Unit world normal of one triangle as the scene stores it (float32 vertices, instance transform)."""
-    v, t, _ = scene.geometry_arrays(scene.instance_geometry(inst))
-    m = np.asarray(scene.instance_transform(inst), np.float64)
-    p = np.asarray(v, np.float64)[np.asarray(t)[prim]] @ m[:3, :3].T
-    n = np.cross(p[1] - p[0], p[2] - p[0])
-    ln = float(np.linalg.norm(n))
-    return n / ln if ln > 0 else np.zeros(3)
 
 
 def _vectors(a, name: str, k: int | None = None) -> np.ndarray:
@@ -229,9 +223,9 @@ class Simulation:
         Committed. Queries add their receivers as sensor instances for their duration (under a
         lock: queries of one `Simulation` run one at a time on the scene).
     materials : {instance id: material body}
-        DESIGN.md material bodies (`tracer.surfaces`).
+        DESIGN.md material bodies, or their typed specs (`tracer.optics.surfaces`).
     lights : list of light bodies
-        World metres (`tracer.sources`); area lights carry ``"instances"``.
+        World metres (`tracer.optics.lights`); area lights carry ``"instances"``.
     default_material : material body, optional
         For instances not in `materials`; without it every non-sensor instance needs a material.
 
@@ -249,23 +243,23 @@ class Simulation:
         if not isinstance(materials, dict):
             raise SimulationError(f"materials must be a dict {{instance id: body}}, got {type(materials).__name__}")
         self.scene = scene
+        self._arrays = scene.arrays()   # the committed scene, read-only from here on
         ids = [int(i) for i in scene.instances()]
         self._sensor_ids = {i for i in ids if _is_sensor(scene, i)}
-        geometry_ids = [i for i in ids if i not in self._sensor_ids]
         mats = {}
         for key, body in materials.items():
             if isinstance(key, bool) or not isinstance(key, int | np.integer):
                 raise SimulationError(f"materials: keys must be instance ids (int), got {key!r}")
             if int(key) not in self._sensor_ids:   # a sensor has no surface: nothing to assign
-                mats[int(key)] = body
-        self._mats = pack_materials(mats, default_material, ids, self._sensor_ids)
+                mats[int(key)] = material_spec(body, f"material of instance {int(key)}")
+        default_spec = material_spec(default_material, "default_material") if default_material is not None else None
+        self._mats = pack_materials(mats, default_spec, ids, self._sensor_ids)
         self._lights = pack_lights(list(lights), scene, frozenset(self._sensor_ids))
-        used = np.zeros(len(self._mats.kind), bool)
-        used[geometry_ids] = True
-        self.effects: list[str] = derive_effects(self._mats, used)
-        self._has_collimated = bool(np.any((self._lights.kind == COLLIMATED_DISK)
-                                           | (self._lights.kind == COLLIMATED_RECT)))
-        self._lock = threading.Lock()
+        geometry_ids = [i for i in ids if i not in self._sensor_ids]
+        used = [mats.get(i, default_spec) for i in geometry_ids]
+        self._specs = [m for m in used if m is not None]
+        self.effects: list[str] = canonical(effects_of(self._specs))
+
 
     # ------------------------------------------------------------------------------------------ helpers
 
@@ -275,9 +269,10 @@ class Simulation:
         if set(effects) - {"lambertian"}:
             return False, (f"the scene needs {sorted(set(effects) - {'lambertian'})}: point-like sources cannot be "
                            f"reached through specular or refractive surfaces by shadow rays")
-        if self._has_collimated:
-            return False, "a collimated beam cannot be reached by shadow rays"
-        return True, ""
+        ok, why = backward_ok(self._specs)
+        if not ok:
+            return False, why
+        return connectable(self._lights)
 
     def _choose(self, estimator: str, effects: list[str], grid: bool) -> str:
         if estimator not in ESTIMATORS:
@@ -288,13 +283,6 @@ class Simulation:
         if estimator == "auto":
             return "backward" if (ok and not grid) else "forward"
         return estimator
-
-    def _materials_for(self, n_inst: int) -> MaterialArrays:
-        kind, par = self._mats.kind, self._mats.par
-        if n_inst > len(kind):
-            kind = np.concatenate([kind, np.full(n_inst - len(kind), NONE, np.int32)])
-            par = np.concatenate([par, np.zeros((n_inst - len(par), par.shape[1]))])
-        return MaterialArrays(kind, par)
 
     # ------------------------------------------------------------------------------------------ queries
 
@@ -329,7 +317,7 @@ class Simulation:
         if isinstance(r, bool) or not isinstance(r, int | float) or not (0 < r < math.inf):
             raise SimulationError(f"radius must be a positive finite number of metres, got {radius!r}")
         r = float(r)
-        centers = place_receivers(self.scene, pts, nrm, r)
+        centers = place_receivers(self._arrays, pts, nrm, r)
         return self._run(False, centers, nrm, r, None, target_relative_error, max_seconds, max_photons, seed,
                          estimator, force_effects, progress, cancel)
 
@@ -351,7 +339,7 @@ class Simulation:
         nrm = nrm / ln
         centre = o + 0.5 * (uu + vv)
         half_diagonal = 0.5 * float(np.linalg.norm(uu + vv))
-        o = o + (place_receivers(self.scene, centre[None, :], nrm[None, :], half_diagonal)[0] - centre) @ nrm * nrm
+        o = o + (place_receivers(self._arrays, centre[None, :], nrm[None, :], half_diagonal)[0] - centre) @ nrm * nrm
         res = self._run(True, o, nrm, 0.0, (uu, vv, int(nu), int(nv)), target_relative_error, max_seconds,
                         max_photons, seed, estimator, force_effects, progress, cancel)
         return GridResult(res.lux.reshape(int(nv), int(nu)), res.stderr.reshape(int(nv), int(nu)), res.photons,
@@ -367,23 +355,19 @@ class Simulation:
             raise SimulationError(f"seed must be an integer in [0, 2**63), got {seed!r}")
         if force_effects is None:
             force_effects = ()
-        if isinstance(force_effects, str):
-            force_effects = (force_effects,)
-        unknown = sorted(set(force_effects) - set(EFFECTS))
-        if unknown:
-            raise SimulationError(f"unknown effect(s) {unknown} in force_effects; known: {list(EFFECTS)}")
-        effects = with_forced(self.effects, tuple(force_effects))
+        try:
+            effects = with_forced(self.effects, force_effects)
+        except EffectError as exc:
+            raise SimulationError(f"{exc} (in force_effects)") from None
         which = self._choose(estimator, effects, is_grid)
-        flags = tuple(flags_for(effects))
         if which == "backward":
             effects = ["lambertian"]
         t0 = time.perf_counter()
-        with self._lock:
-            if which == "forward":
-                return self._forward(is_grid, centers, normals, radius, grid, budget, int(seed), flags, effects,
-                                     progress, cancel, t0)
-            return self._backward(is_grid, centers, normals, radius, grid, budget, int(seed), effects, progress,
-                                  cancel, t0)
+        if which == "forward":
+            return self._forward(is_grid, centers, normals, radius, grid, budget, int(seed), effects, progress,
+                                 cancel, t0)
+        return self._backward(is_grid, centers, normals, radius, grid, budget, int(seed), effects, progress,
+                              cancel, t0)
 
     def _loop(self, run_round, n_bins, per_batch, budget, progress, cancel, t0):
         """Rounds of batches until a stop rule holds; returns (Estimate, batches, stop_reason, counters)."""
@@ -412,50 +396,42 @@ class Simulation:
             if budget.max_seconds is not None and elapsed >= budget.max_seconds:
                 return est, batches, "max_seconds", counters
 
-    def _forward(self, is_grid, centers, normals, radius, grid, budget, seed, flags, effects, progress, cancel, t0):
-        scene = self.scene
-        added: list[int] = []
-        try:
-            if is_grid:
-                uu, vv, nu, nv = grid
-                added.append(scene.add_rect_sensor(centers, uu, vv))
-                n_bins = nu * nv
-                area = np.full(n_bins, float(np.linalg.norm(np.cross(uu, vv))) / (nu * nv))
-            else:
-                for c, n in zip(centers, normals, strict=True):
-                    added.append(scene.add_disk_sensor(c, n, radius))
-                n_bins = len(centers)
-                area = np.full(n_bins, math.pi * radius * radius)
-            scene.commit()
-            sa = scene.arrays()
-            n_inst = max(int(max(scene.instances())) + 1, len(self._mats.kind))
-            bin0 = np.full(n_inst, -1, np.int64)
-            snu = np.ones(n_inst, np.int64)
-            snv = np.ones(n_inst, np.int64)
-            if is_grid:
-                bin0[added[0]] = 0
-                snu[added[0]], snv[added[0]] = grid[2], grid[3]
-            else:
-                bin0[added] = np.arange(len(added))
-            sens = SensorArrays(bin0, snu, snv)
-            mats = self._materials_for(n_inst)
-            per_batch = FORWARD_BATCH
-            if budget.max_photons is not None:
-                per_batch = int(min(FORWARD_BATCH, max(1, budget.max_photons // (4 * ROUND_BATCHES))))
-            compile_s = self._warm(("forward",) + flags, lambda: _run_kernel(
-                forward_batches, sa, mats, self._lights, sens, n_bins, seed, 0, 1, 1, *flags))
+    def _forward(self, is_grid, centers, normals, radius, grid, budget, seed, effects, progress, cancel, t0):
+        receivers = Scene()
+        if is_grid:
+            uu, vv, nu, nv = grid
+            ids = [receivers.add_rect_sensor(centers, uu, vv)]
+            n_bins = nu * nv
+            area = np.full(n_bins, float(np.linalg.norm(np.cross(uu, vv))) / (nu * nv))
+        else:
+            ids = [receivers.add_disk_sensor(c, n, radius) for c, n in zip(centers, normals, strict=True)]
+            n_bins = len(centers)
+            area = np.full(n_bins, math.pi * radius * radius)
+        receivers.commit()
+        ra = receivers.arrays()
+        bin0 = np.full(max(ids) + 1, -1, np.int64)
+        snu = np.ones(len(bin0), np.int64)
+        snv = np.ones(len(bin0), np.int64)
+        if is_grid:
+            bin0[ids[0]] = 0
+            snu[ids[0]], snv[ids[0]] = grid[2], grid[3]
+        else:
+            bin0[ids] = np.arange(len(ids))
+        sens = SensorArrays(bin0, snu, snv)
+        per_batch = FORWARD_BATCH
+        if budget.max_photons is not None:
+            per_batch = int(min(FORWARD_BATCH, max(1, budget.max_photons // (4 * ROUND_BATCHES))))
+        state = photon_state(effects)
+        kernel = forward_kernel(state)
+        sa, mats, lights = self._arrays, self._mats, self._lights
+        compile_s = _warm(("forward", state), lambda: _run_kernel(kernel, sa, ra, mats, lights, sens, n_bins, seed,
+                                                                  0, 1, 1))
 
-            def run_round(b0, nb):
-                flux, cnt = _run_kernel(forward_batches, sa, mats, self._lights, sens, n_bins, seed, b0, nb,
-                                        per_batch, *flags)
-                return flux / area[None, :], cnt
+        def run_round(b0, nb):
+            flux, cnt = _run_kernel(kernel, sa, ra, mats, lights, sens, n_bins, seed, b0, nb, per_batch)
+            return flux / area[None, :], cnt
 
-            est, batches, stop, counters = self._loop(run_round, n_bins, per_batch, budget, progress, cancel, t0)
-        finally:
-            for i in added:
-                scene.remove_instance(i)
-            if added:
-                scene.commit()
+        est, batches, stop, counters = self._loop(run_round, n_bins, per_batch, budget, progress, cancel, t0)
         cdict = {name: int(c) for name, c in zip(COUNTERS, counters, strict=True)}
         return IlluminanceResult(est.mean, est.stderr, batches * per_batch, time.perf_counter() - t0, effects,
                                  "forward", stop, batches, cdict["rejected"], cdict, compile_s)
@@ -471,15 +447,13 @@ class Simulation:
         else:
             q = disk_queries(centers, normals, radius)
             k = len(centers)
-        sa = self.scene.arrays()
-        n_inst = max(int(max(self.scene.instances())) + 1, len(self._mats.kind))
-        mats = self._materials_for(n_inst)
+        sa, mats = self._arrays, self._mats
         paths = BACKWARD_BATCH
         per_batch = paths * k
         if budget.max_photons is not None:
             paths = int(min(BACKWARD_BATCH, max(1, budget.max_photons // (4 * ROUND_BATCHES * k))))
             per_batch = paths * k
-        compile_s = self._warm(("backward",), lambda: _run_kernel(backward_batches, sa, mats, self._lights, q, seed,
+        compile_s = _warm(("backward",), lambda: _run_kernel(backward_batches, sa, mats, self._lights, q, seed,
                                                                   0, 1, 1))
 
         def run_round(b0, nb):
@@ -490,28 +464,20 @@ class Simulation:
         return IlluminanceResult(est.mean, est.stderr, batches * per_batch, time.perf_counter() - t0, effects,
                                  "backward", stop, batches, cdict["rejected"], cdict, compile_s)
 
-    @staticmethod
-    def _warm(variant: tuple, call: Callable[[], object]) -> float:
-        """Compile (or load from cache) a kernel variant on a one-photon batch; seconds it took, once per process."""
-        if variant in _COMPILE_SECONDS:
-            return 0.0
-        t = time.perf_counter()
-        call()
-        _COMPILE_SECONDS[variant] = time.perf_counter() - t
-        return _COMPILE_SECONDS[variant]
+
+def _warm(variant: tuple, call: Callable[[], object]) -> float:
+    """Compile (or load from cache) a kernel variant on a one-photon batch; seconds it took, once per process."""
+    if variant in _COMPILE_SECONDS:
+        return 0.0
+    t = time.perf_counter()
+    call()
+    _COMPILE_SECONDS.setdefault(variant, time.perf_counter() - t)
+    return _COMPILE_SECONDS[variant]
 
 
 def compile_seconds() -> dict[str, float]:
-    """Seconds each kernel variant took to compile or load, this process: {"forward/specular,...": s}."""
-    out = {}
-    for variant, s in _COMPILE_SECONDS.items():
-        name = variant[0]
-        if len(variant) > 1:
-            on = [n for n, f in zip(("specular", "fresnel", "absorption", "scattering"), variant[1:], strict=True)
-                  if f is not None]
-            name += "/" + (",".join(on) if on else "lambertian")
-        out[name] = s
-    return out
+    """Seconds each kernel variant took to compile or load, this process: {"forward/white": s, "backward": s}."""
+    return {"/".join(variant): s for variant, s in _COMPILE_SECONDS.items()}
 
 
 def _is_sensor(scene, i: int) -> bool:

@@ -253,6 +253,20 @@ def any_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, stack, tstack):
 
 
 @njit(cache=True, error_model="numpy")
+def closest_each(sa, o, d, t_max, out_t, out_inst, out_normal):
+    """Closest hits of a few rays ``o[i] + t d[i]`` ((k, 3) arrays, t_max (k,)) one after the other, with
+    the one walk transport compiles anyway (:func:`closest_with_stacks`): for a query's own probes, which
+    need no batch kernel (`Scene.intersect` would compile one, at half a minute, for a handful of rays).
+    Fills out_t (k,) (inf on a miss), out_inst (k,) (-1 on a miss), out_normal (k, 3) unit geometric normal."""
+    stack, tstack = new_stacks()
+    for i in range(o.shape[0]):
+        t, inst, prim, u, v, nx, ny, nz = closest_with_stacks(sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1],
+                                                              d[i, 2], t_max[i], stack, tstack)
+        out_t[i], out_inst[i] = t, inst
+        out_normal[i, 0], out_normal[i, 1], out_normal[i, 2] = nx, ny, nz
+
+
+@njit(cache=True, error_model="numpy")
 def intersect_any(sa, ox, oy, oz, dx, dy, dz, t_max):
     """True when any solid instance is hit with ``0 < t < t_max`` (shadow rays; sensors ignored)."""
     stack, tstack = new_stacks()

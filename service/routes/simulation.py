@@ -93,10 +93,12 @@ class IlluminancePublic(BaseModel):
     stderr: list[float] = Field(description="Standard error of each value, lx.")
     photons: int
     seconds: float
-    effects: list[str] = Field(description="The effect set the kernel was compiled for.")
+    effects: list[str] = Field(description="The effect set of the scene (and of any forced effects).")
     revision: int = Field(description="Scene revision the answer describes.")
     estimator: str
     stop_reason: str = Field(description="Which rule stopped the run (target reached, photons, seconds, cancel).")
+    compile_seconds: float = Field(0.0, description="Seconds of `seconds` this answer spent compiling (or loading "
+                                              "from numba's cache) a kernel first used in this process, s.")
 
 
 class SensorPublic(BaseModel):
@@ -114,6 +116,7 @@ class SensorPublic(BaseModel):
     revision: int
     estimator: str
     stop_reason: str
+    compile_seconds: float = 0.0
     min_lux: float
     mean_lux: float
     max_lux: float

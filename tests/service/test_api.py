@@ -72,7 +72,7 @@ def test_geometry_upload_is_idempotent_and_served_back(client, meshes) -> None:
 
 
 def test_health_and_docs(client) -> None:
-    assert client.get("/health").json() == {"status": "ok"}
+    assert client.get("/health").json() == {"status": "ok", "kernels": {"state": "not warmed"}}
     assert client.get("/docs").status_code == 200
     paths = client.get("/openapi.json").json()["paths"]
     assert "/scenes/{scene_id}/document" in paths and "/geometries/{gid}" in paths
@@ -246,7 +246,7 @@ def test_attached_light_and_sensor_move_with_their_node(client, scene, meshes) -
     lamp = next(x for x in live.lights if x["id"] == gonio.json()["id"])
     np.testing.assert_allclose(lamp["c0"], [0, 1, 0], atol=1e-12)  # its C = 0 plane turned with the door
     np.testing.assert_allclose(lamp["direction"], [0, 0, -1], atol=1e-12)
-    from tracer.sources import pack_lights  # the transport accepts the resolved bodies as they are
+    from tracer.optics.lights import pack_lights  # the transport accepts the resolved bodies as they are
 
     pack_lights([{k: v for k, v in x.items() if k != "instances"} for x in live.lights if x["type"] != "area"],
                 live.tracer, frozenset())

@@ -244,10 +244,24 @@ def test_material_for_an_unknown_uuid(world, unchanged) -> None:
     ({"type": "chrome", "reflectance": 0.5}, "chrome"),
     ({"type": "lambertian", "reflectance": 0.5, "roughness": 0.1}, "roughness"),
     ({"reflectance": 0.5}, "type"),
+    ({"type": "dielectric", "ior": 1.5, "scattering_per_m": 1e10}, "scattering_per_m"),
+    ({"type": "diffuser", "transmittance": 0.8, "reflectance": 0.3}, "transmittance + reflectance"),
+    ({"type": "diffuser", "transmittance": True}, "transmittance"),
+    ({"type": "diffuser", "reflectance": 0.1}, "transmittance"),
 ])
 def test_impossible_materials(world, unchanged, material: dict, field: str) -> None:
     c, sid = world["client"], world["scene"]
     refused(c.put(f"/scenes/{sid}/materials/{uid(2)}", json=material), 422, field)
+
+
+def test_diffuser_is_a_material_of_the_api(world) -> None:
+    """A kind added to the tracer (one module) is in the API with no service change: schema and assignment."""
+    c, sid = world["client"], world["scene"]
+    body = {"type": "diffuser", "transmittance": 0.8, "reflectance": 0.1}
+    r = c.put(f"/scenes/{sid}/materials/{uid(2)}", json=body)
+    assert r.status_code == 200, r.text
+    assert r.json()["material"] == body
+    assert "diffuser" in c.get("/openapi.json").text
 
 
 @pytest.mark.parametrize("light, status, text", [

@@ -18,7 +18,7 @@ def test_any_edit_of_any_tracer_source_changes_the_cache_directory(tmp_path) -> 
     shutil.copytree(TRACER, copy, ignore=shutil.ignore_patterns("__pycache__"))
     before = tracer._numba_cache_dir(copy)
     assert before == tracer._numba_cache_dir(TRACER)  # the key is the content, not the location
-    sources = copy / "sources.py"  # a callee of the transport kernels, in another module than they are
+    sources = copy / "optics" / "lights" / "point.py"  # a callee of the transport kernels, in a nested package
     sources.write_text(sources.read_text() + "\n# an edit\n")
     assert tracer._numba_cache_dir(copy) != before
 

@@ -8,20 +8,15 @@ import math
 import numpy as np
 import pytest
 
-from tracer.effects import EffectError, derive_effects, flags_for, with_forced
+from tracer.effects import EffectError, derive_effects, photon_state, with_forced
 from tracer.estimate import Estimate
-from tracer.media import hg_phase, hg_sample_cos, hg_scatter, sample_free_flight, transmittance
+from tracer.optics.frames import sample_cosine
+from tracer.optics.lights import LightError, pack_lights, sample_emission, spot_solid_angle
+from tracer.optics.media.homogeneous import hg_phase, hg_sample_cos, hg_scatter, sample_free_flight, transmittance
+from tracer.optics.surfaces.base import MaterialError, reflect
+from tracer.optics.surfaces.dielectric import fresnel_dielectric, refract
+from tracer.optics.surfaces.dispatch import material_row, pack_materials
 from tracer.rng import uniforms
-from tracer.sources import LightError, pack_lights, sample_emission, spot_solid_angle
-from tracer.surfaces import (
-    MaterialError,
-    fresnel_dielectric,
-    material_row,
-    pack_materials,
-    reflect,
-    refract,
-    sample_cosine,
-)
 
 
 def test_fresnel_normal_incidence_and_symmetry():
@@ -145,8 +140,7 @@ def test_estimate_batch_means_and_merge():
 
 def test_effect_sets_follow_the_materials():
     def eff(*bodies):
-        m = pack_materials(dict(enumerate(bodies)), None, list(range(len(bodies))), set())
-        return derive_effects(m)
+        return derive_effects(bodies)
 
     assert eff({"type": "lambertian", "reflectance": 0.5}, {"type": "black"}) == ["lambertian"]
     assert eff({"type": "mirror", "reflectance": 0.9}) == ["lambertian", "specular"]
@@ -155,8 +149,8 @@ def test_effect_sets_follow_the_materials():
     assert eff({"type": "dielectric", "ior": 1.5, "absorption_per_m": 1.0, "scattering_per_m": 2.0}) == \
         ["lambertian", "fresnel", "absorption", "scattering"]
     assert with_forced(["lambertian"], ("scattering",)) == ["lambertian", "scattering"]
-    assert flags_for(["lambertian"]) == (None, None, None, None)
-    assert flags_for(["lambertian", "absorption"]) == (None, True, True, None)
+    assert eff({"type": "diffuser", "transmittance": 0.5}) == ["lambertian"]
+    assert photon_state(["lambertian", "fresnel", "absorption", "scattering"]) == "white"
     with pytest.raises(EffectError, match="unknown effect"):
         with_forced(["lambertian"], ("polarization",))
 

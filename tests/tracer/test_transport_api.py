@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from transport_scenes import box, point_source_e, quad, scene_of
 
+from tracer.optics.lights import LightError
+from tracer.optics.surfaces.base import MaterialError
 from tracer.simulate import GridResult, IlluminanceResult, Simulation, SimulationError
-from tracer.sources import LightError
-from tracer.surfaces import MaterialError
 
 LAMP = {"type": "point", "position": [1.5, 1.0, 2.2], "flux_lm": 3000.0}
 WALLS = {"type": "lambertian", "reflectance": 0.6}

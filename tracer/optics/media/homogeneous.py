@@ -1,14 +1,15 @@
-"""Homogeneous media: Beer–Lambert absorption and Henyey–Greenstein scattering.
+"""``homogeneous``: Beer–Lambert absorption and Henyey–Greenstein scattering, the same everywhere inside.
 
-A medium is the inside of a dielectric solid (`tracer.surfaces`): absorption coefficient σa and
-scattering coefficient σs in 1/m, asymmetry g ∈ (−1, 1); the space outside every solid is a
-vacuum of index 1. Absorption is applied as a continuous weight exp(−σa·t) (no sampling noise, stable
-for any optical depth: exp underflows to an exact 0); scattering distances are sampled from
-σs·exp(−σs·t). The single-scattering albedo is σs/(σa+σs).
+| field (on the dielectric) | type | unit | range | default |
+| --- | --- | --- | --- | --- |
+| absorption_per_m | float | 1/m | [0, 1e9] | 0 |
+| scattering_per_m | float | 1/m | [0, 1e9] | 0 |
+| g | float | — | (−1, 1) | 0 |
 
-The Henyey–Greenstein sampler inverts the CDF in a form that stays finite for g → ±1 and for
-|g| → 0 (switching to the isotropic case below |g| < 1e-4), and the phase function value is
-computed without cancellation at cosθ → ±1.
+Parameter row: (σa, σs, g, 0). The single-scattering albedo is σs/(σa+σs). The Henyey–Greenstein
+sampler inverts the CDF in a form that stays finite for g → ±1 and for |g| → 0 (switching to the
+isotropic case below |g| < 1e-4), and the phase function value is computed without cancellation at
+cosθ → ±1. Effects: `absorption` where σa > 0, `scattering` where σs > 0.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import math
 
 from numba import njit
 
-from tracer.surfaces import onb
+from tracer.optics.frames import onb
 
 _G_ISOTROPIC = 1e-4
 
@@ -70,3 +71,13 @@ def sample_free_flight(sigma, u):
     if sigma <= 0.0:
         return math.inf
     return -math.log1p(-u) / sigma
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def coefficients(M, mi):
+    return M.mpar[mi, 0], M.mpar[mi, 1]
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def scatter(M, mi, dx, dy, dz, u1, u2):
+    return hg_scatter(dx, dy, dz, M.mpar[mi, 2], u1, u2)

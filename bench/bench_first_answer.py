@@ -1,0 +1,135 @@
+"""Time to the first answer of a fresh install: `lumenlink serve` started with an empty numba cache, then, as a
+new user's script would, a room with a Lambertian wall, a mirror and a glass block is pushed over REST, one
+point light added, and a 100k-photon illuminance query asked. Measured from the moment the server process
+starts to the moment the lux arrive (issue 18's target: ≤ 30 s).
+
+Side by side in one run: the same with background compilation at start turned off (`--no-warm`: the first
+query compiles for itself, as before), and with the numba cache warm (what every later start costs). Ratios
+against the warm start say what compiling costs. The service runs as a real uvicorn process.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+import time
+import uuid as uuidlib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+IDENT = [1.0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]
+
+
+def _box(lo, hi):
+    (x0, y0, z0), (x1, y1, z1) = lo, hi
+    v = np.array([[x0, y0, z0], [x1, y0, z0], [x1, y1, z0], [x0, y1, z0],
+                  [x0, y0, z1], [x1, y0, z1], [x1, y1, z1], [x0, y1, z1]], float)
+    t = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
+                  [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]])
+    return v, t
+
+
+def _glb(v: np.ndarray, t: np.ndarray) -> tuple[str, bytes]:
+    import trimesh
+
+    from tracer.geometry_id import geometry_id
+
+    return geometry_id(v, t), trimesh.Trimesh(v, t, process=False).export(file_type="glb")
+
+
+PARTS = {"room": (_box((0, 0, 0), (4, 4, 3)), {"type": "lambertian", "reflectance": 0.5}),
+         "mirror": (_box((3.9, 1, 0.5), (3.95, 3, 2.5)), {"type": "mirror", "reflectance": 0.9}),
+         "glass": (_box((1, 1, 0.5), (2, 2, 1)), {"type": "dielectric", "ior": 1.5})}
+
+
+def _user(base: str, t_start: float) -> dict[str, Any]:
+    """A new user's first session; seconds since the server process started at each step."""
+    import httpx
+
+    marks: dict[str, float] = {}
+    with httpx.Client(base_url=base, timeout=600) as c:
+        marks["health"] = time.perf_counter() - t_start
+        sid = c.post("/scenes", json={"name": "first"}).json()["id"]
+        root = str(uuidlib.uuid4())
+        nodes = [{"uuid": root, "parent": None, "name": "room", "transform": IDENT, "geometry": None}]
+        ids = {}
+        for name, ((v, t), _) in PARTS.items():
+            gid, data = _glb(v, t)
+            c.put(f"/geometries/{gid}", content=data, headers={"content-type": "model/gltf-binary"}).raise_for_status()
+            ids[name] = str(uuidlib.uuid4())
+            nodes.append({"uuid": ids[name], "parent": root, "name": name, "transform": IDENT, "geometry": gid})
+        c.put(f"/scenes/{sid}/document", json={"base_revision": 0, "length_unit": "m", "nodes": nodes}
+              ).raise_for_status()
+        marks["pushed"] = time.perf_counter() - t_start
+        for name, (_, material) in PARTS.items():
+            c.put(f"/scenes/{sid}/materials/{ids[name]}", json=material).raise_for_status()
+        c.post(f"/scenes/{sid}/lights", json={"type": "point", "position": [2, 2, 2.5], "intensity_cd": 1000}
+               ).raise_for_status()
+        r = c.post(f"/scenes/{sid}/illuminance", json={"points": [[2.5, 2.5, 0.0], [3.0, 1.5, 0.0]],
+                                                        "normals": [[0, 0, 1], [0, 0, 1]], "max_photons": 100_000})
+        r.raise_for_status()
+        marks["answered"] = time.perf_counter() - t_start
+        answer = r.json()
+    return {"seconds": marks, "compile_seconds": answer.get("compile_seconds"), "lux": answer["lux"],
+            "effects": answer["effects"], "estimator": answer["estimator"]}
+
+
+def _session(cache: Path, warm: bool) -> dict[str, Any]:
+    """Start a server on a fresh data dir with numba cache `cache`, run the user's session, stop the server."""
+    import httpx
+
+    from tests.service_process import free_port
+
+    with tempfile.TemporaryDirectory() as data:
+        port = free_port()
+        env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), PYTHONPATH=str(ROOT))
+        args = [sys.executable, "-m", "lumenlink.cli", "serve", "--port", str(port), "--data-dir", data]
+        if not warm:
+            args.append("--no-warm")
+        t_start = time.perf_counter()
+        proc = subprocess.Popen(args, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            base = f"http://127.0.0.1:{port}"
+            while True:
+                try:
+                    if httpx.get(f"{base}/health", timeout=1).status_code == 200:
+                        break
+                except httpx.HTTPError:
+                    time.sleep(0.05)
+            out = _user(base, t_start)
+            out["kernels"] = httpx.get(f"{base}/health").json()["kernels"]
+        finally:
+            proc.terminate()
+            proc.wait(timeout=30)
+    return out
+
+
+def run(quick: bool = False) -> dict[str, Any]:
+    sessions: dict[str, Any] = {}
+    with tempfile.TemporaryDirectory() as cold_a, tempfile.TemporaryDirectory() as cold_b:
+        sessions["cold, warm-up at start"] = _session(Path(cold_a), warm=True)
+        sessions["warm cache"] = _session(Path(cold_a), warm=True)
+        if not quick:
+            sessions["cold, no warm-up"] = _session(Path(cold_b), warm=False)
+    warm = sessions["warm cache"]["seconds"]["answered"]
+    rows = ["| start | health s | pushed s | first lux s | of which compiling s | vs warm cache |",
+            "| --- | ---: | ---: | ---: | ---: | ---: |"]
+    for name, s in sessions.items():
+        m = s["seconds"]
+        rows.append(f"| {name} | {m['health']:.1f} | {m['pushed']:.1f} | **{m['answered']:.1f}** | "
+                    f"{s['compile_seconds']:.1f} | ×{m['answered'] / warm:.1f} |")
+    markdown = ("From `lumenlink serve` started (fresh data dir; numba cache empty for the cold rows) to the first "
+                "lux of a room with a Lambertian wall, a mirror and a glass block, one point light, 100k photons, "
+                "through the real REST API. Target: first lux ≤ 30 s on a fresh install.\n\n" + "\n".join(rows))
+    return {"sessions": sessions, "markdown": markdown}
+
+
+if __name__ == "__main__":
+    import json
+
+    print(json.dumps(run(quick="--quick" in sys.argv), indent=1))

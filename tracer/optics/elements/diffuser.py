@@ -1,0 +1,69 @@
+"""``diffuser``: a thin sheet that transmits and reflects diffusely (opal glass, a diffusing film).
+
+| field | type | unit | range | default |
+| --- | --- | --- | --- | --- |
+| transmittance | float | fraction | [0, 1] | required |
+| reflectance | float | fraction | [0, 1] | 0 |
+
+transmittance + reflectance ≤ 1; the rest, A = 1 − T − R, is absorbed. A photon arriving on either side
+is transmitted with probability T into a cosine-distributed direction on the far side (so the
+transmitted radiance is Lambertian, whatever the incidence), reflected with probability R into a
+cosine-distributed direction on its own side, and absorbed otherwise. Both sides behave alike.
+Effects: `lambertian`. Backward estimator: no (it would have to follow transmission).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+
+from tracer.optics.frames import sample_cosine
+from tracer.optics.surfaces.base import ABSORBED, CONTINUES, arrival_normal, bounds
+from tracer.rng import uniform
+
+NAME = "diffuser"
+
+
+@dataclass(frozen=True)
+class Spec:
+    """Diffuse transmittance T and diffuse reflectance R; T + R at most 1."""
+
+    transmittance: float = field(metadata=bounds(0.0, 1.0, doc="diffuse transmittance T, fraction"))
+    reflectance: float = field(default=0.0, metadata=bounds(0.0, 1.0, doc="diffuse reflectance R, fraction"))
+
+    def check(self) -> str | None:
+        if self.transmittance + self.reflectance > 1.0 + 1e-12:
+            return f"transmittance + reflectance must be at most 1, got {self.transmittance + self.reflectance:g}"
+        return None
+
+
+def row(spec: Spec) -> np.ndarray:
+    return np.array([spec.transmittance, spec.reflectance, 0.0, 0.0])
+
+
+def effects(spec: Spec) -> tuple[str, ...]:
+    return ("lambertian",)
+
+
+def diffuse_only(spec: Spec) -> bool:
+    return False
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def albedo(M, inst):
+    return 0.0
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim):
+    u = uniform(key, dim)
+    t, r = M.par[inst, 0], M.par[inst, 1]
+    fx, fy, fz = arrival_normal(ngx, ngy, ngz, dx, dy, dz)
+    if u < t:
+        fx, fy, fz = -fx, -fy, -fz      # leave on the far side
+    elif u >= t + r:
+        return ABSORBED, dx, dy, dz, 0.0, depth, dim + 1
+    dx, dy, dz = sample_cosine(fx, fy, fz, uniform(key, dim + 1), uniform(key, dim + 2))
+    return CONTINUES, dx, dy, dz, 1.0, depth, dim + 3

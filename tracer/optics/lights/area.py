@@ -1,0 +1,150 @@
+"""Area light: Lambertian emission from the front side of every triangle of some instances.
+
+The front side is the geometric normal's (e1 × e2 in world space; a mirrored instance keeps its
+outward side). Radiance M/π, Φ = M × area. `node` is the service's; the transport reads `instances`.
+
+==============  ==================  =====  ====================================
+Field           Type                Unit   Default
+==============  ==================  =====  ====================================
+instances       non-empty int list  —      required (instance ids, not sensors)
+exitance_lm_m2  float ≥ 0           lm/m²  required
+node            any                 —      ignored
+==============  ==================  =====  ====================================
+
+Parameter row: P_I0 exitance M (lm/m²), P_FLUX flux (lm). Tables: tri, tri_n, tri_cdf, found through
+a_off; a_area the total area (m²) (see `LightArrays`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from tracer.optics.frames import onb
+from tracer.optics.lights.base import P_FLUX, P_I0, SHADOW_SHORTEN, LightError, Packing, _find, _num, check_fields
+
+NAME = "area"
+FIELDS = frozenset({"instances", "exitance_lm_m2", "node"})
+EFFECTS = ()
+CONNECTABLE = True
+
+
+@dataclass(frozen=True)
+class Spec:
+    """exitance_lm_m2 (lm/m²); instances: the ids as given (checked against the scene by `pack`)."""
+
+    exitance_lm_m2: float
+    instances: tuple
+
+    @classmethod
+    def from_body(cls, body: dict, where: str) -> Spec:
+        check_fields(body, where, NAME, FIELDS)
+        m_exit = _num(body, "exitance_lm_m2", where)
+        ids = body.get("instances")
+        if not isinstance(ids, list | tuple) or not ids:
+            raise LightError(f"{where}: an area light needs 'instances', a non-empty list of instance ids")
+        return cls(m_exit, tuple(ids))
+
+
+def pack(spec: Spec, j: int, out: Packing, where: str) -> float:
+    """Fill row j and append the light's triangles (world space, from `out.scene`); returns Φ (lm)."""
+    scene = out.scene
+    if scene is None:
+        raise LightError(f"{where}: an area light needs the scene to read its triangles")
+    known = set(scene.instances())
+    world = []
+    for i in spec.instances:
+        if isinstance(i, bool) or not isinstance(i, int | np.integer) or int(i) not in known:
+            raise LightError(f"{where}: instance {i!r} is not in the scene")
+        if int(i) in out.sensor_ids:
+            raise LightError(f"{where}: instance {i} is a sensor and cannot emit")
+        world.append(_world_triangles(scene, int(i)))
+    tri = np.concatenate(world)
+    e1, e2 = tri[:, 3:6], tri[:, 6:9]
+    cr = np.cross(e1, e2)
+    area2 = np.linalg.norm(cr, axis=1)
+    keep = area2 > 0
+    tri, cr, area2 = tri[keep], cr[keep], area2[keep]
+    sign = np.concatenate([np.full(len(w), 1.0) for w in world])[keep]
+    if len(tri) == 0:
+        raise LightError(f"{where}: the instances have no triangle of non-zero area")
+    area = 0.5 * area2
+    normals = cr / area2[:, None] * sign[:, None]
+    a_total = float(area.sum())
+    row = out.par[j]
+    row[P_I0] = spec.exitance_lm_m2
+    row[P_FLUX] = spec.exitance_lm_m2 * a_total
+    out.a_off[j] = out.used("tri"), len(tri)
+    out.a_area[j] = a_total
+    cdf = np.cumsum(area)
+    out.parts["tri"].append(tri)
+    out.parts["tri_n"].append(normals)
+    out.parts["tri_cdf"].append(cdf / cdf[-1])
+    return row[P_FLUX]
+
+
+def _world_triangles(scene, inst: int) -> np.ndarray:
+    """(m, 9) world-space triangles (v0, e1, e2) of one instance; edges of a mirrored instance are
+    swapped so that e1 × e2 keeps pointing to the instance's outward side."""
+    gid = scene.instance_geometry(inst)
+    arrays = scene.geometry_arrays(gid)
+    v, tri = np.asarray(arrays[0], np.float64), np.asarray(arrays[1], np.int64)
+    m = np.asarray(scene.instance_transform(inst), np.float64)
+    w = v @ m[:3, :3].T + m[:3, 3]
+    p0, p1, p2 = w[tri[:, 0]], w[tri[:, 1]], w[tri[:, 2]]
+    if np.linalg.det(m[:3, :3]) < 0:
+        p1, p2 = p2, p1
+    return np.concatenate([p0, p1 - p0, p2 - p0], axis=1)
+
+
+@njit(cache=True, _nrt=False)
+def sample_point(L, j, u0, u1, u2):
+    """A point on area light j, uniform over its area: (x, y, z, nx, ny, nz) with the front normal."""
+    first, count = L.a_off[j, 0], L.a_off[j, 1]
+    k = first + _find(L.tri_cdf, first, count, u0)
+    su = math.sqrt(u1)
+    b1 = 1.0 - su
+    b2 = u2 * su
+    t = L.tri[k]
+    x = t[0] + b1 * t[3] + b2 * t[6]
+    y = t[1] + b1 * t[4] + b2 * t[7]
+    z = t[2] + b1 * t[5] + b2 * t[8]
+    return x, y, z, L.tri_n[k, 0], L.tri_n[k, 1], L.tri_n[k, 2]
+
+
+@njit(cache=True, _nrt=False)
+def sample(L, j, u0, u1, u2, u3, u4):
+    """A uniform point (u0, u1, u2), a cosine-distributed direction about its normal (u3, u4); f = 1, on a
+    surface (see base)."""
+    x, y, z, nx, ny, nz = sample_point(L, j, u0, u1, u2)
+    r = math.sqrt(u3)
+    phi = 2.0 * math.pi * u4
+    a, b = r * math.cos(phi), r * math.sin(phi)
+    c = math.sqrt(max(0.0, 1.0 - u3))
+    t, bb = onb(nx, ny, nz)
+    dx = a * t[0] + b * bb[0] + c * nx
+    dy = a * t[1] + b * bb[1] + c * ny
+    dz = a * t[2] + b * bb[2] + c * nz
+    inv = 1.0 / math.sqrt(dx * dx + dy * dy + dz * dz)
+    return x, y, z, dx * inv, dy * inv, dz * inv, 1.0, True, nx, ny, nz
+
+
+@njit(cache=True, _nrt=False)
+def connect(L, j, x, y, z, nx, ny, nz, u1, u2, u3):
+    """One uniform point y of the emitter (u1, u2, u3): E = M/π cosθy cosθx / d² × A at x (lx); the shadow
+    ray stops `SHADOW_SHORTEN` short of y (see base)."""
+    lx, ly, lz, lnx, lny, lnz = sample_point(L, j, u1, u2, u3)
+    dx, dy, dz = lx - x, ly - y, lz - z
+    t_max = 1.0 - SHADOW_SHORTEN
+    d2 = dx * dx + dy * dy + dz * dz
+    if not (d2 > 0.0):
+        return 0.0, dx, dy, dz, t_max
+    dist = math.sqrt(d2)
+    cos_x = (dx * nx + dy * ny + dz * nz) / dist
+    cos_l = -(dx * lnx + dy * lny + dz * lnz) / dist
+    if cos_x <= 0.0 or cos_l <= 0.0:
+        return 0.0, dx, dy, dz, t_max
+    return L.par[j, P_I0] / math.pi * cos_l * cos_x / d2 * L.a_area[j], dx, dy, dz, t_max

@@ -1,0 +1,140 @@
+"""Spot light: a point emitting into a cone about its axis.
+
+I(θ) = I0 for θ ≤ cone − falloff and a smoothstep in cosθ down to 0 at θ = cone (θ from the axis);
+Φ = 2π I0 [(1 − cos θi) + (cos θi − cos θo)/2] with θo = cone, θi = cone − falloff.
+
+============  ==============  =====  =========================================
+Field         Type            Unit   Default
+============  ==============  =====  =========================================
+position      3 floats        m      required
+direction     3 floats ≠ 0    —      required (the axis; normalised)
+cone_deg      float (0, 180]  °      required (half-angle where I reaches 0)
+falloff_deg   float [0, cone] °      0
+intensity_cd  float ≥ 0       cd     exactly one of intensity_cd and flux_lm
+flux_lm       float ≥ 0       lm     exactly one of intensity_cd and flux_lm
+============  ==============  =====  =========================================
+
+Parameter row: P_POS position, P_AXIS unit axis, P_T, P_B a frame about it, P_COS_OUT cos θo,
+P_COS_IN cos θi, P_I0 I0 (cd), P_FLUX flux (lm), P_SOLID ∫ I/I0 dΩ (sr).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from tracer.optics.frames import onb
+from tracer.optics.lights.base import (
+    P_AXIS,
+    P_B,
+    P_COS_IN,
+    P_COS_OUT,
+    P_FLUX,
+    P_I0,
+    P_POS,
+    P_SOLID,
+    P_T,
+    LightError,
+    Packing,
+    _intensity_and_flux,
+    _num,
+    _vec,
+    check_fields,
+    toward_point,
+)
+
+NAME = "spot"
+FIELDS = frozenset({"position", "direction", "cone_deg", "falloff_deg", "intensity_cd", "flux_lm"})
+EFFECTS = ()
+CONNECTABLE = True
+
+
+def spot_solid_angle(cos_out: float, cos_in: float) -> float:
+    """∫ f dΩ of the spot profile (1 inside, smoothstep in cosθ across the falloff), sr."""
+    return 2.0 * math.pi * ((1.0 - cos_in) + 0.5 * (cos_in - cos_out))
+
+
+@dataclass(frozen=True)
+class Spec:
+    """position (3,) m; unit axis (3,); cos_out = cos θo, cos_in = cos θi; intensity_cd (cd), flux_lm (lm)."""
+
+    position: np.ndarray
+    axis: np.ndarray
+    cos_out: float
+    cos_in: float
+    intensity_cd: float
+    flux_lm: float
+
+    @classmethod
+    def from_body(cls, body: dict, where: str) -> Spec:
+        check_fields(body, where, NAME, FIELDS)
+        position = _vec(body, "position", where)
+        axis = _vec(body, "direction", where, unit=True)
+        cone = _num(body, "cone_deg", where, 0.0, 180.0, lo_open=True)
+        fall = _num(body, "falloff_deg", where, 0.0, 180.0, default=0.0)
+        if fall > cone:
+            raise LightError(f"{where}: 'falloff_deg' ({fall:g}) must not exceed 'cone_deg' ({cone:g})")
+        cos_out, cos_in = math.cos(math.radians(cone)), math.cos(math.radians(cone - fall))
+        i0, flux = _intensity_and_flux(body, where, spot_solid_angle(cos_out, cos_in))
+        return cls(position, axis, cos_out, cos_in, i0, flux)
+
+
+def pack(spec: Spec, j: int, out: Packing, where: str) -> float:
+    """Fill row j; returns Φ (lm)."""
+    row = out.par[j]
+    a = spec.axis
+    row[P_POS:P_POS + 3] = spec.position
+    row[P_AXIS:P_AXIS + 3] = a
+    row[P_COS_OUT], row[P_COS_IN] = spec.cos_out, spec.cos_in
+    row[P_SOLID] = spot_solid_angle(spec.cos_out, spec.cos_in)
+    row[P_I0], row[P_FLUX] = spec.intensity_cd, spec.flux_lm
+    row[P_T:P_T + 3], row[P_B:P_B + 3] = onb(a[0], a[1], a[2])
+    return spec.flux_lm
+
+
+@njit(cache=True, _nrt=False)
+def profile(L, j, dx, dy, dz):
+    """Relative intensity I/I0 in [0, 1] of spot light j toward unit direction d."""
+    p = L.par[j]
+    c = dx * p[P_AXIS] + dy * p[P_AXIS + 1] + dz * p[P_AXIS + 2]
+    co, ci = p[P_COS_OUT], p[P_COS_IN]
+    if c >= ci:
+        return 1.0
+    if c <= co:
+        return 0.0
+    x = (c - co) / (ci - co)
+    return x * x * (3.0 - 2.0 * x)
+
+
+@njit(cache=True, _nrt=False)
+def sample(L, j, u0, u1, u2, u3, u4):
+    """A direction uniform in the cone θ ≤ θo; f = I/I0 × 2π(1 − cos θo) / P_SOLID (see base)."""
+    p = L.par[j]
+    co = p[P_COS_OUT]
+    c = 1.0 - u0 * (1.0 - co)
+    s = math.sqrt(max(0.0, 1.0 - c * c))
+    phi = 2.0 * math.pi * u1
+    x, y = s * math.cos(phi), s * math.sin(phi)
+    dx = x * p[P_T] + y * p[P_B] + c * p[P_AXIS]
+    dy = x * p[P_T + 1] + y * p[P_B + 1] + c * p[P_AXIS + 1]
+    dz = x * p[P_T + 2] + y * p[P_B + 2] + c * p[P_AXIS + 2]
+    inv = 1.0 / math.sqrt(dx * dx + dy * dy + dz * dz)
+    dx, dy, dz = dx * inv, dy * inv, dz * inv
+    f = profile(L, j, dx, dy, dz) * 2.0 * math.pi * (1.0 - co) / p[P_SOLID]
+    return p[0], p[1], p[2], dx, dy, dz, f, False, 0.0, 0.0, 0.0
+
+
+@njit(cache=True, _nrt=False)
+def connect(L, j, x, y, z, nx, ny, nz, u1, u2, u3):
+    """E = I(θ) cosθx / d² at x (lx), 0 outside the cone; a shadow ray to the position (see base)."""
+    p = L.par[j]
+    dx, dy, dz, d2, dist, cos_x = toward_point(p, x, y, z, nx, ny, nz)
+    if cos_x <= 0.0:
+        return 0.0, dx, dy, dz, 1.0
+    inten = p[P_I0] * profile(L, j, -dx / dist, -dy / dist, -dz / dist)
+    if inten <= 0.0:
+        return 0.0, dx, dy, dz, 1.0
+    return inten * cos_x / d2, dx, dy, dz, 1.0

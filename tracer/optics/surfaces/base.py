@@ -1,0 +1,157 @@
+"""The surface contract: what a surface kind does to a photon that reaches it.
+
+A surface kind is one module in this folder (or in `tracer/optics/elements/`, for thin sheets). It holds:
+
+- ``NAME``: the wire `type` (``{"type": NAME, ...}``, DESIGN.md).
+- ``Spec``: a frozen dataclass, the kind's typed spec. Its fields are the body's fields; each float field
+  carries its range in ``field(metadata=bounds(lo, hi, ...))``, and a parameter table (name, unit,
+  range, default) stands in the module docstring. ``Spec.check()`` may add rules across fields.
+  `spec_from_body` below builds and validates one from a wire body, for every kind alike.
+- ``row(spec) -> (N_PAR,) float64``: the parameter row the kernels read; ``medium(spec)`` (optional):
+  ``(medium kind, (N_MPAR,) row)`` of the solid's inside (`tracer/optics/media/`), ``NO_MEDIUM`` if none.
+- ``effects(spec) -> tuple[str, ...]``: the effects it calls for (`tracer.effects.EFFECTS`).
+- ``diffuse_only(spec) -> bool``: whether the backward estimator can follow it (it reflects only
+  diffusely, with albedo ``albedo(M, inst)``; a black surface is diffuse with albedo 0).
+- the jitted ``scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim)``
+  returning ``(status, dx, dy, dz, f, depth, dim)``:
+
+  * ``status``: `CONTINUES` (the photon leaves along the new unit direction d), `ABSORBED`, or
+    `STACK_FULL` (it would enter more nested solids than ``med`` holds: the caller counts and drops it);
+  * ``f``: the factor its weight (lm) is multiplied by (1 for the analog kinds here, which choose
+    reflection with probability ρ instead of scaling the weight);
+  * ``med[0:depth]``: instance ids of the solids the photon is inside, innermost last; a kind that
+    refracts into or out of a solid pushes or pops it and returns the new ``depth``;
+  * ``key``, ``dim``: the photon's random stream (`tracer.rng.uniform(key, dim)`); a kind returns ``dim``
+    advanced past the numbers it drew.
+
+  The arguments: ``sa`` the scene arrays (`tracer.traverse.SceneArrays`), ``M`` the `MaterialArrays`,
+  ``inst, prim, hu, hv`` the hit, ``d`` the unit direction of arrival, ``ng`` the hit's unit geometric
+  normal (outward for a solid) in world space.
+
+Reflectances are fractions in [0, 1], lengths in m, coefficients in 1/m. Lambertian and specular
+surfaces are two-sided: they reflect on whichever side the light arrives.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from tracer.traverse import shading_normal
+
+N_PAR = 4           # parameter row of a surface
+N_MPAR = 4          # parameter row of the medium inside a solid
+NONE = -1           # no material: a sensor instance or an id the scene does not hold
+NO_MEDIUM = -1      # the inside of a solid that neither absorbs nor scatters (or no solid at all)
+ABSORBED, CONTINUES, STACK_FULL = 0, 1, 2
+
+
+class MaterialError(ValueError):
+    """A material body the transport cannot use; the message names the field."""
+
+
+class MaterialArrays(NamedTuple):
+    """Per-instance material table for the kernels.
+
+    kind : (n_inst,) int32 — surface kind of each instance id (`NONE` for sensors and unused ids).
+    par : (n_inst, N_PAR) float64 — the kind's parameter row.
+    medium : (n_inst,) int32 — medium kind inside the instance's solid (`NO_MEDIUM` if none).
+    mpar : (n_inst, N_MPAR) float64 — the medium's parameter row.
+    """
+
+    kind: np.ndarray
+    par: np.ndarray
+    medium: np.ndarray
+    mpar: np.ndarray
+
+
+# ------------------------------------------------------------------------------------------ specs
+
+
+def bounds(lo: float, hi: float, lo_open: bool = False, hi_open: bool = False, doc: str = "") -> dict:
+    """Field metadata: the closed (or open) interval a number must lie in, and what it means."""
+    return {"lo": lo, "hi": hi, "lo_open": lo_open, "hi_open": hi_open, "doc": doc}
+
+
+def spec_fields(spec_cls) -> list[dataclasses.Field]:
+    """The body fields of a spec class (its dataclass fields), in declaration order."""
+    return list(dataclasses.fields(spec_cls))
+
+
+def _number(v, name: str, meta: Mapping, where: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+        raise MaterialError(f"{where}: {name!r} must be a finite number, got {v!r}")
+    v = float(v)
+    lo, hi, lo_open, hi_open = meta["lo"], meta["hi"], meta["lo_open"], meta["hi_open"]
+    if v < lo or v > hi or (lo_open and v == lo) or (hi_open and v == hi):
+        raise MaterialError(f"{where}: {name!r} must be in {'(' if lo_open else '['}{lo:g}, {hi:g}"
+                            f"{')' if hi_open else ']'}, got {v:g}")
+    return v
+
+
+def spec_from_body(spec_cls, name: str, body: dict, where: str):
+    """Validate a wire body against a kind's spec class and build the spec.
+
+    Unknown fields, missing required fields and numbers out of their `bounds` raise `MaterialError`
+    naming the field; ``id`` and ``name`` are allowed and ignored (the service keeps them).
+    """
+    fields = spec_fields(spec_cls)
+    known = {f.name for f in fields}
+    extra = set(body) - known - {"type", "id", "name"}
+    if extra:
+        raise MaterialError(f"{where}: unknown field(s) {sorted(extra)} for a {name!r} material")
+    required = {f.name for f in fields if f.default is dataclasses.MISSING}
+    missing = required - set(body)
+    if missing:
+        raise MaterialError(f"{where}: missing field(s) {sorted(missing)} for a {name!r} material")
+    values = {f.name: _number(body[f.name], f.name, f.metadata, where) for f in fields if f.name in body}
+    spec = spec_cls(**values)
+    problem = spec.check() if hasattr(spec, "check") else None
+    if problem:
+        raise MaterialError(f"{where}: {problem}")
+    return spec
+
+
+# ----------------------------------------------------------------------------------------- kernels
+
+
+@njit(cache=True)
+def reflect(dx, dy, dz, nx, ny, nz):
+    """Mirror direction of d about the plane with unit normal n (either orientation)."""
+    c = 2.0 * (dx * nx + dy * ny + dz * nz)
+    return dx - c * nx, dy - c * ny, dz - c * nz
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def arrival_normal(ngx, ngy, ngz, dx, dy, dz):
+    """The geometric normal turned to the side the ray arrives from."""
+    if dx * ngx + dy * ngy + dz * ngz > 0.0:
+        return -ngx, -ngy, -ngz
+    return ngx, ngy, ngz
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def specular_normal(sa, inst, prim, hu, hv, fx, fy, fz):
+    """Shading normal turned to the arrival side `f` (unit); the geometric one where they disagree."""
+    sx, sy, sz = shading_normal(sa, inst, prim, hu, hv)
+    if sx * fx + sy * fy + sz * fz < 0.0:
+        sx, sy, sz = -sx, -sy, -sz
+    if not (sx * fx + sy * fy + sz * fz > 0.0):
+        return fx, fy, fz
+    return sx, sy, sz
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def reflect_specular(sa, inst, prim, hu, hv, dx, dy, dz, fx, fy, fz):
+    """Specular reflection about the shading normal; about the geometric one if that would go below the surface."""
+    nx, ny, nz = specular_normal(sa, inst, prim, hu, hv, fx, fy, fz)
+    rx, ry, rz = reflect(dx, dy, dz, nx, ny, nz)
+    if rx * fx + ry * fy + rz * fz <= 0.0:
+        rx, ry, rz = reflect(dx, dy, dz, fx, fy, fz)
+    inv = 1.0 / math.sqrt(rx * rx + ry * ry + rz * rz)
+    return rx * inv, ry * inv, rz * inv

@@ -1,0 +1,172 @@
+"""``dielectric``: a solid of refractive index n; its surface is a Fresnel interface, its inside a medium.
+
+| field | type | unit | range | default |
+| --- | --- | --- | --- | --- |
+| ior | float | — | (0, 10] | required |
+| absorption_per_m | float | 1/m | [0, 1e9] | 0 |
+| scattering_per_m | float | 1/m | [0, 1e9] | 0 |
+| g | float | — | (−1, 1) | 0 |
+
+The geometric normal points outward: a photon arriving against it enters the solid. Reflection is
+chosen with the unpolarised Fresnel reflectance (Rs + Rp)/2 of the exact formulas, total internal
+reflection where sin θt ≥ 1; n1 = n2 gives exactly zero reflectance and an unchanged direction (no
+spurious reflection from rounding). Directions are taken about the interpolated normal where the mesh
+has one, about the facet's where that would cross to the wrong side. The index outside is the one of
+the solid the photon is in (the medium stack), 1 outside every solid. The inside is a homogeneous
+medium (`tracer/optics/media/homogeneous.py`) where σa or σs > 0.
+Effects: `fresnel`, + `absorption` where σa > 0, + `scattering` where σs > 0. Backward estimator: no.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+
+from tracer.optics.media.dispatch import HOMOGENEOUS
+from tracer.optics.surfaces.base import (
+    CONTINUES,
+    N_MPAR,
+    NO_MEDIUM,
+    STACK_FULL,
+    arrival_normal,
+    bounds,
+    reflect_specular,
+    specular_normal,
+)
+from tracer.rng import uniform
+
+NAME = "dielectric"
+
+
+@dataclass(frozen=True)
+class Spec:
+    """Refractive index, and the absorption, scattering and Henyey–Greenstein asymmetry of the inside."""
+
+    ior: float = field(metadata=bounds(0.0, 10.0, lo_open=True, doc="refractive index n"))
+    absorption_per_m: float = field(default=0.0, metadata=bounds(0.0, 1e9, doc="absorption coefficient σa, 1/m"))
+    scattering_per_m: float = field(default=0.0, metadata=bounds(0.0, 1e9, doc="scattering coefficient σs, 1/m"))
+    g: float = field(default=0.0, metadata=bounds(-1.0, 1.0, lo_open=True, hi_open=True,
+                                                  doc="Henyey–Greenstein asymmetry g"))
+
+
+def row(spec: Spec) -> np.ndarray:
+    return np.array([spec.ior, 0.0, 0.0, 0.0])
+
+
+def medium(spec: Spec) -> tuple[int, np.ndarray]:
+    m = np.zeros(N_MPAR)
+    m[:3] = spec.absorption_per_m, spec.scattering_per_m, spec.g
+    kind = HOMOGENEOUS if (spec.absorption_per_m > 0 or spec.scattering_per_m > 0) else NO_MEDIUM
+    return kind, m
+
+
+def effects(spec: Spec) -> tuple[str, ...]:
+    out = ["fresnel"]
+    if spec.absorption_per_m > 0:
+        out.append("absorption")
+    if spec.scattering_per_m > 0:
+        out.append("scattering")
+    return tuple(out)
+
+
+def diffuse_only(spec: Spec) -> bool:
+    return False
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def albedo(M, inst):
+    return 0.0
+
+
+@njit(cache=True)
+def fresnel_dielectric(cos_i, n1, n2):
+    """Unpolarised Fresnel reflectance for light in medium n1 meeting medium n2.
+
+    cos_i : cosine of the angle of incidence, in [0, 1]. Returns R in [0, 1]; 1 under total
+    internal reflection; exactly 0 when n1 == n2.
+    """
+    if n1 == n2:
+        return 0.0
+    cos_i = min(max(cos_i, 0.0), 1.0)
+    eta = n1 / n2
+    sin2_t = eta * eta * max(0.0, 1.0 - cos_i * cos_i)
+    if sin2_t >= 1.0:
+        return 1.0
+    cos_t = math.sqrt(1.0 - sin2_t)
+    rs = (n1 * cos_i - n2 * cos_t) / (n1 * cos_i + n2 * cos_t)
+    rp = (n2 * cos_i - n1 * cos_t) / (n2 * cos_i + n1 * cos_t)
+    r = 0.5 * (rs * rs + rp * rp)
+    return min(max(r, 0.0), 1.0)
+
+
+@njit(cache=True)
+def refract(dx, dy, dz, nx, ny, nz, eta):
+    """Refracted unit direction of unit d through a surface with unit normal n facing against d.
+
+    eta = n1 / n2. Returns (ok, tx, ty, tz); ok is False under total internal reflection.
+    """
+    cos_i = -(dx * nx + dy * ny + dz * nz)
+    sin2_t = eta * eta * max(0.0, 1.0 - cos_i * cos_i)
+    if sin2_t >= 1.0:
+        return False, dx, dy, dz
+    cos_t = math.sqrt(1.0 - sin2_t)
+    k = eta * cos_i - cos_t
+    tx = eta * dx + k * nx
+    ty = eta * dy + k * ny
+    tz = eta * dz + k * nz
+    inv = 1.0 / math.sqrt(tx * tx + ty * ty + tz * tz)
+    return True, tx * inv, ty * inv, tz * inv
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim):
+    u = uniform(key, dim)
+    fx, fy, fz = arrival_normal(ngx, ngy, ngz, dx, dy, dz)
+    entering = dx * ngx + dy * ngy + dz * ngz < 0.0
+    pos = -1
+    if entering:
+        n1 = M.par[med[depth - 1], 0] if depth > 0 else 1.0
+        n2 = M.par[inst, 0]
+    else:
+        n1 = M.par[inst, 0]
+        for k in range(depth - 1, -1, -1):
+            if med[k] == inst:
+                pos = k
+                break
+        if pos >= 0:
+            n2 = M.par[med[pos - 1], 0] if pos > 0 else 1.0
+        elif depth > 0 and med[depth - 1] != inst:
+            n2 = M.par[med[depth - 1], 0]   # leaving a solid it was not known to be in
+        else:
+            n2 = 1.0
+    snx, sny, snz = specular_normal(sa, inst, prim, hu, hv, fx, fy, fz)
+    cos_i = -(dx * snx + dy * sny + dz * snz)
+    r = fresnel_dielectric(cos_i, n1, n2)
+    transmitted = False
+    if u < r:
+        dx, dy, dz = reflect_specular(sa, inst, prim, hu, hv, dx, dy, dz, fx, fy, fz)
+    elif n1 == n2:
+        transmitted = True   # index-matched: straight on, no spurious bending
+    else:
+        ok, tx, ty, tz = refract(dx, dy, dz, snx, sny, snz, n1 / n2)
+        if not ok or tx * fx + ty * fy + tz * fz >= 0.0:
+            ok, tx, ty, tz = refract(dx, dy, dz, fx, fy, fz, n1 / n2)
+        if ok:
+            dx, dy, dz = tx, ty, tz
+            transmitted = True
+        else:   # rounding at the critical angle: total internal reflection
+            dx, dy, dz = reflect_specular(sa, inst, prim, hu, hv, dx, dy, dz, fx, fy, fz)
+    if transmitted:
+        if entering:
+            if depth == med.shape[0]:
+                return STACK_FULL, dx, dy, dz, 0.0, depth, dim + 1
+            med[depth] = inst
+            depth += 1
+        elif pos >= 0:
+            for k in range(pos, depth - 1):
+                med[k] = med[k + 1]
+            depth -= 1
+    return CONTINUES, dx, dy, dz, 1.0, depth, dim + 1

@@ -1,0 +1,150 @@
+"""The registration of surface kinds and thin elements: kind id = position in `KINDS`, and the one switch
+on a surface kind (`scatter`, `albedo`). Adding a kind: its module, one entry in `KINDS`, one branch in
+each switch below.
+
+Python side: `material_spec` turns a wire body (or a spec) into the kind's typed spec, `pack_materials`
+builds the kernels' `MaterialArrays` for every instance id, `effects_of` and `backward_ok` answer from the
+specs what the scene calls for.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from tracer.optics.elements import diffuser
+from tracer.optics.surfaces import black, dielectric, lambertian, mirror, mix
+from tracer.optics.surfaces.base import (
+    ABSORBED,
+    N_MPAR,
+    N_PAR,
+    NO_MEDIUM,
+    NONE,
+    MaterialArrays,
+    MaterialError,
+    spec_from_body,
+)
+
+KINDS = (black, lambertian, mirror, mix, dielectric, diffuser)
+BLACK, LAMBERTIAN, MIRROR, MIX, DIELECTRIC, DIFFUSER = range(len(KINDS))
+KIND_OF = {m.NAME: k for k, m in enumerate(KINDS)}
+_MODULE_OF_SPEC = {m.Spec: m for m in KINDS}
+
+
+def module_of(spec):
+    """The kind module of a typed spec."""
+    try:
+        return _MODULE_OF_SPEC[type(spec)]
+    except KeyError:
+        raise MaterialError(f"not a material spec: {type(spec).__name__}") from None
+
+
+def material_spec(body, where: str = "material"):
+    """The typed spec of a material: a spec is returned as it is, a wire body (dict) is validated.
+
+    Raises
+    ------
+    MaterialError
+        Not a dict or spec, unknown type, unknown or missing field, value out of range (naming it).
+    """
+    if type(body) in _MODULE_OF_SPEC:
+        return body
+    if not isinstance(body, dict):
+        raise MaterialError(f"{where}: expected a material body (dict), got {type(body).__name__}")
+    t = body.get("type")
+    if t not in KIND_OF:
+        raise MaterialError(f"{where}: unknown material type {t!r}; known: {sorted(KIND_OF)}")
+    return spec_from_body(KINDS[KIND_OF[t]].Spec, str(t), body, where)
+
+
+def material_row(body, where: str = "material") -> tuple[int, np.ndarray]:
+    """Validate one material and return (kind id, parameter row (N_PAR,) float64)."""
+    spec = material_spec(body, where)
+    m = module_of(spec)
+    return KIND_OF[m.NAME], m.row(spec)
+
+
+def effects_of(specs) -> set[str]:
+    """The effects a collection of material specs calls for (`lambertian` is always in the set)."""
+    out = {"lambertian"}
+    for spec in specs:
+        out.update(module_of(spec).effects(spec))
+    return out
+
+
+def backward_ok(specs) -> tuple[bool, str]:
+    """Whether the backward estimator can follow every one of these materials, and if not why."""
+    for spec in specs:
+        m = module_of(spec)
+        if not m.diffuse_only(spec):
+            return False, f"a {m.NAME!r} surface is not purely diffuse"
+    return True, ""
+
+
+def pack_materials(materials: dict, default, instance_ids: list[int], sensor_ids: set[int]) -> MaterialArrays:
+    """The kernels' material table for every instance id up to the largest one.
+
+    Parameters
+    ----------
+    materials : {instance id: material body or spec}
+    default : material for instances not in `materials`; None means an instance without a
+        material is an error.
+    instance_ids : the scene's instance ids (sensors included).
+    sensor_ids : the ids that are sensors (no material, never hit by `intersect_closest`).
+    """
+    n = (max(instance_ids) + 1) if instance_ids else 1
+    kind = np.full(n, NONE, np.int32)
+    par = np.zeros((n, N_PAR))
+    medium = np.full(n, NO_MEDIUM, np.int32)
+    mpar = np.zeros((n, N_MPAR))
+    known = set(instance_ids)
+    for i in materials:
+        if not isinstance(i, int | np.integer) or int(i) not in known:
+            raise MaterialError(f"materials: instance id {i!r} is not in the scene")
+    default_spec = material_spec(default, "default_material") if default is not None else None
+    for i in instance_ids:
+        if i in sensor_ids:
+            continue
+        if i in materials:
+            spec = material_spec(materials[i], f"material of instance {i}")
+        elif default_spec is not None:
+            spec = default_spec
+        else:
+            raise MaterialError(f"instance {i} has no material and no default_material was given")
+        m = module_of(spec)
+        kind[i], par[i] = KIND_OF[m.NAME], m.row(spec)
+        if hasattr(m, "medium"):
+            medium[i], mpar[i] = m.medium(spec)
+    return MaterialArrays(kind, par, medium, mpar)
+
+
+# ----------------------------------------------------------------------------------------- the switch
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim):
+    """What the surface of instance `inst` does to a photon arriving along d (`base` has the contract)."""
+    k = M.kind[inst]
+    if k == LAMBERTIAN:
+        return lambertian.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim)
+    if k == MIRROR:
+        return mirror.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim)
+    if k == MIX:
+        return mix.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim)
+    if k == DIELECTRIC:
+        return dielectric.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim)
+    if k == DIFFUSER:
+        return diffuser.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim)
+    return ABSORBED, dx, dy, dz, 0.0, depth, dim   # black, or an id without material
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def albedo(M, inst):
+    """Diffuse albedo of a surface the backward estimator follows (only kinds whose `diffuse_only` holds)."""
+    k = M.kind[inst]
+    if k == LAMBERTIAN:
+        return lambertian.albedo(M, inst)
+    if k == MIX:
+        return mix.albedo(M, inst)
+    return 0.0
+

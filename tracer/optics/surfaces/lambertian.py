@@ -1,0 +1,55 @@
+"""``lambertian``: ideal diffuse reflection on both sides.
+
+| field | type | unit | range | default |
+| --- | --- | --- | --- | --- |
+| reflectance | float | fraction | [0, 1] | required |
+
+A photon is reflected with probability ρ (keeping its weight) into a cosine-distributed direction on
+the side it arrived from, and absorbed otherwise. Effects: `lambertian`. Backward estimator: yes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+
+from tracer.optics.frames import sample_cosine
+from tracer.optics.surfaces.base import ABSORBED, CONTINUES, N_PAR, arrival_normal, bounds
+from tracer.rng import uniform
+
+NAME = "lambertian"
+
+
+@dataclass(frozen=True)
+class Spec:
+    """Reflectance ρ (fraction of the incident flux reflected diffusely)."""
+
+    reflectance: float = field(metadata=bounds(0.0, 1.0, doc="diffuse reflectance ρ, fraction"))
+
+
+def row(spec: Spec) -> np.ndarray:
+    return np.array([spec.reflectance, 0.0, 0.0, 0.0][:N_PAR])
+
+
+def effects(spec: Spec) -> tuple[str, ...]:
+    return ("lambertian",)
+
+
+def diffuse_only(spec: Spec) -> bool:
+    return True
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def albedo(M, inst):
+    return M.par[inst, 0]
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim):
+    if uniform(key, dim) >= M.par[inst, 0]:
+        return ABSORBED, dx, dy, dz, 0.0, depth, dim + 1
+    fx, fy, fz = arrival_normal(ngx, ngy, ngz, dx, dy, dz)
+    dx, dy, dz = sample_cosine(fx, fy, fz, uniform(key, dim + 1), uniform(key, dim + 2))
+    return CONTINUES, dx, dy, dz, 1.0, depth, dim + 3
