@@ -81,12 +81,14 @@ def _user(base: str, t_start: float) -> dict[str, Any]:
 
 def _session(cache: Path, warm: bool) -> dict[str, Any]:
     """Start a server on a fresh data dir with numba cache `cache`, run the user's session, stop the server."""
+    import socket
+
     import httpx
 
-    from tests.service_process import free_port
-
     with tempfile.TemporaryDirectory() as data:
-        port = free_port()
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            port = s.getsockname()[1]
         env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), PYTHONPATH=str(ROOT))
         args = [sys.executable, "-m", "lumenlink.cli", "serve", "--port", str(port), "--data-dir", data]
         if not warm:

@@ -2,7 +2,7 @@
 
 | effect | called for by |
 | --- | --- |
-| `lambertian` | always (diffuse reflection is the baseline) |
+| `lambertian` | always (diffuse reflection is the baseline; a `diffuser` needs nothing more) |
 | `specular` | a `mirror` material, or a `mix` with specular > 0 |
 | `fresnel` | a `dielectric` material (Fresnel interfaces, refraction, total internal reflection) |
 | `absorption` | a `dielectric` with absorption_per_m > 0 |
