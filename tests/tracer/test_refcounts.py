@@ -38,8 +38,8 @@ def _kernels_taking_tuples() -> dict[str, CPUDispatcher]:
 def test_per_ray_kernels_count_no_references() -> None:
     kernels = _kernels_taking_tuples()
     assert {"tracer.traverse.closest_with_stacks", "tracer.transport.trace_photon",
-            "tracer.optics.lights.dispatch.sample_emission",
-            "tracer.optics.surfaces.dispatch.scatter"} <= set(kernels)   # the walk finds them
+            "tracer.optics.lights.spot.sample",
+            "tracer.optics.surfaces.dielectric.scatter"} <= set(kernels)   # the walk finds them
     assert ALLOCATING <= set(kernels)
     counting = sorted(n for n, k in kernels.items() if k.targetoptions.get("_nrt", True) and n not in ALLOCATING)
     assert counting == [], f"compile these with _nrt=False (docs/CONTRACTS.md): {counting}"

@@ -1,7 +1,9 @@
 """The light kinds' registration: the one place that lists them and switches on a kind id.
 
 A kind's id is its position in `KINDS`. Adding a kind: its module (see `base`), its entry at the end of
-`KINDS` with an id constant, and a branch in `sample_emission` and in `light_connect`.
+`KINDS` with an id constant, and a branch in `sample_emission` and in `light_connect`. `sample_emission`
+is inlined into the transport kernel, with the point light's `sample`: a call per photon passes the lights'
+tuple (see `tracer.optics.surfaces.dispatch`).
 """
 
 from __future__ import annotations
@@ -67,7 +69,7 @@ def connectable(L: LightArrays) -> tuple[bool, str]:
     return True, ""
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def sample_emission(L, j, u0, u1, u2, u3, u4):
     """Emit one photon from light j: (ox, oy, oz, dx, dy, dz, f, on_surface, nx, ny, nz), see `base`."""
     k = L.kind[j]

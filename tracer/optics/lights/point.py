@@ -62,7 +62,7 @@ def pack(spec: Spec, j: int, out: Packing, where: str) -> float:
     return spec.flux_lm
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def sample(L, j, u0, u1, u2, u3, u4):
     """A uniform direction from the light's position: f = 1 (see base)."""
     p = L.par[j]

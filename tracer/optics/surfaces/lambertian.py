@@ -46,7 +46,7 @@ def albedo(M, inst):
     return M.par[inst, 0]
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim):
     if uniform(key, dim) >= M.par[inst, 0]:
         return ABSORBED, dx, dy, dz, 0.0, depth, dim + 1
