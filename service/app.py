@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import importlib.util
 import logging
-import threading
 from collections.abc import Callable
 from typing import Any
 
@@ -45,7 +44,11 @@ def create_app(settings: Settings | None = None, scene_factory: Callable[[], Any
     app.state.engine = engine
     install_handlers(app)
 
-    app.state.kernels = _start_warmup() if settings.warm_kernels else {"state": "not warmed"}
+    app.state.kernels = None
+    if settings.warm_kernels:  # compile the query kernels in a child process, on the other core (tracer.warmup)
+        from tracer.warmup import start_background
+
+        app.state.kernels = start_background()
 
     @app.get("/health", tags=["service"])
     def health() -> dict[str, Any]:
@@ -55,7 +58,8 @@ def create_app(settings: Settings | None = None, scene_factory: Callable[[], Any
 
         with engine.connect() as conn:
             conn.execute(text("SELECT 1"))
-        return {"status": "ok", "kernels": dict(app.state.kernels)}
+        kernels = app.state.kernels.status() if app.state.kernels is not None else {"state": "not warmed"}
+        return {"status": "ok", "kernels": kernels}
 
     app.include_router(scenes.router)
     app.include_router(geometries.router)
@@ -68,22 +72,3 @@ def create_app(settings: Settings | None = None, scene_factory: Callable[[], Any
     if settings.log_requests:
         app.add_middleware(RequestLog)
     return app
-
-
-def _start_warmup() -> dict[str, Any]:
-    """Compile the kernels of a first query in a daemon thread (`tracer.warmup`); returns its live status."""
-    status: dict[str, Any] = {"state": "warming", "stage": None}
-
-    def run() -> None:
-        try:
-            from tracer.warmup import warm_kernels
-
-            seconds = warm_kernels(progress=lambda stage: status.update(stage=stage))
-            status.update(state="ready", stage=None, seconds=seconds)
-            log.info("kernels ready: %s", ", ".join(f"{k} {v:.1f} s" for k, v in seconds.items()))
-        except Exception as exc:  # a failed warm-up costs only time: the first query compiles for itself
-            status.update(state="failed", error=repr(exc))
-            log.warning("kernel warm-up failed: %r", exc)
-
-    threading.Thread(target=run, name="lumenlink-warmup", daemon=True).start()
-    return status

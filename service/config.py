@@ -28,9 +28,8 @@ class Settings(BaseSettings):
     max_seconds: float = Field(default=600.0, gt=0, description="Longest time budget one query may ask.")
     max_nodes: int = Field(default=1_000_000, gt=0, description="Most nodes one pushed document may have.")
     log_requests: bool = Field(default=True, description="Log one line per request (method, path, status, ms).")
-    warm_kernels: bool = Field(default=False, description="Compile the light-transport kernels in a background "
-                                                          "thread at start (`lumenlink serve` turns it on), so the "
-                                                          "first query does not wait for numba.")
+    warm_kernels: bool = Field(default=False, description="Compile the query kernels in a child process from the "
+                                                          "start (`tracer.warmup`; `lumenlink serve` turns it on).")
 
     def resolved_database_url(self) -> str:
         """The SQLAlchemy URL in use."""

@@ -45,7 +45,9 @@ def running_service(data_dir: Path | str, env: dict[str, str] | None = None,
     data_dir.mkdir(parents=True, exist_ok=True)
     port = free_port()
     base_url = f"http://127.0.0.1:{port}"
-    full_env = {**os.environ, **(env or {})}
+    # no kernel-compiling child per test server (tracer.warmup): the test process compiles them once;
+    # a test that wants one says so in `env`
+    full_env = {**os.environ, "LUMENLINK_WARM_KERNELS": "false", **(env or {})}
     full_env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), full_env.get("PYTHONPATH")]))
     log_path = data_dir / "service.log"
     with open(log_path, "ab") as log:

@@ -61,6 +61,7 @@ from tracer.optics.surfaces.dispatch import backward_ok, effects_of, material_sp
 from tracer.scene import Scene
 from tracer.transport import COUNTERS, SensorArrays, forward_kernel
 from tracer.traverse import closest_each
+from tracer.warmup import wait_background
 
 DEFAULT_RADIUS = 0.05          # m: disk receiver radius when the query gives none
 DEFAULT_MAX_SECONDS = 30.0     # s: budget of a query that states none
@@ -145,6 +146,7 @@ def place_receivers(sa, points: np.ndarray, normals: np.ndarray, radius: float) 
     than 1e-3 rad (float32 rounding of a facet the point lies on), 2 r sin(tilt), so that the whole
     disk of radius r stays in front of the facet the rays meet.
     """
+    wait_background("probe")
     k = len(points)
     h = np.array([probe_distance(p) for p in points])
     origins = np.ascontiguousarray(points + h[:, None] * normals)
@@ -466,10 +468,12 @@ class Simulation:
 
 
 def _warm(variant: tuple, call: Callable[[], object]) -> float:
-    """Compile (or load from cache) a kernel variant on a one-photon batch; seconds it took, once per process."""
+    """Compile (or load from cache) a kernel variant on a one-photon batch; seconds it took, once per process
+    (waiting for a child process that compiles it, `tracer.warmup`, included)."""
     if variant in _COMPILE_SECONDS:
         return 0.0
     t = time.perf_counter()
+    wait_background(variant[0])
     call()
     _COMPILE_SECONDS.setdefault(variant, time.perf_counter() - t)
     return _COMPILE_SECONDS[variant]

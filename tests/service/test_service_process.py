@@ -15,7 +15,7 @@ from service_process import running_service
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
-    with running_service(tmp_path_factory.mktemp("served")) as url:
+    with running_service(tmp_path_factory.mktemp("served"), env={"LUMENLINK_WARM_KERNELS": "true"}) as url:
         yield url
 
 
