@@ -30,7 +30,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from tracer.optics.frames import onb, sample_cosine
 from tracer.optics.lights import light_connect, pick_light
@@ -129,16 +129,17 @@ def trace_path(sa, M, L, Q, q, key, counters, stack, tstack):
     return e
 
 
-@njit(parallel=True, cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def backward_batches(sa, M, L, Q, seed, batch0, n_batches, paths):
     """Batches batch0 … batch0+n_batches−1, each `paths` paths per query patch.
 
     Returns (lux (n_batches, k) float64: each batch's estimate per patch; counters (n_batches, 2) int64).
+    Serial and without the GIL, like `tracer.transport.forward_batches`.
     """
     k = Q.kind.shape[0]
     out = np.zeros((n_batches, k))
     cnt = np.zeros((n_batches, len(COUNTERS)), np.int64)
-    for b in prange(n_batches):
+    for b in range(n_batches):
         counters = cnt[b]
         stack, tstack = new_stacks()
         for q in range(k):

@@ -49,8 +49,10 @@ import math
 import threading
 import time
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from tracer.backward import QueryArrays, backward_batches, disk_queries
@@ -72,23 +74,33 @@ BACKWARD_BATCH = 32            # paths per patch per backward batch
 ESTIMATORS = ("auto", "forward", "backward")
 
 _COMPILE_SECONDS: dict[tuple, float] = {}   # first call of each compiled variant in this process
-_KERNEL_LOCK = threading.Lock()
+_POOL: ThreadPoolExecutor | None = None
+_POOL_LOCK = threading.Lock()
+
+
+def _pool() -> ThreadPoolExecutor:
+    global _POOL
+    with _POOL_LOCK:
+        if _POOL is None:
+            _POOL = ThreadPoolExecutor(max(1, numba.config.NUMBA_NUM_THREADS), thread_name_prefix="lumenlink-batch")
+        return _POOL
 
 
 def _run_kernel(kernel, *args):
-    """Call a parallel kernel; serialised when numba's threading layer is `workqueue`, which aborts the
-    process on concurrent launches from two Python threads (the service runs queries in threads).
-    `omp` and `tbb` are thread-safe and run concurrently."""
-    try:
-        import numba
-
-        layer = numba.threading_layer()
-    except ValueError:          # no parallel kernel has run yet: be conservative
-        layer = "workqueue"
-    if layer == "workqueue":
-        with _KERNEL_LOCK:
-            return kernel(*args)
-    return kernel(*args)
+    """Run batches ``batch0 … batch0 + n_batches − 1`` (the last three arguments: batch0, n_batches, size) of a
+    batch kernel, split into contiguous runs over `numba.get_num_threads()` threads of a pool shared by all
+    queries. The kernels are serial and release the GIL (``nogil=True``): no numba threading layer, so
+    concurrent queries share the cores batch by batch, and no parallel-loop wrapper to compile (9 s of a cold
+    start). Each batch is seeded by its index, so the answer does not depend on the split."""
+    *head, batch0, n_batches, size = args
+    threads = max(1, min(n_batches, numba.get_num_threads()))
+    if threads == 1:
+        return kernel(*head, batch0, n_batches, size)
+    bounds = np.linspace(0, n_batches, threads + 1).astype(int)
+    runs = [_pool().submit(kernel, *head, batch0 + lo, hi - lo, size)
+            for lo, hi in zip(bounds[:-1], bounds[1:], strict=True) if hi > lo]
+    parts = [r.result() for r in runs]
+    return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
 
 class SimulationError(ValueError):

@@ -33,7 +33,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from tracer.optics.lights import pick_light, sample_emission
 from tracer.optics.media.dispatch import medium_coefficients, medium_scatter
@@ -158,7 +158,7 @@ def trace_photon(sa, ra, M, L, S, key, w, tally, counters, med, c_inst, c_t, c_u
             w = w / q
 
 
-@njit(parallel=True, cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def forward_batches(sa, ra, M, L, S, n_bins, seed, batch0, n_batches, photons):
     """Run batches batch0 … batch0+n_batches−1 of `photons` photons each.
 
@@ -169,13 +169,13 @@ def forward_batches(sa, ra, M, L, S, n_bins, seed, batch0, n_batches, photons):
     counters : (n_batches, len(COUNTERS)) int64
         See `COUNTERS`.
 
-    Batches run in parallel (one thread each); photons within a batch run in order, so a batch's
-    sums do not depend on the number of threads.
+    Serial and without the GIL: `tracer.simulate` runs contiguous runs of batches on threads. Each batch
+    is seeded by its index and its photons run in order, so its sums do not depend on the threads.
     """
     out = np.zeros((n_batches, n_bins))
     cnt = np.zeros((n_batches, len(COUNTERS)), np.int64)
     w0 = L.flux_total[0] / photons
-    for b in prange(n_batches):
+    for b in range(n_batches):
         med = np.empty(MEDIUM_DEPTH, np.int64)
         c_inst = np.empty(SENSOR_CAP, np.int64)
         c_t = np.empty(SENSOR_CAP)
