@@ -274,7 +274,6 @@ class Simulation:
         self._specs = [m for m in used if m is not None]
         self.effects: list[str] = canonical(effects_of(self._specs))
 
-
     # ------------------------------------------------------------------------------------------ helpers
 
     def backward_applies(self, effects: list[str] | None = None) -> tuple[bool, str]:
