@@ -870,10 +870,18 @@ def _validate_photometry(fmt: str, text: str) -> None:
 
 def scene_effects(live: LiveScene, uses_default: bool = True) -> list[str]:
     """The scene's effect set, by the transport's one rule (`tracer.effects.derive_effects`) over its
-    materials (and the default material where some instance uses it)."""
+    materials (and the default material where some instance uses it). A body stored under older, looser
+    rules that the tracer now refuses is left out here (a summary never fails); a query says what is wrong."""
     from tracer.effects import derive_effects
+    from tracer.optics.surfaces.dispatch import MaterialError, material_spec
 
-    return derive_effects(list(live.materials.values()) + ([live.default_material] if uses_default else []))
+    specs = []
+    for body in list(live.materials.values()) + ([live.default_material] if uses_default else []):
+        try:
+            specs.append(material_spec(body))
+        except MaterialError:
+            continue
+    return derive_effects(specs)
 
 
 def validate_body(kind: str, body: Any) -> dict:

@@ -452,3 +452,16 @@ def test_summary_effects_agree_with_the_transport(client, scene, meshes, materia
     lights = [{"type": "point", "position": [0, 0, 5], "intensity_cd": 1.0}]
     sim = Simulation(live.tracer, live.materials, lights, default_material=live.default_material)
     assert client.get(f"/scenes/{scene}").json()["effects"] == sim.effects
+
+
+def test_scene_effects_follow_the_tracer_and_skip_bodies_it_now_refuses() -> None:
+    """A material stored under older, looser rules (σs above today's bound) must not make a summary fail."""
+    from types import SimpleNamespace
+
+    from service.state import scene_effects
+
+    live = SimpleNamespace(materials={0: {"type": "mirror", "reflectance": 0.9},
+                                      1: {"type": "dielectric", "ior": 1.5, "scattering_per_m": 1e12}},
+                           default_material={"type": "dielectric", "ior": 1.5, "absorption_per_m": 2.0})
+    assert scene_effects(live) == ["lambertian", "specular", "fresnel", "absorption"]
+    assert scene_effects(live, uses_default=False) == ["lambertian", "specular"]
