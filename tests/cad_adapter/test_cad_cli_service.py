@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 
 import pytest
-from cad_helpers import car
+from cad_helpers import car, needs_fixtures
 
 import cad_adapter
 from cad_adapter import cli
@@ -154,6 +154,7 @@ def _xcaf_round_trip(src: Path, dst: Path) -> None:
     assert writer.Write(str(dst)) == IFSelect_RetDone
 
 
+@needs_fixtures
 def test_save_as_and_another_writer_keep_identity_and_dry_run_changes_nothing(service, tmp_path) -> None:
     import shutil
 
