@@ -26,6 +26,10 @@ class Settings(BaseSettings):
     max_points: int = Field(default=100_000, gt=0, description="Most query points one illuminance request may ask.")
     max_photons: int = Field(default=1_000_000_000, gt=0, description="Most photons one query may trace.")
     max_seconds: float = Field(default=600.0, gt=0, description="Longest time budget one query may ask.")
+    max_concurrent_queries: int = Field(default=2, gt=0, description="Synchronous queries running at once; more "
+                                                                     "wait (see queue_wait_seconds), then 503.")
+    queue_wait_seconds: float = Field(default=30.0, gt=0, description="How long a synchronous query waits for a "
+                                                                      "free slot before it is answered 503, s.")
     max_nodes: int = Field(default=1_000_000, gt=0, description="Most nodes one pushed document may have.")
     log_requests: bool = Field(default=True, description="Log one line per request (method, path, status, ms).")
     warm_kernels: bool = Field(default=False, description="Compile the query kernels in a child process from the "

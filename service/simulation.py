@@ -17,7 +17,8 @@ requests:
 Bounds come from the service settings (``max_points``, ``max_photons``, ``max_seconds``): every
 query runs with a photon and a time budget, so none can run forever; a request beyond a bound is
 refused before any work. Queries in the request threads are limited to
-``MAX_CONCURRENT_QUERIES`` at a time (the kernels already use every core).
+``Settings.max_concurrent_queries`` at a time (the kernels already use every core); more wait up to
+``Settings.queue_wait_seconds``, then 503.
 
 The light transport is imported on first use: until `tracer.simulate` exists, queries answer 503
 naming the missing part, never a made-up number.
@@ -40,9 +41,6 @@ from service.jobs import Budget, JobRunner
 from service.live import LiveRegistry, LiveScene
 from service.optics import to_spec
 
-#: Queries running at once in request threads (sync mode); more wait up to QUEUE_WAIT_SECONDS, then 503.
-MAX_CONCURRENT_QUERIES = 2
-QUEUE_WAIT_SECONDS = 30.0
 #: Async jobs: worker threads and how many may wait.
 JOB_WORKERS = 1
 MAX_QUEUED_JOBS = 16
@@ -120,15 +118,18 @@ class Prepared:
 
 @dataclass(frozen=True)
 class Limits:
-    """Bounds of one query, from the service settings."""
+    """Bounds of one query, and of how many run at once, from the service settings."""
 
     max_points: int
     max_photons: int
     max_seconds: float
+    max_concurrent_queries: int = 2
+    queue_wait_seconds: float = 30.0
 
     @classmethod
     def from_settings(cls, settings: Any) -> Limits:
-        return cls(int(settings.max_points), int(settings.max_photons), float(settings.max_seconds))
+        return cls(int(settings.max_points), int(settings.max_photons), float(settings.max_seconds),
+                   int(settings.max_concurrent_queries), float(settings.queue_wait_seconds))
 
 
 def resolve_budget(limits: Limits, target_relative_error: float | None, max_seconds: float | None,
@@ -207,7 +208,7 @@ class SimulationHub:
         self._generation: dict[str, int] = {}
         self._cache: dict[str, _Cached] = {}
         self._grids: dict[tuple[str, str], tuple[int, dict[str, Any]]] = {}
-        self._slots = threading.BoundedSemaphore(MAX_CONCURRENT_QUERIES)
+        self._slots = threading.BoundedSemaphore(limits.max_concurrent_queries)
         live.subscribe(self.invalidate)
 
     # -- change tracking ----------------------------------------------------------------------
@@ -281,7 +282,7 @@ class SimulationHub:
 
     def slot(self) -> _Slot:
         """A context manager holding one of the sync-query slots (503 if none frees up in time)."""
-        return _Slot(self._slots)
+        return _Slot(self._slots, self.limits)
 
     # -- queries ------------------------------------------------------------------------------
 
@@ -359,13 +360,14 @@ def _refusals() -> Any:
 
 
 class _Slot:
-    def __init__(self, semaphore: threading.BoundedSemaphore) -> None:
+    def __init__(self, semaphore: threading.BoundedSemaphore, limits: Limits) -> None:
         self._semaphore = semaphore
+        self._limits = limits
 
     def __enter__(self) -> None:
-        if not self._semaphore.acquire(timeout=QUEUE_WAIT_SECONDS):
-            raise Unavailable(f"{MAX_CONCURRENT_QUERIES} queries are running; try again later or use ?mode=async",
-                              retry_after_seconds=5)
+        if not self._semaphore.acquire(timeout=self._limits.queue_wait_seconds):
+            raise Unavailable(f"{self._limits.max_concurrent_queries} queries are running; try again later or use "
+                              f"?mode=async", retry_after_seconds=5)
 
     def __exit__(self, *exc: object) -> None:
         self._semaphore.release()

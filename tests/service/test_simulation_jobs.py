@@ -169,3 +169,21 @@ def test_seconds_left_follows_inverse_square_root_law() -> None:
     assert estimate_seconds_left(10_000, math.inf, 2.0, Budget(0.01)) is None
     assert estimate_seconds_left(0, math.nan, 0.0, Budget(max_seconds=5.0)) == 5.0
     assert JobStatus.CANCELLED.finished and not JobStatus.RUNNING.finished
+
+
+def test_concurrent_query_slots_come_from_the_settings() -> None:
+    """`LUMENLINK_MAX_CONCURRENT_QUERIES` sync queries run at once; the next waits
+    `LUMENLINK_QUEUE_WAIT_SECONDS`, then gets 503 saying how many run."""
+    from types import SimpleNamespace
+
+    from service.config import Settings
+    from service.simulation import Limits, SimulationHub, Unavailable
+
+    settings = Settings(max_concurrent_queries=1, queue_wait_seconds=0.05)
+    hub = SimulationHub(SimpleNamespace(subscribe=lambda listener: None), Limits.from_settings(settings))
+    with hub.slot():
+        with pytest.raises(Unavailable, match="1 queries are running"):
+            with hub.slot():
+                pass
+    with hub.slot():   # freed again
+        pass
