@@ -21,17 +21,10 @@ from typing import Any
 
 import numpy as np
 
+from tracer.warmup import box
+
 ROOT = Path(__file__).resolve().parents[1]
 IDENT = [1.0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]
-
-
-def _box(lo, hi):
-    (x0, y0, z0), (x1, y1, z1) = lo, hi
-    v = np.array([[x0, y0, z0], [x1, y0, z0], [x1, y1, z0], [x0, y1, z0],
-                  [x0, y0, z1], [x1, y0, z1], [x1, y1, z1], [x0, y1, z1]], float)
-    t = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
-                  [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]])
-    return v, t
 
 
 def _glb(v: np.ndarray, t: np.ndarray) -> tuple[str, bytes]:
@@ -42,9 +35,9 @@ def _glb(v: np.ndarray, t: np.ndarray) -> tuple[str, bytes]:
     return geometry_id(v, t), trimesh.Trimesh(v, t, process=False).export(file_type="glb")
 
 
-PARTS = {"room": (_box((0, 0, 0), (4, 4, 3)), {"type": "lambertian", "reflectance": 0.5}),
-         "mirror": (_box((3.9, 1, 0.5), (3.95, 3, 2.5)), {"type": "mirror", "reflectance": 0.9}),
-         "glass": (_box((1, 1, 0.5), (2, 2, 1)), {"type": "dielectric", "ior": 1.5})}
+PARTS = {"room": (box((0, 0, 0), (4, 4, 3)), {"type": "lambertian", "reflectance": 0.5}),
+         "mirror": (box((3.9, 1, 0.5), (3.95, 3, 2.5)), {"type": "mirror", "reflectance": 0.9}),
+         "glass": (box((1, 1, 0.5), (2, 2, 1)), {"type": "dielectric", "ior": 1.5})}
 
 
 def _user(base: str, t_start: float) -> dict[str, Any]:

@@ -55,5 +55,5 @@ else:
 
 
 def to_spec(body: dict) -> Any:
-    """The tracer's typed spec of a validated material body (ids and names dropped)."""
-    return material_spec({k: v for k, v in body.items() if k not in ("id", "name")})
+    """The tracer's typed spec of a validated material body."""
+    return material_spec(body)

@@ -21,8 +21,9 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
+from tracer.optics.surfaces.dispatch import effects_of, material_spec
+
 EFFECTS = ("lambertian", "specular", "fresnel", "absorption", "scattering")
-STATES = ("white",)
 
 
 class EffectError(ValueError):
@@ -43,8 +44,6 @@ def derive_effects(materials: Iterable) -> list[str]:
 
     Raises `tracer.optics.surfaces.base.MaterialError` for an invalid material body.
     """
-    from tracer.optics.surfaces.dispatch import effects_of, material_spec
-
     return canonical(effects_of(material_spec(m) for m in materials))
 
 

@@ -86,7 +86,7 @@ def _pool() -> ThreadPoolExecutor:
         return _POOL
 
 
-def _run_kernel(kernel, *args):
+def _run_batches(kernel, *args):
     """Run batches ``batch0 … batch0 + n_batches − 1`` (the last three arguments: batch0, n_batches, size) of a
     batch kernel, split into contiguous runs over `numba.get_num_threads()` threads of a pool shared by all
     queries. The kernels are serial and release the GIL (``nogil=True``): no numba threading layer, so
@@ -270,8 +270,8 @@ class Simulation:
         self._mats = pack_materials(mats, default_spec, ids, self._sensor_ids)
         self._lights = pack_lights(list(lights), scene, frozenset(self._sensor_ids))
         geometry_ids = [i for i in ids if i not in self._sensor_ids]
-        used = [mats.get(i, default_spec) for i in geometry_ids]
-        self._specs = [m for m in used if m is not None]
+        # the distinct specs in use (a scene of 100k instances has a handful of materials)
+        self._specs = list(dict.fromkeys(m for m in (mats.get(i, default_spec) for i in geometry_ids) if m is not None))
         self.effects: list[str] = canonical(effects_of(self._specs))
 
     # ------------------------------------------------------------------------------------------ helpers
@@ -437,11 +437,11 @@ class Simulation:
         state = photon_state(effects)
         kernel = forward_kernel(state)
         sa, mats, lights = self._arrays, self._mats, self._lights
-        compile_s = _warm(("forward", state), lambda: _run_kernel(kernel, sa, ra, mats, lights, sens, n_bins, seed,
+        compile_s = _warm(("forward", state), lambda: _run_batches(kernel, sa, ra, mats, lights, sens, n_bins, seed,
                                                                   0, 1, 1))
 
         def run_round(b0, nb):
-            flux, cnt = _run_kernel(kernel, sa, ra, mats, lights, sens, n_bins, seed, b0, nb, per_batch)
+            flux, cnt = _run_batches(kernel, sa, ra, mats, lights, sens, n_bins, seed, b0, nb, per_batch)
             return flux / area[None, :], cnt
 
         est, batches, stop, counters = self._loop(run_round, n_bins, per_batch, budget, progress, cancel, t0)
@@ -466,11 +466,11 @@ class Simulation:
         if budget.max_photons is not None:
             paths = int(min(BACKWARD_BATCH, max(1, budget.max_photons // (4 * ROUND_BATCHES * k))))
             per_batch = paths * k
-        compile_s = _warm(("backward",), lambda: _run_kernel(backward_batches, sa, mats, self._lights, q, seed,
+        compile_s = _warm(("backward",), lambda: _run_batches(backward_batches, sa, mats, self._lights, q, seed,
                                                                   0, 1, 1))
 
         def run_round(b0, nb):
-            return _run_kernel(backward_batches, sa, mats, self._lights, q, seed, b0, nb, paths)
+            return _run_batches(backward_batches, sa, mats, self._lights, q, seed, b0, nb, paths)
 
         est, batches, stop, counters = self._loop(run_round, k, per_batch, budget, progress, cancel, t0)
         cdict = {"rejected": int(counters[0]), "truncated": int(counters[1])}

@@ -32,7 +32,8 @@ import numpy as np
 STAGES = ("probe", "forward", "backward", "scene")
 
 
-def _box(lo, hi):
+def box(lo, hi):
+    """An axis-aligned box from corner lo to corner hi: (8, 3) vertices, (12, 3) triangles facing outward."""
     (x0, y0, z0), (x1, y1, z1) = lo, hi
     v = np.array([[x0, y0, z0], [x1, y0, z0], [x1, y1, z0], [x0, y1, z0],
                   [x0, y0, z1], [x1, y0, z1], [x1, y1, z1], [x0, y1, z1]], float)
@@ -78,7 +79,7 @@ def compile_query_kernels(report=print) -> None:
     t = time.perf_counter()
     scene = Scene()
     for lo, hi in (((0, 0, 0), (4, 4, 3)), ((1, 1, 0.5), (2, 2, 1))):
-        scene.add_instance(scene.add_geometry(*_box(lo, hi)), np.eye(4))
+        scene.add_instance(scene.add_geometry(*box(lo, hi)), np.eye(4))
     scene.commit()
     report(f"scene {time.perf_counter() - t:.3f}")
 

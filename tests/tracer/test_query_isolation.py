@@ -8,13 +8,13 @@ import numpy as np
 
 from tracer.scene import Scene
 from tracer.simulate import Simulation
-from tracer.warmup import _box
+from tracer.warmup import box
 
 
 def test_concurrent_queries_neither_change_the_scene_nor_each_other():
     scene = Scene()
-    room = scene.add_instance(scene.add_geometry(*_box((0, 0, 0), (4, 4, 3))), np.eye(4))
-    glass = scene.add_instance(scene.add_geometry(*_box((1, 1, 0.5), (2, 2, 1))), np.eye(4))
+    room = scene.add_instance(scene.add_geometry(*box((0, 0, 0), (4, 4, 3))), np.eye(4))
+    glass = scene.add_instance(scene.add_geometry(*box((1, 1, 0.5), (2, 2, 1))), np.eye(4))
     scene.commit()
     arrays, ids = scene.arrays(), scene.instances()
     materials = {room: {"type": "lambertian", "reflectance": 0.5}, glass: {"type": "dielectric", "ior": 1.5}}

@@ -13,8 +13,8 @@ def test_a_scene_of_receivers_has_the_array_types_of_any_scene():
     """The child compiles the query kernels on a scene holding only receivers: that compiles the kernels a real
     scene runs only if every array has the same type (dtype, dimensions, layout)."""
     scene = Scene()
-    scene.add_instance(scene.add_geometry(*warmup._box((0, 0, 0), (1, 2, 3))), np.eye(4))
-    scene.add_instance(scene.add_geometry(*warmup._box((2, 0, 0), (3, 1, 1))), np.eye(4))
+    scene.add_instance(scene.add_geometry(*warmup.box((0, 0, 0), (1, 2, 3))), np.eye(4))
+    scene.add_instance(scene.add_geometry(*warmup.box((2, 0, 0), (3, 1, 1))), np.eye(4))
     scene.commit()
     assert numba.typeof(warmup.receivers_only()) == numba.typeof(scene.arrays())
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from tracer.optics.frames import onb
+from tracer.optics.frames import sample_cosine
 from tracer.optics.lights.base import P_FLUX, P_I0, SHADOW_SHORTEN, LightError, Packing, _find, _num, check_fields
 
 NAME = "area"
@@ -120,16 +120,8 @@ def sample(L, j, u0, u1, u2, u3, u4):
     """A uniform point (u0, u1, u2), a cosine-distributed direction about its normal (u3, u4); f = 1, on a
     surface (see base)."""
     x, y, z, nx, ny, nz = sample_point(L, j, u0, u1, u2)
-    r = math.sqrt(u3)
-    phi = 2.0 * math.pi * u4
-    a, b = r * math.cos(phi), r * math.sin(phi)
-    c = math.sqrt(max(0.0, 1.0 - u3))
-    t, bb = onb(nx, ny, nz)
-    dx = a * t[0] + b * bb[0] + c * nx
-    dy = a * t[1] + b * bb[1] + c * ny
-    dz = a * t[2] + b * bb[2] + c * nz
-    inv = 1.0 / math.sqrt(dx * dx + dy * dy + dz * dz)
-    return x, y, z, dx * inv, dy * inv, dz * inv, 1.0, True, nx, ny, nz
+    dx, dy, dz = sample_cosine(nx, ny, nz, u3, u4)
+    return x, y, z, dx, dy, dz, 1.0, True, nx, ny, nz
 
 
 @njit(cache=True, _nrt=False)

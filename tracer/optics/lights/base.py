@@ -199,6 +199,14 @@ def pick_light(L, u):
 
 
 @njit(cache=True, _nrt=False)
+def in_light_frame(p, a, b, c):
+    """The world vector a t + b b + c axis of the light's frame (the P_T, P_B, P_AXIS columns of row p)."""
+    return (a * p[P_T] + b * p[P_B] + c * p[P_AXIS],
+            a * p[P_T + 1] + b * p[P_B + 1] + c * p[P_AXIS + 1],
+            a * p[P_T + 2] + b * p[P_B + 2] + c * p[P_AXIS + 2])
+
+
+@njit(cache=True, _nrt=False)
 def toward_point(p, x, y, z, nx, ny, nz):
     """From x on a surface with unit normal n toward the point p[P_POS:P_POS+3] (m).
 

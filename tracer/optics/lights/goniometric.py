@@ -41,6 +41,7 @@ from tracer.optics.lights.base import (
     _find,
     _vec,
     check_fields,
+    in_light_frame,
     toward_point,
 )
 from tracer.photometry import Photometry, parse_photometry
@@ -170,9 +171,7 @@ def sample(L, j, u0, u1, u2, u3, u4):
     cg = cga + u2 * (cgb - cga)
     sg = math.sqrt(max(0.0, 1.0 - cg * cg))
     a, b = sg * math.cos(c), sg * math.sin(c)  # along the C = 0 and C = 90° axes; cg along γ = 0
-    dx = a * p[P_T] + b * p[P_B] + cg * p[P_AXIS]
-    dy = a * p[P_T + 1] + b * p[P_B + 1] + cg * p[P_AXIS + 1]
-    dz = a * p[P_T + 2] + b * p[P_B + 2] + cg * p[P_AXIS + 2]
+    dx, dy, dz = in_light_frame(p, a, b, cg)
     d_omega = (cb - ca) * (cga - cgb)
     f = intensity(L, j, dx, dy, dz) * d_omega / (pc * p[P_FLUX]) if pc > 0.0 else 0.0
     return p[0], p[1], p[2], dx, dy, dz, f, False, 0.0, 0.0, 0.0

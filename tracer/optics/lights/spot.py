@@ -43,6 +43,7 @@ from tracer.optics.lights.base import (
     _num,
     _vec,
     check_fields,
+    in_light_frame,
     toward_point,
 )
 
@@ -118,9 +119,7 @@ def sample(L, j, u0, u1, u2, u3, u4):
     s = math.sqrt(max(0.0, 1.0 - c * c))
     phi = 2.0 * math.pi * u1
     x, y = s * math.cos(phi), s * math.sin(phi)
-    dx = x * p[P_T] + y * p[P_B] + c * p[P_AXIS]
-    dy = x * p[P_T + 1] + y * p[P_B + 1] + c * p[P_AXIS + 1]
-    dz = x * p[P_T + 2] + y * p[P_B + 2] + c * p[P_AXIS + 2]
+    dx, dy, dz = in_light_frame(p, x, y, c)
     inv = 1.0 / math.sqrt(dx * dx + dy * dy + dz * dz)
     dx, dy, dz = dx * inv, dy * inv, dz * inv
     f = profile(L, j, dx, dy, dz) * 2.0 * math.pi * (1.0 - co) / p[P_SOLID]
