@@ -59,9 +59,10 @@ def worker(checkout: str, scene: str, rays: str) -> None:
         print(time.perf_counter() - t0, flush=True)
 
 
-def main(a: str, b: str, scene: str, rays: str, n: int) -> None:
+def pairs(a: str, b: str, scene: str, rays: str, n: int) -> tuple[list[float], list[float]]:
+    """Wall seconds of `n` passes in each checkout, taken in turn (A B B A ...); (times of A, times of B)."""
     env = dict(os.environ, NUMBA_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
-    procs = [subprocess.Popen([f"{r}/.venv/bin/python", __file__, "--worker", r, scene, rays], cwd=r, env=env,
+    procs = [subprocess.Popen([f"{r}/.venv/bin/python", f"{r}/bench/ab.py", "--worker", r, scene, rays], cwd=r, env=env,
                               stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True) for r in (a, b)]
     for p in procs:
         if p.stdout is None or p.stdout.readline().strip() != "ready":
@@ -78,6 +79,11 @@ def main(a: str, b: str, scene: str, rays: str, n: int) -> None:
         assert p.stdin is not None
         p.stdin.close()
         p.wait()
+    return times[0], times[1]
+
+
+def main(a: str, b: str, scene: str, rays: str, n: int) -> None:
+    times = pairs(a, b, scene, rays, n)
     ratio = [tb / ta for ta, tb in zip(*times, strict=True)]
     print(f"{scene} {rays}: A {statistics.median(times[0]) * 1e3:.0f} ms, B {statistics.median(times[1]) * 1e3:.0f} ms,"
           f" B/A median {statistics.median(ratio):.3f} (range {min(ratio):.3f} to {max(ratio):.3f}, {n} pairs)")

@@ -14,6 +14,7 @@ service renders maps from worker threads, and ``pyplot`` keeps global state that
 from __future__ import annotations
 
 import io
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -220,6 +221,51 @@ def illuminance_map_png(
     fig.text(0.01, 0.005, f"grid {nu}×{nv} cells, origin ({o[0]:.3g}, {o[1]:.3g}, {o[2]:.3g}) m",
              fontsize=7, color="0.35")
     return _png(fig)
+
+
+#: CIE XYZ → linear sRGB (IEC 61966-2-1, D65 white)
+_XYZ_TO_SRGB = np.array([[3.2406, -1.5372, -0.4986], [-0.9689, 1.8758, 0.0415], [0.0557, -0.2040, 1.0570]])
+
+
+def chromaticity_rgb(cie_xy: object, lux: object) -> np.ndarray:
+    """Display colours of light: (…, 2) CIE 1931 xy and (…) lux → (…, 3) sRGB in [0, 1].
+
+    The hue is the light's own (out-of-gamut colours, such as a spectral line, are clipped to the gamut's
+    edge and scaled down to fit), the brightness ∝ lux / max lux; cells without light (xy null/NaN) are black.
+    """
+    xy = np.asarray(cie_xy, dtype=float)
+    e = np.asarray(lux, dtype=float)
+    top = float(e.max()) if e.size and e.max() > 0 else 1.0
+    x, y = xy[..., 0], xy[..., 1]
+    ok = np.isfinite(x) & np.isfinite(y) & (y > 0)
+    big_y = np.where(ok, e / top, 0.0)
+    safe_y = np.where(ok, y, 1.0)
+    xyz = np.stack([big_y * np.where(ok, x, 0) / safe_y, big_y, big_y * np.where(ok, 1 - x - y, 0) / safe_y], -1)
+    rgb = np.clip(xyz @ _XYZ_TO_SRGB.T, 0.0, None)
+    peak = rgb.max(axis=-1, keepdims=True)
+    rgb = np.where(peak > 1.0, rgb / np.where(peak > 0, peak, 1.0), rgb)
+    return np.where(rgb <= 0.0031308, 12.92 * rgb, 1.055 * np.power(rgb, 1 / 2.4) - 0.055)
+
+
+def colour_map_png(cie_xy: object, lux: object, origin: object, u: object, v: object, *,
+                   title: str | None = None) -> bytes:
+    """Render a grid sensor's light as the colour it has (`chromaticity_rgb`), brightness by illuminance."""
+    e = _check_grid("lux", lux)
+    xy = np.asarray(cie_xy, dtype=float)
+    if xy.shape != e.shape + (2,):
+        raise MapError(f"cie_xy must have shape {e.shape + (2,)}, got {xy.shape}")
+    o, uu, vv = _check_frame(origin, u, v)
+    fig, ax = _figure(float(np.linalg.norm(vv)) / float(np.linalg.norm(uu)))
+    extent, xlabel, ylabel = _axes_frame(o, uu, vv)
+    ax.imshow(chromaticity_rgb(xy, e), origin="lower", extent=extent, interpolation="nearest", aspect="equal")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    lit = np.isfinite(xy[..., 0])
+    mean_xy = np.nanmean(xy[lit], axis=0) if lit.any() else (math.nan, math.nan)
+    ax.set_title(f"{title or 'Colour of the light'}\nCIE 1931 mean x {mean_xy[0]:.4f}, y {mean_xy[1]:.4f} · "
+                 f"brightness ∝ illuminance (max {e.max():.4g} lx)", fontsize=9)
+    return _png(fig)
+
 
 
 def difference_map_png(

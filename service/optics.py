@@ -15,6 +15,8 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, Strict, create_model, model_validator
 
+from tracer.optics import spectra
+from tracer.optics.surfaces.base import MaterialError
 from tracer.optics.surfaces.dispatch import KINDS, material_spec
 
 
@@ -22,9 +24,97 @@ class _MaterialWire(BaseModel):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
+# ------------------------------------------------------------------------ values that may vary with λ
+
+Wavelength = Annotated[float, Field(ge=spectra.LAMBDA_MIN, le=spectra.LAMBDA_MAX, description="nm")]
+Samples = Annotated[list[Annotated[float, Strict()]], Field(min_length=2, max_length=10_000)]
+
+
+class SpectralTable(_MaterialWire):
+    """A value sampled over wavelength: linear between the samples, the end values held beyond them."""
+
+    nm: Annotated[list[Wavelength], Field(min_length=2, max_length=10_000, description="increasing, nm")]
+    values: Samples
+
+
+class SellmeierTerms(_MaterialWire):
+    b: Annotated[list[Annotated[float, Strict()]], Field(min_length=1, max_length=6)]
+    c_um2: Annotated[list[Annotated[float, Strict()]], Field(min_length=1, max_length=6, description="µm²")]
+
+
+class Sellmeier(_MaterialWire):
+    """n² = 1 + Σ b λ² / (λ² − c), λ in µm."""
+
+    sellmeier: SellmeierTerms
+
+
+class IndexTable(_MaterialWire):
+    nm: Annotated[list[Wavelength], Field(min_length=2, max_length=10_000, description="increasing, nm")]
+    n: Samples
+
+
+class IorTable(_MaterialWire):
+    table: IndexTable
+
+
+class CoatingLayer(_MaterialWire):
+    ior: Annotated[float, Strict(), Field(ge=1.0, le=5.0, description="the film's refractive index")]
+    thickness_nm: Annotated[float, Strict(), Field(ge=0.0, le=1e5, description="physical thickness, nm")]
+
+
+class CoatingWire(_MaterialWire):
+    """Thin films on the surface, outermost first (`tracer.optics.coating`)."""
+
+    layers: Annotated[list[CoatingLayer], Field(min_length=1, max_length=200)]
+
+
+class Monochromatic(_MaterialWire):
+    type: Literal["monochromatic"]
+    nm: Wavelength
+
+
+class Blackbody(_MaterialWire):
+    type: Literal["blackbody"]
+    kelvin: Annotated[float, Field(ge=100.0, le=1e5, description="K")]
+
+
+class SpectrumTable(_MaterialWire):
+    """Relative spectral power, linear between the samples, zero outside them."""
+
+    type: Literal["table"]
+    nm: Annotated[list[Wavelength], Field(min_length=2, max_length=10_000, description="increasing, nm")]
+    values: Annotated[list[Annotated[float, Field(ge=0.0)]], Field(min_length=2, max_length=10_000)]
+
+
+Spectrum = Annotated[Monochromatic | Blackbody | SpectrumTable, Field(discriminator="type")]
+
+
+class FluorescenceWire(_MaterialWire):
+    """Absorption by spectrum and isotropic re-emission (`tracer.optics.media.fluorescence`)."""
+
+    absorption_per_m: Annotated[float, Strict(), Field(ge=0.0, le=1e9)] | SpectralTable = Field(
+        description="fluorescent absorption coefficient σf, 1/m (or a table over λ)")
+    quantum_yield: Annotated[float, Strict(), Field(ge=0.0, le=1.0, description="photons out per photon in")]
+    emission: Spectrum
+
+
+_OBJECTS = {"coating": CoatingWire, "fluorescence": FluorescenceWire}
+
+
 def _number(meta: Mapping) -> Any:
     limits = {("gt" if meta["lo_open"] else "ge"): meta["lo"], ("lt" if meta["hi_open"] else "le"): meta["hi"]}
     return Annotated[float, Strict(), Field(description=meta.get("doc") or None, **limits)]
+
+
+def _field_type(name: str, meta: Mapping) -> Any:
+    """The wire type of one spec field, by the value rule its metadata names (`tracer.optics.surfaces.base`)."""
+    if "parse" in meta:
+        return _OBJECTS[name] | None
+    if meta["value"] == "spectral":
+        return _number(meta) | SpectralTable
+    if meta["value"] == "ior":
+        return _number(meta) | Sellmeier | IorTable
+    return _number(meta)
 
 
 def _model(kind) -> type[BaseModel]:
@@ -32,13 +122,14 @@ def _model(kind) -> type[BaseModel]:
     fields: dict[str, Any] = {"type": (Literal[kind.NAME], ...)}
     for f in dataclasses.fields(kind.Spec):
         default = ... if f.default is dataclasses.MISSING else f.default
-        fields[f.name] = (_number(f.metadata), default)
+        fields[f.name] = (_field_type(f.name, f.metadata), default)
 
     def _check(self):
-        spec = kind.Spec(**{f.name: getattr(self, f.name) for f in dataclasses.fields(kind.Spec)})
-        problem = spec.check() if hasattr(spec, "check") else None
-        if problem:
-            raise ValueError(problem)
+        # the tracer's own validation: cross-field rules (`Spec.check`), increasing wavelengths, Sellmeier poles
+        try:
+            material_spec(self.model_dump(exclude_none=True))
+        except MaterialError as exc:
+            raise ValueError(str(exc).removeprefix("material: ")) from None
         return self
 
     doc = (kind.__doc__ or kind.NAME).strip().split("\n\n")[0]
@@ -56,4 +147,4 @@ else:
 
 def to_spec(body: dict) -> Any:
     """The tracer's typed spec of a validated material body."""
-    return material_spec(body)
+    return material_spec({k: v for k, v in body.items() if v is not None})

@@ -15,6 +15,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, Strict, StringConstraints, model_validator
 
 from service import optics
+from tracer.optics import spectra
 
 UUID_PATTERN = r"^[0-9a-fA-F]{8}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{12}$"
 GEOMETRY_PATTERN = r"^[0-9a-f]{64}$"
@@ -269,7 +270,21 @@ class MaterialPublic(Wire):
 
 # ---------------------------------------------------------------- lights (DESIGN.md bodies)
 
-class _Attachable(Wire):
+class _Spectral(Wire):
+    spectrum: optics.Spectrum | None = Field(
+        default=None, description="The light's relative spectral power; default equal energy over 380–780 nm.")
+
+    @model_validator(mode="after")
+    def _spectrum(self) -> _Spectral:
+        if self.spectrum is not None:   # the tracer's rules beyond the schema: increasing nm, some power
+            try:
+                spectra.spectrum(self.spectrum.model_dump(), "spectrum")
+            except spectra.SpectrumError as exc:
+                raise ValueError(str(exc)) from None
+        return self
+
+
+class _Attachable(_Spectral):
     name: Annotated[str, StringConstraints(max_length=200)] | None = None
     attached_to: Uuid | None = None  # then positions/directions are in that node's frame, metres
 
@@ -277,11 +292,13 @@ class _Attachable(Wire):
 class _Intensity(_Attachable):
     intensity_cd: NonNegative | None = None
     flux_lm: NonNegative | None = None
+    flux_w: Annotated[float, Field(ge=0.0, le=1e30, description=(
+        "radiant flux, W (instead of a photometric quantity; lm = W × the spectrum's efficacy)"))] | None = None
 
     @model_validator(mode="after")
     def _one_of(self) -> _Intensity:
-        if (self.intensity_cd is None) == (self.flux_lm is None):
-            raise ValueError("give exactly one of intensity_cd and flux_lm")
+        if sum(v is not None for v in (self.intensity_cd, self.flux_lm, self.flux_w)) != 1:
+            raise ValueError("give exactly one of intensity_cd, flux_lm and flux_w")
         return self
 
 
@@ -336,7 +353,7 @@ class CollimatedLight(_Attachable):
         return self
 
 
-class AreaLight(Wire):
+class AreaLight(_Spectral):
     type: Literal["area"]
     name: Annotated[str, StringConstraints(max_length=200)] | None = None
     node: Uuid  # the node whose surfaces (with its descendants') emit

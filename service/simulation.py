@@ -29,6 +29,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
+import math
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -179,7 +180,25 @@ def result_payload(result: Any, revision: int) -> dict[str, Any]:
         "estimator": str(result.estimator),
         "stop_reason": str(result.stop_reason),
         "compile_seconds": float(getattr(result, "compile_seconds", 0.0)),
+        **_spectral_payload(result),
     }
+
+
+def _spectral_payload(result: Any) -> dict[str, Any]:
+    """The observed spectrum of a result, if any: bands, W/m²/nm ± error, and chromaticity (null where dark)."""
+    if getattr(result, "spectral_irradiance", None) is None:
+        return {}
+    xy = np.asarray(result.cie_xy, float)
+    return {"nm": _finite_list(result.nm), "spectral_irradiance": _finite_list(result.spectral_irradiance),
+            "spectral_stderr": _finite_list(result.spectral_stderr),
+            "cie_xy": _nan_to_null(xy.tolist())}
+
+
+def _nan_to_null(x: Any) -> Any:
+    """Nested lists of floats with NaN (nothing arrived, no colour) as JSON null."""
+    if isinstance(x, list):
+        return [_nan_to_null(v) for v in x]
+    return x if math.isfinite(x) else None
 
 
 class SimulationHub:
@@ -289,23 +308,24 @@ class SimulationHub:
     @staticmethod
     def run_points(prepared: Prepared, points: np.ndarray, normals: np.ndarray, radius: float | None,
                    budget: Budget, seed: int, estimator: str, force_effects: tuple[str, ...],
-                   progress: Callable | None = None, cancel: Callable | None = None) -> dict[str, Any]:
+                   progress: Callable | None = None, cancel: Callable | None = None,
+                   observe: tuple[str, ...] = ()) -> dict[str, Any]:
         """Illuminance at points; the JSON answer of ``POST /scenes/{id}/illuminance``."""
         with _refusals():
             result = prepared.simulation.illuminance(
                 points, normals, radius=radius, target_relative_error=budget.target_relative_error,
                 max_seconds=budget.max_seconds, max_photons=budget.max_photons, seed=seed, estimator=estimator,
-                force_effects=force_effects, progress=progress, cancel=cancel)
+                force_effects=force_effects, progress=progress, cancel=cancel, observe=observe)
         return result_payload(result, prepared.live.revision)
 
     def run_grid(self, prepared: Prepared, sensor: dict, budget: Budget, seed: int, estimator: str,
                  force_effects: tuple[str, ...], progress: Callable | None = None,
-                 cancel: Callable | None = None) -> dict[str, Any]:
+                 cancel: Callable | None = None, observe: tuple[str, ...] = ()) -> dict[str, Any]:
         """Simulate one sensor; keeps a grid's result for ``map.png`` while the scene is unchanged."""
         scene_id = prepared.live.scene_id
         common = dict(target_relative_error=budget.target_relative_error, max_seconds=budget.max_seconds,
                       max_photons=budget.max_photons, seed=seed, estimator=estimator,
-                      force_effects=force_effects, progress=progress, cancel=cancel)
+                      force_effects=force_effects, progress=progress, cancel=cancel, observe=observe)
         if sensor["type"] == "grid":
             nu, nv = int(sensor["nu"]), int(sensor["nv"])
             if nu * nv > self.limits.max_points:

@@ -7,13 +7,19 @@
 | `fresnel` | a `dielectric` material (Fresnel interfaces, refraction, total internal reflection) |
 | `absorption` | a `dielectric` with absorption_per_m > 0 |
 | `scattering` | a `dielectric` with scattering_per_m > 0 |
+| `spectral` | any value that depends on the wavelength (below), or a query that observes the spectrum |
+| `dispersion` | a `dielectric` whose `ior` is a Sellmeier formula or a table |
+| `coating` | a `dielectric` with thin films |
+| `fluorescence` | a `dielectric` that fluoresces |
 
 Each kind declares its effects (`effects(spec)` in its module, `tracer/optics/`); this module gathers
 them. The effects above change no compiled code: they are branches on data (a photon meets a mirror
 only where there is one), which the transport benchmark measured to cost nothing where unused. What a
 photon *carries* does change the kernel (Mitsuba's variants): `photon_state(effects)` names it, and
 `tracer.transport.forward_kernel(state)` is the one factory of kernels. Every effect listed today
-needs only a weight, the state ``"white"``; the spectral and polarization issues add states.
+up to `scattering` needs only a weight, the state ``"white"``; `spectral` (implied by `dispersion`, `coating`
+and `fluorescence`) needs a wavelength, the state ``"spectral"``. A light's spectrum alone does not call
+for it: in a grey scene the luminous answer is exact without carrying λ.
 `with_forced` turns effects on in a scene that does not need them (the answer must not change).
 """
 
@@ -23,7 +29,9 @@ from collections.abc import Iterable
 
 from tracer.optics.surfaces.dispatch import effects_of, material_spec
 
-EFFECTS = ("lambertian", "specular", "fresnel", "absorption", "scattering")
+EFFECTS = ("lambertian", "specular", "fresnel", "absorption", "scattering", "spectral", "dispersion", "coating",
+           "fluorescence")
+NEEDS_WAVELENGTH = ("dispersion", "coating", "fluorescence")
 
 
 class EffectError(ValueError):
@@ -51,10 +59,12 @@ def with_forced(effects: list[str], force: tuple[str, ...] | list[str] | str) ->
     """`effects` plus the forced ones, in canonical order; unknown names raise `EffectError`."""
     if isinstance(force, str):
         force = (force,)
-    return canonical(set(effects) | set(force))
+    out = set(effects) | set(force)
+    if out & set(NEEDS_WAVELENGTH):
+        out.add("spectral")
+    return canonical(out)
 
 
 def photon_state(effects: list[str]) -> str:
-    """What a photon must carry for this effect set (the kernel variant): ``"white"`` for every effect today."""
-    canonical(effects)
-    return "white"
+    """What a photon must carry for this effect set: ``"spectral"`` (a wavelength) or ``"white"``."""
+    return "spectral" if "spectral" in canonical(effects) else "white"

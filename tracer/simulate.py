@@ -58,10 +58,12 @@ import numpy as np
 from tracer.backward import QueryArrays, backward_batches, disk_queries
 from tracer.effects import EffectError, canonical, photon_state, with_forced
 from tracer.estimate import Estimate
+from tracer.optics import spectra
 from tracer.optics.lights import connectable, pack_lights
+from tracer.optics.lights.dispatch import spectral_lights
 from tracer.optics.surfaces.dispatch import backward_ok, effects_of, material_spec, pack_materials
 from tracer.scene import Scene
-from tracer.transport import COUNTERS, SensorArrays, forward_kernel
+from tracer.transport import COUNTERS, SensorArrays, forward_kernel, tally_columns
 from tracer.traverse import closest_each
 from tracer.warmup import wait_background
 
@@ -72,6 +74,8 @@ MIN_BATCHES = 8                # batches before the error bar is trusted for a t
 FORWARD_BATCH = 20_000         # photons per forward batch (fewer when max_photons is small)
 BACKWARD_BATCH = 32            # paths per patch per backward batch
 ESTIMATORS = ("auto", "forward", "backward")
+OBSERVABLES = ("spectrum",)
+MAX_SPECTRAL_TALLIES = 4_000_000   # bins × spectral columns a query may record per batch
 
 _COMPILE_SECONDS: dict[tuple, float] = {}   # first call of each compiled variant in this process
 _POOL: ThreadPoolExecutor | None = None
@@ -120,6 +124,9 @@ class IlluminanceResult:
     batches : int; rejected : int — samples dropped as non-finite (never tallied);
     counters : dict — every kernel counter; compile_seconds : float — spent compiling (or loading
     from numba's cache) a kernel variant used for the first time in this process.
+    Where the query observes the spectrum: nm (N_BINS,) — centres of the 5 nm bands;
+    spectral_irradiance, spectral_stderr (k, N_BINS) — W/m²/nm in each band and its standard error;
+    cie_xy (k, 2) — CIE 1931 chromaticity of the light arriving (NaN where nothing arrived).
     """
 
     lux: np.ndarray
@@ -133,6 +140,10 @@ class IlluminanceResult:
     rejected: int = 0
     counters: dict = field(default_factory=dict)
     compile_seconds: float = 0.0
+    nm: np.ndarray | None = None
+    spectral_irradiance: np.ndarray | None = None
+    spectral_stderr: np.ndarray | None = None
+    cie_xy: np.ndarray | None = None
 
 
 @dataclass
@@ -269,6 +280,7 @@ class Simulation:
         default_spec = material_spec(default_material, "default_material") if default_material is not None else None
         self._mats = pack_materials(mats, default_spec, ids, self._sensor_ids)
         self._lights = pack_lights(list(lights), scene, frozenset(self._sensor_ids))
+        self._lights_spectral = spectral_lights(self._lights)   # the same lights for photons with a wavelength
         geometry_ids = [i for i in ids if i not in self._sensor_ids]
         # the distinct specs in use (a scene of 100k instances has a handful of materials)
         self._specs = list(dict.fromkeys(m for m in (mats.get(i, default_spec) for i in geometry_ids) if m is not None))
@@ -301,7 +313,7 @@ class Simulation:
 
     def illuminance(self, points, normals, radius=None, target_relative_error=None, max_seconds=None,
                     max_photons=None, seed=0, estimator="auto", force_effects=(), progress=None,
-                    cancel=None) -> IlluminanceResult:
+                    cancel=None, observe=()) -> IlluminanceResult:
         """Illuminance (lx) on the front side of a disk receiver at each point.
 
         Parameters
@@ -316,6 +328,8 @@ class Simulation:
         force_effects : effect names to compile in although the scene does not need them.
         progress : callable(photons, worst_relative_error, seconds), called between rounds.
         cancel : callable() -> bool, polled between rounds.
+        observe : ("spectrum",) to add the spectral irradiance and the chromaticity (`IlluminanceResult`);
+            photons then carry a wavelength (effect `spectral`), and the forward estimator answers.
         """
         pts = _vectors(points, "points")
         k = len(pts)
@@ -332,14 +346,14 @@ class Simulation:
         r = float(r)
         centers = place_receivers(self._arrays, pts, nrm, r)
         return self._run(False, centers, nrm, r, None, target_relative_error, max_seconds, max_photons, seed,
-                         estimator, force_effects, progress, cancel)
+                         estimator, force_effects, progress, cancel, observe)
 
     def grid(self, origin, u, v, nu, nv, target_relative_error=None, max_seconds=None, max_photons=None, seed=0,
-             estimator="auto", force_effects=(), progress=None, cancel=None) -> GridResult:
+             estimator="auto", force_effects=(), progress=None, cancel=None, observe=()) -> GridResult:
         """Cell-average illuminance (lx) over a grid sensor origin + s u + t v, front side u × v.
 
-        Returns a `GridResult` whose `lux` and `stderr` are (nv, nu) arrays. Other parameters as
-        for `illuminance`.
+        Returns a `GridResult` whose `lux` and `stderr` are (nv, nu) arrays (observed spectra and
+        chromaticities (nv, nu, …)). Other parameters as for `illuminance`.
         """
         o, uu, vv = _vec3(origin, "origin"), _vec3(u, "u"), _vec3(v, "v")
         for name, val in (("nu", nu), ("nv", nv)):
@@ -354,16 +368,24 @@ class Simulation:
         half_diagonal = 0.5 * float(np.linalg.norm(uu + vv))
         o = o + (place_receivers(self._arrays, centre[None, :], nrm[None, :], half_diagonal)[0] - centre) @ nrm * nrm
         res = self._run(True, o, nrm, 0.0, (uu, vv, int(nu), int(nv)), target_relative_error, max_seconds,
-                        max_photons, seed, estimator, force_effects, progress, cancel)
-        return GridResult(res.lux.reshape(int(nv), int(nu)), res.stderr.reshape(int(nv), int(nu)), res.photons,
-                          res.seconds, res.effects, res.estimator, res.stop_reason, res.batches, res.rejected,
-                          res.counters, res.compile_seconds)
+                        max_photons, seed, estimator, force_effects, progress, cancel, observe)
+        shape = (int(nv), int(nu))
+
+        def cells(a):
+            return None if a is None else a.reshape(shape + a.shape[1:])
+
+        return GridResult(cells(res.lux), cells(res.stderr), res.photons, res.seconds, res.effects, res.estimator,
+                          res.stop_reason, res.batches, res.rejected, res.counters, res.compile_seconds, res.nm,
+                          cells(res.spectral_irradiance), cells(res.spectral_stderr), cells(res.cie_xy))
 
     # ------------------------------------------------------------------------------------------ engine
 
     def _run(self, is_grid, centers, normals, radius, grid, target, max_seconds, max_photons, seed, estimator,
-             force_effects, progress, cancel) -> IlluminanceResult:
+             force_effects, progress, cancel, observe) -> IlluminanceResult:
         budget = _budget(target, max_seconds, max_photons)
+        observe_spectrum = _observe(observe)
+        if observe_spectrum:
+            force_effects = (*(force_effects or ()), "spectral")
         if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or not 0 <= seed < 2 ** 63:
             raise SimulationError(f"seed must be an integer in [0, 2**63), got {seed!r}")
         if force_effects is None:
@@ -378,12 +400,13 @@ class Simulation:
         t0 = time.perf_counter()
         if which == "forward":
             return self._forward(is_grid, centers, normals, radius, grid, budget, int(seed), effects, progress,
-                                 cancel, t0)
+                                 cancel, t0, observe_spectrum)
         return self._backward(is_grid, centers, normals, radius, grid, budget, int(seed), effects, progress,
                               cancel, t0)
 
-    def _loop(self, run_round, n_bins, per_batch, budget, progress, cancel, t0):
-        """Rounds of batches until a stop rule holds; returns (Estimate, batches, stop_reason, counters)."""
+    def _loop(self, run_round, n_bins, per_batch, budget, progress, cancel, t0, n_stop=None):
+        """Rounds of batches until a stop rule holds; returns (Estimate, batches, stop_reason, counters).
+        The error stop looks at the first `n_stop` bins (all by default): the illuminances, not the spectra."""
         est = Estimate.empty(n_bins)
         batches = 0
         counters = None
@@ -396,7 +419,7 @@ class Simulation:
             counters = cnt.sum(axis=0) if counters is None else counters + cnt.sum(axis=0)
             batches += nb
             elapsed = time.perf_counter() - t0
-            rel = est.relative_error()
+            rel = est.relative_error()[:n_stop]
             worst = float(np.max(rel)) if rel.size else 0.0
             if progress is not None:
                 progress(batches * per_batch, worst, elapsed)
@@ -409,7 +432,8 @@ class Simulation:
             if budget.max_seconds is not None and elapsed >= budget.max_seconds:
                 return est, batches, "max_seconds", counters
 
-    def _forward(self, is_grid, centers, normals, radius, grid, budget, seed, effects, progress, cancel, t0):
+    def _forward(self, is_grid, centers, normals, radius, grid, budget, seed, effects, progress, cancel, t0,
+                 observe_spectrum):
         receivers = Scene()
         if is_grid:
             uu, vv, nu, nv = grid
@@ -430,24 +454,43 @@ class Simulation:
             snu[ids[0]], snv[ids[0]] = grid[2], grid[3]
         else:
             bin0[ids] = np.arange(len(ids))
-        sens = SensorArrays(bin0, snu, snv)
+        sens = SensorArrays(bin0, snu, snv, np.array([int(observe_spectrum)], np.int64))
+        n_cols = tally_columns(observe_spectrum)
+        if n_bins * n_cols > MAX_SPECTRAL_TALLIES:
+            raise SimulationError(f"observing the spectrum of {n_bins} cells needs {n_bins * n_cols} tallies per "
+                                  f"batch (at most {MAX_SPECTRAL_TALLIES}): use at most "
+                                  f"{MAX_SPECTRAL_TALLIES // n_cols} cells")
         per_batch = FORWARD_BATCH
         if budget.max_photons is not None:
             per_batch = int(min(FORWARD_BATCH, max(1, budget.max_photons // (4 * ROUND_BATCHES))))
         state = photon_state(effects)
         kernel = forward_kernel(state)
-        sa, mats, lights = self._arrays, self._mats, self._lights
+        sa, mats = self._arrays, self._mats
+        lights = self._lights_spectral if state == "spectral" else self._lights
         compile_s = _warm(("forward", state), lambda: _run_batches(kernel, sa, ra, mats, lights, sens, n_bins, seed,
                                                                   0, 1, 1))
 
+        per_area = np.tile(1.0 / area, n_cols)
+
         def run_round(b0, nb):
             flux, cnt = _run_batches(kernel, sa, ra, mats, lights, sens, n_bins, seed, b0, nb, per_batch)
-            return flux / area[None, :], cnt
+            return flux * per_area[None, :], cnt
 
-        est, batches, stop, counters = self._loop(run_round, n_bins, per_batch, budget, progress, cancel, t0)
+        est, batches, stop, counters = self._loop(run_round, n_bins * n_cols, per_batch, budget, progress, cancel, t0,
+                                                  n_bins)
         cdict = {name: int(c) for name, c in zip(COUNTERS, counters, strict=True)}
-        return IlluminanceResult(est.mean, est.stderr, batches * per_batch, time.perf_counter() - t0, effects,
-                                 "forward", stop, batches, cdict["rejected"], cdict, compile_s)
+        mean, err = est.mean.reshape(n_cols, n_bins), est.stderr.reshape(n_cols, n_bins)
+        res = IlluminanceResult(mean[0], err[0], batches * per_batch, time.perf_counter() - t0, effects,
+                                "forward", stop, batches, cdict["rejected"], cdict, compile_s)
+        if observe_spectrum:
+            res.nm = spectra.bin_centres()
+            res.spectral_irradiance = mean[3:].T / spectra.BIN_NM
+            res.spectral_stderr = err[3:].T / spectra.BIN_NM
+            x, y, z = mean[1], mean[0] / spectra.KM, mean[2]
+            total = x + y + z
+            with np.errstate(divide="ignore", invalid="ignore"):
+                res.cie_xy = np.where(total[:, None] > 0, np.stack([x, y], axis=1) / total[:, None], np.nan)
+        return res
 
     def _backward(self, is_grid, centers, normals, radius, grid, budget, seed, effects, progress, cancel, t0):
         if is_grid:
@@ -476,6 +519,18 @@ class Simulation:
         cdict = {"rejected": int(counters[0]), "truncated": int(counters[1])}
         return IlluminanceResult(est.mean, est.stderr, batches * per_batch, time.perf_counter() - t0, effects,
                                  "backward", stop, batches, cdict["rejected"], cdict, compile_s)
+
+
+def _observe(observe) -> bool:
+    """Whether a query's `observe` list asks for the spectrum; `SimulationError` for anything else."""
+    if observe is None:
+        return False
+    if isinstance(observe, str) or not isinstance(observe, list | tuple):
+        raise SimulationError(f"observe must be a list of observables {list(OBSERVABLES)}, got {observe!r}")
+    unknown = [o for o in observe if o not in OBSERVABLES]
+    if unknown:
+        raise SimulationError(f"observe: unknown observable(s) {unknown}; known: {list(OBSERVABLES)}")
+    return "spectrum" in observe
 
 
 def _warm(variant: tuple, call: Callable[[], object]) -> float:

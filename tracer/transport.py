@@ -21,8 +21,12 @@ switches on a kind. Receivers are the query's own: a small structure of sensor i
 arrays of a `tracer.Scene` that holds only them) beside the read-only scene `sa`; a query never adds
 anything to the scene it reads.
 
-One kernel per photon state (`forward_kernel`, `tracer.effects.photon_state`); the effects of a scene
-are branches on its data, compiled in once.
+Photon state (`tracer.effects.photon_state`). A white photon carries luminous flux (lm). In the spectral
+state (a scene whose materials depend on λ, or a query that observes the spectrum) a photon carries
+radiant power (W) and a wavelength λ drawn from its light's spectrum (`tracer.optics.spectra`); the
+materials read their values at λ, fluorescence may change it, and a receiver records K_m V(λ) × power
+(lm), with the CIE 1931 tristimulus weights and 5 nm bands where the query observes the spectrum. The
+effects of a scene are branches on its data, compiled in once (`forward_kernel`).
 
 Counters (per batch, `COUNTERS`): rejected, truncated, medium stack overflow, sensor buffer full.
 """
@@ -36,8 +40,10 @@ import numpy as np
 from numba import njit
 
 from tracer.optics.lights import pick_light, sample_emission
-from tracer.optics.media.dispatch import medium_coefficients, medium_scatter
+from tracer.optics.lights.dispatch import emit_wavelength
+from tracer.optics.media.dispatch import medium_coefficients, medium_event
 from tracer.optics.media.homogeneous import sample_free_flight, transmittance
+from tracer.optics.spectra import BIN_NM, LAMBDA_MIN, N_BINS, luminous, tristimulus
 from tracer.optics.surfaces.base import ABSORBED, STACK_FULL
 from tracer.optics.surfaces.dispatch import scatter
 from tracer.rng import path_key, uniform
@@ -52,6 +58,8 @@ RR_WEIGHT = 0.01       # fraction of the initial weight below which a photon pla
 MAX_BOUNCES = 100_000  # a longer path is cut and counted
 MEDIUM_DEPTH = 8       # nested solids a photon may be inside
 SENSOR_CAP = 64        # sensor crossings recorded per segment (the nearest ones)
+DIM_LAMBDA = 1 << 40   # the random dimension a photon's wavelength is drawn from: off the path's own, so that
+                       # carrying a wavelength changes no other draw (same paths through a grey scene)
 
 
 class SensorArrays(NamedTuple):
@@ -59,21 +67,36 @@ class SensorArrays(NamedTuple):
 
     bin0 (n_inst,) int64: first bin of the sensor, −1 for other instances; nu, nv (n_inst,) int64:
     cells of a rect sensor along u and v (1, 1 for a disk); the bin of a crossing at (u, v) is
-    bin0 + min(⌊v nv⌋, nv−1) nu + min(⌊u nu⌋, nu−1).
+    bin0 + min(⌊v nv⌋, nv−1) nu + min(⌊u nu⌋, nu−1). observe (1,) int64: 1 where the receivers also
+    record the spectrum (`tally_columns`), 0 for luminous flux only.
     """
 
     bin0: np.ndarray
     nu: np.ndarray
     nv: np.ndarray
+    observe: np.ndarray
+
+
+def tally_columns(observe_spectrum: bool) -> int:
+    """Tallies per bin: luminous flux (lm); with the spectrum also X and Z (CIE 1931 x̄, z̄ weighted radiant
+    flux, W) and the radiant flux (W) in each 5 nm band of `tracer.optics.spectra` (`N_BINS`). The tally
+    of column c of bin b is at c × n_bins + b."""
+    return 1 + (2 + N_BINS if observe_spectrum else 0)
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def trace_photon(sa, ra, M, L, S, key, w, tally, counters, med, c_inst, c_t, c_u, c_v, c_cos, stack, tstack):
-    """Trace one photon of initial weight `w` (lm) and add what the receivers record to `tally`."""
+def trace_photon(sa, ra, M, L, S, n_bins, key, w, tally, counters, med, c_inst, c_t, c_u, c_v, c_cos, stack,
+                 tstack):
+    """Trace one photon of initial weight `w` (lm; W where it carries a wavelength) and add what the receivers
+    record to `tally` (`tally_columns`)."""
     j, pj = pick_light(L, uniform(key, 0))
     ox, oy, oz, dx, dy, dz, f, on_surface, nx, ny, nz = sample_emission(
         L, j, uniform(key, 1), uniform(key, 2), uniform(key, 3), uniform(key, 4), uniform(key, 5))
     dim = 6
+    lam = 0.0
+    if L.spectral[0] != 0:
+        lam, f_lam = emit_wavelength(L, j, uniform(key, DIM_LAMBDA))
+        f = f * f_lam
     w = w * f
     if on_surface:
         ox, oy, oz = offset_ray_origin(ox, oy, oz, nx, ny, nz, dx, dy, dz)
@@ -90,10 +113,12 @@ def trace_photon(sa, ra, M, L, S, key, w, tally, counters, med, c_inst, c_t, c_u
         t_end = t
         scattered = False
         sig_a = 0.0
+        sig_s = 0.0
+        sig_f = 0.0
         if depth > 0:
-            sig_a, sig_s = medium_coefficients(M, med[depth - 1])
-            if sig_s > 0.0:
-                ts = sample_free_flight(sig_s, uniform(key, dim))
+            sig_a, sig_s, sig_f = medium_coefficients(M, med[depth - 1], lam)
+            if sig_s + sig_f > 0.0:
+                ts = sample_free_flight(sig_s + sig_f, uniform(key, dim))
                 dim += 1
                 if ts < t:
                     t_end = ts
@@ -109,10 +134,15 @@ def trace_photon(sa, ra, M, L, S, key, w, tally, counters, med, c_inst, c_t, c_u
                 cu = min(max(int(c_u[c] * S.nu[si]), 0), S.nu[si] - 1)
                 cv = min(max(int(c_v[c] * S.nv[si]), 0), S.nv[si] - 1)
                 val = w * transmittance(sig_a, c_t[c])
-                if math.isfinite(val):
-                    tally[b0 + cv * S.nu[si] + cu] += val
-                else:
+                b = b0 + cv * S.nu[si] + cu
+                if not math.isfinite(val):
                     counters[C_REJECTED] += 1
+                elif lam > 0.0:
+                    tally[b] += val * luminous(lam)
+                    if S.observe[0] != 0:
+                        record_spectrum(tally, n_bins, b, val, lam)
+                else:
+                    tally[b] += val
         if sig_a > 0.0:
             if not math.isfinite(t_end):
                 return
@@ -121,8 +151,10 @@ def trace_photon(sa, ra, M, L, S, key, w, tally, counters, med, c_inst, c_t, c_u
             ox = ox + t_end * dx
             oy = oy + t_end * dy
             oz = oz + t_end * dz
-            dx, dy, dz = medium_scatter(M, med[depth - 1], dx, dy, dz, uniform(key, dim), uniform(key, dim + 1))
-            dim += 2
+            alive, dx, dy, dz, lam, f, dim = medium_event(M, med[depth - 1], dx, dy, dz, lam, sig_s, sig_f, key, dim)
+            if not alive:
+                return
+            w = w * f
         else:
             if inst < 0:
                 return
@@ -130,7 +162,7 @@ def trace_photon(sa, ra, M, L, S, key, w, tally, counters, med, c_inst, c_t, c_u
             py = oy + t * dy
             pz = oz + t * dz
             status, dx, dy, dz, f, depth, dim = scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz,
-                                                        med, depth, key, dim)
+                                                        med, depth, key, dim, lam)
             if status == ABSORBED:
                 return
             if status == STACK_FULL:
@@ -158,21 +190,32 @@ def trace_photon(sa, ra, M, L, S, key, w, tally, counters, med, c_inst, c_t, c_u
             w = w / q
 
 
+@njit(cache=True, error_model="numpy", _nrt=False)
+def record_spectrum(tally, n_bins, b, watts, lam):
+    """Add a crossing of `watts` W at λ nm to bin b's spectral columns (`tally_columns`)."""
+    xb, _, zb = tristimulus(lam)
+    tally[n_bins + b] += watts * xb
+    tally[2 * n_bins + b] += watts * zb
+    band = min(max(int((lam - LAMBDA_MIN) / BIN_NM), 0), N_BINS - 1)
+    tally[(3 + band) * n_bins + b] += watts
+
+
 @njit(cache=True, error_model="numpy", nogil=True)
 def forward_batches(sa, ra, M, L, S, n_bins, seed, batch0, n_batches, photons):
     """Run batches batch0 … batch0+n_batches−1 of `photons` photons each.
 
     Returns
     -------
-    flux : (n_batches, n_bins) float64
-        Flux in lm each bin recorded in each batch (the batch's estimate of the bin's flux).
+    flux : (n_batches, n_bins × tally_columns) float64
+        Flux in lm each bin recorded in each batch (the batch's estimate of the bin's flux), then the
+        spectral columns where `S.observe` asks for them (`tally_columns`).
     counters : (n_batches, len(COUNTERS)) int64
         See `COUNTERS`.
 
     Serial and without the GIL: `tracer.simulate` runs contiguous runs of batches on threads. Each batch
     is seeded by its index and its photons run in order, so its sums do not depend on the threads.
     """
-    out = np.zeros((n_batches, n_bins))
+    out = np.zeros((n_batches, n_bins * (1 + (2 + N_BINS) * S.observe[0])))
     cnt = np.zeros((n_batches, len(COUNTERS)), np.int64)
     w0 = L.flux_total[0] / photons
     for b in range(n_batches):
@@ -187,12 +230,18 @@ def forward_batches(sa, ra, M, L, S, n_bins, seed, batch0, n_batches, photons):
         counters = cnt[b]
         for i in range(photons):
             key = path_key(seed, batch0 + b, i)
-            trace_photon(sa, ra, M, L, S, key, w0, tally, counters, med, c_inst, c_t, c_u, c_v, c_cos, stack, tstack)
+            trace_photon(sa, ra, M, L, S, n_bins, key, w0, tally, counters, med, c_inst, c_t, c_u, c_v, c_cos, stack,
+                         tstack)
     return out, cnt
 
 
 def forward_kernel(state: str):
-    """The forward kernel for a photon state (`tracer.effects.photon_state`): the one factory of kernels."""
-    if state == "white":
+    """The forward kernel for a photon state (`tracer.effects.photon_state`): the one factory of kernels.
+
+    ``"white"`` and ``"spectral"`` share one compiled kernel: a wavelength is one float and a branch per
+    tally, which the transport benchmark measures within noise on white scenes (bench/bench_spectral.py),
+    while a second variant would cost a compile (~40 s on 2 cores) the first time a scene turns spectral.
+    Which state runs is data: `tracer.optics.lights.spectral_lights` packs the lights for it."""
+    if state in ("white", "spectral"):
         return forward_batches
     raise ValueError(f"no forward kernel for the photon state {state!r}")

@@ -23,7 +23,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from service.errors import NotFound, TooLarge
 from service.jobs import JobNotFound, QueueFull
-from service.maps import illuminance_map_png
+from service.maps import colour_map_png, illuminance_map_png
 from service.simulation import SimulationHub, Unavailable, find_sensor, hub_for, resolve_budget
 
 router = APIRouter(tags=["simulation"])
@@ -55,6 +55,10 @@ class _Budget(BaseModel):
                                     "the scene's choice.")
     force_effects: Annotated[list[Annotated[str, Field(pattern=EFFECT_NAME)]], Field(max_length=16)] = Field(
         default_factory=list, description="Effects to switch on although the scene does not call for them.")
+    observe: Annotated[list[Literal["spectrum"]], Field(max_length=1)] = Field(
+        default_factory=list, description="`spectrum`: add the spectral irradiance (W/m²/nm in 5 nm bands) and the "
+                                          "CIE 1931 chromaticity of each value; photons then carry a wavelength "
+                                          "(effect `spectral`) and the forward estimator answers.")
 
 
 class IlluminanceQuery(_Budget):
@@ -99,6 +103,12 @@ class IlluminancePublic(BaseModel):
     stop_reason: str = Field(description="Which rule stopped the run (target reached, photons, seconds, cancel).")
     compile_seconds: float = Field(0.0, description="Seconds of `seconds` this answer spent compiling (or loading "
                                               "from numba's cache) a kernel first used in this process, s.")
+    nm: list[float] | None = Field(None, description="With observe spectrum: centres of the 5 nm bands, nm.")
+    spectral_irradiance: list[Any] | None = Field(
+        None, description="With observe spectrum: W/m²/nm in each band, one row per point (per cell for a grid).")
+    spectral_stderr: list[Any] | None = Field(None, description="Standard error of each band, W/m²/nm.")
+    cie_xy: list[Any] | None = Field(
+        None, description="With observe spectrum: CIE 1931 (x, y) of the light arriving; null where none arrived.")
 
 
 class SensorPublic(BaseModel):
@@ -117,6 +127,10 @@ class SensorPublic(BaseModel):
     estimator: str
     stop_reason: str
     compile_seconds: float = 0.0
+    nm: list[float] | None = None
+    spectral_irradiance: list[Any] | None = None
+    spectral_stderr: list[Any] | None = None
+    cie_xy: list[Any] | None = None
     min_lux: float
     mean_lux: float
     max_lux: float
@@ -197,7 +211,7 @@ def _submit(hub: SimulationHub, kind: str, scene_id: str, revision: int, work: A
         raise Unavailable(f"the job queue is full: {exc}", retry_after_seconds=10) from exc
 
 
-@router.post("/scenes/{scene_id}/illuminance", response_model=IlluminancePublic,
+@router.post("/scenes/{scene_id}/illuminance", response_model=IlluminancePublic, response_model_exclude_none=True,
              responses={202: {"model": JobAccepted}, 413: {}, 503: {}})
 def illuminance(scene_id: str, query: IlluminanceQuery, request: Request, mode: Mode = "sync") -> Any:
     """Illuminance (lx) with its standard error at each point, for receivers facing `normals`."""
@@ -211,11 +225,11 @@ def illuminance(scene_id: str, query: IlluminanceQuery, request: Request, mode: 
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     prepared = hub.prepare(scene_id)
     effects = tuple(query.force_effects)
-    hub.check_query(prepared, query.estimator, effects)
+    hub.check_query(prepared, query.estimator, effects + (("spectral",) if query.observe else ()))
 
     def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
         payload = hub.run_points(prepared, points, normals, query.radius, budget, query.seed, query.estimator,
-                                 effects, progress=progress, cancel=cancel)
+                                 effects, progress=progress, cancel=cancel, observe=tuple(query.observe))
         payload["current"] = hub.is_current(scene_id, prepared.generation)
         return payload
 
@@ -245,11 +259,11 @@ def simulate_sensor(scene_id: str, sensor_id: str, request: Request, query: Sens
     sensor = find_sensor(prepared.live, sensor_id)  # the same sensor in the snapshot the query runs on
     map_url = str(request.url_for("sensor_map", scene_id=scene_id, sensor_id=sensor_id).path)
     effects = tuple(query.force_effects)
-    hub.check_query(prepared, query.estimator, effects)
+    hub.check_query(prepared, query.estimator, effects + (("spectral",) if query.observe else ()))
 
     def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
         payload = hub.run_grid(prepared, sensor, budget, query.seed, query.estimator, effects,
-                               progress=progress, cancel=cancel)
+                               progress=progress, cancel=cancel, observe=tuple(query.observe))
         if payload["type"] == "grid":
             payload["map_url"] = map_url
         return payload
@@ -266,7 +280,11 @@ def simulate_sensor(scene_id: str, sensor_id: str, request: Request, query: Sens
             response_class=Response, responses={200: {"content": {"image/png": {}}}, 404: {}})
 def sensor_map(scene_id: str, sensor_id: str, request: Request,
                vmax: Annotated[float | None, Query(gt=0.0, allow_inf_nan=False,
-                                                   description="Top of the colour scale, lx.")] = None) -> Response:
+                                                   description="Top of the colour scale, lx.")] = None,
+               show: Annotated[Literal["lux", "colour"], Query(
+                   description="`lux`: false colour by illuminance; `colour`: the light's own colour (CIE 1931 "
+                               "chromaticity shown in sRGB, brightness by illuminance; needs a simulation that "
+                               "observed the spectrum).")] = "lux") -> Response:
     """False-colour PNG of the grid sensor's latest result at the scene's current state."""
     hub = _hub(request)
     live = hub.live.get(scene_id)
@@ -278,6 +296,15 @@ def sensor_map(scene_id: str, sensor_id: str, request: Request,
         raise NotFound(f"sensor {sensor_id!r} has no result for the scene as it is now (revision {live.revision}); "
                        f"POST /scenes/{scene_id}/sensors/{sensor_id}/simulate first", revision=live.revision)
     name = _sensor_name(request, scene_id, sensor_id)
+    if show == "colour":
+        if result.get("cie_xy") is None:
+            raise NotFound(f"sensor {sensor_id!r} has no observed spectrum: POST /scenes/{scene_id}/sensors/"
+                           f"{sensor_id}/simulate with \"observe\": [\"spectrum\"] first", revision=live.revision)
+        xy = np.asarray([[[math.nan if c is None else c for c in cell] for cell in row] for row in result["cie_xy"]])
+        png = colour_map_png(xy, result["lux"], result["origin"], result["u"], result["v"],
+                             title=f"{name} — scene revision {result['revision']}, {result['photons']:,} photons")
+        return Response(content=png, media_type="image/png",
+                        headers={"X-Scene-Revision": str(result["revision"]), "Cache-Control": "no-store"})
     png = illuminance_map_png(result["lux"], result["origin"], result["u"], result["v"], stderr=result["stderr"],
                               title=f"{name} — scene revision {result['revision']}, {result['photons']:,} photons",
                               vmax=vmax)

@@ -51,6 +51,7 @@ P_I0, P_COS_OUT, P_COS_IN, P_R, P_H, P_FLUX, P_SOLID, P_SHAPE = 12, 13, 14, 15, 
 SHADOW_SHORTEN = 1e-6  # a shadow ray toward a point on an emitting surface stops this fraction short of it
 
 COMMON_FIELDS = frozenset({"id", "name", "attached_to", "type"})  # kept by the service, ignored here
+SPECTRAL_FIELDS = frozenset({"spectrum", "flux_w"})  # any kind's; `dispatch.pack_lights` reads them
 
 
 class LightError(ValueError):
@@ -67,6 +68,10 @@ class LightArrays(NamedTuple):
     offset, cell offset; `g_n` (n, 2): nc, ng): g_c (rad), g_gamma (rad), g_cd (cd), g_cell_cdf.
     Area emitters: tri (m, 9) world v0, e1, e2 (m); tri_n (m, 3) unit front normals; tri_cdf (m,)
     cumulative area within each light; `a_off` (n, 2): first triangle, count; `a_area` (n,): m².
+    Spectra (`tracer.optics.spectra`): `spectral` (1,) int64, 1 where photons carry a wavelength and
+    radiant power (then `cdf` and `flux_total` are by radiant flux, W), 0 where they carry luminous flux
+    (lm); `mono` (n,) nm of a line (0 otherwise); `spd_cdf`, `spd_f` (n, GRID_N): each light's
+    `spectra.sampling_table`; `efficacy` (n,) lm/W.
     """
 
     kind: np.ndarray
@@ -84,6 +89,11 @@ class LightArrays(NamedTuple):
     tri_cdf: np.ndarray
     a_off: np.ndarray
     a_area: np.ndarray
+    spectral: np.ndarray
+    mono: np.ndarray
+    spd_cdf: np.ndarray
+    spd_f: np.ndarray
+    efficacy: np.ndarray
 
 
 class Packing:
@@ -121,7 +131,7 @@ class Packing:
 
 def check_fields(body: dict, where: str, name: str, fields: frozenset) -> None:
     """Reject any field of `body` that a `name` light does not accept."""
-    extra = set(body) - fields - COMMON_FIELDS
+    extra = set(body) - fields - COMMON_FIELDS - SPECTRAL_FIELDS
     if extra:
         raise LightError(f"{where}: unknown field(s) {sorted(extra)} for a {name!r} light")
 

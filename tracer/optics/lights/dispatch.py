@@ -11,8 +11,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from tracer.optics import spectra
 from tracer.optics.lights import area, collimated, goniometric, point, spot
 from tracer.optics.lights.base import P_FLUX, LightArrays, LightError, Packing
+from tracer.optics.spectra import sample_grid
 
 KINDS = (point, spot, collimated, goniometric, area)
 POINT, SPOT, COLLIMATED, GONIOMETRIC, AREA = 0, 1, 2, 3, 4
@@ -39,6 +41,8 @@ def pack_lights(lights: list[dict], scene=None, sensor_ids: frozenset = frozense
     n = len(lights)
     kind = np.zeros(n, np.int32)
     out = Packing(n, scene, sensor_ids)
+    mono, efficacy = np.zeros(n), np.zeros(n)
+    spd_cdf, spd_f = np.zeros((n, spectra.GRID_N)), np.zeros((n, spectra.GRID_N))
     for j, body in enumerate(lights):
         where = f"light {j}" + (f" ({body.get('id')})" if isinstance(body, dict) and body.get("id") else "")
         if not isinstance(body, dict):
@@ -49,7 +53,11 @@ def pack_lights(lights: list[dict], scene=None, sensor_ids: frozenset = frozense
             raise LightError(f"{where}: unknown light type {t!r}; known: {sorted(KIND_OF_NAME)}")
         module = KINDS[k]
         kind[j] = k
-        module.pack(module.Spec.from_body(body, where), j, out, where)
+        s = light_spectrum(body, where)
+        efficacy[j] = spectra.efficacy(s)
+        mono[j] = s.mono_nm
+        spd_cdf[j], spd_f[j] = spectra.sampling_table(s)
+        module.pack(module.Spec.from_body(_photometric(body, module, efficacy[j], where), where), j, out, where)
     fluxes = out.par[:, P_FLUX]
     total = float(fluxes.sum())
     if not total > 0:
@@ -58,7 +66,38 @@ def pack_lights(lights: list[dict], scene=None, sensor_ids: frozenset = frozense
     return LightArrays(kind, out.par, cdf, np.array([total]), out.g_off, out.g_n, out.table("g_c", (0,)),
                        out.table("g_gamma", (0,)), out.table("g_cd", (0,)), out.table("g_cell_cdf", (0,)),
                        out.table("tri", (0, 9)), out.table("tri_n", (0, 3)), out.table("tri_cdf", (0,)), out.a_off,
-                       out.a_area)
+                       out.a_area, np.zeros(1, np.int64), mono, spd_cdf, spd_f, efficacy)
+
+
+def light_spectrum(body: dict, where: str) -> spectra.Spectrum:
+    """The light's `spectrum` (equal energy where absent), tabulated; `LightError` naming the light if invalid."""
+    try:
+        return spectra.spectrum(body.get("spectrum"), f"{where}: spectrum")
+    except spectra.SpectrumError as exc:
+        raise LightError(str(exc)) from None
+
+
+def _photometric(body: dict, module, efficacy: float, where: str) -> dict:
+    """The body with `flux_w` (radiant flux, W) turned into the kind's `flux_lm` = flux_w × K(S)."""
+    if body.get("flux_w") is None:
+        return body
+    if "flux_lm" not in module.FIELDS:
+        raise LightError(f"{where}: 'flux_w' is for lights given by their flux (point, spot); a {module.NAME!r} "
+                         f"light takes its photometric quantity")
+    if body.get("flux_lm") is not None or body.get("intensity_cd") is not None:
+        raise LightError(f"{where}: give one of 'flux_w', 'flux_lm' and 'intensity_cd'")
+    v = body["flux_w"]
+    if isinstance(v, bool) or not isinstance(v, int | float) or not 0.0 <= v <= 1e30:
+        raise LightError(f"{where}: 'flux_w' must be a number of watts in [0, 1e30], got {v!r}"[:300])
+    return {**{k: x for k, x in body.items() if k != "flux_w"}, "flux_lm": float(v) * efficacy}
+
+
+def spectral_lights(L: LightArrays) -> LightArrays:
+    """The same lights for photons that carry a wavelength: picked by radiant flux Φ_e = Φ_v / K(S),
+    with the total in W (see `LightArrays`)."""
+    watts = L.par[:, P_FLUX] / L.efficacy
+    total = float(watts.sum())
+    return L._replace(cdf=np.cumsum(watts) / total, flux_total=np.array([total]), spectral=np.ones(1, np.int64))
 
 
 def connectable(L: LightArrays) -> tuple[bool, str]:
@@ -84,6 +123,14 @@ def sample_emission(L, j, u0, u1, u2, u3, u4):
     if k == AREA:
         return area.sample(L, j, u0, u1, u2, u3, u4)
     return 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, False, 0.0, 0.0, 0.0  # an id no kind has: a photon of weight 0
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def emit_wavelength(L, j, u):
+    """A photon's wavelength (nm) from light j's spectrum, and its weight factor (`spectra.sampling_table`)."""
+    if L.mono[j] > 0.0:
+        return L.mono[j], 1.0
+    return sample_grid(L.spd_cdf[j], L.spd_f[j], u)
 
 
 @njit(cache=True, _nrt=False)

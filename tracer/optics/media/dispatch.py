@@ -11,17 +11,17 @@ HOMOGENEOUS = KINDS.index(homogeneous)
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def medium_coefficients(M, mi):
-    """(σa, σs) in 1/m inside solid `mi`; (0, 0) for a clear one."""
+def medium_coefficients(M, mi, lam):
+    """(σa, σs, σf) in 1/m inside solid `mi` at λ nm (0: a white photon); zeros for a clear one."""
     k = M.medium[mi]
     if k == HOMOGENEOUS:
-        return homogeneous.coefficients(M, mi)
-    return 0.0, 0.0
+        return homogeneous.coefficients(M, mi, lam)
+    return 0.0, 0.0, 0.0
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def medium_scatter(M, mi, dx, dy, dz, u1, u2):
-    """Unit direction after a scattering event inside solid `mi` (unchanged in a clear one)."""
+def medium_event(M, mi, dx, dy, dz, lam, sig_s, sig_f, key, dim):
+    """An event inside solid `mi` (scattering or fluorescence): (alive, dx, dy, dz, λ, power factor, dim)."""
     if M.medium[mi] == HOMOGENEOUS:
-        return homogeneous.scatter(M, mi, dx, dy, dz, u1, u2)
-    return dx, dy, dz
+        return homogeneous.event(M, mi, dx, dy, dz, lam, sig_s, sig_f, key, dim)
+    return True, dx, dy, dz, lam, 1.0, dim

@@ -6,7 +6,8 @@
 | scattering_per_m | float | 1/m | [0, 1e9] | 0 |
 | g | float | — | (−1, 1) | 0 |
 
-Parameter row: (σa, σs, g, 0). The single-scattering albedo is σs/(σa+σs). The Henyey–Greenstein
+Parameter row: (σa, σs, g, σf, quantum yield, emission line; `fluorescence`), σa may vary with λ
+(``mtab[0]``). The single-scattering albedo is σs/(σa+σs). The Henyey–Greenstein
 sampler inverts the CDF in a form that stays finite for g → ±1 and for |g| → 0 (switching to the
 isotropic case below |g| < 1e-4), and the phase function value is computed without cancellation at
 cosθ → ±1. Effects: `absorption` where σa > 0, `scattering` where σs > 0.
@@ -19,6 +20,9 @@ import math
 from numba import njit
 
 from tracer.optics.frames import onb
+from tracer.optics.media.fluorescence import SIGMA_F, reemit
+from tracer.optics.surfaces.base import mparam
+from tracer.rng import uniform
 
 _G_ISOTROPIC = 1e-4
 
@@ -74,10 +78,22 @@ def sample_free_flight(sigma, u):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def coefficients(M, mi):
-    return M.mpar[mi, 0], M.mpar[mi, 1]
+def coefficients(M, mi, lam):
+    """(σa, σs, σf) in 1/m at λ nm (σf, fluorescent absorption, only for a photon with a wavelength)."""
+    sig_f = mparam(M, mi, SIGMA_F, lam) if lam > 0.0 else 0.0
+    return mparam(M, mi, 0, lam), M.mpar[mi, 1], sig_f
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def scatter(M, mi, dx, dy, dz, u1, u2):
-    return hg_scatter(dx, dy, dz, M.mpar[mi, 2], u1, u2)
+def event(M, mi, dx, dy, dz, lam, sig_s, sig_f, key, dim):
+    """A scattering or fluorescence event: (alive, dx, dy, dz, λ, power factor, dim); the choice between
+    them is drawn only where σf > 0, so that scenes without fluorescence trace the same paths."""
+    if sig_f > 0.0:
+        u = uniform(key, dim)
+        dim += 1
+        if u * (sig_s + sig_f) >= sig_s:
+            alive, lam2, f = reemit(M, mi, lam, uniform(key, dim), uniform(key, dim + 1))
+            dx, dy, dz = hg_scatter(dx, dy, dz, 0.0, uniform(key, dim + 2), uniform(key, dim + 3))
+            return alive, dx, dy, dz, lam2, f, dim + 4
+    dx, dy, dz = hg_scatter(dx, dy, dz, M.mpar[mi, 2], uniform(key, dim), uniform(key, dim + 1))
+    return True, dx, dy, dz, lam, 1.0, dim + 2

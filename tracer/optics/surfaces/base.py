@@ -9,10 +9,15 @@ A surface kind is one module in this folder (or in `tracer/optics/elements/`, fo
   `spec_from_body` below builds and validates one from a wire body, for every kind alike.
 - ``row(spec) -> (N_PAR,) float64``: the parameter row the kernels read; ``medium(spec)`` (optional):
   ``(medium kind, (N_MPAR,) row)`` of the solid's inside (`tracer/optics/media/`), ``NO_MEDIUM`` if none.
+  A field whose ``bounds(...)`` names a ``column`` (or ``mcolumn``, in the medium's row) may vary with
+  the wavelength (``value="spectral"`` or ``"ior"``, `tracer.optics.spectra`): the row holds its
+  `spectra.scalar`, and `pack_materials` puts its table beside (``ptab``/``mtab``), read through `param`
+  and `mparam` by photons that carry a wavelength. A ``coating`` field (`tracer.optics.coating`) is packed
+  into ``layers``/``coat`` the same way.
 - ``effects(spec) -> tuple[str, ...]``: the effects it calls for (`tracer.effects.EFFECTS`).
 - ``diffuse_only(spec) -> bool``: whether the backward estimator can follow it (it reflects only
   diffusely, with albedo ``albedo(M, inst)``; a black surface is diffuse with albedo 0).
-- the jitted ``scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim)``
+- the jitted ``scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam)``
   returning ``(status, dx, dy, dz, f, depth, dim)``:
 
   * ``status``: `CONTINUES` (the photon leaves along the new unit direction d), `ABSORBED`, or
@@ -21,6 +26,7 @@ A surface kind is one module in this folder (or in `tracer/optics/elements/`, fo
     reflection with probability ρ instead of scaling the weight);
   * ``med[0:depth]``: instance ids of the solids the photon is inside, innermost last; a kind that
     refracts into or out of a solid pushes or pops it and returns the new ``depth``;
+  * ``lam``: the photon's wavelength in nm, 0 for a white photon (then every value is the row's own);
   * ``key``, ``dim``: the photon's random stream (`tracer.rng.uniform(key, dim)`); a kind returns ``dim``
     advanced past the numbers it drew.
 
@@ -42,10 +48,11 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from tracer.optics import spectra
 from tracer.traverse import shading_normal
 
 N_PAR = 4           # parameter row of a surface
-N_MPAR = 4          # parameter row of the medium inside a solid
+N_MPAR = 8          # parameter row of the medium inside a solid
 NONE = -1           # no material: a sensor instance or an id the scene does not hold
 NO_MEDIUM = -1      # the inside of a solid that neither absorbs nor scatters (or no solid at all)
 ABSORBED, CONTINUES, STACK_FULL = 0, 1, 2
@@ -62,20 +69,42 @@ class MaterialArrays(NamedTuple):
     par : (n_inst, N_PAR) float64 — the kind's parameter row.
     medium : (n_inst,) int32 — medium kind inside the instance's solid (`NO_MEDIUM` if none).
     mpar : (n_inst, N_MPAR) float64 — the medium's parameter row.
+    ptab, mtab : (n_inst, N_PAR), (n_inst, N_MPAR) int32 — the row of `tables` that replaces a column for a
+        photon with a wavelength, −1 where the column does not vary with it.
+    tables : (n_tables, spectra.GRID_N) float64 — values on the wavelength grid (`tracer.optics.spectra`).
+    layers : (n_layers, 2) float64 — thin-film layers [n, thickness nm] of every coating, outermost first.
+    coat : (n_inst, 2) int32 — first layer and layer count of the instance's coating (count 0: none).
     """
 
     kind: np.ndarray
     par: np.ndarray
     medium: np.ndarray
     mpar: np.ndarray
+    ptab: np.ndarray
+    mtab: np.ndarray
+    tables: np.ndarray
+    layers: np.ndarray
+    coat: np.ndarray
 
 
 # ------------------------------------------------------------------------------------------ specs
 
 
-def bounds(lo: float, hi: float, lo_open: bool = False, hi_open: bool = False, doc: str = "") -> dict:
-    """Field metadata: the closed (or open) interval a number must lie in, and what it means."""
-    return {"lo": lo, "hi": hi, "lo_open": lo_open, "hi_open": hi_open, "doc": doc}
+def bounds(lo: float, hi: float, lo_open: bool = False, hi_open: bool = False, doc: str = "",
+           value: str = "number", column: int | None = None, mcolumn: int | None = None) -> dict:
+    """Field metadata: the closed (or open) interval a number must lie in, and what it means.
+
+    value: ``"number"``; ``"spectral"`` (a number or a table over λ, `spectra.spectral_value`); ``"ior"``
+    (a number, Sellmeier or a table, `spectra.ior_value`). column / mcolumn: the surface / medium row
+    column a spectral value feeds (its table goes beside it, see `MaterialArrays`).
+    """
+    return {"lo": lo, "hi": hi, "lo_open": lo_open, "hi_open": hi_open, "doc": doc, "value": value,
+            "column": column, "mcolumn": mcolumn}
+
+
+def optional(parse, doc: str) -> dict:
+    """Field metadata of an optional object field (default None): `parse(value, name, where)` validates it."""
+    return {"parse": parse, "doc": doc}
 
 
 def spec_fields(spec_cls) -> list[dataclasses.Field]:
@@ -94,6 +123,20 @@ def _number(v, name: str, meta: Mapping, where: str) -> float:
     return v
 
 
+def _value(v, name: str, meta: Mapping, where: str):
+    """One body field, validated by the rule its metadata names."""
+    try:
+        if "parse" in meta:
+            return None if v is None else meta["parse"](v, name, where)
+        if meta["value"] == "spectral":
+            return spectra.spectral_value(v, name, where, meta["lo"], meta["hi"])
+        if meta["value"] == "ior":
+            return spectra.ior_value(v, name, where, meta["lo"], meta["hi"])
+    except spectra.SpectrumError as exc:
+        raise MaterialError(str(exc)) from None
+    return _number(v, name, meta, where)
+
+
 def spec_from_body(spec_cls, name: str, body: dict, where: str):
     """Validate a wire body against a kind's spec class and build the spec.
 
@@ -109,7 +152,7 @@ def spec_from_body(spec_cls, name: str, body: dict, where: str):
     missing = required - set(body)
     if missing:
         raise MaterialError(f"{where}: missing field(s) {sorted(missing)} for a {name!r} material")
-    values = {f.name: _number(body[f.name], f.name, f.metadata, where) for f in fields if f.name in body}
+    values = {f.name: _value(body[f.name], f.name, f.metadata, where) for f in fields if f.name in body}
     spec = spec_cls(**values)
     problem = spec.check() if hasattr(spec, "check") else None
     if problem:
@@ -155,3 +198,21 @@ def reflect_specular(sa, inst, prim, hu, hv, dx, dy, dz, fx, fy, fz):
         rx, ry, rz = reflect(dx, dy, dz, fx, fy, fz)
     inv = 1.0 / math.sqrt(rx * rx + ry * ry + rz * rz)
     return rx * inv, ry * inv, rz * inv
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def param(M, inst, col, lam):
+    """Column `col` of the surface row of `inst` at wavelength `lam` nm (0: a white photon, the row's value)."""
+    t = M.ptab[inst, col]
+    if t >= 0 and lam > 0.0:
+        return spectra.grid_value(M.tables[t], lam)
+    return M.par[inst, col]
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def mparam(M, mi, col, lam):
+    """Column `col` of the medium row of solid `mi` at wavelength `lam` nm (0: the row's value)."""
+    t = M.mtab[mi, col]
+    if t >= 0 and lam > 0.0:
+        return spectra.grid_value(M.tables[t], lam)
+    return M.mpar[mi, col]

@@ -42,5 +42,5 @@ def albedo(M, inst):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim):
+def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam):
     return ABSORBED, dx, dy, dz, 0.0, depth, dim

@@ -2,10 +2,12 @@
 
 | field | type | unit | range | default |
 | --- | --- | --- | --- | --- |
-| ior | float | — | (0, 10] | required |
-| absorption_per_m | float | 1/m | [0, 1e9] | 0 |
+| ior | float, Sellmeier or table (`tracer.optics.spectra`) | — | (0, 10] | required |
+| absorption_per_m | float or table over λ | 1/m | [0, 1e9] | 0 |
 | scattering_per_m | float | 1/m | [0, 1e9] | 0 |
 | g | float | — | (−1, 1) | 0 |
+| coating | thin films on the surface (`tracer.optics.coating`) | — | — | none |
+| fluorescence | inside (`tracer.optics.media.fluorescence`) | — | — | none |
 
 The geometric normal points outward: a photon arriving against it enters the solid. Reflection is
 chosen with the unpolarised Fresnel reflectance (Rs + Rp)/2 of the exact formulas, total internal
@@ -13,19 +15,27 @@ reflection where sin θt ≥ 1; n1 = n2 gives exactly zero reflectance and an un
 spurious reflection from rounding). Directions are taken about the interpolated normal where the mesh
 has one, about the facet's where that would cross to the wrong side. The index outside is the one of
 the solid the photon is in (the medium stack), 1 outside every solid. The inside is a homogeneous
-medium (`tracer/optics/media/homogeneous.py`) where σa or σs > 0.
-Effects: `fresnel`, + `absorption` where σa > 0, + `scattering` where σs > 0. Backward estimator: no.
+medium (`tracer/optics/media/homogeneous.py`) where σa or σs > 0 or it fluoresces. A coated surface
+reflects with the coating's reflectance (transfer matrices, at the photon's wavelength and angle)
+instead of Fresnel's; the refracted direction is Snell's between the two outer indices either way.
+Effects: `fresnel`, + `absorption` where σa > 0, + `scattering` where σs > 0, + `dispersion` where the
+index varies with λ, + `coating`, + `fluorescence`, and `spectral` with any of the last three or an
+absorption table. Backward estimator: no.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numba import njit
 
+from tracer.optics.coating import Coating, coated_reflectance, parse_coating
 from tracer.optics.media.dispatch import HOMOGENEOUS
+from tracer.optics.media.fluorescence import EMISSION_NM, QY, SIGMA_F, Fluorescence, parse_fluorescence
+from tracer.optics.spectra import scalar, varies
 from tracer.optics.surfaces.base import (
     CONTINUES,
     N_MPAR,
@@ -33,6 +43,8 @@ from tracer.optics.surfaces.base import (
     STACK_FULL,
     arrival_normal,
     bounds,
+    optional,
+    param,
     reflect_specular,
     specular_normal,
 )
@@ -45,30 +57,57 @@ NAME = "dielectric"
 class Spec:
     """Refractive index, and the absorption, scattering and Henyey–Greenstein asymmetry of the inside."""
 
-    ior: float = field(metadata=bounds(0.0, 10.0, lo_open=True, doc="refractive index n"))
-    absorption_per_m: float = field(default=0.0, metadata=bounds(0.0, 1e9, doc="absorption coefficient σa, 1/m"))
+    ior: Any = field(metadata=bounds(0.0, 10.0, lo_open=True, value="ior", column=0,
+                                     doc="refractive index n: a number, {sellmeier: {b, c_um2}} or {table: {nm, n}}"))
+    absorption_per_m: Any = field(default=0.0, metadata=bounds(0.0, 1e9, value="spectral", mcolumn=0,
+                                                               doc="absorption coefficient σa, 1/m (or a table)"))
     scattering_per_m: float = field(default=0.0, metadata=bounds(0.0, 1e9, doc="scattering coefficient σs, 1/m"))
     g: float = field(default=0.0, metadata=bounds(-1.0, 1.0, lo_open=True, hi_open=True,
                                                   doc="Henyey–Greenstein asymmetry g"))
+    coating: Coating | None = field(default=None, metadata=optional(parse_coating, "thin films, outermost first"))
+    fluorescence: Fluorescence | None = field(default=None, metadata=optional(
+        parse_fluorescence, "absorption and isotropic re-emission inside"))
 
 
 def row(spec: Spec) -> np.ndarray:
-    return np.array([spec.ior, 0.0, 0.0, 0.0])
+    return np.array([scalar(spec.ior), 0.0, 0.0, 0.0])
 
 
 def medium(spec: Spec) -> tuple[int, np.ndarray]:
     m = np.zeros(N_MPAR)
-    m[:3] = spec.absorption_per_m, spec.scattering_per_m, spec.g
-    kind = HOMOGENEOUS if (spec.absorption_per_m > 0 or spec.scattering_per_m > 0) else NO_MEDIUM
-    return kind, m
+    m[:3] = scalar(spec.absorption_per_m), spec.scattering_per_m, spec.g
+    fl = spec.fluorescence
+    if fl is not None:
+        m[SIGMA_F], m[QY], m[EMISSION_NM] = scalar(fl.absorption_per_m), fl.quantum_yield, fl.emission.mono_nm
+    clear = m[0] == 0 and spec.scattering_per_m == 0 and fl is None and not varies(spec.absorption_per_m)
+    return (NO_MEDIUM if clear else HOMOGENEOUS), m
+
+
+def medium_tables(spec: Spec) -> dict[int, np.ndarray]:
+    """The fluorescence's tables: σf over λ, the emission spectrum's cdf."""
+    fl = spec.fluorescence
+    out = {}
+    if fl is not None and varies(fl.absorption_per_m):
+        out[SIGMA_F] = fl.absorption_per_m.grid()
+    if fl is not None and fl.emission.mono_nm == 0:
+        out[EMISSION_NM] = fl.emission_cdf()
+    return out
 
 
 def effects(spec: Spec) -> tuple[str, ...]:
     out = ["fresnel"]
-    if spec.absorption_per_m > 0:
+    if varies(spec.absorption_per_m) or spec.absorption_per_m > 0:
         out.append("absorption")
     if spec.scattering_per_m > 0:
         out.append("scattering")
+    if varies(spec.ior):
+        out.append("dispersion")
+    if spec.coating is not None:
+        out.append("coating")
+    if spec.fluorescence is not None:
+        out.append("fluorescence")
+    if set(out) & {"dispersion", "coating", "fluorescence"} or varies(spec.absorption_per_m):
+        out.append("spectral")
     return tuple(out)
 
 
@@ -122,29 +161,32 @@ def refract(dx, dy, dz, nx, ny, nz, eta):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim):
+def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam):
     u = uniform(key, dim)
     fx, fy, fz = arrival_normal(ngx, ngy, ngz, dx, dy, dz)
     entering = dx * ngx + dy * ngy + dz * ngz < 0.0
     pos = -1
     if entering:
-        n1 = M.par[med[depth - 1], 0] if depth > 0 else 1.0
-        n2 = M.par[inst, 0]
+        n1 = param(M, med[depth - 1], 0, lam) if depth > 0 else 1.0
+        n2 = param(M, inst, 0, lam)
     else:
-        n1 = M.par[inst, 0]
+        n1 = param(M, inst, 0, lam)
         for k in range(depth - 1, -1, -1):
             if med[k] == inst:
                 pos = k
                 break
         if pos >= 0:
-            n2 = M.par[med[pos - 1], 0] if pos > 0 else 1.0
+            n2 = param(M, med[pos - 1], 0, lam) if pos > 0 else 1.0
         elif depth > 0 and med[depth - 1] != inst:
-            n2 = M.par[med[depth - 1], 0]   # leaving a solid it was not known to be in
+            n2 = param(M, med[depth - 1], 0, lam)   # leaving a solid it was not known to be in
         else:
             n2 = 1.0
     snx, sny, snz = specular_normal(sa, inst, prim, hu, hv, fx, fy, fz)
     cos_i = -(dx * snx + dy * sny + dz * snz)
-    r = fresnel_dielectric(cos_i, n1, n2)
+    if M.coat[inst, 1] > 0 and lam > 0.0:
+        r = coated_reflectance(M, inst, entering, n1, n2, 0.0, lam, min(max(cos_i, 0.0), 1.0))
+    else:
+        r = fresnel_dielectric(cos_i, n1, n2)
     transmitted = False
     if u < r:
         dx, dy, dz = reflect_specular(sa, inst, prim, hu, hv, dx, dy, dz, fx, fy, fz)

@@ -14,9 +14,13 @@ specs what the scene calls for.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from numba import njit
 
+from tracer.optics import spectra
+from tracer.optics.coating import Coating
 from tracer.optics.elements import diffuser
 from tracer.optics.surfaces import black, dielectric, lambertian, mirror, mix
 from tracer.optics.surfaces.base import (
@@ -102,11 +106,16 @@ def pack_materials(materials: dict, default, instance_ids: list[int], sensor_ids
     par = np.zeros((n, N_PAR))
     medium = np.full(n, NO_MEDIUM, np.int32)
     mpar = np.zeros((n, N_MPAR))
+    ptab = np.full((n, N_PAR), -1, np.int32)
+    mtab = np.full((n, N_MPAR), -1, np.int32)
+    coat = np.zeros((n, 2), np.int32)
     known = set(instance_ids)
     for i in materials:
         if not isinstance(i, int | np.integer) or int(i) not in known:
             raise MaterialError(f"materials: instance id {i!r} is not in the scene")
     default_spec = material_spec(default, "default_material") if default is not None else None
+    tables = _Tables()
+    rows: dict = {}   # spec -> its packed rows: a scene of 100k instances has a handful of materials
     for i in instance_ids:
         if i in sensor_ids:
             continue
@@ -116,30 +125,74 @@ def pack_materials(materials: dict, default, instance_ids: list[int], sensor_ids
             spec = default_spec
         else:
             raise MaterialError(f"instance {i} has no material and no default_material was given")
-        m = module_of(spec)
-        kind[i], par[i] = KIND_OF[m.NAME], m.row(spec)
-        if hasattr(m, "medium"):
-            medium[i], mpar[i] = m.medium(spec)
-    return MaterialArrays(kind, par, medium, mpar)
+        if spec not in rows:
+            rows[spec] = _rows(spec, tables)
+        kind[i], par[i], medium[i], mpar[i], ptab[i], mtab[i], coat[i] = rows[spec]
+    return MaterialArrays(kind, par, medium, mpar, ptab, mtab, tables.array(), tables.layer_array(), coat)
+
+
+class _Tables:
+    """The spectral tables and coating layers of a material table while it is packed (shared, deduplicated)."""
+
+    def __init__(self):
+        self.rows: dict[bytes, int] = {}
+        self.layers: list[tuple[float, float]] = []
+
+    def add(self, values: np.ndarray) -> int:
+        key = values.tobytes()
+        return self.rows.setdefault(key, len(self.rows))
+
+    def array(self) -> np.ndarray:
+        if not self.rows:
+            return np.zeros((1, spectra.GRID_N))
+        return np.stack([np.frombuffer(k) for k in self.rows])
+
+    def layer_array(self) -> np.ndarray:
+        return np.array(self.layers, np.float64).reshape(-1, 2) if self.layers else np.zeros((1, 2))
+
+
+def _rows(spec, tables: _Tables):
+    """(kind id, par, medium kind, mpar, ptab, mtab, coat) of one spec."""
+    m = module_of(spec)
+    par = m.row(spec)
+    mkind, mpar = m.medium(spec) if hasattr(m, "medium") else (NO_MEDIUM, np.zeros(N_MPAR))
+    ptab = np.full(N_PAR, -1, np.int32)
+    mtab = np.full(N_MPAR, -1, np.int32)
+    coat = np.zeros(2, np.int32)
+    for f in dataclasses.fields(spec):
+        v = getattr(spec, f.name)
+        if spectra.varies(v):
+            if f.metadata.get("column") is not None:
+                ptab[f.metadata["column"]] = tables.add(v.grid())
+            if f.metadata.get("mcolumn") is not None:
+                mtab[f.metadata["mcolumn"]] = tables.add(v.grid())
+        elif isinstance(v, Coating):
+            coat[:] = len(tables.layers), len(v.layers)
+            tables.layers.extend(v.layers)
+    if hasattr(m, "medium_tables"):   # tables only the kind knows how to build (an emission spectrum's cdf)
+        for col, values in m.medium_tables(spec).items():
+            mtab[col] = tables.add(values)
+    return KIND_OF[m.NAME], par, mkind, mpar, ptab, mtab, coat
 
 
 # ----------------------------------------------------------------------------------------- the switch
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim):
-    """What the surface of instance `inst` does to a photon arriving along d (`base` has the contract)."""
+def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam):
+    """What the surface of instance `inst` does to a photon of wavelength `lam` nm (0: white) arriving along d
+    (`base` has the contract)."""
     k = M.kind[inst]
     if k == LAMBERTIAN:
-        return lambertian.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim)
+        return lambertian.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam)
     if k == MIRROR:
-        return mirror.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim)
+        return mirror.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam)
     if k == MIX:
-        return mix.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim)
+        return mix.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam)
     if k == DIELECTRIC:
-        return dielectric.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim)
+        return dielectric.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam)
     if k == DIFFUSER:
-        return diffuser.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim)
+        return diffuser.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam)
     return ABSORBED, dx, dy, dz, 0.0, depth, dim   # black, or an id without material
 
 

@@ -2,22 +2,25 @@
 
 | field | type | unit | range | default |
 | --- | --- | --- | --- | --- |
-| reflectance | float | fraction | [0, 1] | required |
+| reflectance | float or table over λ (`tracer.optics.spectra`) | fraction | [0, 1] | required |
 
 A photon is reflected with probability R, absorbed otherwise. Where the mesh has vertex normals the
 mirror direction is taken about the interpolated normal (a tessellated curved mirror focuses as the
 true surface would), about the facet's where that would send the photon below the surface.
-Effects: `specular`. Backward estimator: no (a shadow ray cannot find a point light through it).
+Effects: `specular` (+ `spectral` for a table). Backward estimator: no (a shadow ray cannot find a point
+light through it).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numba import njit
 
-from tracer.optics.surfaces.base import ABSORBED, CONTINUES, arrival_normal, bounds, reflect_specular
+from tracer.optics.spectra import scalar, varies
+from tracer.optics.surfaces.base import ABSORBED, CONTINUES, arrival_normal, bounds, param, reflect_specular
 from tracer.rng import uniform
 
 NAME = "mirror"
@@ -27,15 +30,16 @@ NAME = "mirror"
 class Spec:
     """Reflectance R (fraction of the incident flux reflected specularly)."""
 
-    reflectance: float = field(metadata=bounds(0.0, 1.0, doc="specular reflectance R, fraction"))
+    reflectance: Any = field(metadata=bounds(0.0, 1.0, value="spectral", column=0,
+                                             doc="specular reflectance R, fraction (or a table over λ)"))
 
 
 def row(spec: Spec) -> np.ndarray:
-    return np.array([spec.reflectance, 0.0, 0.0, 0.0])
+    return np.array([scalar(spec.reflectance), 0.0, 0.0, 0.0])
 
 
 def effects(spec: Spec) -> tuple[str, ...]:
-    return ("specular",)
+    return ("specular", "spectral") if varies(spec.reflectance) else ("specular",)
 
 
 def diffuse_only(spec: Spec) -> bool:
@@ -48,8 +52,8 @@ def albedo(M, inst):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim):
-    if uniform(key, dim) >= M.par[inst, 0]:
+def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam):
+    if uniform(key, dim) >= param(M, inst, 0, lam):
         return ABSORBED, dx, dy, dz, 0.0, depth, dim + 1
     fx, fy, fz = arrival_normal(ngx, ngy, ngz, dx, dy, dz)
     dx, dy, dz = reflect_specular(sa, inst, prim, hu, hv, dx, dy, dz, fx, fy, fz)

@@ -55,7 +55,7 @@ def albedo(M, inst):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim):
+def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam):
     u = uniform(key, dim)
     rd, rs = M.par[inst, 0], M.par[inst, 1]
     fx, fy, fz = arrival_normal(ngx, ngy, ngz, dx, dy, dz)
