@@ -9,8 +9,8 @@ It prints the median ratio (< 1: B is faster) and its range::
 
     .venv/bin/python bench/ab.py /path/to/checkout_a /path/to/checkout_b scene3 incoherent 8
 
-Scene ``room`` with rays ``photons`` times forward photon tracing instead: 200,000 photons through
-the diffuse room of ``bench/bench_transport.py`` (``Simulation.illuminance``, nine floor points).
+Scene ``room`` with rays ``photons`` (or ``photons:N``) times forward photon tracing instead: 200,000 (N)
+photons through the diffuse room of ``bench/bench_transport.py`` (``Simulation.illuminance``, nine floor points).
 
 Each checkout needs ``bench/instructions.py`` (``bench/bench_transport.py`` for the room) and its own
 ``.venv`` (a symbolic link to this one will do); ``git worktree add`` makes a checkout of an older
@@ -30,8 +30,9 @@ from collections.abc import Callable
 def one_pass(scene: str, rays: str) -> Callable[[], object]:
     """The work of one timed pass, loaded with the code on ``sys.path`` and run once outside the timing."""
     if scene == "room":
-        if rays != "photons":
-            raise SystemExit("scene room takes rays 'photons'")
+        if rays.split(":")[0] != "photons":
+            raise SystemExit("scene room takes rays 'photons' or 'photons:N'")
+        photons = int(rays.split(":")[1]) if ":" in rays else 200_000
         from bench.bench_transport import floor_points, room_scene
         from tracer.simulate import Simulation
 
@@ -40,7 +41,7 @@ def one_pass(scene: str, rays: str) -> Callable[[], object]:
                          [{"type": "point", "position": [2.0, 2.0, 2.5], "intensity_cd": 1000.0}])
         pts, nrm = floor_points(3)
         sim.illuminance(pts, nrm, max_photons=1000, estimator="forward")
-        return lambda: sim.illuminance(pts, nrm, max_photons=200_000, estimator="forward")
+        return lambda: sim.illuminance(pts, nrm, max_photons=photons, estimator="forward")
     from bench.instructions import scene_and_rays
 
     sc, o, d = scene_and_rays(scene, rays)
@@ -49,20 +50,22 @@ def one_pass(scene: str, rays: str) -> Callable[[], object]:
 
 
 def worker(checkout: str, scene: str, rays: str) -> None:
-    """Load the work with the code of ``checkout``, then time one pass per line read from stdin."""
+    """Load the work with the code of ``checkout``, then time one pass per line read from stdin: the CPU seconds
+    of this thread (the work runs on it: one thread), which a neighbour's load on the shared cores does not inflate
+    as it does wall time."""
     sys.path.insert(0, checkout)
     work = one_pass(scene, rays)
     print("ready", flush=True)
     for _ in sys.stdin:
-        t0 = time.perf_counter()
+        t0 = time.thread_time()
         work()
-        print(time.perf_counter() - t0, flush=True)
+        print(time.thread_time() - t0, flush=True)
 
 
 def pairs(a: str, b: str, scene: str, rays: str, n: int) -> tuple[list[float], list[float]]:
-    """Wall seconds of `n` passes in each checkout, taken in turn (A B B A ...); (times of A, times of B)."""
+    """CPU seconds of `n` passes in each checkout, taken in turn (A B B A ...); (times of A, times of B)."""
     env = dict(os.environ, NUMBA_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
-    procs = [subprocess.Popen([f"{r}/.venv/bin/python", f"{r}/bench/ab.py", "--worker", r, scene, rays], cwd=r, env=env,
+    procs = [subprocess.Popen([f"{r}/.venv/bin/python", __file__, "--worker", r, scene, rays], cwd=r, env=env,
                               stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True) for r in (a, b)]
     for p in procs:
         if p.stdout is None or p.stdout.readline().strip() != "ready":

@@ -1,8 +1,8 @@
 """Spectral light: what a wavelength per photon costs, and what each spectral effect costs on the paths that meet it.
 
-1. White scenes pay nothing. The diffuse room of `bench_transport` (200,000 photons, one thread) traced by this
+1. White scenes pay nothing. The diffuse room of `bench_transport` (2,000,000 photons, one thread) traced by this
    checkout and by the last commit before spectral light (`BASE`, a `git worktree`), in turn, A B B A …
-   (`bench/ab.py`): the median ratio of neighbouring passes. Same scene, same paths.
+   (`bench/ab.py`, CPU time): the median ratio of neighbouring passes, beside the base against itself (the noise).
 2. The spectral state on the same paths. The same room with a 4000 K blackbody source, white against spectral
    (forced; the wavelength is drawn from a random dimension of its own, so the paths are the same) and against
    spectral with the spectrum observed (97 tallies per receiver instead of 1), in turn in one process.
@@ -34,14 +34,15 @@ FLUOR = {"absorption_per_m": {"nm": [400, 480, 500], "values": [200.0, 200.0, 0.
 
 
 def _interleaved(calls: dict, rounds: int) -> dict[str, list[float]]:
-    """Seconds of each call, `rounds` times, the order turned each round (neighbours compare like with like)."""
+    """CPU seconds of each call (one thread: the batches run on this one), `rounds` times, the order turned each
+    round so that neighbours compare like with like."""
     names = list(calls)
     out: dict[str, list[float]] = {n: [] for n in names}
     for r in range(rounds):
         for n in (names if r % 2 == 0 else names[::-1]):
-            t0 = time.perf_counter()
+            t0 = time.thread_time()
             calls[n]()
-            out[n].append(time.perf_counter() - t0)
+            out[n].append(time.thread_time() - t0)
     return out
 
 
@@ -58,7 +59,7 @@ def same_paths(rounds: int) -> dict:
                      [{"type": "point", "position": [2.0, 2.0, 2.5], "intensity_cd": 1000.0,
                        "spectrum": {"type": "blackbody", "kelvin": 4000}}])
     pts, nrm = floor_points(3)
-    q = dict(max_photons=200_000, estimator="forward")
+    q = dict(max_photons=2_000_000, estimator="forward")
     for kw in ({}, {"observe": ["spectrum"]}):
         sim.illuminance(pts, nrm, max_photons=1000, estimator="forward", **kw)
     times = _interleaved({"white": lambda: sim.illuminance(pts, nrm, **q),
@@ -112,10 +113,14 @@ def white_pays_nothing(pairs_n: int) -> dict:
     from bench.ab import pairs
 
     base = _worktree()
-    a, b = pairs(str(base), str(ROOT), "room", "photons", pairs_n)
+    a, b = pairs(str(base), str(ROOT), "room", "photons:2000000", pairs_n)
+    aa, ab = pairs(str(base), str(base), "room", "photons:2000000", pairs_n)   # the noise: the base against itself
+    noise = [y / x for x, y in zip(aa, ab, strict=True)]
     ratio = [tb / ta for ta, tb in zip(a, b, strict=True)]
     return {"base": BASE, "base_seconds": statistics.median(a), "this_seconds": statistics.median(b),
-            "ratio_median": statistics.median(ratio), "ratio_range": [min(ratio), max(ratio)], "pairs": pairs_n}
+            "ratio_median": statistics.median(ratio), "ratio_range": [min(ratio), max(ratio)], "pairs": pairs_n,
+            "base_against_itself_median": statistics.median(noise),
+            "base_against_itself_range": [min(noise), max(noise)]}
 
 
 FIRST_ANSWER = """
@@ -147,14 +152,17 @@ def compile_seconds() -> dict:
 
 
 def run(quick: bool = False) -> dict:
+    import numba
+
+    numba.set_num_threads(1)
     rounds = 3 if quick else 7
     result = {"same_paths": same_paths(rounds), "effects": effect_costs(rounds)}
     if not quick:
-        result["white_pays_nothing"] = white_pays_nothing(8)
+        result["white_pays_nothing"] = white_pays_nothing(12)
         result["compile"] = compile_seconds()
     sp, ef = result["same_paths"], result["effects"]
-    lines = ["Medians; ratios are of neighbouring passes (one thread, this machine).", "",
-             "| diffuse room, 200k photons | s | × white |", "| --- | --- | --- |"]
+    lines = ["Medians of CPU seconds on one thread; ratios are of neighbouring passes (this machine).", "",
+             "| diffuse room, 2M photons | s | × white |", "| --- | --- | --- |"]
     lines += [f"| {n} | {sp['seconds'][n]:.3f} | {sp['ratio_to_white'][n]:.3f} |" for n in sp["seconds"]]
     lines += ["", "| glass block, every photon enters, 500k photons | photons/s | × clear spectral | × clear white |",
               "| --- | --- | --- | --- |"]
@@ -162,9 +170,11 @@ def run(quick: bool = False) -> dict:
               f"{ef['ratio_to_clear_white'][n]:.3f} |" for n in ef["photons_per_second"]]
     if "white_pays_nothing" in result:
         w = result["white_pays_nothing"]
-        lines += ["", f"White diffuse room, this checkout against {w['base']} (before spectral light), "
+        lines += ["", f"White diffuse room (2M photons), this checkout against {w['base']} (before spectral light), "
                       f"{w['pairs']} A/B pairs: {w['this_seconds']:.3f} s against {w['base_seconds']:.3f} s, ratio "
-                      f"{w['ratio_median']:.3f} (range {w['ratio_range'][0]:.3f}–{w['ratio_range'][1]:.3f})."]
+                      f"{w['ratio_median']:.3f} (range {w['ratio_range'][0]:.3f}–{w['ratio_range'][1]:.3f}); the "
+                      f"base against itself, the same way: {w['base_against_itself_median']:.3f} (range "
+                      f"{w['base_against_itself_range'][0]:.3f}–{w['base_against_itself_range'][1]:.3f})."]
         c = result["compile"]
         lines += ["", f"First answer, empty numba cache, no background compilation: this checkout on a dispersive "
                       f"glass block {c['this (spectral)']:.1f} s, {BASE} on the same block in white "

@@ -37,7 +37,7 @@ def _kernels_taking_tuples() -> dict[str, CPUDispatcher]:
 
 def test_per_ray_kernels_count_no_references() -> None:
     kernels = _kernels_taking_tuples()
-    assert {"tracer.traverse.closest_with_stacks", "tracer.transport.trace_photon",
+    assert {"tracer.traverse.closest_with_stacks", "tracer.transport.trace_photons",
             "tracer.optics.lights.spot.sample",
             "tracer.optics.surfaces.dielectric.scatter"} <= set(kernels)   # the walk finds them
     assert ALLOCATING <= set(kernels)

@@ -199,7 +199,7 @@ def _find(cdf, lo, n, u):
     return a
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def pick_light(L, u):
     """Index of a light chosen with probability ∝ its flux, and that probability."""
     n = L.cdf.shape[0]

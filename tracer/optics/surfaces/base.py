@@ -200,19 +200,19 @@ def reflect_specular(sa, inst, prim, hu, hv, dx, dy, dz, fx, fy, fz):
     return rx * inv, ry * inv, rz * inv
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def param(M, inst, col, lam):
-    """Column `col` of the surface row of `inst` at wavelength `lam` nm (0: a white photon, the row's value)."""
-    t = M.ptab[inst, col]
-    if t >= 0 and lam > 0.0:
-        return spectra.grid_value(M.tables[t], lam)
+    """Column `col` of the surface row of `inst` at wavelength `lam` nm (0: a white photon, the row's value).
+
+    Inlined: a call would pass the whole material tuple (nine arrays) per bounce."""
+    if lam > 0.0 and M.ptab[inst, col] >= 0:   # a white photon never reads the table index
+        return spectra.grid_value(M.tables[M.ptab[inst, col]], lam)
     return M.par[inst, col]
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def mparam(M, mi, col, lam):
     """Column `col` of the medium row of solid `mi` at wavelength `lam` nm (0: the row's value)."""
-    t = M.mtab[mi, col]
-    if t >= 0 and lam > 0.0:
-        return spectra.grid_value(M.tables[t], lam)
+    if lam > 0.0 and M.mtab[mi, col] >= 0:
+        return spectra.grid_value(M.tables[M.mtab[mi, col]], lam)
     return M.mpar[mi, col]
