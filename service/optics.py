@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, Annotated, Any, Literal, Union
+from typing import TYPE_CHECKING, Annotated, Any, Literal, Optional, Union
 
 from pydantic import BaseModel, ConfigDict, Field, Strict, create_model, model_validator
 
@@ -98,7 +98,10 @@ class FluorescenceWire(_MaterialWire):
     emission: Spectrum
 
 
-_OBJECTS = {"coating": CoatingWire, "fluorescence": FluorescenceWire}
+Metal = Annotated[tuple[Annotated[float, Strict(), Field(gt=0.0, le=20.0)],
+                        Annotated[float, Strict(), Field(ge=0.0, le=50.0)]],
+                  Field(description="the metal's complex index [n, k] (n − ik), e.g. aluminium at 550 nm [0.96, 6.69]")]
+_OBJECTS: dict[str, Any] = {"coating": CoatingWire, "fluorescence": FluorescenceWire, "metal": Metal}
 
 
 def _number(meta: Mapping) -> Any:
@@ -109,7 +112,7 @@ def _number(meta: Mapping) -> Any:
 def _field_type(name: str, meta: Mapping) -> Any:
     """The wire type of one spec field, by the value rule its metadata names (`tracer.optics.surfaces.base`)."""
     if "parse" in meta:
-        return _OBJECTS[name] | None
+        return Optional[_OBJECTS[name]]  # noqa: UP045 (a runtime type)
     if meta["value"] == "spectral":
         return _number(meta) | SpectralTable
     if meta["value"] == "ior":

@@ -107,6 +107,9 @@ def test_stored_spectral_bodies_come_back_as_given(world):
     ("materials", {"type": "lambertian", "reflectance": {"nm": [400, 700], "values": [0.5, 1.5]}}, "reflectance"),
     ("materials", {"type": "lambertian", "reflectance": 0.5, "coating": {"layers": []}}, "coating"),
     ("materials", {"type": "dielectric", "ior": {"sellmeier": {"b": [1.0], "c_um2": [0.25]}}}, "pole"),
+    ("materials", {"type": "mirror", "reflectance": 0.9, "coating": {"layers": [{"ior": 1.46, "thickness_nm": 94}]}},
+     "metal"),
+    ("materials", {"type": "mirror", "metal": [0.96, 6.69, 1.0]}, "metal"),
     ("materials", {"type": "dielectric", "ior": 1.5, "coating": {"layers": [{"ior": 1.38}]}}, "thickness_nm"),
     ("materials", {"type": "dielectric", "ior": 1.5, "fluorescence": {
         "absorption_per_m": 10, "quantum_yield": 2, "emission": {"type": "monochromatic", "nm": 550}}},

@@ -227,6 +227,35 @@ def test_a_coated_glass_plate_reflects_what_the_transfer_matrices_say(nm, coated
     assert ("coating" in res.effects) == coated
 
 
+ALUMINIUM = (0.96, 6.69)   # n − ik at 550 nm
+
+
+@pytest.mark.parametrize("layers", [0, 1])
+def test_a_metal_mirror_reflects_by_fresnel_and_through_its_coating(layers):
+    """Aluminium (0.96 − 6.69i) at normal incidence: R = ((n−1)² + k²)/((n+1)² + k²) = 0.9209 bare; under a
+    quarter-wave of SiO₂ (1.46) at 550 nm the amplitude is r = (r₀₁ − r₁₂)/(1 − r₀₁ r₁₂) (the layer turns the
+    phase by π), with r₀₁ = (1 − 1.46)/(1 + 1.46) and r₁₂ = (1.46 − ñ)/(1.46 + ñ), ñ = 0.96 − 6.69i."""
+    scene, (mirror,) = _scene(([-0.1, -0.1, -0.01], [0.1, 0.1, 0.0]))
+    coating = {"layers": [{"ior": 1.46, "thickness_nm": 550 / (4 * 1.46)}]}
+    material = {"type": "mirror", "metal": list(ALUMINIUM), **({"coating": coating} if layers else {})}
+    r_beam, r_disk, phi = 2e-3, 5e-3, 1.0
+    light = {"type": "collimated", "origin": [0, 0, 0.2], "direction": [0, 0, -1], "radius": r_beam,
+             "illuminance_lx": phi / (math.pi * r_beam ** 2), "spectrum": {"type": "monochromatic", "nm": 550}}
+    sim = Simulation(scene, {mirror: material}, [light])
+    res = sim.illuminance([[0, 0, 0.1]], [[0, 0, -1]], radius=r_disk, max_photons=200_000, seed=6,
+                          estimator="forward")
+    metal = complex(ALUMINIUM[0], -ALUMINIUM[1])   # n − ik
+    if layers:
+        r01, r12 = (1 - 1.46) / (1 + 1.46), (1.46 - metal) / (1.46 + metal)
+        expected = abs((r01 - r12) / (1 - r01 * r12)) ** 2
+    else:
+        expected = ((ALUMINIUM[0] - 1) ** 2 + ALUMINIUM[1] ** 2) / ((ALUMINIUM[0] + 1) ** 2 + ALUMINIUM[1] ** 2)
+        assert expected == pytest.approx(0.9209, abs=1e-4)
+    area = math.pi * r_disk ** 2
+    assert _near(res.lux[0] * area, phi * expected, res.stderr[0] * area), (res.lux[0] * area, expected)
+    assert ("coating" in res.effects) == bool(layers)
+
+
 # -------------------------------------------------------------------------------------- fluorescence
 
 
