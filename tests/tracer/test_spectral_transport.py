@@ -16,7 +16,7 @@ from tracer.optics import spectra
 from tracer.optics.surfaces.dielectric import fresnel_dielectric
 from tracer.optics.thinfilm import stack_reflectance
 from tracer.scene import Scene
-from tracer.simulate import Simulation
+from tracer.simulate import Simulation, SimulationError
 from tracer.warmup import box
 
 BK7 = {"sellmeier": {"b": [1.03961212, 0.231792344, 1.01046945], "c_um2": [0.00600069867, 0.0200179144, 103.560653]}}
@@ -342,3 +342,21 @@ def test_everything_on_conserves_energy_and_stays_finite():
                           observe=["spectrum"])
     assert res.rejected == 0 and np.all(np.isfinite(res.spectral_irradiance)) and np.isfinite(res.lux).all()
     assert 0.0 < bands.sum() <= 1.0 + 4 * bands_err   # W out ≤ W in: absorption and the Stokes shift only take
+
+
+@pytest.mark.parametrize(("observe", "match"), [("spectrum", "must be a list"), (["stokes"], "unknown observable"),
+                                                ({"spectrum": 1}, "must be a list")])
+def test_a_bad_observe_is_refused_naming_it(observe, match):
+    scene, (floor,) = _scene(([-1, -1, -1], [1, 1, 0]))
+    sim = Simulation(scene, {floor: {"type": "black"}}, [{"type": "point", "position": [0, 0, 1], "flux_lm": 1.0}])
+    with pytest.raises(SimulationError, match=match):
+        sim.illuminance([[0, 0, 0]], [[0, 0, 1]], max_photons=100, observe=observe)
+
+
+def test_a_grid_too_large_to_observe_the_spectrum_of_is_refused_before_it_runs():
+    scene, (floor,) = _scene(([-1, -1, -1], [1, 1, 0]))
+    sim = Simulation(scene, {floor: {"type": "black"}}, [{"type": "point", "position": [0, 0, 1], "flux_lm": 1.0}])
+    with pytest.raises(SimulationError, match="use at most 41237 cells"):
+        sim.grid([-1, -1, 0], [2, 0, 0], [0, 2, 0], 300, 300, max_photons=100, observe=["spectrum"])
+    with pytest.raises(SimulationError, match="backward estimator cannot answer"):
+        sim.illuminance([[0, 0, 0]], [[0, 0, 1]], max_photons=100, observe=["spectrum"], estimator="backward")
