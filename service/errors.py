@@ -9,6 +9,7 @@ useful, extension members (e.g. ``missing``, ``current_revision``, ``errors``).
 from __future__ import annotations
 
 import logging
+import uuid
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -100,9 +101,17 @@ def install_handlers(app: FastAPI) -> None:
     @app.exception_handler(StarletteHTTPException)
     async def _http(_: Request, exc: StarletteHTTPException) -> JSONResponse:
         titles = {404: "Not found", 405: "Method not allowed", 413: "Content too large"}
-        return problem(exc.status_code, titles.get(exc.status_code, "HTTP error"), str(exc.detail))
+        response = problem(exc.status_code, titles.get(exc.status_code, "HTTP error"), str(exc.detail))
+        response.headers.update(exc.headers or {})   # a 405 keeps its Allow
+        return response
 
     @app.exception_handler(Exception)
     async def _bug(request: Request, exc: Exception) -> JSONResponse:
-        log.exception("unhandled error on %s %s", request.method, request.url.path)
-        return problem(500, "Internal server error", f"{type(exc).__name__}: {exc}")
+        # the details (an SQL statement, a path) go to the log, not to the client; the server closes the
+        # connection after a 500 (Starlette re-raises to it), so the answer says so
+        incident = uuid.uuid4().hex[:12]
+        log.exception("unhandled error (incident %s) on %s %s", incident, request.method, request.url.path)
+        response = problem(500, "Internal server error", f"an unexpected {type(exc).__name__}; the service log "
+                           f"has the details under incident {incident}", incident=incident)
+        response.headers["Connection"] = "close"
+        return response

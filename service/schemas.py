@@ -27,6 +27,9 @@ Vec3 = tuple[Num, Num, Num]
 Matrix16 = Annotated[list[Num], Field(min_length=16, max_length=16)]
 Fraction = Annotated[float, Strict(), Field(ge=0.0, le=1.0)]
 NonNegative = Annotated[float, Field(ge=0.0)]
+# A photometric magnitude (cd, lm, lx, lm/m²): beyond 1e15 it is a unit mistake, and a light's flux is held to
+# the tracer's `MAX_FLUX_LM` when a query packs it.
+Photometric = Annotated[float, Field(ge=0.0, le=1e15)]
 Positive = Annotated[float, Field(gt=0.0)]
 
 # metres per unit, for the document's declared length unit
@@ -290,9 +293,9 @@ class _Attachable(_Spectral):
 
 
 class _Intensity(_Attachable):
-    intensity_cd: NonNegative | None = None
-    flux_lm: NonNegative | None = None
-    flux_w: Annotated[float, Field(ge=0.0, le=1e30, description=(
+    intensity_cd: Photometric | None = None
+    flux_lm: Photometric | None = None
+    flux_w: Annotated[float, Field(ge=0.0, le=1e13, description=(
         "radiant flux, W (instead of a photometric quantity; lm = W × the spectrum's efficacy)"))] | None = None
 
     @model_validator(mode="after")
@@ -333,7 +336,7 @@ class CollimatedLight(_Attachable):
     width: Positive | None = None
     height: Positive | None = None
     up: Vec3 | None = None
-    illuminance_lx: NonNegative
+    illuminance_lx: Photometric
 
     @model_validator(mode="after")
     def _check(self) -> CollimatedLight:
@@ -357,7 +360,7 @@ class AreaLight(_Spectral):
     type: Literal["area"]
     name: Annotated[str, StringConstraints(max_length=200)] | None = None
     node: Uuid  # the node whose surfaces (with its descendants') emit
-    exitance_lm_m2: NonNegative
+    exitance_lm_m2: Photometric
 
 
 class GoniometricLight(_Attachable):

@@ -35,6 +35,9 @@ from service.schemas import LENGTH_UNITS
 SINGULAR_RATIO = 1e-9
 # The bottom row of an affine transform may deviate from (0, 0, 0, 1) by this much (float noise).
 AFFINE_TOLERANCE = 1e-9
+# No entry of a world placement (metres) may exceed this: a million kilometres, far beyond any luminaire, and
+# far inside what float32 meshes and float64 rays can hold.
+MAX_WORLD_M = 1e9
 
 
 class TreeError(ValueError):
@@ -50,12 +53,13 @@ def _compose(parent: np.ndarray, local: np.ndarray) -> np.ndarray:
 
     Written out so that each element is computed by the same sequence of float operations
     whatever the batch size or memory layout: the same chain gives bit-identical worlds, which
-    makes "moved" an exact comparison.
+    makes "moved" an exact comparison. A product that overflows is left to `_check_world` to refuse.
     """
-    out = parent[:, :, 0, None] * local[:, None, 0, :]
-    out = out + parent[:, :, 1, None] * local[:, None, 1, :]
-    out = out + parent[:, :, 2, None] * local[:, None, 2, :]
-    out = out + parent[:, :, 3, None] * local[:, None, 3, :]
+    with np.errstate(over="ignore", invalid="ignore"):
+        out = parent[:, :, 0, None] * local[:, None, 0, :]
+        out = out + parent[:, :, 1, None] * local[:, None, 1, :]
+        out = out + parent[:, :, 2, None] * local[:, None, 2, :]
+        out = out + parent[:, :, 3, None] * local[:, None, 3, :]
     return out
 
 
@@ -144,6 +148,7 @@ class Tree:
                 world = like.world
             else:
                 world = _to_metres(world_doc, length_unit)
+                _check_world(uuids, world)
             return cls(length_unit, uuids, parents, list(names), list(geometries), colors, local, world,
                        like.parent_index, like.depth, like.index, like.levels, world_doc)
 
@@ -171,8 +176,10 @@ class Tree:
             bounds = np.searchsorted(depth[order], np.arange(int(depth.max()) + 2))
             levels = [order[bounds[d]:bounds[d + 1]] for d in range(int(depth.max()) + 1)]
         world_doc = _world_doc(local, parent_index, levels)
+        world = _to_metres(world_doc, length_unit)
+        _check_world(uuids, world)
         return cls(length_unit, uuids, parents, list(names), list(geometries), colors, local,
-                   _to_metres(world_doc, length_unit), parent_index, depth, index, levels, world_doc)
+                   world, parent_index, depth, index, levels, world_doc)
 
     # ---------------------------------------------------------------- queries
 
@@ -291,6 +298,26 @@ def _check_transforms(uuids: Sequence[str], local: np.ndarray) -> None:
         i = int(np.flatnonzero(singular)[0])
         raise TreeError(f"node {uuids[i]}: transform is singular (det {det[i]:.3g}); a part cannot be flattened",
                         [{"uuid": uuids[int(j)], "problem": "singular transform"} for j in np.flatnonzero(singular)])
+
+
+def _check_world(uuids: Sequence[str], world: np.ndarray) -> None:
+    """Each local transform may be valid and their product not: a world placement must stay finite, within
+    `MAX_WORLD_M` and invertible (five ×1e100 scales overflow, five ×1e-100 ones flatten a part)."""
+    if not len(uuids):
+        return
+    with np.errstate(all="ignore"):
+        big = np.abs(world).max(axis=(1, 2))
+        a = world[:, :3, :3]
+        det = np.linalg.det(a)
+        norms = np.linalg.norm(a, axis=1).prod(axis=1)
+    bad = ~(big <= MAX_WORLD_M) | ~(np.abs(det) > SINGULAR_RATIO * norms)
+    if bad.any():
+        rows = np.flatnonzero(bad)
+        i = int(rows[0])
+        what = f"beyond {MAX_WORLD_M:g} m or not finite" if not big[i] <= MAX_WORLD_M else "singular"
+        raise TreeError(f"node {uuids[i]}: its world placement (the product of the transforms from the root) is "
+                        f"{what}; check the scales and translations of it and its ancestors",
+                        [{"uuid": uuids[int(j)], "problem": "world placement out of range"} for j in rows[:100]])
 
 
 def _depths(uuids: Sequence[str], parent_index: np.ndarray) -> np.ndarray:

@@ -38,9 +38,11 @@ error or photon budget) the answer is bit-identical whatever the number of threa
 are batch means (`tracer.estimate`). A query stops when every point's relative error is at most
 `target_relative_error` (``"target_relative_error"``), at `max_photons` (``"max_photons"``),
 `max_seconds` (``"max_seconds"``) or when `cancel()` is truthy (``"cancelled"``). Without any
-budget it runs `DEFAULT_MAX_SECONDS`. A patch that received nothing in every batch so far counts as
-converged (0 ± 0): a point in full shadow does not hold a query to its time budget, but a forward
-query for a very small receiver far from the light can stop at 0 early; give it a photon budget.
+budget it runs `DEFAULT_MAX_SECONDS`. Every answer has at least two batches (an error bar needs two),
+so a photon budget below two batches' worth (`max_photons: 1`) runs two batches of the smallest size.
+A patch that received nothing in every batch so far counts as converged (0 ± 0): a point in full
+shadow does not hold a query to its time budget, but a forward query for a very small receiver far
+from the light can stop at 0 early; give it a photon budget.
 """
 
 from __future__ import annotations
@@ -414,6 +416,7 @@ class Simulation:
             nb = ROUND_BATCHES
             if budget.max_photons is not None:
                 nb = min(nb, max(1, (budget.max_photons - batches * per_batch) // per_batch))
+            nb = max(nb, 2 - batches)   # an error bar needs two batches, whatever the budget
             values, cnt = run_round(batches, nb)
             est.add(values)
             counters = cnt.sum(axis=0) if counters is None else counters + cnt.sum(axis=0)

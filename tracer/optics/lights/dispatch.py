@@ -19,6 +19,8 @@ from tracer.optics.spectra import sample_grid
 KINDS = (point, spot, collimated, goniometric, area)
 POINT, SPOT, COLLIMATED, GONIOMETRIC, AREA = 0, 1, 2, 3, 4
 KIND_OF_NAME = {module.NAME: k for k, module in enumerate(KINDS)}
+MAX_FLUX_LM = 1e15   # lm: a light beyond this is a unit mistake (the brightest searchlights are ~1e9 lm); the
+                     # estimates (sums of squared tallies) stay finite far beyond it
 
 
 def pack_lights(lights: list[dict], scene=None, sensor_ids: frozenset = frozenset()) -> LightArrays:
@@ -58,6 +60,9 @@ def pack_lights(lights: list[dict], scene=None, sensor_ids: frozenset = frozense
         mono[j] = s.mono_nm
         spd_cdf[j], spd_f[j] = spectra.sampling_table(s)
         module.pack(module.Spec.from_body(_photometric(body, module, efficacy[j], where), where), j, out, where)
+        if not out.par[j, P_FLUX] <= MAX_FLUX_LM:
+            raise LightError(f"{where}: its luminous flux {out.par[j, P_FLUX]:.3g} lm is beyond {MAX_FLUX_LM:g} lm (or "
+                             f"not finite): check the magnitude and the unit of its intensity, flux or illuminance")
     fluxes = out.par[:, P_FLUX]
     total = float(fluxes.sum())
     if not total > 0:
@@ -87,8 +92,8 @@ def _photometric(body: dict, module, efficacy: float, where: str) -> dict:
     if body.get("flux_lm") is not None or body.get("intensity_cd") is not None:
         raise LightError(f"{where}: give one of 'flux_w', 'flux_lm' and 'intensity_cd'")
     v = body["flux_w"]
-    if isinstance(v, bool) or not isinstance(v, int | float) or not 0.0 <= v <= 1e30:
-        raise LightError(f"{where}: 'flux_w' must be a number of watts in [0, 1e30], got {v!r}"[:300])
+    if isinstance(v, bool) or not isinstance(v, int | float) or not 0.0 <= v <= 1e13:
+        raise LightError(f"{where}: 'flux_w' must be a number of watts in [0, 1e13], got {v!r}"[:300])
     return {**{k: x for k, x in body.items() if k != "flux_w"}, "flux_lm": float(v) * efficacy}
 
 

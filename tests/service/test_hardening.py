@@ -1,0 +1,134 @@
+"""Issue 19, the items mended so far: world placements that overflow, extreme light magnitudes, a one-photon
+budget, the answer to an unexpected error, and 405's Allow. Each refused request changes nothing."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from service_helpers import glb, grid_mesh, make_client, node, translation, uid
+
+from tracer.optics.lights import LightError, pack_lights
+
+
+@pytest.fixture(scope="module")
+def world(tmp_path_factory):
+    client = make_client(tmp_path_factory.mktemp("hardening"), max_points=50, max_photons=4_000_000,
+                         max_seconds=30.0)
+    with client:
+        sid = client.post("/scenes", json={"name": "hard"}).json()["id"]
+        v, f = grid_mesh(n=2, size=4.0)
+        gid, data = glb(v, f)
+        client.put(f"/geometries/{gid}", content=data, headers={"content-type": "model/gltf-binary"})
+        doc = {"base_revision": 0, "length_unit": "m",
+               "nodes": [node(uid(0), None, "room"), node(uid(1), uid(0), "floor", translation(-2, -2, 0), gid)]}
+        r = client.put(f"/scenes/{sid}/document", json=doc)
+        assert r.status_code == 200, r.text
+        client.put(f"/scenes/{sid}/materials/{uid(1)}", json={"type": "black"})
+        r = client.post(f"/scenes/{sid}/lights", json={"type": "point", "position": [0, 0, 2], "intensity_cd": 100.0})
+        assert r.status_code == 201, r.text
+        r = client.post(f"/scenes/{sid}/sensors", json={"type": "grid", "origin": [-1, -1, 0], "u": [2, 0, 0],
+                                                       "v": [0, 2, 0], "nu": 2, "nv": 2})
+        yield client, sid, gid, r.json()["id"]
+
+
+def _state(client, sid):
+    return (client.get(f"/scenes/{sid}").json(), client.get(f"/scenes/{sid}/nodes").json(),
+            client.get(f"/scenes/{sid}/lights").json())
+
+
+def _scale(s: float) -> list[float]:
+    return [s, 0, 0, 0, 0, s, 0, 0, 0, 0, s, 0, 0, 0, 0, 1.0]
+
+
+@pytest.mark.parametrize("chain", [
+    [translation(1e308, 0, 0), translation(1e308, 0, 0)],   # each valid, their sum infinite
+    [_scale(1e100)] * 5,                                     # each valid, their product 1e500
+    [_scale(1e-100)] * 5,                                    # each valid, their product flattens the part
+    [translation(6e8, 0, 0), translation(6e8, 0, 0)],        # finite, but beyond a million kilometres
+])
+def test_a_world_placement_out_of_range_is_a_422_naming_the_node(world, chain):
+    client, sid, gid, _ = world
+    before = _state(client, sid)
+    rev = before[0]["revision"]
+    nodes = [node(uid(0), None, "room")]
+    for k, t in enumerate(chain):
+        nodes.append(node(uid(10 + k), uid(0) if k == 0 else uid(9 + k), f"level {k}", t))
+    nodes.append(node(uid(1), uid(9 + len(chain)), "floor", None, gid))
+    r = client.put(f"/scenes/{sid}/document", json={"base_revision": rev, "length_unit": "m", "nodes": nodes})
+    assert r.status_code == 422, r.text
+    assert "world placement" in r.json()["detail"] and uid(1)[:8] in r.text
+    assert _state(client, sid) == before
+
+
+@pytest.mark.parametrize("light", [
+    {"type": "point", "position": [0, 0, 2], "intensity_cd": 1e300},
+    {"type": "point", "position": [0, 0, 2], "intensity_cd": 1e308},
+    {"type": "point", "position": [0, 0, 2], "flux_lm": 1e308},
+    {"type": "point", "position": [0, 0, 2], "flux_w": 1e300},
+    {"type": "collimated", "origin": [0, 0, 2], "direction": [0, 0, -1], "radius": 1, "illuminance_lx": 1e308},
+])
+def test_an_extreme_light_is_refused_when_it_is_posted(world, light):
+    client, sid, _, _ = world
+    before = _state(client, sid)
+    r = client.post(f"/scenes/{sid}/lights", json=light)
+    assert r.status_code == 422, r.text
+    assert _state(client, sid) == before
+
+
+def test_a_light_whose_flux_is_beyond_the_transport_is_refused_at_the_query_not_answered_0(world):
+    """1e14 cd passes the schema (≤ 1e15 per quantity) but its flux 4π·1e14 lm does not pass the transport's
+    bound: the query says so (422), instead of 0 ± 0 lx or a 500."""
+    client, sid, _, _ = world
+    r = client.post(f"/scenes/{sid}/lights", json={"type": "point", "position": [0, 0, 2], "intensity_cd": 1e14})
+    assert r.status_code == 201, r.text
+    try:
+        q = client.post(f"/scenes/{sid}/illuminance", json={"points": [[0, 0, 0]], "normals": [[0, 0, 1]],
+                                                            "max_photons": 10_000})
+        assert q.status_code == 422, q.text
+        assert "beyond 1e+15 lm" in q.json()["detail"]
+    finally:
+        client.delete(f"/scenes/{sid}/lights/{r.json()['id']}")
+    with pytest.raises(LightError, match="beyond"):
+        pack_lights([{"type": "point", "position": [0, 0, 0], "intensity_cd": 1e14}])
+    big = pack_lights([{"type": "point", "position": [0, 0, 0], "intensity_cd": 7e13}])   # 8.8e14 lm: fine
+    assert math.isfinite(big.flux_total[0])
+
+
+@pytest.mark.parametrize("estimator", ["forward", "backward"])
+def test_a_one_photon_budget_answers_with_two_batches_and_a_finite_error(world, estimator):
+    client, sid, _, sensor = world
+    r = client.post(f"/scenes/{sid}/illuminance", json={"points": [[0, 0, 0]], "normals": [[0, 0, 1]],
+                                                        "max_photons": 1, "estimator": estimator})
+    assert r.status_code == 200, r.text
+    a = r.json()
+    assert a["photons"] == 2 and a["stop_reason"] == "max_photons" and math.isfinite(a["stderr"][0])
+    r = client.post(f"/scenes/{sid}/sensors/{sensor}/simulate", json={"max_photons": 1})
+    assert r.status_code == 200, r.text
+    assert r.json()["photons"] == 2
+
+
+def test_an_unexpected_error_answers_a_short_problem_and_closes_the_connection(tmp_path):
+    client = make_client(tmp_path)
+
+    def boom():
+        raise RuntimeError("UPDATE scenes SET secret = 'x' WHERE path = '/var/lib/lumenlink/db.sqlite'")
+
+    client.app.add_api_route("/boom", boom)
+    with client:
+        r = client.get("/boom")
+    assert r.status_code == 500
+    assert r.headers["content-type"].startswith("application/problem+json")
+    assert r.headers["connection"] == "close"
+    body = r.json()
+    assert "secret" not in r.text and "/var/lib" not in r.text
+    assert body["incident"] in body["detail"] and "RuntimeError" in body["detail"]
+
+
+def test_a_405_names_the_methods_allowed(world):
+    client, sid, _, _ = world
+    r = client.delete("/health")
+    assert r.status_code == 405
+    assert r.headers["allow"] == "GET" and r.headers["content-type"].startswith("application/problem+json")
+    r = client.patch(f"/scenes/{sid}/document", json={})
+    assert r.status_code == 405 and "PUT" in r.headers["allow"]
