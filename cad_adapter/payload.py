@@ -80,7 +80,7 @@ def build_push(doc: Document, tess: Tessellation, base_revision: int | None = No
         nodes.append(node)
     tess_info: dict[str, Any] = tess.settings.as_dict() if tess.settings is not None else {}
     if failed:
-        tess_info["failed"] = " ".join(failed)
+        tess_info["failed"] = " ".join(failed)[:100_000]   # the service bounds a source's strings
         tess_info["failed_count"] = len(failed)
     out: dict[str, Any] = {"base_revision": base_revision, "length_unit": doc.length_unit,
                            "source": {"name": doc.name, "tessellation": tess_info}}

@@ -12,15 +12,16 @@ import logging
 import time
 from typing import Any
 
-from starlette.exceptions import HTTPException
+from service.errors import TooLarge
 
 log = logging.getLogger("lumenlink.service.requests")
 
 Scope = dict[str, Any]
 
 
-class _TooLarge(HTTPException):
-    """Raised from inside `receive`: the app's HTTPException handler turns it into a 413 problem."""
+class _TooLarge(TooLarge):
+    """Raised from inside `receive`: the app's handler turns it into the same 413 problem (with `limit`) as a
+    body refused by its declared length."""
 
 
 def _problem_413(limit: int) -> tuple[dict, bytes]:
@@ -62,7 +63,7 @@ class BodyLimit:
             if message["type"] == "http.request":
                 received += len(message.get("body", b""))
                 if received > limit:
-                    raise _TooLarge(413, f"the request body exceeds the limit of {limit} bytes")
+                    raise _TooLarge(f"the request body exceeds the limit of {limit} bytes", limit=limit)
             return message
 
         async def tracking_send(message: dict) -> None:

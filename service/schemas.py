@@ -96,8 +96,13 @@ class SceneListItem(Wire):
 # ---------------------------------------------------------------- the pushed document
 
 class Source(Wire):
-    name: str | None = None
-    tessellation: dict[str, float | bool | str | None] | None = None
+    """Where a push came from: the document's name and the tessellation settings (bounded: it is stored with
+    every revision)."""
+
+    name: Annotated[str, StringConstraints(max_length=1000)] | None = None
+    tessellation: Annotated[dict[Annotated[str, StringConstraints(max_length=100)],
+                                 float | bool | Annotated[str, StringConstraints(max_length=100_000)] | None],
+                            Field(max_length=64)] | None = None
 
 
 class NodeIn(Wire):
@@ -180,7 +185,7 @@ class DocumentPush(Wire):
     the body's last member (`service.document` reuses the node bytes of the previous push).
     """
 
-    base_revision: Annotated[int, Field(ge=0)] | None = None
+    base_revision: Annotated[int, Strict(), Field(ge=0)] | None = None   # strict: not true, "2" or 3.0
     length_unit: LengthUnit = "m"
     source: Source | None = None
     identity: dict[Uuid, IdentityIn] | None = None

@@ -180,7 +180,8 @@ def test_chunked_body_larger_than_the_limit(world, unchanged) -> None:
         for _ in range(300):
             yield b" " * 1000
 
-    refused(c.put(f"/scenes/{sid}/document", content=chunks()), 413)
+    body = refused(c.put(f"/scenes/{sid}/document", content=chunks()), 413)
+    assert body["limit"] == 200_000   # the same problem as a body refused by its declared length
 
 
 # ---------------------------------------------------------------- geometry uploads

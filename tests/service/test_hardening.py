@@ -132,3 +132,45 @@ def test_a_405_names_the_methods_allowed(world):
     assert r.headers["allow"] == "GET" and r.headers["content-type"].startswith("application/problem+json")
     r = client.patch(f"/scenes/{sid}/document", json={})
     assert r.status_code == 405 and "PUT" in r.headers["allow"]
+
+
+@pytest.mark.parametrize("base_revision", [True, "0", 0.0])
+def test_base_revision_is_a_strict_integer(world, base_revision):
+    client, sid, gid, _ = world
+    before = _state(client, sid)
+    doc = {"base_revision": base_revision, "length_unit": "m",
+           "nodes": [node(uid(0), None, "room"), node(uid(1), uid(0), "floor", translation(-2, -2, 0), gid)]}
+    r = client.put(f"/scenes/{sid}/document", json=doc)
+    assert r.status_code == 422 and "base_revision" in r.text
+    assert _state(client, sid) == before
+
+
+@pytest.mark.parametrize("source", [{"name": "x" * 1001}, {"tessellation": {f"k{i}": 1.0 for i in range(65)}},
+                                    {"tessellation": {"failed": "x" * 100_001}}])
+def test_a_source_beyond_its_bounds_is_refused(world, source):
+    client, sid, gid, _ = world
+    before = _state(client, sid)
+    doc = {"base_revision": before[0]["revision"], "length_unit": "m", "source": source,
+           "nodes": [node(uid(0), None, "room"), node(uid(1), uid(0), "floor", translation(-2, -2, 0), gid)]}
+    r = client.put(f"/scenes/{sid}/document", json=doc)
+    assert r.status_code == 422 and "source" in r.text
+    assert _state(client, sid) == before
+
+
+def test_a_data_directory_that_cannot_hold_data_is_a_message_not_a_traceback(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    a_file = tmp_path / "afile"
+    a_file.write_text("not a directory")
+    cases = [(a_file, "is a file")]
+    if os.geteuid() != 0:   # root may write anywhere
+        locked = tmp_path / "locked"
+        locked.mkdir(mode=0o500)
+        cases.append((locked, "not writable"))
+    for path, words in cases:
+        r = subprocess.run([sys.executable, "-m", "lumenlink.cli", "serve", "--data-dir", str(path), "--no-warm",
+                            "--port", "1"], capture_output=True, text=True, timeout=120)
+        assert r.returncode == 2, r.stderr
+        assert words in r.stderr and "Traceback" not in r.stderr
