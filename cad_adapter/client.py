@@ -10,6 +10,7 @@ re-reads the revision, raises :class:`~cad_adapter.errors.RevisionConflict` and 
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -86,7 +87,9 @@ class Pusher:
         if not isinstance(server, str) or not server.startswith(("http://", "https://")):
             raise PushError(f"server must be an http(s) URL, got {server!r}")
         self.server = server.rstrip("/")
-        self.http = httpx.Client(base_url=self.server, timeout=timeout, transport=transport)
+        token = os.environ.get("LUMENLINK_TOKEN")   # a service beyond loopback asks for it
+        headers = {"Authorization": f"Bearer {token}"} if token else {}
+        self.http = httpx.Client(base_url=self.server, timeout=timeout, transport=transport, headers=headers)
         self.upload_progress = upload_progress
 
     def close(self) -> None:

@@ -40,9 +40,12 @@ def serve(
         envvar="LUMENLINK_WARM_KERNELS",
         help="Compile the light-transport kernels in the background from the start, so that the first query "
              "does not wait for them (GET /health says when they are ready).")] = True,
+    token: Annotated[str | None, typer.Option(
+        envvar="LUMENLINK_TOKEN", help="Bearer token every request must carry (Authorization: Bearer …); "
+                                       "required with a --host beyond loopback.")] = None,
 ) -> None:
     """Start the REST service (uvicorn)."""
-    _call("service.server", "run", 5, host=host, port=port, data_dir=data_dir, warm=warm)
+    _call("service.server", "run", 5, host=host, port=port, data_dir=data_dir, warm=warm, token=token)
 
 
 @app.command()

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import importlib
+import os
 import shutil
 import socket
 import threading
@@ -344,7 +345,9 @@ def _run(report: DemoReport, n: Narrator, photons: int, keep_data: bool, clock: 
 
     # 2 -------------------------------------------------------------------------------- service + push
     n.step("2. Starting the service and pushing the model through the adapter and the REST API")
-    with running_service(data_dir) as base, httpx.Client(base_url=base, timeout=300.0) as http:
+    token = os.environ.get("LUMENLINK_TOKEN")   # the in-process service reads it too (Settings)
+    headers = {"Authorization": f"Bearer {token}"} if token else {}
+    with running_service(data_dir) as base, httpx.Client(base_url=base, timeout=300.0, headers=headers) as http:
         n.say(f"service at {base} (SQLite and BLAS cache in {data_dir})")
         compiled = clock.seconds
         with adapter.Pusher(base) as pusher:

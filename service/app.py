@@ -18,7 +18,7 @@ from service.config import Settings
 from service.db import open_engine
 from service.errors import install_handlers
 from service.meshes import MeshStore
-from service.middleware import BodyLimit, RequestLog
+from service.middleware import BearerToken, BodyLimit, RequestLog
 from service.routes import assignments, geometries, scenes
 from service.state import SceneManager
 
@@ -69,6 +69,8 @@ def create_app(settings: Settings | None = None, scene_factory: Callable[[], Any
 
         app.include_router(simulation.router)
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
+    if settings.token:
+        app.add_middleware(BearerToken, token=settings.token)
     if settings.log_requests:
         app.add_middleware(RequestLog)
     return app

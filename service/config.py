@@ -32,6 +32,9 @@ class Settings(BaseSettings):
                                                                       "free slot before it is answered 503, s.")
     max_nodes: int = Field(default=1_000_000, gt=0, description="Most nodes one pushed document may have.")
     log_requests: bool = Field(default=True, description="Log one line per request (method, path, status, ms).")
+    token: str | None = Field(default=None, min_length=16, description=(
+        "Bearer token every request but /health, /docs, /redoc and /openapi.json must carry "
+        "(`Authorization: Bearer …`); required when the service listens beyond loopback."))
     warm_kernels: bool = Field(default=False, description="Compile the query kernels in a child process from the "
                                                           "start (`tracer.warmup`; `lumenlink serve` turns it on).")
 

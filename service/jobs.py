@@ -223,6 +223,14 @@ class JobRunner:
                 raise JobNotFound(f"no job {job_id!r}")
             return job.snapshot()
 
+    def cancel_scene(self, scene_id: str) -> int:
+        """Cancel every unfinished job of a scene (it was deleted); returns how many were asked to stop."""
+        with self._lock:
+            ids = [j.id for j in self._jobs.values() if j.scene_id == scene_id and not j.status.finished]
+        for job_id in ids:
+            self.cancel(job_id)
+        return len(ids)
+
     def cancel(self, job_id: str) -> dict[str, Any]:
         """Ask a job to stop; a queued job never starts, a running one stops after its current batch.
 

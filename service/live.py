@@ -30,6 +30,9 @@ if TYPE_CHECKING:  # pragma: no cover
     import tracer
 
 
+DELETED = -1   # the revision a notification carries when its scene was deleted
+
+
 @dataclass
 class LiveScene:
     """One scene revision as the simulation sees it (all lengths in metres)."""
@@ -82,7 +85,8 @@ class LiveRegistry:
         """Call ``listener(scene_id, new_revision)`` after every change that alters the live view.
 
         Pushes and assignment changes both notify (an assignment change keeps the revision number but
-        changes what a query sees); a listener may, for example, drop cached results of that scene.
+        changes what a query sees); a listener may, for example, drop cached results of that scene. A
+        deleted scene notifies with the revision `DELETED`.
         """
         self._listeners.append(listener)
 

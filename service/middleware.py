@@ -7,6 +7,7 @@ passes the limit, answering with a problem+json 413.
 
 from __future__ import annotations
 
+import hmac
 import json
 import logging
 import time
@@ -81,6 +82,33 @@ class BodyLimit:
     async def _refuse(self, send: Any) -> None:
         start, body = _problem_413(self.max_bytes)
         await send(start)
+        await send({"type": "http.response.body", "body": body})
+
+
+class BearerToken:
+    """Refuse (401, problem+json, ``WWW-Authenticate: Bearer``) every request without ``Authorization: Bearer
+    <token>``, except the health probe and the API's documentation (`OPEN_PATHS`): they hold no data."""
+
+    OPEN_PATHS = ("/health", "/docs", "/docs/oauth2-redirect", "/redoc", "/openapi.json")
+
+    def __init__(self, app: Any, token: str) -> None:
+        self.app = app
+        self.expected = f"Bearer {token}".encode()
+
+    async def __call__(self, scope: Scope, receive: Any, send: Any) -> None:
+        if scope["type"] != "http" or scope.get("path") in self.OPEN_PATHS:
+            await self.app(scope, receive, send)
+            return
+        given = next((v for k, v in scope.get("headers", []) if k == b"authorization"), b"")
+        if hmac.compare_digest(given, self.expected):
+            await self.app(scope, receive, send)
+            return
+        why = "no Authorization header" if not given else "the token does not match"
+        body = json.dumps({"type": "about:blank", "title": "Unauthorized", "status": 401,
+                           "detail": f"{why}: send 'Authorization: Bearer <LUMENLINK_TOKEN>'"}).encode()
+        await send({"type": "http.response.start", "status": 401,
+                    "headers": [(b"content-type", b"application/problem+json"),
+                                (b"content-length", str(len(body)).encode()), (b"www-authenticate", b"Bearer")]})
         await send({"type": "http.response.body", "body": body})
 
 

@@ -7,22 +7,31 @@ import os
 import sys
 from pathlib import Path
 
+LOOPBACK = ("127.0.0.1", "::1", "localhost")
 
-def run(host: str = "127.0.0.1", port: int = 8000, data_dir: Path | str = "./var", warm: bool = True) -> None:
+
+def run(host: str = "127.0.0.1", port: int = 8000, data_dir: Path | str = "./var", warm: bool = True,
+        token: str | None = None) -> None:
     """Start uvicorn on `host`:`port` with the data (SQLite file, meshes, BLAS cache) under `data_dir`;
-    `warm`: compile the light-transport kernels in the background from the start (`tracer.warmup`)."""
+    `warm`: compile the light-transport kernels in the background from the start (`tracer.warmup`); `token`:
+    the bearer token every request must carry (required beyond loopback)."""
     import uvicorn
 
     from service.app import create_app
     from service.config import Settings
 
     problem = data_dir_problem(Path(data_dir))
+    if not token and host not in LOOPBACK:
+        problem = (f"listening on {host} exposes the whole API (DELETE included) beyond this machine: set "
+                   f"LUMENLINK_TOKEN (or --token) to a secret of at least 16 characters, or listen on 127.0.0.1")
+    elif token and len(token) < 16:
+        problem = "the token must have at least 16 characters"
     if problem:
         print(f"lumenlink serve: {problem}", file=sys.stderr)
         raise SystemExit(2)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     logging.getLogger("alembic").setLevel(logging.WARNING)  # migrations: only say something when it matters
-    settings = Settings(host=host, port=port, data_dir=Path(data_dir), warm_kernels=warm)
+    settings = Settings(host=host, port=port, data_dir=Path(data_dir), warm_kernels=warm, token=token or None)
     app = create_app(settings)
     uvicorn.run(app, host=host, port=port, log_level="info", access_log=False, workers=1)
 

@@ -39,7 +39,7 @@ import numpy as np
 
 from service.errors import Invalid, NotFound, ServiceError, TooLarge
 from service.jobs import Budget, JobRunner
-from service.live import LiveRegistry, LiveScene
+from service.live import DELETED, LiveRegistry, LiveScene
 from service.optics import to_spec
 
 #: Async jobs: worker threads and how many may wait.
@@ -233,12 +233,15 @@ class SimulationHub:
     # -- change tracking ----------------------------------------------------------------------
 
     def invalidate(self, scene_id: str, revision: int) -> None:
-        """Listener for `LiveRegistry.notify`: the scene changed, so drop what was computed for it."""
+        """Listener for `LiveRegistry.notify`: the scene changed, so drop what was computed for it; a deleted
+        scene (revision `DELETED`) also has its jobs cancelled."""
         with self._lock:
             self._generation[scene_id] = self._generation.get(scene_id, 0) + 1
             self._cache.pop(scene_id, None)
             for key in [k for k in self._grids if k[0] == scene_id]:
                 del self._grids[key]
+        if revision == DELETED:
+            self.jobs.cancel_scene(scene_id)
 
     def generation(self, scene_id: str) -> int:
         with self._lock:

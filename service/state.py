@@ -46,7 +46,7 @@ from service import db
 from service.config import Settings
 from service.document import NodeBytes, decode_document, decode_incremental, remember, same_nodes
 from service.errors import Conflict, Invalid, NotFound
-from service.live import LiveRegistry, LiveScene
+from service.live import DELETED, LiveRegistry, LiveScene
 from service.meshes import MeshStore
 from service.schemas import LENGTH_UNITS, DocumentPush, IdentityIn, Light, Material, ObjectCreate, Sensor
 from service.tree import Tree, TreeDiff, TreeError, apply_to_scene, diff_trees
@@ -188,6 +188,7 @@ class SceneManager:
                 conn.execute(delete(db.scenes).where(db.scenes.c.id == scene_id))
             with self._lock:
                 self._states.pop(scene_id, None)
+            self.live.notify(scene_id, DELETED)   # its results go stale and its jobs are cancelled
 
     def revision(self, scene_id: str) -> int:
         return self.state(scene_id).revision

@@ -174,3 +174,73 @@ def test_a_data_directory_that_cannot_hold_data_is_a_message_not_a_traceback(tmp
                             "--port", "1"], capture_output=True, text=True, timeout=120)
         assert r.returncode == 2, r.stderr
         assert words in r.stderr and "Traceback" not in r.stderr
+
+
+def test_deleting_a_scene_cancels_its_jobs_and_makes_them_stale(tmp_path):
+    import time
+
+    client = make_client(tmp_path, max_points=50, max_photons=100_000_000, max_seconds=60.0)
+    with client:
+        sid = client.post("/scenes", json={"name": "doomed"}).json()["id"]
+        v, f = grid_mesh(n=2, size=4.0)
+        gid, data = glb(v, f)
+        client.put(f"/geometries/{gid}", content=data, headers={"content-type": "model/gltf-binary"})
+        doc = {"base_revision": 0, "length_unit": "m",
+               "nodes": [node(uid(0), None, "room"), node(uid(1), uid(0), "floor", translation(-2, -2, 0), gid)]}
+        assert client.put(f"/scenes/{sid}/document", json=doc).status_code == 200
+        client.post(f"/scenes/{sid}/lights", json={"type": "point", "position": [0, 0, 2], "intensity_cd": 100.0})
+        r = client.post(f"/scenes/{sid}/illuminance?mode=async",
+                        json={"points": [[0, 0, 0]], "normals": [[0, 0, 1]], "estimator": "forward", "max_seconds": 60})
+        assert r.status_code == 202, r.text
+        url = r.headers["location"]
+        assert client.delete(f"/scenes/{sid}").status_code == 204
+        deadline = time.monotonic() + 30
+        while (state := client.get(url).json())["status"] not in ("succeeded", "failed", "cancelled"):
+            assert time.monotonic() < deadline, state
+            time.sleep(0.05)
+        assert state["status"] == "cancelled" and state["current"] is False, state
+
+
+TOKEN = "s3cret-token-of-32-characters-xx"
+
+
+def test_with_a_token_every_request_but_health_and_docs_must_carry_it(tmp_path):
+    client = make_client(tmp_path, token=TOKEN)
+    with client:
+        assert client.get("/health").status_code == 200
+        assert client.get("/openapi.json").status_code == 200
+        for headers, why in (({}, "no Authorization header"), ({"Authorization": "Bearer wrong"}, "does not match"),
+                             ({"Authorization": TOKEN}, "does not match")):
+            r = client.get("/scenes", headers=headers)
+            assert r.status_code == 401 and r.headers["www-authenticate"] == "Bearer", r.text
+            assert why in r.json()["detail"] and r.headers["content-type"].startswith("application/problem+json")
+            r = client.post("/scenes", json={"name": "intruder"}, headers=headers)
+            assert r.status_code == 401
+        good = {"Authorization": f"Bearer {TOKEN}"}
+        assert client.get("/scenes", headers=good).json() == []   # the refused POSTs created nothing
+        assert client.post("/scenes", json={"name": "mine"}, headers=good).status_code == 201
+
+
+def test_the_adapter_sends_the_token_from_the_environment(monkeypatch):
+    from cad_adapter.client import Pusher
+
+    monkeypatch.setenv("LUMENLINK_TOKEN", TOKEN)
+    with Pusher("http://127.0.0.1:9") as p:
+        assert p.http.headers["authorization"] == f"Bearer {TOKEN}"
+    monkeypatch.delenv("LUMENLINK_TOKEN")
+    with Pusher("http://127.0.0.1:9") as p:
+        assert "authorization" not in p.http.headers
+
+
+@pytest.mark.parametrize(("args", "words"), [(["--host", "0.0.0.0"], "set LUMENLINK_TOKEN"),
+                                             (["--host", "0.0.0.0", "--token", "short"], "at least 16")])
+def test_serve_beyond_loopback_refuses_to_start_without_a_token(tmp_path, args, words):
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "LUMENLINK_TOKEN"}
+    r = subprocess.run([sys.executable, "-m", "lumenlink.cli", "serve", "--data-dir", str(tmp_path), "--no-warm",
+                        "--port", "1", *args], capture_output=True, text=True, timeout=120, env=env)
+    assert r.returncode == 2, r.stderr
+    assert words in r.stderr and "Traceback" not in r.stderr
