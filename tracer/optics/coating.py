@@ -11,9 +11,10 @@ layers outermost first (the first touches the air, the last the substrate).
 
 The coating covers every face of the solid it is on. The reflectance is the transfer-matrix method's
 (`tracer.optics.thinfilm`), per wavelength and angle, the mean of s and p (the photon carries no
-polarization in this state); light arriving from the substrate side crosses the layers innermost first. A coating needs the photon's wavelength: it calls for the
-effects ``coating`` and ``spectral``. Limits: coherent films (thickness ≪ the coherence length of the
-light; a layer of 1e5 nm is at the edge), real indices without dispersion.
+polarization in this state); light arriving from the substrate side crosses the layers innermost first.
+A coating needs the photon's wavelength: it calls for the effects ``coating`` and ``spectral``. Limits:
+coherent films (thickness ≪ the coherence length of the light; a layer of 1e5 nm is at the edge), real
+indices without dispersion.
 """
 
 from __future__ import annotations
