@@ -26,11 +26,13 @@ naming the missing part, never a made-up number.
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import hashlib
 import json
 import math
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -382,6 +384,9 @@ def _refusals() -> Any:
         raise Invalid(f"the light transport refused the query: {exc}") from exc
 
 
+SLOT_POLL_SECONDS = 0.02   # how often a query waiting for a sync slot looks again
+
+
 class _Slot:
     def __init__(self, semaphore: threading.BoundedSemaphore, limits: Limits) -> None:
         self._semaphore = semaphore
@@ -393,6 +398,19 @@ class _Slot:
                               f"?mode=async", retry_after_seconds=5)
 
     def __exit__(self, *exc: object) -> None:
+        self._semaphore.release()
+
+    async def __aenter__(self) -> None:
+        """Wait for a slot without holding a thread: the event loop polls the semaphore (every
+        `SLOT_POLL_SECONDS`), so fifty queued queries leave every worker thread free for other requests."""
+        deadline = time.monotonic() + self._limits.queue_wait_seconds
+        while not self._semaphore.acquire(blocking=False):
+            if time.monotonic() >= deadline:
+                raise Unavailable(f"{self._limits.max_concurrent_queries} queries are running; try again later or "
+                                  f"use ?mode=async", retry_after_seconds=5)
+            await asyncio.sleep(SLOT_POLL_SECONDS)
+
+    async def __aexit__(self, *exc: object) -> None:
         self._semaphore.release()
 
 

@@ -18,6 +18,7 @@ from typing import Annotated, Any, Literal
 
 import numpy as np
 from fastapi import APIRouter, Query, Request, Response
+from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
@@ -213,8 +214,27 @@ def _submit(hub: SimulationHub, kind: str, scene_id: str, revision: int, work: A
 
 @router.post("/scenes/{scene_id}/illuminance", response_model=IlluminancePublic, response_model_exclude_none=True,
              responses={202: {"model": JobAccepted}, 413: {}, 503: {}})
-def illuminance(scene_id: str, query: IlluminanceQuery, request: Request, mode: Mode = "sync") -> Any:
+async def illuminance(scene_id: str, query: IlluminanceQuery, request: Request, mode: Mode = "sync") -> Any:
     """Illuminance (lx) with its standard error at each point, for receivers facing `normals`."""
+    return await _answer(request, mode, _points_query, scene_id, query, request)
+
+
+async def _answer(request: Request, mode: str, setup: Any, *args: Any) -> Any:
+    """Set a query up in a worker thread (validation, the scene's snapshot), then queue it as a job or run it in
+    one of the sync slots. The wait for a slot holds no thread: waiting queries never starve the threads that
+    serve pushes, health probes and reads (`SimulationHub.slot`)."""
+    hub = _hub(request)
+    kind, scene_id, prepared, work, budget, meta = await run_in_threadpool(setup, *args)
+    if mode == "async":
+        job = _submit(hub, kind, scene_id, prepared.live.revision, work, budget, meta)
+        return _accepted(request, job)
+    async with hub.slot():
+        payload = await run_in_threadpool(work)
+    payload.pop("current", None)
+    return payload
+
+
+def _points_query(scene_id: str, query: IlluminanceQuery, request: Request) -> tuple:
     hub = _hub(request)
     if len(query.points) > hub.limits.max_points:
         raise TooLarge(f"{len(query.points)} points asked; this service answers at most {hub.limits.max_points} "
@@ -233,23 +253,19 @@ def illuminance(scene_id: str, query: IlluminanceQuery, request: Request, mode: 
         payload["current"] = hub.is_current(scene_id, prepared.generation)
         return payload
 
-    if mode == "async":
-        job = _submit(hub, "illuminance", scene_id, prepared.live.revision, work, budget,
-                      {"generation": prepared.generation, "points": len(points)})
-        return _accepted(request, job)
-    with hub.slot():
-        payload = work()
-    payload.pop("current")
-    return payload
+    return ("illuminance", scene_id, prepared, work, budget, {"generation": prepared.generation, "points": len(points)})
 
 
 @router.post("/scenes/{scene_id}/sensors/{sensor_id}/simulate", response_model=SensorPublic,
              responses={202: {"model": JobAccepted}, 413: {}, 503: {}})
-def simulate_sensor(scene_id: str, sensor_id: str, request: Request, query: SensorSimulate | None = None,
-                    mode: Mode = "sync") -> Any:
+async def simulate_sensor(scene_id: str, sensor_id: str, request: Request, query: SensorSimulate | None = None,
+                          mode: Mode = "sync") -> Any:
     """Trace photons for one sensor; a grid's result is kept for `map.png` until the scene changes."""
+    return await _answer(request, mode, _sensor_query, scene_id, sensor_id, query or SensorSimulate(), request)
+
+
+def _sensor_query(scene_id: str, sensor_id: str, query: SensorSimulate, request: Request) -> tuple:
     hub = _hub(request)
-    query = query or SensorSimulate()
     budget = resolve_budget(hub.limits, query.target_relative_error, query.max_seconds, query.max_photons)
     sensor = find_sensor(hub.live.get(scene_id), sensor_id)
     if sensor.get("type") == "grid" and int(sensor["nu"]) * int(sensor["nv"]) > hub.limits.max_points:
@@ -268,12 +284,7 @@ def simulate_sensor(scene_id: str, sensor_id: str, request: Request, query: Sens
             payload["map_url"] = map_url
         return payload
 
-    if mode == "async":
-        job = _submit(hub, "sensor", scene_id, prepared.live.revision, work, budget,
-                      {"generation": prepared.generation, "sensor": sensor_id})
-        return _accepted(request, job)
-    with hub.slot():
-        return work()
+    return "sensor", scene_id, prepared, work, budget, {"generation": prepared.generation, "sensor": sensor_id}
 
 
 @router.get("/scenes/{scene_id}/sensors/{sensor_id}/map.png", name="sensor_map",

@@ -244,3 +244,49 @@ def test_serve_beyond_loopback_refuses_to_start_without_a_token(tmp_path, args, 
                         "--port", "1", *args], capture_output=True, text=True, timeout=120, env=env)
     assert r.returncode == 2, r.stderr
     assert words in r.stderr and "Traceback" not in r.stderr
+
+
+def test_queued_sync_queries_hold_no_thread_that_other_requests_need(tmp_path):
+    """Sixty sync queries against one slot in a real uvicorn process: while they wait (three seconds, then 503),
+    /health, a read and a push answer at once; before, the waiting queries held all 40 worker threads."""
+    import sys
+    import time
+    from concurrent.futures import ThreadPoolExecutor
+    from pathlib import Path
+
+    import httpx
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from service_process import running_service
+
+    env = {"LUMENLINK_MAX_CONCURRENT_QUERIES": "1", "LUMENLINK_QUEUE_WAIT_SECONDS": "3"}
+    with running_service(tmp_path / "data", env=env) as base, httpx.Client(base_url=base, timeout=60) as c:
+        sid = c.post("/scenes", json={"name": "busy"}).json()["id"]
+        v, f = grid_mesh(n=2, size=4.0)
+        gid, data = glb(v, f)
+        c.put(f"/geometries/{gid}", content=data, headers={"content-type": "model/gltf-binary"})
+        doc = {"base_revision": 0, "length_unit": "m",
+               "nodes": [node(uid(0), None, "room"), node(uid(1), uid(0), "floor", translation(-2, -2, 0), gid)]}
+        assert c.put(f"/scenes/{sid}/document", json=doc).status_code == 200
+        c.post(f"/scenes/{sid}/lights", json={"type": "point", "position": [0, 0, 2], "intensity_cd": 100.0})
+        q = {"points": [[0, 0, 0]], "normals": [[0, 0, 1]], "estimator": "forward"}
+        warm = c.post(f"/scenes/{sid}/illuminance", json={**q, "max_photons": 1000}, timeout=900)   # may compile
+        assert warm.status_code == 200
+
+        def ask(_):
+            with httpx.Client(base_url=base, timeout=60) as own:
+                return own.post(f"/scenes/{sid}/illuminance", json={**q, "max_seconds": 4}).status_code
+
+        with ThreadPoolExecutor(60) as pool:
+            statuses = pool.map(ask, range(60))
+            time.sleep(1.0)   # all sixty are in: one runs, the rest wait for its slot
+            waits = {}
+            for name, call in (("health", lambda: c.get("/health")), ("read", lambda: c.get(f"/scenes/{sid}")),
+                               ("push", lambda: c.put(f"/scenes/{sid}/document",
+                                                      json={**doc, "base_revision": 1, "source": {"name": "x"}}))):
+                t0 = time.perf_counter()
+                assert call().status_code == 200
+                waits[name] = time.perf_counter() - t0
+            codes = list(statuses)
+    assert max(waits.values()) < 1.0, waits
+    assert codes.count(200) >= 1 and set(codes) <= {200, 503}, codes
