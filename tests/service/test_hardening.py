@@ -11,22 +11,29 @@ from service_helpers import glb, grid_mesh, make_client, node, translation, uid
 from tracer.optics.lights import LightError, pack_lights
 
 
+def floor_scene(client, name: str) -> tuple[str, str, dict]:
+    """A scene holding a 4 m floor (black) under a 100 cd point light, through any client with post/put (a
+    TestClient or an httpx.Client on a real process); returns (scene id, geometry id, the pushed document)."""
+    sid = client.post("/scenes", json={"name": name}).json()["id"]
+    v, f = grid_mesh(n=2, size=4.0)
+    gid, data = glb(v, f)
+    client.put(f"/geometries/{gid}", content=data, headers={"content-type": "model/gltf-binary"})
+    doc = {"base_revision": 0, "length_unit": "m",
+           "nodes": [node(uid(0), None, "room"), node(uid(1), uid(0), "floor", translation(-2, -2, 0), gid)]}
+    r = client.put(f"/scenes/{sid}/document", json=doc)
+    assert r.status_code == 200, r.text
+    client.put(f"/scenes/{sid}/materials/{uid(1)}", json={"type": "black"})
+    r = client.post(f"/scenes/{sid}/lights", json={"type": "point", "position": [0, 0, 2], "intensity_cd": 100.0})
+    assert r.status_code == 201, r.text
+    return sid, gid, doc
+
+
 @pytest.fixture(scope="module")
 def world(tmp_path_factory):
     client = make_client(tmp_path_factory.mktemp("hardening"), max_points=50, max_photons=4_000_000,
                          max_seconds=30.0)
     with client:
-        sid = client.post("/scenes", json={"name": "hard"}).json()["id"]
-        v, f = grid_mesh(n=2, size=4.0)
-        gid, data = glb(v, f)
-        client.put(f"/geometries/{gid}", content=data, headers={"content-type": "model/gltf-binary"})
-        doc = {"base_revision": 0, "length_unit": "m",
-               "nodes": [node(uid(0), None, "room"), node(uid(1), uid(0), "floor", translation(-2, -2, 0), gid)]}
-        r = client.put(f"/scenes/{sid}/document", json=doc)
-        assert r.status_code == 200, r.text
-        client.put(f"/scenes/{sid}/materials/{uid(1)}", json={"type": "black"})
-        r = client.post(f"/scenes/{sid}/lights", json={"type": "point", "position": [0, 0, 2], "intensity_cd": 100.0})
-        assert r.status_code == 201, r.text
+        sid, gid, _ = floor_scene(client, "hard")
         r = client.post(f"/scenes/{sid}/sensors", json={"type": "grid", "origin": [-1, -1, 0], "u": [2, 0, 0],
                                                        "v": [0, 2, 0], "nu": 2, "nv": 2})
         yield client, sid, gid, r.json()["id"]
@@ -181,14 +188,7 @@ def test_deleting_a_scene_cancels_its_jobs_and_makes_them_stale(tmp_path):
 
     client = make_client(tmp_path, max_points=50, max_photons=100_000_000, max_seconds=60.0)
     with client:
-        sid = client.post("/scenes", json={"name": "doomed"}).json()["id"]
-        v, f = grid_mesh(n=2, size=4.0)
-        gid, data = glb(v, f)
-        client.put(f"/geometries/{gid}", content=data, headers={"content-type": "model/gltf-binary"})
-        doc = {"base_revision": 0, "length_unit": "m",
-               "nodes": [node(uid(0), None, "room"), node(uid(1), uid(0), "floor", translation(-2, -2, 0), gid)]}
-        assert client.put(f"/scenes/{sid}/document", json=doc).status_code == 200
-        client.post(f"/scenes/{sid}/lights", json={"type": "point", "position": [0, 0, 2], "intensity_cd": 100.0})
+        sid, _, _ = floor_scene(client, "doomed")
         r = client.post(f"/scenes/{sid}/illuminance?mode=async",
                         json={"points": [[0, 0, 0]], "normals": [[0, 0, 1]], "estimator": "forward", "max_seconds": 60})
         assert r.status_code == 202, r.text
@@ -261,14 +261,7 @@ def test_queued_sync_queries_hold_no_thread_that_other_requests_need(tmp_path):
 
     env = {"LUMENLINK_MAX_CONCURRENT_QUERIES": "1", "LUMENLINK_QUEUE_WAIT_SECONDS": "3"}
     with running_service(tmp_path / "data", env=env) as base, httpx.Client(base_url=base, timeout=60) as c:
-        sid = c.post("/scenes", json={"name": "busy"}).json()["id"]
-        v, f = grid_mesh(n=2, size=4.0)
-        gid, data = glb(v, f)
-        c.put(f"/geometries/{gid}", content=data, headers={"content-type": "model/gltf-binary"})
-        doc = {"base_revision": 0, "length_unit": "m",
-               "nodes": [node(uid(0), None, "room"), node(uid(1), uid(0), "floor", translation(-2, -2, 0), gid)]}
-        assert c.put(f"/scenes/{sid}/document", json=doc).status_code == 200
-        c.post(f"/scenes/{sid}/lights", json={"type": "point", "position": [0, 0, 2], "intensity_cd": 100.0})
+        sid, _, doc = floor_scene(c, "busy")
         q = {"points": [[0, 0, 0]], "normals": [[0, 0, 1]], "estimator": "forward"}
         warm = c.post(f"/scenes/{sid}/illuminance", json={**q, "max_photons": 1000}, timeout=900)   # may compile
         assert warm.status_code == 200
