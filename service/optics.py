@@ -3,8 +3,11 @@
 Each surface or element kind of the tracer (`tracer.optics.surfaces.dispatch.KINDS`) declares its fields
 once, in its `Spec` dataclass (name, default, range in ``bounds(...)`` metadata, meaning). The material
 wire models are built here from those specs, so the OpenAPI schema, the 422s and the kernels' packing
-read the same table, and a new kind appears in the API with no change to the service. A model's
-cross-field rule is the spec's own ``check()``. `to_spec` turns a validated body into the typed spec.
+read the same table, and a new kind appears in the API with no change to the service. A field's wire
+type follows its metadata's value rule: a number, a number or a table over λ (``value="spectral"``), an
+index (``"ior"``: number, Sellmeier or table), or an object (``parse``: coating, fluorescence, metal). Each
+model's validator then runs the tracer's own validation (`material_spec`: cross-field rules, increasing
+wavelengths, Sellmeier poles), so both sides refuse alike. `to_spec` turns a validated body into the spec.
 """
 
 from __future__ import annotations
