@@ -12,6 +12,7 @@ from collections.abc import Callable
 from typing import Any
 
 from fastapi import FastAPI
+from pydantic import BaseModel, Field
 
 import service
 from service.config import Settings
@@ -61,16 +62,67 @@ def create_app(settings: Settings | None = None, scene_factory: Callable[[], Any
         kernels = app.state.kernels.status() if app.state.kernels is not None else {"state": "not warmed"}
         return {"status": "ok", "kernels": kernels}
 
-    app.include_router(scenes.router)
-    app.include_router(geometries.router)
-    app.include_router(assignments.router)
+    app.include_router(scenes.router, responses=PROBLEM_RESPONSES)
+    app.include_router(geometries.router, responses=PROBLEM_RESPONSES)
+    app.include_router(assignments.router, responses=PROBLEM_RESPONSES)
     if importlib.util.find_spec("service.routes.simulation") is not None:
         from service.routes import simulation
 
-        app.include_router(simulation.router)
+        app.include_router(simulation.router, responses=PROBLEM_RESPONSES)
+    app.openapi = _openapi_with_problems(app)  # type: ignore[method-assign]  # FastAPI documents this override
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
     if settings.token:
         app.add_middleware(BearerToken, token=settings.token)
     if settings.log_requests:
         app.add_middleware(RequestLog)
     return app
+
+
+class Problem(BaseModel):
+    """An error (RFC 9457 problem details), as every error of this service is answered."""
+
+    type: str = "about:blank"
+    title: str
+    status: int
+    detail: str
+    errors: list[dict[str, Any]] | None = Field(None, description="422: each invalid field (loc, msg, type).")
+    limit: int | None = Field(None, description="413: the limit exceeded.")
+    current_revision: int | None = Field(None, description="409: the scene's revision now.")
+    incident: str | None = Field(None, description="500: the id the service log has the details under.")
+
+
+PROBLEM_RESPONSES: dict[int | str, dict[str, Any]] = {
+    code: {"model": Problem, "description": why} for code, why in (
+        (400, "Malformed request (a body that is not JSON)."), (401, "Missing or wrong bearer token."),
+        (404, "No such scene, node, geometry, sensor or job."), (409, "A stale base_revision, or a conflict."),
+        (413, "Too large (a body, or a query beyond the service's limits)."),
+        (422, "Invalid input: the detail names each field."), (500, "An unexpected error (incident id)."),
+        (503, "Busy (all query slots taken, or the job queue full): retry later."))}
+
+
+PROBLEM_REF = {"$ref": "#/components/schemas/Problem"}
+
+
+def _openapi_with_problems(app: FastAPI) -> Any:
+    """The app's OpenAPI document with its errors as they are sent (``application/problem+json``) and the
+    models the hand-decoded document body refers to (`service.routes.scenes.DOCUMENT_SCHEMA_DEFS`)."""
+    base = app.openapi
+
+    def openapi() -> dict[str, Any]:
+        if app.openapi_schema is not None:
+            return app.openapi_schema
+        schema = base()
+        components = schema.setdefault("components", {}).setdefault("schemas", {})
+        for name, model in scenes.DOCUMENT_SCHEMA_DEFS.items():
+            components.setdefault(name, model)
+        for path in schema.get("paths", {}).values():
+            for operation in path.values():
+                for code, response in operation.get("responses", {}).items():
+                    if code[:1] in "45":   # every error is a problem, whatever a route declared
+                        response["content"] = {"application/problem+json": {"schema": PROBLEM_REF}}
+        for name in ("HTTPValidationError", "ValidationError"):
+            components.pop(name, None)   # FastAPI's own error models: never sent by this service
+        return schema
+
+    return openapi
+

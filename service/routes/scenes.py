@@ -57,11 +57,15 @@ def get_revisions(scene_id: str, manager: Manager) -> list[dict[str, Any]]:
     return manager.revisions(scene_id)
 
 
+DOCUMENT_SCHEMA = DocumentPush.model_json_schema(ref_template="#/components/schemas/{model}")
+#: the models the document's schema refers to; `service.app` adds them to the OpenAPI components
+DOCUMENT_SCHEMA_DEFS = DOCUMENT_SCHEMA.pop("$defs", {})
+
+
 @router.put(
     "/scenes/{scene_id}/document",
     response_model=PushPublic,
-    openapi_extra={"requestBody": {"required": True, "content": {"application/json": {
-        "schema": DocumentPush.model_json_schema(ref_template="#/components/schemas/{model}")}}}},
+    openapi_extra={"requestBody": {"required": True, "content": {"application/json": {"schema": DOCUMENT_SCHEMA}}}},
 )
 async def push_document(scene_id: str, request: Request, manager: Manager, dry_run: bool = False) -> JSONResponse:
     """Push a CAD tree: validate, diff by UUID, rebuild only what changed, store one revision.

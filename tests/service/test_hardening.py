@@ -283,3 +283,23 @@ def test_queued_sync_queries_hold_no_thread_that_other_requests_need(tmp_path):
             codes = list(statuses)
     assert max(waits.values()) < 1.0, waits
     assert codes.count(200) >= 1 and set(codes) <= {200, 503}, codes
+
+
+def test_the_openapi_document_resolves_every_ref_and_documents_its_errors_as_sent(world):
+    import json
+    import re
+
+    client = world[0]
+    doc = client.get("/openapi.json").json()
+    text = json.dumps(doc)
+    refs = set(re.findall(r'"\$ref": "#/components/schemas/([^"]+)"', text))
+    assert refs <= set(doc["components"]["schemas"]), sorted(refs - set(doc["components"]["schemas"]))
+    assert {"NodeIn", "Source", "Problem"} <= refs
+    for path, item in doc["paths"].items():
+        for method, operation in item.items():
+            errors = {code: r for code, r in operation["responses"].items() if code[0] in "45"}
+            if path != "/health":
+                assert {"404", "422", "500"} <= set(errors), (path, method, sorted(errors))
+            for code, r in errors.items():
+                assert list(r.get("content", {})) == ["application/problem+json"], (path, method, code)
+    assert "HTTPValidationError" not in text
