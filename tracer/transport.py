@@ -43,7 +43,7 @@ from tracer.optics.lights import pick_light, sample_emission
 from tracer.optics.lights.dispatch import emit_wavelength
 from tracer.optics.media.dispatch import medium_coefficients, medium_event
 from tracer.optics.media.homogeneous import sample_free_flight, transmittance
-from tracer.optics.spectra import BIN_NM, LAMBDA_MIN, N_BINS, luminous, tristimulus
+from tracer.optics.spectra import BIN_NM, LAMBDA_MIN, N_BINS, XBAR_GRID, ZBAR_GRID, grid_value, luminous
 from tracer.optics.surfaces.base import ABSORBED, STACK_FULL
 from tracer.optics.surfaces.dispatch import scatter
 from tracer.rng import path_key, uniform
@@ -201,9 +201,8 @@ def trace_photons(sa, ra, M, L, S, n_bins, seed, batch, photons, w0, tally, coun
 @njit(cache=True, error_model="numpy", _nrt=False)
 def record_spectrum(tally, n_bins, b, watts, lam):
     """Add a crossing of `watts` W at λ nm to bin b's spectral columns (`tally_columns`)."""
-    xb, _, zb = tristimulus(lam)
-    tally[n_bins + b] += watts * xb
-    tally[2 * n_bins + b] += watts * zb
+    tally[n_bins + b] += watts * grid_value(XBAR_GRID, lam)
+    tally[2 * n_bins + b] += watts * grid_value(ZBAR_GRID, lam)
     band = min(max(int((lam - LAMBDA_MIN) / BIN_NM), 0), N_BINS - 1)
     tally[(3 + band) * n_bins + b] += watts
 

@@ -1,4 +1,5 @@
-"""Local frames and direction sampling shared by every optics family (unit vectors as float triples)."""
+"""Local frames, direction sampling and the tabulated-cdf search shared by every optics family (unit vectors as
+float triples)."""
 
 from __future__ import annotations
 
@@ -30,3 +31,16 @@ def sample_cosine(nx, ny, nz, u1, u2):
     dz = x * t[2] + y * b[2] + z * nz
     inv = 1.0 / math.sqrt(dx * dx + dy * dy + dz * dz)
     return dx * inv, dy * inv, dz * inv
+
+
+@njit(cache=True, _nrt=False)
+def find_in_cdf(cdf, lo, n, u):
+    """Smallest k in [0, n) with cdf[lo + k] > u (binary search): the entry of a tabulated cdf that u picks."""
+    a, b = 0, n - 1
+    while a < b:
+        mid = (a + b) // 2
+        if cdf[lo + mid] > u:
+            b = mid
+        else:
+            a = mid + 1
+    return a

@@ -34,6 +34,8 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
+from tracer.optics.frames import find_in_cdf
+
 LAMBDA_MIN = 360.0       # nm: first grid sample
 LAMBDA_MAX = 830.0       # nm: last grid sample
 GRID_N = 471             # samples, 1 nm apart
@@ -49,6 +51,8 @@ _TABLE = np.loadtxt(Path(__file__).with_name("data") / "cie_1nm.csv", delimiter=
 GRID_NM = _TABLE[:, 0].copy()                 # (471,) nm
 V_GRID = np.ascontiguousarray(_TABLE[:, 1])   # (471,) CIE 1924 photopic V(λ)
 CMF_GRID = np.ascontiguousarray(_TABLE[:, 2:5])   # (471, 3) CIE 1931 2° x̄, ȳ, z̄
+XBAR_GRID = np.ascontiguousarray(CMF_GRID[:, 0])  # (471,) x̄ and z̄ alone, for `grid_value` (ȳ is V)
+ZBAR_GRID = np.ascontiguousarray(CMF_GRID[:, 2])
 assert GRID_NM.shape == (GRID_N,) and GRID_NM[0] == LAMBDA_MIN and GRID_NM[-1] == LAMBDA_MAX
 
 
@@ -292,28 +296,19 @@ def luminous(lam):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def tristimulus(lam):
-    """CIE 1931 x̄, ȳ, z̄ at λ nm."""
-    x = min(max(lam - LAMBDA_MIN, 0.0), LAMBDA_MAX - LAMBDA_MIN)
-    i = min(int(x), GRID_N - 2)
-    f = x - i
-    g = 1.0 - f
-    return (CMF_GRID[i, 0] * g + CMF_GRID[i + 1, 0] * f, CMF_GRID[i, 1] * g + CMF_GRID[i + 1, 1] * f,
-            CMF_GRID[i, 2] * g + CMF_GRID[i + 1, 2] * f)
+def grid_wavelength(cdf, u):
+    """Draw a wavelength from a cdf over the grid samples (sample i stands for [λ_i − ½, λ_i + ½) nm):
+    (λ nm, the sample index); u uniform in [0, 1)."""
+    a = find_in_cdf(cdf, 0, GRID_N, u)
+    lo = cdf[a - 1] if a > 0 else 0.0
+    width = cdf[a] - lo
+    t = (u - lo) / width if width > 0.0 else 0.5
+    lam = LAMBDA_MIN + a - 0.5 + min(max(t, 0.0), 1.0)
+    return min(max(lam, LAMBDA_MIN), LAMBDA_MAX), a
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def sample_grid(cdf, f, u):
     """Draw a wavelength from a `sampling_table` row: (λ nm, weight factor); u uniform in [0, 1)."""
-    a, b = 0, GRID_N - 1
-    while a < b:
-        mid = (a + b) // 2
-        if cdf[mid] > u:
-            b = mid
-        else:
-            a = mid + 1
-    lo = cdf[a - 1] if a > 0 else 0.0
-    width = cdf[a] - lo
-    t = (u - lo) / width if width > 0.0 else 0.5
-    lam = LAMBDA_MIN + a - 0.5 + min(max(t, 0.0), 1.0)
-    return min(max(lam, LAMBDA_MIN), LAMBDA_MAX), f[a]
+    lam, a = grid_wavelength(cdf, u)
+    return lam, f[a]

@@ -23,8 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from tracer.optics.frames import sample_cosine
-from tracer.optics.lights.base import P_FLUX, P_I0, SHADOW_SHORTEN, LightError, Packing, _find, _num, check_fields
+from tracer.optics.frames import find_in_cdf, sample_cosine
+from tracer.optics.lights.base import P_FLUX, P_I0, SHADOW_SHORTEN, LightError, Packing, _num, check_fields
 
 NAME = "area"
 FIELDS = frozenset({"instances", "exitance_lm_m2", "node"})
@@ -104,7 +104,7 @@ def _world_triangles(scene, inst: int) -> np.ndarray:
 def sample_point(L, j, u0, u1, u2):
     """A point on area light j, uniform over its area: (x, y, z, nx, ny, nz) with the front normal."""
     first, count = L.a_off[j, 0], L.a_off[j, 1]
-    k = first + _find(L.tri_cdf, first, count, u0)
+    k = first + find_in_cdf(L.tri_cdf, first, count, u0)
     su = math.sqrt(u1)
     b1 = 1.0 - su
     b2 = u2 * su

@@ -43,6 +43,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from tracer.optics.frames import find_in_cdf
+
 N_LPAR = 20
 # columns of the parameter row: position or aperture centre, axis, frame (t, b), then scalars
 P_POS, P_AXIS, P_T, P_B = 0, 3, 6, 9
@@ -186,24 +188,11 @@ def _intensity_and_flux(body: dict, where: str, solid_angle: float) -> tuple[flo
 # ---------------------------------------------------------------------------------------------------- kernels
 
 
-@njit(cache=True, _nrt=False)
-def _find(cdf, lo, n, u):
-    """Smallest k in [0, n) with cdf[lo + k] > u (binary search)."""
-    a, b = 0, n - 1
-    while a < b:
-        mid = (a + b) // 2
-        if cdf[lo + mid] > u:
-            b = mid
-        else:
-            a = mid + 1
-    return a
-
-
 @njit(cache=True, _nrt=False, inline="always")
 def pick_light(L, u):
     """Index of a light chosen with probability ∝ its flux, and that probability."""
     n = L.cdf.shape[0]
-    j = _find(L.cdf, 0, n, u)
+    j = find_in_cdf(L.cdf, 0, n, u)
     p = L.cdf[j] - (L.cdf[j - 1] if j > 0 else 0.0)
     return j, p
 

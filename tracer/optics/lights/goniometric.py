@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from tracer.optics.frames import find_in_cdf
 from tracer.optics.lights.base import (
     P_AXIS,
     P_B,
@@ -38,7 +39,6 @@ from tracer.optics.lights.base import (
     P_T,
     LightError,
     Packing,
-    _find,
     _vec,
     check_fields,
     in_light_frame,
@@ -160,7 +160,7 @@ def sample(L, j, u0, u1, u2, u3, u4):
     c0, g0, e0 = L.g_off[j, 0], L.g_off[j, 1], L.g_off[j, 3]
     nc, ng = L.g_n[j, 0], L.g_n[j, 1]
     ncell = (nc - 1) * (ng - 1)
-    cell = _find(L.g_cell_cdf, e0, ncell, u0)
+    cell = find_in_cdf(L.g_cell_cdf, e0, ncell, u0)
     pc = L.g_cell_cdf[e0 + cell] - (L.g_cell_cdf[e0 + cell - 1] if cell > 0 else 0.0)
     ic = cell // (ng - 1)
     ig = cell - ic * (ng - 1)

@@ -82,6 +82,5 @@ def reemit(M, mi, lam, u_yield, u_lam):
     if M.mpar[mi, EMISSION_NM] > 0.0:
         out = M.mpar[mi, EMISSION_NM]
     else:
-        cdf = M.tables[M.mtab[mi, EMISSION_NM]]
-        out, _ = spectra.sample_grid(cdf, cdf, u_lam)
+        out, _ = spectra.grid_wavelength(M.tables[M.mtab[mi, EMISSION_NM]], u_lam)
     return True, out, lam / out
