@@ -104,7 +104,20 @@ class FluorescenceWire(_MaterialWire):
 Metal = Annotated[tuple[Annotated[float, Strict(), Field(gt=0.0, le=20.0)],
                         Annotated[float, Strict(), Field(ge=0.0, le=50.0)]],
                   Field(description="the metal's complex index [n, k] (n − ik), e.g. aluminium at 550 nm [0.96, 6.69]")]
-_OBJECTS: dict[str, Any] = {"coating": CoatingWire, "fluorescence": FluorescenceWire, "metal": Metal}
+class ParticlesWire(_MaterialWire):
+    """Spheres suspended in the dielectric: Mie scattering and absorption at each wavelength (`tracer.optics.mie`)."""
+
+    radius_um: Annotated[float, Strict(), Field(gt=0.0, le=1000.0, description="sphere radius, µm")]
+    ior: Annotated[tuple[Annotated[float, Strict(), Field(gt=0.0, le=10.0)],
+                         Annotated[float, Strict(), Field(ge=0.0, le=10.0)]],
+                   Field(description="the spheres' complex index [n, k] (n − ik); relative to the host's ior")]
+    number_per_m3: Annotated[float, Strict(), Field(gt=0.0, le=1e30, description="number density, 1/m³")]
+
+
+Axis = Annotated[tuple[Annotated[float, Strict()], Annotated[float, Strict()], Annotated[float, Strict()]],
+                 Field(description="a direction [x, y, z] in the node's frame, in the sheet's plane; not zero")]
+_OBJECTS: dict[str, Any] = {"coating": CoatingWire, "fluorescence": FluorescenceWire, "metal": Metal, "axis": Axis,
+                            "fast_axis": Axis, "particles": ParticlesWire}
 
 
 def _number(meta: Mapping) -> Any:
@@ -112,10 +125,10 @@ def _number(meta: Mapping) -> Any:
     return Annotated[float, Strict(), Field(description=meta.get("doc") or None, **limits)]
 
 
-def _field_type(name: str, meta: Mapping) -> Any:
+def _field_type(name: str, meta: Mapping, required: bool) -> Any:
     """The wire type of one spec field, by the value rule its metadata names (`tracer.optics.surfaces.base`)."""
     if "parse" in meta:
-        return Optional[_OBJECTS[name]]  # noqa: UP045 (a runtime type)
+        return _OBJECTS[name] if required else Optional[_OBJECTS[name]]  # noqa: UP045 (a runtime type)
     if meta["value"] == "spectral":
         return _number(meta) | SpectralTable
     if meta["value"] == "ior":
@@ -128,7 +141,7 @@ def _model(kind) -> type[BaseModel]:
     fields: dict[str, Any] = {"type": (Literal[kind.NAME], ...)}
     for f in dataclasses.fields(kind.Spec):
         default = ... if f.default is dataclasses.MISSING else f.default
-        fields[f.name] = (_field_type(f.name, f.metadata), default)
+        fields[f.name] = (_field_type(f.name, f.metadata, default is ...), default)
 
     def _check(self):
         # the tracer's own validation: cross-field rules (`Spec.check`), increasing wavelengths, Sellmeier poles

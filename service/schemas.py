@@ -16,6 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field, Strict, StringConstraints, mo
 
 from service import optics
 from tracer.optics import spectra
+from tracer.optics.polarization import PolarizationError, light_polarization
 
 UUID_PATTERN = r"^[0-9a-fA-F]{8}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{12}$"
 GEOMETRY_PATTERN = r"^[0-9a-f]{64}$"
@@ -278,9 +279,22 @@ class MaterialPublic(Wire):
 
 # ---------------------------------------------------------------- lights (DESIGN.md bodies)
 
+class LinearPolarization(Wire):
+    type: Literal["linear"]
+    axis: Vec3 = Field(description="the field's direction (in the light's frame: world, or its node's with "
+                                   "attached_to), taken across each ray")
+
+
+class CircularPolarization(Wire):
+    type: Literal["circular"]
+    handedness: Literal["right", "left"] = Field(description="right: S3 = +S0 (IEEE: clockwise seen from the source)")
+
+
 class _Spectral(Wire):
     spectrum: optics.Spectrum | None = Field(
         default=None, description="The light's relative spectral power; default equal energy over 380–780 nm.")
+    polarization: Annotated[LinearPolarization | CircularPolarization, Field(discriminator="type")] | None = Field(
+        default=None, description="The light's polarization (`tracer.optics.polarization`); default unpolarized.")
 
     @model_validator(mode="after")
     def _spectrum(self) -> _Spectral:
@@ -289,6 +303,11 @@ class _Spectral(Wire):
                 spectra.spectrum(self.spectrum.model_dump(), "spectrum")
             except spectra.SpectrumError as exc:
                 raise ValueError(str(exc)) from None
+        if self.polarization is not None:   # the tracer's rules beyond the schema: a non-zero axis
+            try:
+                light_polarization(self.polarization.model_dump(), "light")
+            except PolarizationError as exc:
+                raise ValueError(str(exc).removeprefix("light: ")) from None
         return self
 
 

@@ -183,6 +183,7 @@ def result_payload(result: Any, revision: int) -> dict[str, Any]:
         "stop_reason": str(result.stop_reason),
         "compile_seconds": float(getattr(result, "compile_seconds", 0.0)),
         **_spectral_payload(result),
+        **_stokes_payload(result),
     }
 
 
@@ -194,6 +195,15 @@ def _spectral_payload(result: Any) -> dict[str, Any]:
     return {"nm": _finite_list(result.nm), "spectral_irradiance": _finite_list(result.spectral_irradiance),
             "spectral_stderr": _finite_list(result.spectral_stderr),
             "cie_xy": _nan_to_null(xy.tolist())}
+
+
+def _stokes_payload(result: Any) -> dict[str, Any]:
+    """The observed polarization of a result, if any: Stokes (lx) ± error and the degree of polarization (null
+    where dark)."""
+    if getattr(result, "stokes", None) is None:
+        return {}
+    return {"stokes": _finite_list(result.stokes), "stokes_stderr": _finite_list(result.stokes_stderr),
+            "dop": _nan_to_null(np.asarray(result.dop, float).tolist())}
 
 
 def _nan_to_null(x: Any) -> Any:
@@ -314,23 +324,26 @@ class SimulationHub:
     def run_points(prepared: Prepared, points: np.ndarray, normals: np.ndarray, radius: float | None,
                    budget: Budget, seed: int, estimator: str, force_effects: tuple[str, ...],
                    progress: Callable | None = None, cancel: Callable | None = None,
-                   observe: tuple[str, ...] = ()) -> dict[str, Any]:
+                   observe: tuple[str, ...] = (), reference: tuple | None = None) -> dict[str, Any]:
         """Illuminance at points; the JSON answer of ``POST /scenes/{id}/illuminance``."""
         with _refusals():
             result = prepared.simulation.illuminance(
                 points, normals, radius=radius, target_relative_error=budget.target_relative_error,
                 max_seconds=budget.max_seconds, max_photons=budget.max_photons, seed=seed, estimator=estimator,
-                force_effects=force_effects, progress=progress, cancel=cancel, observe=observe)
+                force_effects=force_effects, progress=progress, cancel=cancel, observe=observe,
+                reference=reference)
         return result_payload(result, prepared.live.revision)
 
     def run_grid(self, prepared: Prepared, sensor: dict, budget: Budget, seed: int, estimator: str,
                  force_effects: tuple[str, ...], progress: Callable | None = None,
-                 cancel: Callable | None = None, observe: tuple[str, ...] = ()) -> dict[str, Any]:
+                 cancel: Callable | None = None, observe: tuple[str, ...] = (),
+                 reference: tuple | None = None) -> dict[str, Any]:
         """Simulate one sensor; keeps a grid's result for ``map.png`` while the scene is unchanged."""
         scene_id = prepared.live.scene_id
         common = dict(target_relative_error=budget.target_relative_error, max_seconds=budget.max_seconds,
                       max_photons=budget.max_photons, seed=seed, estimator=estimator,
-                      force_effects=force_effects, progress=progress, cancel=cancel, observe=observe)
+                      force_effects=force_effects, progress=progress, cancel=cancel, observe=observe,
+                      reference=reference)
         if sensor["type"] == "grid":
             nu, nv = int(sensor["nu"]), int(sensor["nv"])
             if nu * nv > self.limits.max_points:

@@ -809,6 +809,10 @@ class SceneManager:
         for key in ("u", "v"):
             if key in out:
                 out[key] = (lin @ np.asarray(out[key], dtype=float)).tolist()
+        pol = out.get("polarization")
+        if isinstance(pol, dict) and pol.get("type") == "linear":   # the field's axis turns with the node
+            a = lin @ np.asarray(pol["axis"], dtype=float)
+            out["polarization"] = {**pol, "axis": (a / np.linalg.norm(a)).tolist()}
         return out
 
 

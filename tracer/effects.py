@@ -11,6 +11,8 @@
 | `dispersion` | a `dielectric` whose `ior` is a Sellmeier formula or a table |
 | `coating` | a `dielectric` with thin films |
 | `fluorescence` | a `dielectric` that fluoresces |
+| `mie` | a `dielectric` holding `particles` (Mie scattering, `tracer.optics.mie`) |
+| `polarization` | a `polarizer` or `retarder`, a polarized light, or a query that observes Stokes |
 
 Each kind declares its effects (`effects(spec)` in its module, `tracer/optics/`); this module gathers
 them. The effects above change no compiled code: they are branches on data (a photon meets a mirror
@@ -18,8 +20,9 @@ only where there is one), which the transport benchmark measured to cost nothing
 photon *carries* does change the kernel (Mitsuba's variants): `photon_state(effects)` names it, and
 `tracer.transport.forward_kernel(state)` is the one factory of kernels. Every effect listed today
 up to `scattering` needs only a weight, the state ``"white"``; `spectral` (implied by `dispersion`, `coating`
-and `fluorescence`) needs a wavelength, the state ``"spectral"``. A light's spectrum alone does not call
-for it: in a grey scene the luminous answer is exact without carrying λ.
+`fluorescence` and `mie`) needs a wavelength, the state ``"spectral"``; `polarization` needs a Stokes vector and
+its frame (`tracer.optics.polarization`), the state ``"polarized"`` (``"polarized-spectral"`` with both). A
+light's spectrum alone does not call for a wavelength: in a grey scene the luminous answer is exact without it.
 `with_forced` turns effects on in a scene that does not need them (the answer must not change).
 """
 
@@ -30,8 +33,9 @@ from collections.abc import Iterable
 from tracer.optics.surfaces.dispatch import effects_of, material_spec
 
 EFFECTS = ("lambertian", "specular", "fresnel", "absorption", "scattering", "spectral", "dispersion", "coating",
-           "fluorescence")
-NEEDS_WAVELENGTH = ("dispersion", "coating", "fluorescence")
+           "fluorescence", "mie", "polarization")
+NEEDS_WAVELENGTH = ("dispersion", "coating", "fluorescence", "mie")
+PHOTON_STATES = ("white", "spectral", "polarized", "polarized-spectral")
 
 
 class EffectError(ValueError):
@@ -66,5 +70,9 @@ def with_forced(effects: list[str], force: tuple[str, ...] | list[str] | str) ->
 
 
 def photon_state(effects: list[str]) -> str:
-    """What a photon must carry for this effect set: ``"spectral"`` (a wavelength) or ``"white"``."""
-    return "spectral" if "spectral" in canonical(effects) else "white"
+    """What a photon must carry for this effect set (`PHOTON_STATES`): a weight (``"white"``), and a wavelength
+    (``"spectral"``), a Stokes vector (``"polarized"``) or both (``"polarized-spectral"``)."""
+    e = set(canonical(effects))
+    if "polarization" in e:
+        return "polarized-spectral" if "spectral" in e else "polarized"
+    return "spectral" if "spectral" in e else "white"

@@ -62,7 +62,7 @@ from tracer.effects import EffectError, canonical, photon_state, with_forced
 from tracer.estimate import Estimate
 from tracer.optics import spectra
 from tracer.optics.lights import connectable, pack_lights
-from tracer.optics.lights.dispatch import spectral_lights
+from tracer.optics.lights.dispatch import any_polarized, polarized_lights, spectral_lights
 from tracer.optics.surfaces.dispatch import backward_ok, effects_of, material_spec, pack_materials
 from tracer.scene import Scene
 from tracer.transport import COUNTERS, SensorArrays, forward_kernel, tally_columns
@@ -76,7 +76,7 @@ MIN_BATCHES = 8                # batches before the error bar is trusted for a t
 FORWARD_BATCH = 20_000         # photons per forward batch (fewer when max_photons is small)
 BACKWARD_BATCH = 32            # paths per patch per backward batch
 ESTIMATORS = ("auto", "forward", "backward")
-OBSERVABLES = ("spectrum",)
+OBSERVABLES = ("spectrum", "stokes")
 MAX_SPECTRAL_TALLIES = 4_000_000   # bins × spectral columns a query may record per batch
 
 _COMPILE_SECONDS: dict[tuple, float] = {}   # first call of each compiled variant in this process
@@ -129,6 +129,9 @@ class IlluminanceResult:
     Where the query observes the spectrum: nm (N_BINS,) — centres of the 5 nm bands;
     spectral_irradiance, spectral_stderr (k, N_BINS) — W/m²/nm in each band and its standard error;
     cie_xy (k, 2) — CIE 1931 chromaticity of the light arriving (NaN where nothing arrived).
+    Where the query observes Stokes (`tracer.optics.polarization`): stokes, stokes_stderr (k, 4) — lx, S0 = lux,
+    in each receiver's frame (x axis: its `reference` in its plane, taken across each photon's direction);
+    dop (k,) — degree of polarization √(S1² + S2² + S3²) / S0 (NaN where nothing arrived).
     """
 
     lux: np.ndarray
@@ -146,6 +149,9 @@ class IlluminanceResult:
     spectral_irradiance: np.ndarray | None = None
     spectral_stderr: np.ndarray | None = None
     cie_xy: np.ndarray | None = None
+    stokes: np.ndarray | None = None
+    stokes_stderr: np.ndarray | None = None
+    dop: np.ndarray | None = None
 
 
 @dataclass
@@ -286,7 +292,8 @@ class Simulation:
         geometry_ids = [i for i in ids if i not in self._sensor_ids]
         # the distinct specs in use (a scene of 100k instances has a handful of materials)
         self._specs = list(dict.fromkeys(m for m in (mats.get(i, default_spec) for i in geometry_ids) if m is not None))
-        self.effects: list[str] = canonical(effects_of(self._specs))
+        self.effects: list[str] = canonical(effects_of(self._specs) | (
+            {"polarization"} if any_polarized(self._lights) else set()))
 
     # ------------------------------------------------------------------------------------------ helpers
 
@@ -315,7 +322,7 @@ class Simulation:
 
     def illuminance(self, points, normals, radius=None, target_relative_error=None, max_seconds=None,
                     max_photons=None, seed=0, estimator="auto", force_effects=(), progress=None,
-                    cancel=None, observe=()) -> IlluminanceResult:
+                    cancel=None, observe=(), reference=None) -> IlluminanceResult:
         """Illuminance (lx) on the front side of a disk receiver at each point.
 
         Parameters
@@ -331,7 +338,11 @@ class Simulation:
         progress : callable(photons, worst_relative_error, seconds), called between rounds.
         cancel : callable() -> bool, polled between rounds.
         observe : ("spectrum",) to add the spectral irradiance and the chromaticity (`IlluminanceResult`);
-            photons then carry a wavelength (effect `spectral`), and the forward estimator answers.
+            photons then carry a wavelength (effect `spectral`), and the forward estimator answers. "stokes" adds
+            the Stokes vector and the degree of polarization (effect `polarization`).
+        reference : (3,) float, optional
+            The x axis of the receivers' polarization frames (world), taken onto each receiver's plane; default
+            world x, or world y where x is within 25° of the receiver's normal.
         """
         pts = _vectors(points, "points")
         k = len(pts)
@@ -348,10 +359,10 @@ class Simulation:
         r = float(r)
         centers = place_receivers(self._arrays, pts, nrm, r)
         return self._run(False, centers, nrm, r, None, target_relative_error, max_seconds, max_photons, seed,
-                         estimator, force_effects, progress, cancel, observe)
+                         estimator, force_effects, progress, cancel, observe, reference)
 
     def grid(self, origin, u, v, nu, nv, target_relative_error=None, max_seconds=None, max_photons=None, seed=0,
-             estimator="auto", force_effects=(), progress=None, cancel=None, observe=()) -> GridResult:
+             estimator="auto", force_effects=(), progress=None, cancel=None, observe=(), reference=None) -> GridResult:
         """Cell-average illuminance (lx) over a grid sensor origin + s u + t v, front side u × v.
 
         Returns a `GridResult` whose `lux` and `stderr` are (nv, nu) arrays (observed spectra and
@@ -370,7 +381,7 @@ class Simulation:
         half_diagonal = 0.5 * float(np.linalg.norm(uu + vv))
         o = o + (place_receivers(self._arrays, centre[None, :], nrm[None, :], half_diagonal)[0] - centre) @ nrm * nrm
         res = self._run(True, o, nrm, 0.0, (uu, vv, int(nu), int(nv)), target_relative_error, max_seconds,
-                        max_photons, seed, estimator, force_effects, progress, cancel, observe)
+                        max_photons, seed, estimator, force_effects, progress, cancel, observe, reference)
         shape = (int(nv), int(nu))
 
         def cells(a):
@@ -378,16 +389,20 @@ class Simulation:
 
         return GridResult(cells(res.lux), cells(res.stderr), res.photons, res.seconds, res.effects, res.estimator,
                           res.stop_reason, res.batches, res.rejected, res.counters, res.compile_seconds, res.nm,
-                          cells(res.spectral_irradiance), cells(res.spectral_stderr), cells(res.cie_xy))
+                          cells(res.spectral_irradiance), cells(res.spectral_stderr), cells(res.cie_xy),
+                          cells(res.stokes), cells(res.stokes_stderr), cells(res.dop))
 
     # ------------------------------------------------------------------------------------------ engine
 
     def _run(self, is_grid, centers, normals, radius, grid, target, max_seconds, max_photons, seed, estimator,
-             force_effects, progress, cancel, observe) -> IlluminanceResult:
+             force_effects, progress, cancel, observe, reference=None) -> IlluminanceResult:
         budget = _budget(target, max_seconds, max_photons)
-        observe_spectrum = _observe(observe)
+        observe_spectrum, observe_stokes = _observe(observe)
         if observe_spectrum:
             force_effects = (*(force_effects or ()), "spectral")
+        if observe_stokes:
+            force_effects = (*(force_effects or ()), "polarization")
+        refs = _references(reference, np.atleast_2d(normals))
         if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or not 0 <= seed < 2 ** 63:
             raise SimulationError(f"seed must be an integer in [0, 2**63), got {seed!r}")
         if force_effects is None:
@@ -402,7 +417,7 @@ class Simulation:
         t0 = time.perf_counter()
         if which == "forward":
             return self._forward(is_grid, centers, normals, radius, grid, budget, int(seed), effects, progress,
-                                 cancel, t0, observe_spectrum)
+                                 cancel, t0, observe_spectrum, refs if observe_stokes else None)
         return self._backward(is_grid, centers, normals, radius, grid, budget, int(seed), effects, progress,
                               cancel, t0)
 
@@ -436,7 +451,7 @@ class Simulation:
                 return est, batches, "max_seconds", counters
 
     def _forward(self, is_grid, centers, normals, radius, grid, budget, seed, effects, progress, cancel, t0,
-                 observe_spectrum):
+                 observe_spectrum, refs):
         receivers = Scene()
         if is_grid:
             uu, vv, nu, nv = grid
@@ -457,8 +472,12 @@ class Simulation:
             snu[ids[0]], snv[ids[0]] = grid[2], grid[3]
         else:
             bin0[ids] = np.arange(len(ids))
-        sens = SensorArrays(bin0, snu, snv, np.array([int(observe_spectrum)], np.int64))
-        n_cols = tally_columns(observe_spectrum)
+        ref = np.zeros((len(bin0), 3))
+        if refs is not None:
+            ref[ids] = refs[:len(ids)]
+        observe_stokes = refs is not None
+        sens = SensorArrays(bin0, snu, snv, np.array([int(observe_spectrum), int(observe_stokes)], np.int64), ref)
+        n_cols = tally_columns(observe_spectrum, observe_stokes)
         if n_bins * n_cols > MAX_SPECTRAL_TALLIES:
             raise SimulationError(f"observing the spectrum of {n_bins} cells needs {n_bins * n_cols} tallies per "
                                   f"batch (at most {MAX_SPECTRAL_TALLIES}): use at most "
@@ -469,7 +488,9 @@ class Simulation:
         state = photon_state(effects)
         kernel = forward_kernel(state)
         sa, mats = self._arrays, self._mats
-        lights = self._lights_spectral if state == "spectral" else self._lights
+        lights = self._lights_spectral if state.endswith("spectral") else self._lights
+        if state.startswith("polarized"):
+            lights = polarized_lights(lights)
         compile_s = _warm(("forward", state), lambda: _run_batches(kernel, sa, ra, mats, lights, sens, n_bins, seed,
                                                                   0, 1, 1))
 
@@ -493,6 +514,11 @@ class Simulation:
             total = x + y + z
             with np.errstate(divide="ignore", invalid="ignore"):
                 res.cie_xy = np.where(total[:, None] > 0, np.stack([x, y], axis=1) / total[:, None], np.nan)
+        if observe_stokes:
+            res.stokes = np.concatenate([mean[:1], mean[-3:]]).T
+            res.stokes_stderr = np.concatenate([err[:1], err[-3:]]).T
+            with np.errstate(divide="ignore", invalid="ignore"):
+                res.dop = np.where(mean[0] > 0, np.sqrt((mean[-3:] ** 2).sum(axis=0)) / mean[0], np.nan)
         return res
 
     def _backward(self, is_grid, centers, normals, radius, grid, budget, seed, effects, progress, cancel, t0):
@@ -524,16 +550,32 @@ class Simulation:
                                  "backward", stop, batches, cdict["rejected"], cdict, compile_s)
 
 
-def _observe(observe) -> bool:
-    """Whether a query's `observe` list asks for the spectrum; `SimulationError` for anything else."""
+def _observe(observe) -> tuple[bool, bool]:
+    """Whether a query's `observe` list asks for the spectrum, and for Stokes; `SimulationError` for anything else."""
     if observe is None:
-        return False
+        return False, False
     if isinstance(observe, str) or not isinstance(observe, list | tuple):
         raise SimulationError(f"observe must be a list of observables {list(OBSERVABLES)}, got {observe!r}")
     unknown = [o for o in observe if o not in OBSERVABLES]
     if unknown:
         raise SimulationError(f"observe: unknown observable(s) {unknown}; known: {list(OBSERVABLES)}")
-    return "spectrum" in observe
+    return "spectrum" in observe, "stokes" in observe
+
+
+def _references(reference, normals: np.ndarray) -> np.ndarray:
+    """(k, 3) unit x axes of the receivers' polarization frames: `reference` (default world x, world y where x is
+    within 25° of the normal) taken onto each receiver's plane (unit normals (k, 3))."""
+    if reference is None:
+        x = np.tile([1.0, 0.0, 0.0], (len(normals), 1))
+        x[np.abs(normals[:, 0]) > math.cos(math.radians(25.0))] = [0.0, 1.0, 0.0]
+    else:
+        x = np.tile(_vec3(reference, "reference"), (len(normals), 1))
+    x = x - (x * normals).sum(axis=1)[:, None] * normals
+    ln = np.linalg.norm(x, axis=1)
+    if np.any(ln <= 1e-9):
+        raise SimulationError(f"reference {reference!r} lies along the normal of receiver "
+                              f"{int(np.argmax(ln <= 1e-9))}: give an axis in the receiver's plane")
+    return x / ln[:, None]
 
 
 def _warm(variant: tuple, call: Callable[[], object]) -> float:

@@ -39,10 +39,12 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from tracer.effects import PHOTON_STATES
 from tracer.optics.lights import pick_light, sample_emission
 from tracer.optics.lights.dispatch import emit_wavelength
 from tracer.optics.media.dispatch import medium_coefficients, medium_event
 from tracer.optics.media.homogeneous import sample_free_flight, transmittance
+from tracer.optics.polarization import N_POL, emit, observed
 from tracer.optics.spectra import BIN_NM, LAMBDA_MIN, N_BINS, XBAR_GRID, ZBAR_GRID, grid_value, luminous
 from tracer.optics.surfaces.base import ABSORBED, STACK_FULL
 from tracer.optics.surfaces.dispatch import scatter
@@ -67,26 +69,29 @@ class SensorArrays(NamedTuple):
 
     bin0 (n_inst,) int64: first bin of the sensor, −1 for other instances; nu, nv (n_inst,) int64:
     cells of a rect sensor along u and v (1, 1 for a disk); the bin of a crossing at (u, v) is
-    bin0 + min(⌊v nv⌋, nv−1) nu + min(⌊u nu⌋, nu−1). observe (1,) int64: 1 where the receivers also
-    record the spectrum (`tally_columns`), 0 for luminous flux only.
+    bin0 + min(⌊v nv⌋, nv−1) nu + min(⌊u nu⌋, nu−1). observe (2,) int64: [spectrum, stokes], 1 where the
+    receivers also record it (`tally_columns`). ref (n_inst, 3) float64: each receiver's polarization reference
+    axis (world, in its plane; read where it records Stokes).
     """
 
     bin0: np.ndarray
     nu: np.ndarray
     nv: np.ndarray
     observe: np.ndarray
+    ref: np.ndarray
 
 
-def tally_columns(observe_spectrum: bool) -> int:
+def tally_columns(observe_spectrum: bool, observe_stokes: bool = False) -> int:
     """Tallies per bin: luminous flux (lm); with the spectrum also X and Z (CIE 1931 x̄, z̄ weighted radiant
-    flux, W) and the radiant flux (W) in each 5 nm band of `tracer.optics.spectra` (`N_BINS`). The tally
-    of column c of bin b is at c × n_bins + b."""
-    return 1 + (2 + N_BINS if observe_spectrum else 0)
+    flux, W) and the radiant flux (W) in each 5 nm band of `tracer.optics.spectra` (`N_BINS`); with Stokes
+    last the luminous S1, S2, S3 (lm) in the receiver's frame. The tally of column c of bin b is at
+    c × n_bins + b."""
+    return 1 + (2 + N_BINS if observe_spectrum else 0) + (3 if observe_stokes else 0)
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def trace_photons(sa, ra, M, L, S, n_bins, seed, batch, photons, w0, tally, counters, med, c_inst, c_t, c_u, c_v,
-                  c_cos, stack, tstack):
+                  c_cos, stack, tstack, pol):
     """Trace the photons of one batch, each of initial weight `w0` (lm; W where they carry a wavelength), and add
     what the receivers record to `tally` (`tally_columns`).
 
@@ -104,6 +109,8 @@ def trace_photons(sa, ra, M, L, S, n_bins, seed, batch, photons, w0, tally, coun
             lam, f_lam = emit_wavelength(L, j, uniform(key, DIM_LAMBDA))
             f = f * f_lam
         w = w * f
+        if L.polarized[0] != 0:
+            emit(pol, L.pol, j, dx, dy, dz)
         if on_surface:
             ox, oy, oz = offset_ray_origin(ox, oy, oz, nx, ny, nz, dx, dy, dz)
         if not (math.isfinite(w) and math.isfinite(dx + dy + dz) and math.isfinite(ox + oy + oz)):
@@ -144,12 +151,16 @@ def trace_photons(sa, ra, M, L, S, n_bins, seed, batch, photons, w0, tally, coun
                     b = b0 + cv * S.nu[si] + cu
                     if not math.isfinite(val):
                         counters[C_REJECTED] += 1
-                    elif lam > 0.0:
-                        tally[b] += val * luminous(lam)
+                        continue
+                    lm = val
+                    if lam > 0.0:
+                        lm = val * luminous(lam)
                         if S.observe[0] != 0:
                             record_spectrum(tally, n_bins, b, val, lam)
-                    else:
-                        tally[b] += val
+                    tally[b] += lm
+                    if S.observe[1] != 0:
+                        record_stokes(tally, n_bins * (1 + (2 + N_BINS) * S.observe[0]) + b, n_bins, lm, pol,
+                                      dx, dy, dz, S.ref, si)
             if sig_a > 0.0:
                 if not math.isfinite(t_end):
                     break
@@ -159,7 +170,7 @@ def trace_photons(sa, ra, M, L, S, n_bins, seed, batch, photons, w0, tally, coun
                 oy = oy + t_end * dy
                 oz = oz + t_end * dz
                 alive, dx, dy, dz, lam, f, dim = medium_event(M, med[depth - 1], dx, dy, dz, lam, sig_s, sig_f, key,
-                                                              dim)
+                                                              dim, pol)
                 if not alive:
                     break
                 w = w * f
@@ -170,7 +181,7 @@ def trace_photons(sa, ra, M, L, S, n_bins, seed, batch, photons, w0, tally, coun
                 py = oy + t * dy
                 pz = oz + t * dz
                 status, dx, dy, dz, f, depth, dim = scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz,
-                                                            med, depth, key, dim, lam)
+                                                            med, depth, key, dim, lam, pol)
                 if status == ABSORBED:
                     break
                 if status == STACK_FULL:
@@ -207,6 +218,16 @@ def record_spectrum(tally, n_bins, b, watts, lam):
     tally[(3 + band) * n_bins + b] += watts
 
 
+@njit(cache=True, error_model="numpy", _nrt=False)
+def record_stokes(tally, at, n_bins, lm, pol, dx, dy, dz, ref, si):
+    """Add a crossing of `lm` lm along d to the Stokes columns S1, S2, S3 of a bin (the first at index `at`, the
+    next n_bins on), in the frame of receiver `si`: x axis ref[si] (`SensorArrays`) taken across d."""
+    s1, s2, s3 = observed(pol, dx, dy, dz, ref[si, 0], ref[si, 1], ref[si, 2])
+    tally[at] += lm * s1
+    tally[at + n_bins] += lm * s2
+    tally[at + 2 * n_bins] += lm * s3
+
+
 @njit(cache=True, error_model="numpy", nogil=True)
 def forward_batches(sa, ra, M, L, S, n_bins, seed, batch0, n_batches, photons):
     """Run batches batch0 … batch0+n_batches−1 of `photons` photons each.
@@ -222,7 +243,7 @@ def forward_batches(sa, ra, M, L, S, n_bins, seed, batch0, n_batches, photons):
     Serial and without the GIL: `tracer.simulate` runs contiguous runs of batches on threads. Each batch
     is seeded by its index and its photons run in order, so its sums do not depend on the threads.
     """
-    out = np.zeros((n_batches, n_bins * (1 + (2 + N_BINS) * S.observe[0])))
+    out = np.zeros((n_batches, n_bins * (1 + (2 + N_BINS) * S.observe[0] + 3 * S.observe[1])))
     cnt = np.zeros((n_batches, len(COUNTERS)), np.int64)
     w0 = L.flux_total[0] / photons
     for b in range(n_batches):
@@ -233,20 +254,22 @@ def forward_batches(sa, ra, M, L, S, n_bins, seed, batch0, n_batches, photons):
         c_v = np.empty(SENSOR_CAP)
         c_cos = np.empty(SENSOR_CAP)
         stack, tstack = new_stacks()
+        pol = np.zeros(N_POL)
         tally = out[b]
         counters = cnt[b]
         trace_photons(sa, ra, M, L, S, n_bins, seed, batch0 + b, photons, w0, tally, counters, med, c_inst, c_t, c_u,
-                      c_v, c_cos, stack, tstack)
+                      c_v, c_cos, stack, tstack, pol)
     return out, cnt
 
 
 def forward_kernel(state: str):
     """The forward kernel for a photon state (`tracer.effects.photon_state`): the one factory of kernels.
 
-    ``"white"`` and ``"spectral"`` share one compiled kernel: a wavelength is one float and a branch per
-    tally, which the transport benchmark measures within noise on white scenes (bench/bench_spectral.py),
-    while a second variant would cost a compile (~40 s on 2 cores) the first time a scene turns spectral.
-    Which state runs is data: `tracer.optics.lights.spectral_lights` packs the lights for it."""
-    if state in ("white", "spectral"):
+    Every state shares one compiled kernel: a wavelength is one float and a branch per tally, a Stokes vector
+    a small array read where ``pol[ON]`` is set, which the benchmarks measure within noise on white scenes
+    (bench/bench_spectral.py, bench/bench_polarization.py), while a second variant would cost a compile (~40 s
+    on 2 cores) the first time a scene turns spectral or polarized. Which state runs is data:
+    `tracer.optics.lights.spectral_lights` and `polarized_lights` pack the lights for it."""
+    if state in PHOTON_STATES:
         return forward_batches
     raise ValueError(f"no forward kernel for the photon state {state!r}")

@@ -71,7 +71,7 @@ def compile_query_kernels(report=print) -> None:
     mats = pack_materials({}, None, [], set())
     lights = pack_lights([{"type": "point", "position": [0.0, 0.0, 2.0], "intensity_cd": 1.0}])
     sens = SensorArrays(np.array([0, 1], np.int64), np.array([1, 4], np.int64), np.array([1, 4], np.int64),
-                        np.zeros(1, np.int64))
+                        np.zeros(2, np.int64), np.zeros((2, 3)))
     forward_kernel("white")(ra, ra, mats, lights, sens, 17, 0, 0, 1, 1)
     report(f"forward {time.perf_counter() - t:.3f}")
     t = time.perf_counter()

@@ -20,7 +20,7 @@ import numpy as np
 from fastapi import APIRouter, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from service.errors import NotFound, TooLarge
 from service.jobs import JobNotFound, QueueFull
@@ -56,10 +56,28 @@ class _Budget(BaseModel):
                                     "the scene's choice.")
     force_effects: Annotated[list[Annotated[str, Field(pattern=EFFECT_NAME)]], Field(max_length=16)] = Field(
         default_factory=list, description="Effects to switch on although the scene does not call for them.")
-    observe: Annotated[list[Literal["spectrum"]], Field(max_length=1)] = Field(
+    observe: Annotated[list[Literal["spectrum", "stokes"]], Field(max_length=2)] = Field(
         default_factory=list, description="`spectrum`: add the spectral irradiance (W/m²/nm in 5 nm bands) and the "
                                           "CIE 1931 chromaticity of each value; photons then carry a wavelength "
-                                          "(effect `spectral`) and the forward estimator answers.")
+                                          "(effect `spectral`). `stokes`: add the Stokes vector (lx) and the degree "
+                                          "of polarization in each receiver's frame (effect `polarization`). Either "
+                                          "way the forward estimator answers.")
+    reference: Vec3 | None = Field(
+        default=None, description="With observe stokes: the x axis of each receiver's polarization frame (world), "
+                                  "taken onto its plane; default world x, or world y where x is within 25° of "
+                                  "the receiver's normal.")
+
+    @field_validator("observe")
+    @classmethod
+    def _once_each(cls, v: list[str]) -> list[str]:
+        if len(set(v)) != len(v):
+            raise ValueError(f"observe lists each observable once, got {v}")
+        return v
+
+    def observed_effects(self) -> tuple[str, ...]:
+        """The forced effects and those the observables call for."""
+        extra = {"spectrum": "spectral", "stokes": "polarization"}
+        return tuple(self.force_effects) + tuple(extra[o] for o in self.observe)
 
 
 class IlluminanceQuery(_Budget):
@@ -110,6 +128,11 @@ class IlluminancePublic(BaseModel):
     spectral_stderr: list[Any] | None = Field(None, description="Standard error of each band, W/m²/nm.")
     cie_xy: list[Any] | None = Field(
         None, description="With observe spectrum: CIE 1931 (x, y) of the light arriving; null where none arrived.")
+    stokes: list[Any] | None = Field(
+        None, description="With observe stokes: [S0, S1, S2, S3] per point, lx (S0 = lux), in the receiver's frame.")
+    stokes_stderr: list[Any] | None = Field(None, description="Standard error of each Stokes component, lx.")
+    dop: list[Any] | None = Field(
+        None, description="With observe stokes: degree of polarization √(S1²+S2²+S3²)/S0; null where none arrived.")
 
 
 class SensorPublic(BaseModel):
@@ -132,6 +155,9 @@ class SensorPublic(BaseModel):
     spectral_irradiance: list[Any] | None = None
     spectral_stderr: list[Any] | None = None
     cie_xy: list[Any] | None = None
+    stokes: list[Any] | None = None
+    stokes_stderr: list[Any] | None = None
+    dop: list[Any] | None = None
     min_lux: float
     mean_lux: float
     max_lux: float
@@ -245,11 +271,12 @@ def _points_query(scene_id: str, query: IlluminanceQuery, request: Request) -> t
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     prepared = hub.prepare(scene_id)
     effects = tuple(query.force_effects)
-    hub.check_query(prepared, query.estimator, effects + (("spectral",) if query.observe else ()))
+    hub.check_query(prepared, query.estimator, query.observed_effects())
 
     def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
         payload = hub.run_points(prepared, points, normals, query.radius, budget, query.seed, query.estimator,
-                                 effects, progress=progress, cancel=cancel, observe=tuple(query.observe))
+                                 effects, progress=progress, cancel=cancel, observe=tuple(query.observe),
+                                 reference=query.reference)
         payload["current"] = hub.is_current(scene_id, prepared.generation)
         return payload
 
@@ -275,11 +302,12 @@ def _sensor_query(scene_id: str, sensor_id: str, query: SensorSimulate, request:
     sensor = find_sensor(prepared.live, sensor_id)  # the same sensor in the snapshot the query runs on
     map_url = str(request.url_for("sensor_map", scene_id=scene_id, sensor_id=sensor_id).path)
     effects = tuple(query.force_effects)
-    hub.check_query(prepared, query.estimator, effects + (("spectral",) if query.observe else ()))
+    hub.check_query(prepared, query.estimator, query.observed_effects())
 
     def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
         payload = hub.run_grid(prepared, sensor, budget, query.seed, query.estimator, effects,
-                               progress=progress, cancel=cancel, observe=tuple(query.observe))
+                               progress=progress, cancel=cancel, observe=tuple(query.observe),
+                               reference=query.reference)
         if payload["type"] == "grid":
             payload["map_url"] = map_url
         return payload

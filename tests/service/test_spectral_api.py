@@ -131,7 +131,7 @@ def test_bad_spectral_input_is_a_422_that_names_the_field_and_changes_nothing(wo
     assert client.get(f"/scenes/{sid}/materials").json() == materials_before
 
 
-@pytest.mark.parametrize("observe", [["stokes"], "spectrum", ["spectrum", "spectrum"]])
+@pytest.mark.parametrize("observe", [["polarisation"], "spectrum", ["spectrum", "spectrum"]])
 def test_an_unknown_observable_is_a_422(world, observe):
     client, sid, _ = world
     r = client.post(f"/scenes/{sid}/illuminance", json=query([[0.0, 0.0, 0.0]], observe=observe))

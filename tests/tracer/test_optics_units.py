@@ -151,8 +151,11 @@ def test_effect_sets_follow_the_materials():
     assert with_forced(["lambertian"], ("scattering",)) == ["lambertian", "scattering"]
     assert eff({"type": "diffuser", "transmittance": 0.5}) == ["lambertian"]
     assert photon_state(["lambertian", "fresnel", "absorption", "scattering"]) == "white"
+    assert photon_state(["lambertian", "polarization"]) == "polarized"
+    assert photon_state(with_forced(["lambertian", "polarization"], ("coating",))) == "polarized-spectral"
+    assert eff({"type": "polarizer", "axis": [1, 0, 0]}) == ["lambertian", "polarization"]
     with pytest.raises(EffectError, match="unknown effect"):
-        with_forced(["lambertian"], ("polarization",))
+        with_forced(["lambertian"], ("birefringence",))
 
 
 @pytest.mark.parametrize(("body", "match"), [

@@ -344,7 +344,7 @@ def test_everything_on_conserves_energy_and_stays_finite():
     assert 0.0 < bands.sum() <= 1.0 + 4 * bands_err   # W out ≤ W in: absorption and the Stokes shift only take
 
 
-@pytest.mark.parametrize(("observe", "match"), [("spectrum", "must be a list"), (["stokes"], "unknown observable"),
+@pytest.mark.parametrize(("observe", "match"), [("spectrum", "must be a list"), (["stoke"], "unknown observable"),
                                                 ({"spectrum": 1}, "must be a list")])
 def test_a_bad_observe_is_refused_naming_it(observe, match):
     scene, (floor,) = _scene(([-1, -1, -1], [1, 1, 0]))

@@ -162,7 +162,7 @@ def test_backward_is_refused_where_it_cannot_see_the_light(room):
     ({"max_photons": 2.5}, "max_photons must be a positive integer"),
     ({"seed": -1}, "seed must be an integer"),
     ({"estimator": "psychic"}, "estimator must be one of"),
-    ({"force_effects": ("polarization",)}, "unknown effect"),
+    ({"force_effects": ("birefringence",)}, "unknown effect"),
 ])
 def test_bad_queries_are_rejected(room, kwargs, match):
     s, r = room

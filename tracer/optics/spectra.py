@@ -39,6 +39,8 @@ from tracer.optics.frames import find_in_cdf
 LAMBDA_MIN = 360.0       # nm: first grid sample
 LAMBDA_MAX = 830.0       # nm: last grid sample
 GRID_N = 471             # samples, 1 nm apart
+WHITE_NM = 550.0         # nm: where a white photon's wavelength-dependent value is read (a metal's Fresnel
+                         # reflectance; nothing that varies with λ is in a white scene)
 KM = 683.0               # lm/W: maximum luminous efficacy (CIE)
 EQUAL_ENERGY = (380.0, 780.0)   # nm: the default spectrum of a light
 BIN_NM = 5.0             # nm: width of the bins of a spectral answer

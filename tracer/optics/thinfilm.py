@@ -76,18 +76,19 @@ def _clip01(x):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def _s_rt(a, b, c, d, q_in, q_out):
-    """Rs, Ts from the s stack matrix [[a, ib], [ic, d]]: admittance η = q, [B, C] = M [1, q_out]."""
+def _s_amplitudes(a, b, c, d, q_in, q_out):
+    """r_s, t_s (complex, of the tangential field) and Ts from the s stack matrix [[a, ib], [ic, d]]: admittance
+    η = q, [B, C] = M [1, q_out], r = (η_in B − C) / (η_in B + C), t = 2 η_in / (η_in B + C)."""
     bb = a + 1j * b * q_out
     cc = 1j * c + d * q_out
     den = q_in * bb + cc
-    r = (q_in * bb - cc) / den
-    return _clip01(_abs2(r)), _clip01(4.0 * q_in * q_out.real / _abs2(den))
+    return (q_in * bb - cc) / den, 2.0 * q_in / den, _clip01(4.0 * q_in * q_out.real / _abs2(den))
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def _p_rt(a, b, c, d, n_in, q_in, n_out, k_out, q_out):
-    """Rp, Tp from the p stack matrix [[a, ib], [ic, d]]: admittance η = n² / q.
+def _p_amplitudes(a, b, c, d, n_in, q_in, n_out, k_out, q_out):
+    """r_p, t_p (complex, of the tangential field) and Tp from the p stack matrix [[a, ib], [ic, d]]: admittance
+    η = n² / q.
 
     [B, C] = M [1, η_out] is scaled by 1 / η_out = q_out / N_out² and r, T are multiplied through by
     q_in, so nothing divides by a cosine that may be 0. T = 4 Re(η_in) Re(η_out) / |η_in B + C|² is
@@ -99,8 +100,29 @@ def _p_rt(a, b, c, d, n_in, q_in, n_out, k_out, q_out):
     cc = 1j * c * g + d
     n2 = n_in * n_in
     den = n2 * bb + q_in * cc
-    r = (n2 * bb - q_in * cc) / den
-    return _clip01(_abs2(r)), _clip01(4.0 * n2 * q_in * g.real / _abs2(den))
+    return (n2 * bb - q_in * cc) / den, 2.0 * n2 * g / den, _clip01(4.0 * n2 * q_in * g.real / _abs2(den))
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _amplitudes(layers, first, count, reverse, n_in, n_out, k_out, lam_nm, c_in):
+    """(r_s, t_s, Ts, r_p, t_p, Tp) of the stack, arguments as `stack_rt` (0 < c_in ≤ 1)."""
+    beta = n_in * n_in * (1.0 - c_in * c_in)  # (n_in sin θ_in)², the same in every medium
+    k0 = 2.0 * math.pi / lam_nm
+    # stack matrices [[a, ib], [ic, d]] for s and p, the layers in the order the light crosses them
+    sa, sb, sc, sd = 1.0, 0.0, 0.0, 1.0
+    pa, pb, pc, pd = 1.0, 0.0, 0.0, 1.0
+    for i in range(count):
+        row = first + count - 1 - i if reverse else first + i
+        n2 = layers[row, 0] * layers[row, 0]
+        u = n2 - beta
+        cd, sq = _layer_terms(u, k0 * layers[row, 1])
+        sa, sb, sc, sd = _times(sa, sb, sc, sd, cd, sq, u * sq)
+        pa, pb, pc, pd = _times(pa, pb, pc, pd, cd, u * sq / n2, n2 * sq)
+    q_in = n_in * c_in
+    q_out = _exit_q(n_out, k_out, beta)
+    rs, ts, t_s = _s_amplitudes(sa, sb, sc, sd, q_in, q_out)
+    rp, tp, t_p = _p_amplitudes(pa, pb, pc, pd, n_in, q_in, n_out, k_out, q_out)
+    return rs, ts, t_s, rp, tp, t_p
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
@@ -118,23 +140,35 @@ def stack_rt(layers, first, count, reverse, n_in, n_out, k_out, lam_nm, cos_in):
     c_in = min(1.0, max(0.0, cos_in))
     if c_in == 0.0:  # grazing: everything is reflected
         return 1.0, 1.0, 0.0, 0.0
-    beta = n_in * n_in * (1.0 - c_in * c_in)  # (n_in sin θ_in)², the same in every medium
-    k0 = 2.0 * math.pi / lam_nm
-    # stack matrices [[a, ib], [ic, d]] for s and p, the layers in the order the light crosses them
-    sa, sb, sc, sd = 1.0, 0.0, 0.0, 1.0
-    pa, pb, pc, pd = 1.0, 0.0, 0.0, 1.0
-    for i in range(count):
-        row = first + count - 1 - i if reverse else first + i
-        n2 = layers[row, 0] * layers[row, 0]
-        u = n2 - beta
-        cd, sq = _layer_terms(u, k0 * layers[row, 1])
-        sa, sb, sc, sd = _times(sa, sb, sc, sd, cd, sq, u * sq)
-        pa, pb, pc, pd = _times(pa, pb, pc, pd, cd, u * sq / n2, n2 * sq)
-    q_in = n_in * c_in
-    q_out = _exit_q(n_out, k_out, beta)
-    rs, ts = _s_rt(sa, sb, sc, sd, q_in, q_out)
-    rp, tp = _p_rt(pa, pb, pc, pd, n_in, q_in, n_out, k_out, q_out)
-    return rs, rp, ts, tp
+    rs, _, ts, rp, _, tp = _amplitudes(layers, first, count, reverse, n_in, n_out, k_out, lam_nm, c_in)
+    return _clip01(_abs2(rs)), _clip01(_abs2(rp)), ts, tp
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def stack_mueller(layers, first, count, reverse, n_in, n_out, k_out, lam_nm, cos_in):
+    """The stack's reflection and transmission as Mueller parameters (Rs, Rp, Cr, Dr, Ts, Tp, Ct, Dt), arguments
+    as `stack_rt`: each wave in its frame (s, d × s), s the normal of the plane of incidence, as
+    `tracer.optics.polarization.apply_interface` reads them.
+
+    Cr + iDr = a_s a_p* of the reflected wave. Its p frame turns over with the direction (d × s against the
+    incident one), so its Jones p amplitude is −r_p of the tangential-field convention here: a mirror at
+    normal incidence keeps S1 and turns S2 and S3 over. Ct + iDt = √(Ts Tp) e^{i(arg t_s − arg t_p)}.
+    """
+    if count == 0 and n_in == n_out and k_out == 0.0:
+        return 0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0
+    c_in = min(1.0, max(0.0, cos_in))
+    if c_in == 0.0:  # grazing: everything is reflected
+        return 1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    rs, ts, t_s, rp, tp, t_p = _amplitudes(layers, first, count, reverse, n_in, n_out, k_out, lam_nm, c_in)
+    r_s, r_p = _clip01(_abs2(rs)), _clip01(_abs2(rp))
+    zr = -rs * rp.conjugate()
+    zt = ts * tp.conjugate()
+    m = abs(zt)
+    ct, dt = 0.0, 0.0
+    if m > 0.0:
+        scale = math.sqrt(t_s * t_p) / m
+        ct, dt = zt.real * scale, zt.imag * scale
+    return r_s, r_p, zr.real, zr.imag, t_s, t_p, ct, dt
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)

@@ -21,6 +21,7 @@ import numpy as np
 from numba import njit
 
 from tracer.optics.frames import sample_cosine
+from tracer.optics.polarization import depolarize
 from tracer.optics.spectra import grid_or_value, scalar, varies
 from tracer.optics.surfaces.base import ABSORBED, CONTINUES, arrival_normal, bounds, param
 from tracer.rng import uniform
@@ -63,7 +64,7 @@ def albedo(M, inst):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam):
+def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol):
     u = uniform(key, dim)
     t, r = param(M, inst, 0, lam), param(M, inst, 1, lam)
     fx, fy, fz = arrival_normal(ngx, ngy, ngz, dx, dy, dz)
@@ -72,4 +73,5 @@ def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, ke
     elif u >= t + r:
         return ABSORBED, dx, dy, dz, 0.0, depth, dim + 1
     dx, dy, dz = sample_cosine(fx, fy, fz, uniform(key, dim + 1), uniform(key, dim + 2))
+    depolarize(pol)
     return CONTINUES, dx, dy, dz, 1.0, depth, dim + 3

@@ -53,7 +53,7 @@ P_I0, P_COS_OUT, P_COS_IN, P_R, P_H, P_FLUX, P_SOLID, P_SHAPE = 12, 13, 14, 15, 
 SHADOW_SHORTEN = 1e-6  # a shadow ray toward a point on an emitting surface stops this fraction short of it
 
 COMMON_FIELDS = frozenset({"id", "name", "attached_to", "type"})  # kept by the service, ignored here
-SPECTRAL_FIELDS = frozenset({"spectrum", "flux_w"})  # any kind's; `dispatch.pack_lights` reads them
+SPECTRAL_FIELDS = frozenset({"spectrum", "flux_w", "polarization"})  # any kind's; `dispatch.pack_lights` reads them
 
 
 class LightError(ValueError):
@@ -74,6 +74,8 @@ class LightArrays(NamedTuple):
     radiant power (then `cdf` and `flux_total` are by radiant flux, W), 0 where they carry luminous flux
     (lm); `mono` (n,) nm of a line (0 otherwise); `spd_cdf`, `spd_f` (n, GRID_N): each light's
     `spectra.sampling_table`; `efficacy` (n,) lm/W.
+    Polarization (`tracer.optics.polarization`): `pol` (n, 4) each light's packed state (`light_polarization`);
+    `polarized` (1,) int64, 1 where photons carry a Stokes vector (`polarized_lights`).
     """
 
     kind: np.ndarray
@@ -96,6 +98,8 @@ class LightArrays(NamedTuple):
     spd_cdf: np.ndarray
     spd_f: np.ndarray
     efficacy: np.ndarray
+    pol: np.ndarray
+    polarized: np.ndarray
 
 
 class Packing:

@@ -14,6 +14,7 @@ from numba import njit
 from tracer.optics import spectra
 from tracer.optics.lights import area, collimated, goniometric, point, spot
 from tracer.optics.lights.base import P_FLUX, LightArrays, LightError, Packing
+from tracer.optics.polarization import PolarizationError, light_polarization
 from tracer.optics.spectra import sample_grid
 
 KINDS = (point, spot, collimated, goniometric, area)
@@ -45,6 +46,7 @@ def pack_lights(lights: list[dict], scene=None, sensor_ids: frozenset = frozense
     out = Packing(n, scene, sensor_ids)
     mono, efficacy = np.zeros(n), np.zeros(n)
     spd_cdf, spd_f = np.zeros((n, spectra.GRID_N)), np.zeros((n, spectra.GRID_N))
+    pol = np.zeros((n, 4))
     for j, body in enumerate(lights):
         where = f"light {j}" + (f" ({body.get('id')})" if isinstance(body, dict) and body.get("id") else "")
         if not isinstance(body, dict):
@@ -59,6 +61,10 @@ def pack_lights(lights: list[dict], scene=None, sensor_ids: frozenset = frozense
         efficacy[j] = spectra.efficacy(s)
         mono[j] = s.mono_nm
         spd_cdf[j], spd_f[j] = spectra.sampling_table(s)
+        try:
+            pol[j] = light_polarization(body.get("polarization"), where)
+        except PolarizationError as exc:
+            raise LightError(str(exc)) from None
         module.pack(module.Spec.from_body(_photometric(body, module, efficacy[j], where), where), j, out, where)
         if not out.par[j, P_FLUX] <= MAX_FLUX_LM:
             raise LightError(f"{where}: its luminous flux {out.par[j, P_FLUX]:.3g} lm is beyond {MAX_FLUX_LM:g} lm (or "
@@ -71,7 +77,7 @@ def pack_lights(lights: list[dict], scene=None, sensor_ids: frozenset = frozense
     return LightArrays(kind, out.par, cdf, np.array([total]), out.g_off, out.g_n, out.table("g_c", (0,)),
                        out.table("g_gamma", (0,)), out.table("g_cd", (0,)), out.table("g_cell_cdf", (0,)),
                        out.table("tri", (0, 9)), out.table("tri_n", (0, 3)), out.table("tri_cdf", (0,)), out.a_off,
-                       out.a_area, np.zeros(1, np.int64), mono, spd_cdf, spd_f, efficacy)
+                       out.a_area, np.zeros(1, np.int64), mono, spd_cdf, spd_f, efficacy, pol, np.zeros(1, np.int64))
 
 
 def light_spectrum(body: dict, where: str) -> spectra.Spectrum:
@@ -103,6 +109,16 @@ def spectral_lights(L: LightArrays) -> LightArrays:
     watts = L.par[:, P_FLUX] / L.efficacy
     total = float(watts.sum())
     return L._replace(cdf=np.cumsum(watts) / total, flux_total=np.array([total]), spectral=np.ones(1, np.int64))
+
+
+def polarized_lights(L: LightArrays) -> LightArrays:
+    """The same lights for photons that carry a Stokes vector (`tracer.optics.polarization`)."""
+    return L._replace(polarized=np.ones(1, np.int64))
+
+
+def any_polarized(L: LightArrays) -> bool:
+    """Whether some light emits polarized light (it then calls for the effect `polarization`)."""
+    return bool(np.any(L.pol[:, 0] != 0))
 
 
 def connectable(L: LightArrays) -> tuple[bool, str]:

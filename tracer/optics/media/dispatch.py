@@ -20,8 +20,9 @@ def medium_coefficients(M, mi, lam):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def medium_event(M, mi, dx, dy, dz, lam, sig_s, sig_f, key, dim):
-    """An event inside solid `mi` (scattering or fluorescence): (alive, dx, dy, dz, λ, power factor, dim)."""
+def medium_event(M, mi, dx, dy, dz, lam, sig_s, sig_f, key, dim, pol):
+    """An event inside solid `mi` (scattering or fluorescence): (alive, dx, dy, dz, λ, power factor, dim); the
+    photon's polarization state `pol` is updated in place (`tracer.optics.polarization`)."""
     if M.medium[mi] == HOMOGENEOUS:
-        return homogeneous.event(M, mi, dx, dy, dz, lam, sig_s, sig_f, key, dim)
+        return homogeneous.event(M, mi, dx, dy, dz, lam, sig_s, sig_f, key, dim, pol)
     return True, dx, dy, dz, lam, 1.0, dim

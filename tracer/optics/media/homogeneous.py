@@ -21,7 +21,9 @@ from numba import njit
 
 from tracer.optics.frames import onb
 from tracer.optics.media.fluorescence import SIGMA_F, reemit
-from tracer.optics.surfaces.base import mparam
+from tracer.optics.mie import mie_ratios, mie_sample_mu
+from tracer.optics.polarization import ON, S1, S2, E, apply_interface, depolarize, rotate_into, set_frame
+from tracer.optics.surfaces.base import MIE_ROW, mparam
 from tracer.rng import uniform
 
 _G_ISOTROPIC = 1e-4
@@ -81,19 +83,73 @@ def sample_free_flight(sigma, u):
 def coefficients(M, mi, lam):
     """(σa, σs, σf) in 1/m at λ nm (σf, fluorescent absorption, only for a photon with a wavelength)."""
     sig_f = mparam(M, mi, SIGMA_F, lam) if lam > 0.0 else 0.0
-    return mparam(M, mi, 0, lam), M.mpar[mi, 1], sig_f
+    return mparam(M, mi, 0, lam), mparam(M, mi, 1, lam), sig_f
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def event(M, mi, dx, dy, dz, lam, sig_s, sig_f, key, dim):
+def event(M, mi, dx, dy, dz, lam, sig_s, sig_f, key, dim, pol):
     """A scattering or fluorescence event: (alive, dx, dy, dz, λ, power factor, dim); the choice between
-    them is drawn only where σf > 0, so that scenes without fluorescence trace the same paths."""
+    them is drawn only where σf > 0, so that scenes without fluorescence trace the same paths. Both leave the
+    photon unpolarized (Henyey–Greenstein has no Mueller matrix; re-emission forgets the absorbed state), except a
+    Mie scattering, which acts with the particles' Mueller matrix (`mie_scatter`)."""
     if sig_f > 0.0:
         u = uniform(key, dim)
         dim += 1
         if u * (sig_s + sig_f) >= sig_s:
             alive, lam2, f = reemit(M, mi, lam, uniform(key, dim), uniform(key, dim + 1))
             dx, dy, dz = hg_scatter(dx, dy, dz, 0.0, uniform(key, dim + 2), uniform(key, dim + 3))
+            depolarize(pol)
             return alive, dx, dy, dz, lam2, f, dim + 4
+    row0 = M.mpar[mi, MIE_ROW]
+    if row0 >= 0.0:
+        dx, dy, dz, dim = mie_scatter(M.phase, int(row0), dx, dy, dz, lam, key, dim, pol)
+        return True, dx, dy, dz, lam, 1.0, dim
     dx, dy, dz = hg_scatter(dx, dy, dz, M.mpar[mi, 2], uniform(key, dim), uniform(key, dim + 1))
+    depolarize(pol)
     return True, dx, dy, dz, lam, 1.0, dim + 2
+
+
+MAX_AZIMUTH_TRIES = 64   # rejection draws of a polarized Mie azimuth (each accepted with probability ≥ ½... on average
+                         # exactly ½: the chance of running out is 2⁻⁶⁴)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def mie_scatter(tab, row0, dx, dy, dz, lam, key, dim, pol):
+    """A Mie scattering at λ nm from the packed table at `row0` (`tracer.optics.mie`): (dx, dy, dz, dim).
+
+    cos θ is drawn from S11 (the phase function, exact for any incident state: the polarized terms vanish over
+    the azimuth). An unpolarized photon takes a uniform azimuth φ. A polarized one draws φ from its own
+    conditional density ∝ 1 + s12(θ) (s1 cos 2φ + s2 sin 2φ), by rejection (analog: the weight is unchanged),
+    and leaves with the normalised image of its state under the scattering matrix, in the frame whose x axis
+    is the scattering plane's normal."""
+    mu = mie_sample_mu(tab, row0, lam, uniform(key, dim))
+    dim += 1
+    sin_t = math.sqrt(max(0.0, 1.0 - mu * mu))
+    polarized = pol[ON] != 0.0
+    if polarized:
+        ex, ey, ez = pol[E], pol[E + 1], pol[E + 2]
+        yx, yy, yz = dy * ez - dz * ey, dz * ex - dx * ez, dx * ey - dy * ex
+        s12, s33, s34 = mie_ratios(tab, row0, lam, mu)
+        phi = 0.0
+        for _ in range(MAX_AZIMUTH_TRIES):
+            phi = 2.0 * math.pi * uniform(key, dim)
+            accept = 0.5 * (1.0 + s12 * (pol[S1] * math.cos(2.0 * phi) + pol[S2] * math.sin(2.0 * phi)))
+            dim += 2
+            if uniform(key, dim - 1) < accept:
+                break
+    else:
+        t, b = onb(dx, dy, dz)
+        ex, ey, ez, yx, yy, yz = t[0], t[1], t[2], b[0], b[1], b[2]
+        phi = 2.0 * math.pi * uniform(key, dim)
+        dim += 1
+    c, s = math.cos(phi), math.sin(phi)
+    ux, uy, uz = c * ex + s * yx, c * ey + s * yy, c * ez + s * yz     # in the scattering plane, across d
+    nx, ny, nz = mu * dx + sin_t * ux, mu * dy + sin_t * uy, mu * dz + sin_t * uz
+    inv = 1.0 / math.sqrt(nx * nx + ny * ny + nz * nz)
+    nx, ny, nz = nx * inv, ny * inv, nz * inv
+    if polarized:   # frame x = the scattering plane's normal, across both directions
+        px, py, pz = c * yx - s * ex, c * yy - s * ey, c * yz - s * ez
+        rotate_into(pol, dx, dy, dz, px, py, pz)
+        apply_interface(pol, 1.0 - s12, 1.0 + s12, s33, s34)
+        set_frame(pol, nx, ny, nz, px, py, pz)
+    return nx, ny, nz, dim

@@ -7,7 +7,7 @@ A surface kind is one module in this folder (or in `tracer/optics/elements/`, fo
   carries its range in ``field(metadata=bounds(lo, hi, ...))``, and a parameter table (name, unit,
   range, default) stands in the module docstring. ``Spec.check()`` may add rules across fields.
   `spec_from_body` below builds and validates one from a wire body, for every kind alike.
-- ``row(spec) -> (N_PAR,) float64``: the parameter row the kernels read; ``medium(spec)`` (optional):
+- ``row(spec) -> (≤ N_PAR,) float64``: the parameter row the kernels read; ``medium(spec)`` (optional):
   ``(medium kind, (N_MPAR,) row)`` of the solid's inside (`tracer/optics/media/`), ``NO_MEDIUM`` if none.
   A field whose ``bounds(...)`` names a ``column`` (or ``mcolumn``, in the medium's row) may vary with
   the wavelength (``value="spectral"`` or ``"ior"``, `tracer.optics.spectra`): the row holds its
@@ -17,7 +17,7 @@ A surface kind is one module in this folder (or in `tracer/optics/elements/`, fo
 - ``effects(spec) -> tuple[str, ...]``: the effects it calls for (`tracer.effects.EFFECTS`).
 - ``diffuse_only(spec) -> bool``: whether the backward estimator can follow it (it reflects only
   diffusely, with albedo ``albedo(M, inst)``; a black surface is diffuse with albedo 0).
-- the jitted ``scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam)``
+- the jitted ``scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol)``
   returning ``(status, dx, dy, dz, f, depth, dim)``:
 
   * ``status``: `CONTINUES` (the photon leaves along the new unit direction d), `ABSORBED`, or
@@ -27,6 +27,10 @@ A surface kind is one module in this folder (or in `tracer/optics/elements/`, fo
   * ``med[0:depth]``: instance ids of the solids the photon is inside, innermost last; a kind that
     refracts into or out of a solid pushes or pops it and returns the new ``depth``;
   * ``lam``: the photon's wavelength in nm, 0 for a white photon (then every value is the row's own);
+  * ``pol``: the photon's polarization state (`tracer.optics.polarization`), read and updated in place where
+    ``pol[ON]`` is 1 (a polarized scene): a kind rotates it into its own frame, applies its Mueller matrix,
+    chooses among its outcomes by the power each gives this state, and leaves it in the outgoing frame;
+    a diffuse kind depolarizes it. Where ``pol[ON]`` is 0 a kind must not let it change what it does;
   * ``key``, ``dim``: the photon's random stream (`tracer.rng.uniform(key, dim)`); a kind returns ``dim``
     advanced past the numbers it drew.
 
@@ -51,10 +55,11 @@ from numba import njit
 from tracer.optics import spectra
 from tracer.traverse import shading_normal
 
-N_PAR = 4           # parameter row of a surface
+N_PAR = 6           # parameter row of a surface (a kind's `row` may be shorter: the rest is zero)
 N_MPAR = 8          # parameter row of the medium inside a solid
 NONE = -1           # no material: a sensor instance or an id the scene does not hold
 NO_MEDIUM = -1      # the inside of a solid that neither absorbs nor scatters (or no solid at all)
+MIE_ROW = 6         # medium row column: first row of the medium's Mie table in `MaterialArrays.phase`, −1 if none
 ABSORBED, CONTINUES, STACK_FULL = 0, 1, 2
 
 
@@ -74,6 +79,8 @@ class MaterialArrays(NamedTuple):
     tables : (n_tables, spectra.GRID_N) float64 — values on the wavelength grid (`tracer.optics.spectra`).
     layers : (n_layers, 2) float64 — thin-film layers [n, thickness nm] of every coating, outermost first.
     coat : (n_inst, 2) int32 — first layer and layer count of the instance's coating (count 0: none).
+    phase : (n_rows, mie.N_MU) float64 — the packed Mie tables of every particle medium (`tracer.optics.mie.packed`);
+        a medium's first row is its row's column `MIE_ROW` (−1: no particles, Henyey–Greenstein).
     """
 
     kind: np.ndarray
@@ -85,6 +92,7 @@ class MaterialArrays(NamedTuple):
     tables: np.ndarray
     layers: np.ndarray
     coat: np.ndarray
+    phase: np.ndarray
 
 
 # ------------------------------------------------------------------------------------------ specs

@@ -8,6 +8,7 @@
 | g | float | — | (−1, 1) | 0 |
 | coating | thin films on the surface (`tracer.optics.coating`) | — | — | none |
 | fluorescence | inside (`tracer.optics.media.fluorescence`) | — | — | none |
+| particles | spheres inside (`tracer.optics.mie`): Mie scattering instead of Henyey–Greenstein | — | — | none |
 
 The geometric normal points outward: a photon arriving against it enters the solid. Reflection is
 chosen with the unpolarised Fresnel reflectance (Rs + Rp)/2 of the exact formulas, total internal
@@ -18,9 +19,12 @@ the solid the photon is in (the medium stack), 1 outside every solid. The inside
 medium (`tracer/optics/media/homogeneous.py`) where σa or σs > 0 or it fluoresces. A coated surface
 reflects with the coating's reflectance (transfer matrices, at the photon's wavelength and angle)
 instead of Fresnel's; the refracted direction is Snell's between the two outer indices either way.
+In a polarized scene (`tracer.optics.polarization`) reflection and refraction act with their Mueller matrices
+(s and p, the phase of total internal reflection and of a coating included): the photon reflects with the
+probability its own state gives, and leaves polarized.
 Effects: `fresnel`, + `absorption` where σa > 0, + `scattering` where σs > 0, + `dispersion` where the
-index varies with λ, + `coating`, + `fluorescence`, and `spectral` with any of the last three or an
-absorption table. Backward estimator: no.
+index varies with λ, + `coating`, + `fluorescence`, + `mie` where it holds particles, and `spectral` with
+any of the last four or an absorption table. Backward estimator: no.
 """
 
 from __future__ import annotations
@@ -35,12 +39,15 @@ from numba import njit
 from tracer.optics.coating import Coating, coated_reflectance, parse_coating
 from tracer.optics.media.dispatch import HOMOGENEOUS
 from tracer.optics.media.fluorescence import EMISSION_NM, QY, SIGMA_F, Fluorescence, parse_fluorescence
-from tracer.optics.spectra import scalar, varies
+from tracer.optics.mie import MieTable, Particles, mie_table, packed, parse_particles
+from tracer.optics.polarization import ON, enter_plane, interface_power, leave_plane
+from tracer.optics.spectra import GRID_N, WHITE_NM, grid_or_value, scalar, varies
 from tracer.optics.surfaces.base import (
     CONTINUES,
     N_MPAR,
     NO_MEDIUM,
     STACK_FULL,
+    MaterialError,
     arrival_normal,
     bounds,
     optional,
@@ -48,6 +55,7 @@ from tracer.optics.surfaces.base import (
     reflect_specular,
     specular_normal,
 )
+from tracer.optics.thinfilm import stack_mueller
 from tracer.rng import uniform
 
 NAME = "dielectric"
@@ -67,6 +75,27 @@ class Spec:
     coating: Coating | None = field(default=None, metadata=optional(parse_coating, "thin films, outermost first"))
     fluorescence: Fluorescence | None = field(default=None, metadata=optional(
         parse_fluorescence, "absorption and isotropic re-emission inside"))
+    particles: Particles | None = field(default=None, metadata=optional(
+        parse_particles, "spheres suspended inside: Mie scattering and absorption at each wavelength"))
+
+    def check(self) -> str | None:
+        if self.particles is None:
+            return None
+        if self.scattering_per_m > 0:
+            return ("give either 'scattering_per_m' (Henyey–Greenstein) or 'particles' (Mie), not both: the "
+                    "particles scatter with their own phase function")
+        try:   # built (or found in the cache) now: its limits are the body's, and the query then finds it ready
+            self.mie()
+        except MaterialError as exc:
+            return str(exc)
+        return None
+
+    def mie(self) -> MieTable:
+        """The Mie table of the particles in this host (`tracer.optics.mie`, cached by content)."""
+        if self.particles is None:
+            raise MaterialError("a dielectric without particles has no Mie table")
+        host = np.broadcast_to(grid_or_value(self.ior), (GRID_N,))
+        return mie_table(self.particles, host, "particles")
 
 
 def row(spec: Spec) -> np.ndarray:
@@ -79,19 +108,34 @@ def medium(spec: Spec) -> tuple[int, np.ndarray]:
     fl = spec.fluorescence
     if fl is not None:
         m[SIGMA_F], m[QY], m[EMISSION_NM] = scalar(fl.absorption_per_m), fl.quantum_yield, fl.emission.mono_nm
-    clear = m[0] == 0 and spec.scattering_per_m == 0 and fl is None and not varies(spec.absorption_per_m)
+    if spec.particles is not None:
+        t = spec.mie()
+        m[0] += float(np.mean(t.sigma_ext - t.sigma_sca))
+        m[1] = float(np.mean(t.sigma_sca))
+    clear = (m[0] == 0 and spec.scattering_per_m == 0 and fl is None and not varies(spec.absorption_per_m)
+             and spec.particles is None)
     return (NO_MEDIUM if clear else HOMOGENEOUS), m
 
 
 def medium_tables(spec: Spec) -> dict[int, np.ndarray]:
-    """The fluorescence's tables: σf over λ, the emission spectrum's cdf."""
+    """The fluorescence's tables: σf over λ, the emission spectrum's cdf; the particles' σa (with the host's) and
+    σs over λ."""
     fl = spec.fluorescence
     out = {}
+    if spec.particles is not None:
+        t = spec.mie()
+        out[0] = grid_or_value(spec.absorption_per_m) + (t.sigma_ext - t.sigma_sca) + np.zeros(GRID_N)
+        out[1] = np.array(t.sigma_sca)
     if fl is not None and varies(fl.absorption_per_m):
         out[SIGMA_F] = fl.absorption_per_m.grid()
     if fl is not None and fl.emission.mono_nm == 0:
         out[EMISSION_NM] = fl.emission_cdf()
     return out
+
+
+def medium_phase(spec: Spec) -> np.ndarray | None:
+    """The particles' packed Mie table (`tracer.optics.mie.packed`), None without particles."""
+    return None if spec.particles is None else packed(spec.mie())
 
 
 def effects(spec: Spec) -> tuple[str, ...]:
@@ -106,7 +150,9 @@ def effects(spec: Spec) -> tuple[str, ...]:
         out.append("coating")
     if spec.fluorescence is not None:
         out.append("fluorescence")
-    if set(out) & {"dispersion", "coating", "fluorescence"} or varies(spec.absorption_per_m):
+    if spec.particles is not None:
+        out.append("mie")
+    if set(out) & {"dispersion", "coating", "fluorescence", "mie"} or varies(spec.absorption_per_m):
         out.append("spectral")
     return tuple(out)
 
@@ -161,7 +207,7 @@ def refract(dx, dy, dz, nx, ny, nz, eta):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam):
+def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol):
     u = uniform(key, dim)
     fx, fy, fz = arrival_normal(ngx, ngy, ngz, dx, dy, dz)
     entering = dx * ngx + dy * ngy + dz * ngz < 0.0
@@ -183,7 +229,16 @@ def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, ke
             n2 = 1.0
     snx, sny, snz = specular_normal(sa, inst, prim, hu, hv, fx, fy, fz)
     cos_i = -(dx * snx + dy * sny + dz * snz)
-    if M.coat[inst, 1] > 0 and lam > 0.0:
+    polarized = pol[ON] != 0.0
+    sx, sy, sz, rs2, rp2, cr, dr, ts2, tp2, ct, dt = snx, sny, snz, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0
+    if polarized:   # the Mueller matrices of reflection and transmission, for this photon's own state
+        sx, sy, sz = enter_plane(pol, dx, dy, dz, snx, sny, snz)
+        rs2, rp2, cr, dr, ts2, tp2, ct, dt = stack_mueller(
+            M.layers, M.coat[inst, 0], M.coat[inst, 1] if lam > 0.0 else 0, not entering, n1, n2, 0.0,
+            lam if lam > 0.0 else WHITE_NM, min(max(cos_i, 0.0), 1.0))
+        pr, pt = interface_power(pol, rs2, rp2), interface_power(pol, ts2, tp2)
+        r = pr / (pr + pt) if pr + pt > 0.0 else 1.0
+    elif M.coat[inst, 1] > 0 and lam > 0.0:
         r = coated_reflectance(M, inst, entering, n1, n2, 0.0, lam, min(max(cos_i, 0.0), 1.0))
     else:
         r = fresnel_dielectric(cos_i, n1, n2)
@@ -201,6 +256,11 @@ def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, ke
             transmitted = True
         else:   # rounding at the critical angle: total internal reflection
             dx, dy, dz = reflect_specular(sa, inst, prim, hu, hv, dx, dy, dz, fx, fy, fz)
+    if polarized:
+        if transmitted:
+            leave_plane(pol, ts2, tp2, ct, dt, dx, dy, dz, sx, sy, sz)
+        else:
+            leave_plane(pol, rs2, rp2, cr, dr, dx, dy, dz, sx, sy, sz)
     if transmitted:
         if entering:
             if depth == med.shape[0]:

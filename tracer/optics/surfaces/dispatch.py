@@ -19,12 +19,13 @@ import dataclasses
 import numpy as np
 from numba import njit
 
-from tracer.optics import spectra
+from tracer.optics import mie, spectra
 from tracer.optics.coating import Coating
-from tracer.optics.elements import diffuser
+from tracer.optics.elements import diffuser, polarizer, retarder
 from tracer.optics.surfaces import black, dielectric, lambertian, mirror, mix
 from tracer.optics.surfaces.base import (
     ABSORBED,
+    MIE_ROW,
     N_MPAR,
     N_PAR,
     NO_MEDIUM,
@@ -34,8 +35,8 @@ from tracer.optics.surfaces.base import (
     spec_from_body,
 )
 
-KINDS = (black, lambertian, mirror, mix, dielectric, diffuser)
-BLACK, LAMBERTIAN, MIRROR, MIX, DIELECTRIC, DIFFUSER = range(len(KINDS))
+KINDS = (black, lambertian, mirror, mix, dielectric, diffuser, polarizer, retarder)
+BLACK, LAMBERTIAN, MIRROR, MIX, DIELECTRIC, DIFFUSER, POLARIZER, RETARDER = range(len(KINDS))
 KIND_OF = {m.NAME: k for k, m in enumerate(KINDS)}
 _MODULE_OF_SPEC = {m.Spec: m for m in KINDS}
 
@@ -70,7 +71,15 @@ def material_row(body, where: str = "material") -> tuple[int, np.ndarray]:
     """Validate one material and return (kind id, parameter row (N_PAR,) float64)."""
     spec = material_spec(body, where)
     m = module_of(spec)
-    return KIND_OF[m.NAME], m.row(spec)
+    return KIND_OF[m.NAME], _row(m, spec)
+
+
+def _row(m, spec) -> np.ndarray:
+    """The kind's parameter row, padded with zeros to N_PAR."""
+    out = np.zeros(N_PAR)
+    r = m.row(spec)
+    out[:len(r)] = r
+    return out
 
 
 def effects_of(specs) -> set[str]:
@@ -109,6 +118,7 @@ def pack_materials(materials: dict, default, instance_ids: list[int], sensor_ids
     ptab = np.full((n, N_PAR), -1, np.int32)
     mtab = np.full((n, N_MPAR), -1, np.int32)
     coat = np.zeros((n, 2), np.int32)
+    mpar[:, MIE_ROW] = -1.0
     known = set(instance_ids)
     for i in materials:
         if not isinstance(i, int | np.integer) or int(i) not in known:
@@ -128,7 +138,8 @@ def pack_materials(materials: dict, default, instance_ids: list[int], sensor_ids
         if spec not in rows:
             rows[spec] = _rows(spec, tables)
         kind[i], par[i], medium[i], mpar[i], ptab[i], mtab[i], coat[i] = rows[spec]
-    return MaterialArrays(kind, par, medium, mpar, ptab, mtab, tables.array(), tables.layer_array(), coat)
+    return MaterialArrays(kind, par, medium, mpar, ptab, mtab, tables.array(), tables.layer_array(), coat,
+                          tables.phase_array())
 
 
 class _Tables:
@@ -137,6 +148,16 @@ class _Tables:
     def __init__(self):
         self.rows: dict[bytes, int] = {}
         self.layers: list[tuple[float, float]] = []
+        self.phase: list[np.ndarray] = []
+
+    def add_phase(self, rows: np.ndarray) -> int:
+        """Append a medium's packed Mie rows; their first row's index."""
+        first = sum(len(r) for r in self.phase)
+        self.phase.append(rows)
+        return first
+
+    def phase_array(self) -> np.ndarray:
+        return np.concatenate(self.phase) if self.phase else np.zeros((1, mie.N_MU))
 
     def add(self, values: np.ndarray) -> int:
         key = values.tobytes()
@@ -154,7 +175,7 @@ class _Tables:
 def _rows(spec, tables: _Tables):
     """(kind id, par, medium kind, mpar, ptab, mtab, coat) of one spec."""
     m = module_of(spec)
-    par = m.row(spec)
+    par = _row(m, spec)
     mkind, mpar = m.medium(spec) if hasattr(m, "medium") else (NO_MEDIUM, np.zeros(N_MPAR))
     ptab = np.full(N_PAR, -1, np.int32)
     mtab = np.full(N_MPAR, -1, np.int32)
@@ -169,9 +190,14 @@ def _rows(spec, tables: _Tables):
         elif isinstance(v, Coating):
             coat[:] = len(tables.layers), len(v.layers)
             tables.layers.extend(v.layers)
+    mpar[MIE_ROW] = -1.0
     if hasattr(m, "medium_tables"):   # tables only the kind knows how to build (an emission spectrum's cdf)
         for col, values in m.medium_tables(spec).items():
             mtab[col] = tables.add(values)
+    if hasattr(m, "medium_phase"):    # a phase function table (Mie)
+        rows = m.medium_phase(spec)
+        if rows is not None:
+            mpar[MIE_ROW] = tables.add_phase(rows)
     return KIND_OF[m.NAME], par, mkind, mpar, ptab, mtab, coat
 
 
@@ -179,20 +205,24 @@ def _rows(spec, tables: _Tables):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam):
-    """What the surface of instance `inst` does to a photon of wavelength `lam` nm (0: white) arriving along d
-    (`base` has the contract)."""
+def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol):
+    """What the surface of instance `inst` does to a photon of wavelength `lam` nm (0: white) and polarization
+    state `pol` (`tracer.optics.polarization`) arriving along d (`base` has the contract)."""
     k = M.kind[inst]
     if k == LAMBERTIAN:
-        return lambertian.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam)
+        return lambertian.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol)
     if k == MIRROR:
-        return mirror.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam)
+        return mirror.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol)
     if k == MIX:
-        return mix.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam)
+        return mix.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol)
     if k == DIELECTRIC:
-        return dielectric.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam)
+        return dielectric.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol)
     if k == DIFFUSER:
-        return diffuser.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam)
+        return diffuser.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol)
+    if k == POLARIZER:
+        return polarizer.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol)
+    if k == RETARDER:
+        return retarder.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol)
     return ABSORBED, dx, dy, dz, 0.0, depth, dim   # black, or an id without material
 
 

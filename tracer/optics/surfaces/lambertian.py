@@ -18,6 +18,7 @@ import numpy as np
 from numba import njit
 
 from tracer.optics.frames import sample_cosine
+from tracer.optics.polarization import depolarize
 from tracer.optics.spectra import scalar, varies
 from tracer.optics.surfaces.base import ABSORBED, CONTINUES, N_PAR, arrival_normal, bounds, param
 from tracer.rng import uniform
@@ -51,9 +52,10 @@ def albedo(M, inst):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam):
+def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol):
     if uniform(key, dim) >= param(M, inst, 0, lam):
         return ABSORBED, dx, dy, dz, 0.0, depth, dim + 1
     fx, fy, fz = arrival_normal(ngx, ngy, ngz, dx, dy, dz)
     dx, dy, dz = sample_cosine(fx, fy, fz, uniform(key, dim + 1), uniform(key, dim + 2))
+    depolarize(pol)
     return CONTINUES, dx, dy, dz, 1.0, depth, dim + 3

@@ -12,6 +12,8 @@ there is one (transfer matrices at the photon's wavelength; the ambient index is
 photon is in, 1 outside every solid). Where the mesh has vertex normals the mirror direction is taken about
 the interpolated normal (a tessellated curved mirror focuses as the true surface would), about the
 facet's where that would send the photon below the surface.
+In a polarized scene the reflection acts with its Mueller matrix: the metal's (s and p amplitudes, with their
+phase), or a perfect reflector's scaled by R (S2 and S3 turn over, as at a metal at normal incidence).
 Effects: `specular` (+ `spectral` for a table, + `coating` and `spectral` for a coating). Backward
 estimator: no (a shadow ray cannot find a point light through it). Limits: the metal's index does not
 vary with λ.
@@ -27,7 +29,8 @@ import numpy as np
 from numba import njit
 
 from tracer.optics.coating import Coating, parse_coating
-from tracer.optics.spectra import scalar, varies
+from tracer.optics.polarization import ON, enter_plane, interface_power, leave_plane
+from tracer.optics.spectra import WHITE_NM, scalar, varies
 from tracer.optics.surfaces.base import (
     ABSORBED,
     CONTINUES,
@@ -39,11 +42,10 @@ from tracer.optics.surfaces.base import (
     reflect_specular,
     specular_normal,
 )
-from tracer.optics.thinfilm import stack_reflectance
+from tracer.optics.thinfilm import stack_mueller, stack_reflectance
 from tracer.rng import uniform
 
 NAME = "mirror"
-WHITE_NM = 550.0   # the wavelength a white photon's metal reflectance is taken at (it does not vary without layers)
 
 
 def parse_metal(v, name: str, where: str) -> tuple[float, float]:
@@ -96,12 +98,26 @@ def albedo(M, inst):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam):
+def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol):
     fx, fy, fz = arrival_normal(ngx, ngy, ngz, dx, dy, dz)
-    if M.par[inst, 3] > 0.0:   # a metal, under its coating if any
+    metal = M.par[inst, 3] > 0.0
+    n_in, snx, sny, snz, cos_i = 1.0, fx, fy, fz, 1.0
+    sx, sy, sz, rs2, rp2, cr, dr = fx, fy, fz, 0.0, 0.0, 0.0, 0.0
+    if metal or pol[ON] != 0.0:
         n_in = param(M, med[depth - 1], 0, lam) if depth > 0 else 1.0
-        sx, sy, sz = specular_normal(sa, inst, prim, hu, hv, fx, fy, fz)
-        cos_i = min(max(-(dx * sx + dy * sy + dz * sz), 0.0), 1.0)
+        snx, sny, snz = specular_normal(sa, inst, prim, hu, hv, fx, fy, fz)
+        cos_i = min(max(-(dx * snx + dy * sny + dz * snz), 0.0), 1.0)
+    if pol[ON] != 0.0:   # polarized: the Mueller matrix of the metal (under its coating) or of a perfect reflector
+        sx, sy, sz = enter_plane(pol, dx, dy, dz, snx, sny, snz)
+        if metal:
+            rs2, rp2, cr, dr, _, _, _, _ = stack_mueller(M.layers, M.coat[inst, 0], M.coat[inst, 1], False, n_in,
+                                                         M.par[inst, 1], M.par[inst, 2],
+                                                         lam if lam > 0.0 else WHITE_NM, cos_i)
+        else:
+            rs2 = param(M, inst, 0, lam)
+            rp2, cr, dr = rs2, -rs2, 0.0
+        r = interface_power(pol, rs2, rp2)
+    elif metal:   # a metal, under its coating if any
         r = stack_reflectance(M.layers, M.coat[inst, 0], M.coat[inst, 1], False, n_in, M.par[inst, 1],
                               M.par[inst, 2], lam if lam > 0.0 else WHITE_NM, cos_i)
     else:
@@ -109,4 +125,6 @@ def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, ke
     if uniform(key, dim) >= r:
         return ABSORBED, dx, dy, dz, 0.0, depth, dim + 1
     dx, dy, dz = reflect_specular(sa, inst, prim, hu, hv, dx, dy, dz, fx, fy, fz)
+    if pol[ON] != 0.0:
+        leave_plane(pol, rs2, rp2, cr, dr, dx, dy, dz, sx, sy, sz)
     return CONTINUES, dx, dy, dz, 1.0, depth, dim + 1

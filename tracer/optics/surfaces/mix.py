@@ -18,6 +18,7 @@ import numpy as np
 from numba import njit
 
 from tracer.optics.frames import sample_cosine
+from tracer.optics.polarization import ON, depolarize, enter_plane, leave_plane
 from tracer.optics.surfaces.base import ABSORBED, CONTINUES, arrival_normal, bounds, reflect_specular
 from tracer.rng import uniform
 
@@ -55,14 +56,19 @@ def albedo(M, inst):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam):
+def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol):
     u = uniform(key, dim)
     rd, rs = M.par[inst, 0], M.par[inst, 1]
     fx, fy, fz = arrival_normal(ngx, ngy, ngz, dx, dy, dz)
     if u < rd:
         dx, dy, dz = sample_cosine(fx, fy, fz, uniform(key, dim + 1), uniform(key, dim + 2))
+        depolarize(pol)
         return CONTINUES, dx, dy, dz, 1.0, depth, dim + 3
     if u < rd + rs:
-        dx, dy, dz = reflect_specular(sa, inst, prim, hu, hv, dx, dy, dz, fx, fy, fz)
+        ox, oy, oz = reflect_specular(sa, inst, prim, hu, hv, dx, dy, dz, fx, fy, fz)
+        if pol[ON] != 0.0:   # a perfect reflector's Mueller matrix (the weight is chosen by ρs already)
+            sx, sy, sz = enter_plane(pol, dx, dy, dz, ox, oy, oz)
+            leave_plane(pol, 1.0, 1.0, -1.0, 0.0, ox, oy, oz, sx, sy, sz)
+        dx, dy, dz = ox, oy, oz
         return CONTINUES, dx, dy, dz, 1.0, depth, dim + 1
     return ABSORBED, dx, dy, dz, 0.0, depth, dim + 1
