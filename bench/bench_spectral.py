@@ -98,10 +98,11 @@ def effect_costs(rounds: int) -> dict:
             "effects": {n: sim.effects for n, sim in sims.items()}}
 
 
-def _worktree() -> Path:
-    path = Path(tempfile.gettempdir()) / f"lumenlink-{BASE}"
+def _worktree(base: str = BASE) -> Path:
+    """A checkout of commit `base` under the temporary directory (made once), sharing this checkout's .venv."""
+    path = Path(tempfile.gettempdir()) / f"lumenlink-{base}"
     if not (path / "bench" / "ab.py").exists():
-        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "-f", str(path), BASE], check=True,
+        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "-f", str(path), base], check=True,
                        capture_output=True)
     venv = path / ".venv"
     if not venv.exists():
@@ -109,15 +110,16 @@ def _worktree() -> Path:
     return path
 
 
-def white_pays_nothing(pairs_n: int) -> dict:
+def white_pays_nothing(pairs_n: int, base_commit: str = BASE) -> dict:
+    """The diffuse room A/B against `base_commit` (`bench/ab.py`), beside the base against itself (the noise)."""
     from bench.ab import pairs
 
-    base = _worktree()
+    base = _worktree(base_commit)
     a, b = pairs(str(base), str(ROOT), "room", "photons:2000000", pairs_n)
     aa, ab = pairs(str(base), str(base), "room", "photons:2000000", pairs_n)   # the noise: the base against itself
     noise = [y / x for x, y in zip(aa, ab, strict=True)]
     ratio = [tb / ta for ta, tb in zip(a, b, strict=True)]
-    return {"base": BASE, "base_seconds": statistics.median(a), "this_seconds": statistics.median(b),
+    return {"base": base_commit, "base_seconds": statistics.median(a), "this_seconds": statistics.median(b),
             "ratio_median": statistics.median(ratio), "ratio_range": [min(ratio), max(ratio)], "pairs": pairs_n,
             "base_against_itself_median": statistics.median(noise),
             "base_against_itself_range": [min(noise), max(noise)]}
