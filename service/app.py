@@ -70,7 +70,7 @@ def create_app(settings: Settings | None = None, scene_factory: Callable[[], Any
 
         app.include_router(simulation.router, responses=PROBLEM_RESPONSES)
     app.openapi = _openapi_with_problems(app)  # type: ignore[method-assign]  # FastAPI documents this override
-    app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
+    app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes, in_flight=settings.max_upload_bytes_in_flight)
     if settings.token:
         app.add_middleware(BearerToken, token=settings.token)
     if settings.log_requests:

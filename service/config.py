@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pydantic import Field
+from pydantic import Field, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 
@@ -23,6 +23,10 @@ class Settings(BaseSettings):
     host: str = "127.0.0.1"
     port: int = Field(default=8000, ge=0, le=65535)
     max_body_bytes: int = Field(default=512 * 1024 * 1024, gt=0, description="Larger request bodies get 413.")
+    max_upload_bytes_in_flight: int = Field(
+        default=1024 * 1024 * 1024, gt=0, description="Request body bytes all requests together may be receiving at "
+                                                      "once (at least max_body_bytes); a body beyond gets 503 and "
+                                                      "Retry-After, so parallel uploads cannot exhaust memory.")
     max_points: int = Field(default=100_000, gt=0, description="Most query points one illuminance request may ask.")
     max_photons: int = Field(default=1_000_000_000, gt=0, description="Most photons one query may trace.")
     max_seconds: float = Field(default=600.0, gt=0, description="Longest time budget one query may ask.")
@@ -37,6 +41,13 @@ class Settings(BaseSettings):
         "(`Authorization: Bearer …`); required when the service listens beyond loopback."))
     warm_kernels: bool = Field(default=False, description="Compile the query kernels in a child process from the "
                                                           "start (`tracer.warmup`; `lumenlink serve` turns it on).")
+
+    @model_validator(mode="after")
+    def _uploads_fit(self) -> Settings:
+        if self.max_upload_bytes_in_flight < self.max_body_bytes:
+            raise ValueError(f"max_upload_bytes_in_flight ({self.max_upload_bytes_in_flight}) must be at least "
+                             f"max_body_bytes ({self.max_body_bytes}): one largest body must fit")
+        return self
 
     def resolved_database_url(self) -> str:
         """The SQLAlchemy URL in use."""

@@ -28,6 +28,7 @@ class ServiceError(ValueError):
 
     status = 400
     title = "Bad request"
+    headers: dict[str, str] = {}   # sent with the answer (a 503's Retry-After)
 
     def __init__(self, detail: str, **extensions: Any) -> None:
         super().__init__(detail)
@@ -62,6 +63,14 @@ class TooLarge(ServiceError):
     title = "Content too large"
 
 
+class Unavailable(ServiceError):
+    """A part the request needs is not there or not free (the light transport not built, the queue full, the
+    budget of request bytes in flight taken)."""
+
+    status = 503
+    title = "Service unavailable"
+
+
 def problem(status: int, title: str, detail: str, **extensions: Any) -> JSONResponse:
     """An RFC 9457 response; ``type`` is about:blank as the status code says it all."""
     body = {"type": "about:blank", "title": title, "status": status, "detail": detail}
@@ -88,7 +97,9 @@ def install_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(ServiceError)
     async def _domain(_: Request, exc: ServiceError) -> JSONResponse:
-        return problem(exc.status, exc.title, exc.detail, **exc.extensions)
+        response = problem(exc.status, exc.title, exc.detail, **exc.extensions)
+        response.headers.update(exc.headers)
+        return response
 
     @app.exception_handler(RequestValidationError)
     async def _validation(_: Request, exc: RequestValidationError) -> JSONResponse:

@@ -1,8 +1,11 @@
-"""ASGI middleware: a request body size limit (413) and one log line per request.
+"""ASGI middleware: a request body size limit (413), a budget of body bytes in flight (503), a bearer token
+(401) and one log line per request.
 
-Both are plain ASGI so they see the raw byte stream: the limit refuses a body whose
-``Content-Length`` is too large before reading it, and stops a chunked body as soon as it
-passes the limit, answering with a problem+json 413.
+All are plain ASGI so they see the raw byte stream: the limit refuses a body whose ``Content-Length`` is too
+large before reading it, and stops a chunked body as soon as it passes the limit, answering with a
+problem+json 413. The budget counts the bytes of every body being received at once (a declared length is
+reserved up front, a chunked body counts as it arrives) and answers 503 with ``Retry-After`` to the body that
+would pass it: parallel uploads cannot hold more than the budget in memory.
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ import logging
 import time
 from typing import Any
 
-from service.errors import TooLarge
+from service.errors import TooLarge, Unavailable
 
 log = logging.getLogger("lumenlink.service.requests")
 
@@ -25,46 +28,80 @@ class _TooLarge(TooLarge):
     body refused by its declared length."""
 
 
-def _problem_413(limit: int) -> tuple[dict, bytes]:
-    body = json.dumps({"type": "about:blank", "title": "Content too large", "status": 413,
-                       "detail": f"the request body exceeds the limit of {limit} bytes", "limit": limit}).encode()
-    start = {"type": "http.response.start", "status": 413,
+class _Busy(Unavailable):
+    """Raised from inside `receive` where a chunked body would pass the budget of bytes in flight; the app's
+    handler answers it as `_problem_busy` does."""
+
+    headers = {"Retry-After": "1"}
+
+
+def _problem(status: int, title: str, detail: str, limit: int, extra: tuple = ()) -> tuple[dict, bytes]:
+    body = json.dumps({"type": "about:blank", "title": title, "status": status, "detail": detail,
+                       "limit": limit}).encode()
+    start = {"type": "http.response.start", "status": status,
              "headers": [(b"content-type", b"application/problem+json"),
-                         (b"content-length", str(len(body)).encode()), (b"connection", b"close")]}
+                         (b"content-length", str(len(body)).encode()), (b"connection", b"close"), *extra]}
     return start, body
 
 
-class BodyLimit:
-    """Refuse request bodies larger than `max_bytes` with 413 (problem+json)."""
+def _problem_413(limit: int) -> tuple[dict, bytes]:
+    return _problem(413, "Content too large", f"the request body exceeds the limit of {limit} bytes", limit)
 
-    def __init__(self, app: Any, max_bytes: int) -> None:
+
+def _busy_detail(budget: int) -> str:
+    return (f"the service is receiving {budget} bytes of request bodies at once, its limit: send this body again "
+            f"in a moment")
+
+
+def _problem_busy(budget: int) -> tuple[dict, bytes]:
+    return _problem(503, "Service unavailable", _busy_detail(budget), budget, ((b"retry-after", b"1"),))
+
+
+class BodyLimit:
+    """Refuse request bodies larger than `max_bytes` with 413, and bodies that would take the bytes being received
+    at once beyond `in_flight` with 503 (problem+json)."""
+
+    def __init__(self, app: Any, max_bytes: int, in_flight: int | None = None) -> None:
         self.app = app
         self.max_bytes = max_bytes
+        self.in_flight = max(in_flight or max_bytes, max_bytes)
+        self.receiving = 0   # bytes of the bodies being received now (one event loop: no lock)
 
     async def __call__(self, scope: Scope, receive: Any, send: Any) -> None:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
         limit = self.max_bytes
+        declared = 0
         for name, value in scope.get("headers", []):
             if name == b"content-length":
                 try:
-                    declared = int(value)
+                    declared = max(int(value), 0)
                 except ValueError:
                     declared = 0
                 if declared > limit:
-                    await self._refuse(send)
+                    await self._refuse(send, _problem_413(limit))
                     return
+        if self.receiving + declared > self.in_flight:
+            await self._refuse(send, _problem_busy(self.in_flight))
+            return
+        self.receiving += declared
+        held = declared    # bytes this request holds of the budget
         received = 0
         started = False
 
         async def limited_receive() -> dict:
-            nonlocal received
+            nonlocal received, held
             message = await receive()
             if message["type"] == "http.request":
                 received += len(message.get("body", b""))
                 if received > limit:
                     raise _TooLarge(f"the request body exceeds the limit of {limit} bytes", limit=limit)
+                if received > held:   # a chunked body (or one longer than declared): count what arrives
+                    if self.receiving + received - held > self.in_flight:
+                        raise _Busy(_busy_detail(self.in_flight), limit=self.in_flight)
+                    self.receiving += received - held
+                    held = received
             return message
 
         async def tracking_send(message: dict) -> None:
@@ -77,10 +114,16 @@ class BodyLimit:
             await self.app(scope, limited_receive, tracking_send)
         except _TooLarge:
             if not started:
-                await self._refuse(send)
+                await self._refuse(send, _problem_413(limit))
+        except _Busy:
+            if not started:
+                await self._refuse(send, _problem_busy(self.in_flight))
+        finally:
+            self.receiving -= held
 
-    async def _refuse(self, send: Any) -> None:
-        start, body = _problem_413(self.max_bytes)
+    @staticmethod
+    async def _refuse(send: Any, problem: tuple[dict, bytes]) -> None:
+        start, body = problem
         await send(start)
         await send({"type": "http.response.body", "body": body})
 

@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from service.errors import Invalid, NotFound, ServiceError, TooLarge
+from service.errors import Invalid, NotFound, ServiceError, TooLarge, Unavailable
 from service.jobs import Budget, JobRunner
 from service.live import DELETED, LiveRegistry, LiveScene
 from service.optics import to_spec
@@ -51,13 +51,6 @@ MAX_QUEUED_JOBS = 16
 KEEP_FINISHED_JOBS = 64
 #: Budget applied when a request names no time budget (s); the settings' max_seconds caps it.
 DEFAULT_MAX_SECONDS = 60.0
-
-
-class Unavailable(ServiceError):
-    """A part the request needs is not there (the light transport not built, the queue full)."""
-
-    status = 503
-    title = "Service unavailable"
 
 
 def load_transport() -> Any:

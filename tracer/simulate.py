@@ -479,7 +479,8 @@ class Simulation:
         sens = SensorArrays(bin0, snu, snv, np.array([int(observe_spectrum), int(observe_stokes)], np.int64), ref)
         n_cols = tally_columns(observe_spectrum, observe_stokes)
         if n_bins * n_cols > MAX_SPECTRAL_TALLIES:
-            raise SimulationError(f"observing the spectrum of {n_bins} cells needs {n_bins * n_cols} tallies per "
+            what = " and ".join(o for o, on in (("the spectrum", observe_spectrum), ("Stokes", observe_stokes)) if on)
+            raise SimulationError(f"observing {what} of {n_bins} cells needs {n_bins * n_cols} tallies per "
                                   f"batch (at most {MAX_SPECTRAL_TALLIES}): use at most "
                                   f"{MAX_SPECTRAL_TALLIES // n_cols} cells")
         per_batch = FORWARD_BATCH

@@ -10,7 +10,7 @@ from typing import Any
 
 from fastapi import APIRouter, Response
 
-from service.routes.deps import Manager
+from service.routes.deps import ItemId, Manager, NodeId, SceneId
 from service.schemas import AssignmentPublic, Light, Material, MaterialPublic, ObjectCreate, OrphanPublic, Sensor
 from service.state import validate_body
 
@@ -18,24 +18,24 @@ router = APIRouter(tags=["assignments"])
 
 
 @router.put("/scenes/{scene_id}/materials/{node}", response_model=MaterialPublic)
-def put_material(scene_id: str, node: str, body: Material, manager: Manager) -> dict[str, Any]:
+def put_material(scene_id: SceneId, node: NodeId, body: Material, manager: Manager) -> dict[str, Any]:
     """Assign a material to a node (inherited by its descendants that have none) or to a sim-owned object."""
     return manager.set_material(scene_id, node.lower(), body.model_dump(exclude_none=True))
 
 
 @router.get("/scenes/{scene_id}/materials", response_model=list[MaterialPublic])
-def list_materials(scene_id: str, manager: Manager) -> list[dict[str, Any]]:
+def list_materials(scene_id: SceneId, manager: Manager) -> list[dict[str, Any]]:
     return manager.list_materials(scene_id)
 
 
 @router.delete("/scenes/{scene_id}/materials/{node}", status_code=204)
-def delete_material(scene_id: str, node: str, manager: Manager) -> Response:
+def delete_material(scene_id: SceneId, node: NodeId, manager: Manager) -> Response:
     manager.delete_material(scene_id, node.lower())
     return Response(status_code=204)
 
 
 @router.delete("/scenes/{scene_id}/orphans", response_model=list[OrphanPublic])
-def purge_orphans(scene_id: str, manager: Manager) -> list[dict[str, str]]:
+def purge_orphans(scene_id: SceneId, manager: Manager) -> list[dict[str, str]]:
     """Delete every orphaned assignment of the scene; answers what was deleted."""
     return manager.purge_orphans(scene_id)
 
@@ -43,19 +43,19 @@ def purge_orphans(scene_id: str, manager: Manager) -> list[dict[str, str]]:
 def _routes(kind: str, plural: str, schema: Any) -> None:
     @router.post(f"/scenes/{{scene_id}}/{plural}", status_code=201, response_model=AssignmentPublic,
                  name=f"add_{kind}")
-    def add(scene_id: str, body: schema, manager: Manager) -> dict[str, Any]:  # type: ignore[valid-type]
+    def add(scene_id: SceneId, body: schema, manager: Manager) -> dict[str, Any]:  # type: ignore[valid-type]
         return manager.add_assignment(scene_id, kind, validate_body(kind, body))
 
     @router.get(f"/scenes/{{scene_id}}/{plural}", response_model=list[AssignmentPublic], name=f"list_{plural}")
-    def list_(scene_id: str, manager: Manager) -> list[dict[str, Any]]:
+    def list_(scene_id: SceneId, manager: Manager) -> list[dict[str, Any]]:
         return manager.list_assignments(scene_id, kind)
 
     @router.get(f"/scenes/{{scene_id}}/{plural}/{{item_id}}", response_model=AssignmentPublic, name=f"get_{kind}")
-    def get(scene_id: str, item_id: str, manager: Manager) -> dict[str, Any]:
+    def get(scene_id: SceneId, item_id: ItemId, manager: Manager) -> dict[str, Any]:
         return manager.get_assignment(scene_id, kind, item_id)
 
     @router.delete(f"/scenes/{{scene_id}}/{plural}/{{item_id}}", status_code=204, name=f"delete_{kind}")
-    def delete(scene_id: str, item_id: str, manager: Manager) -> Response:
+    def delete(scene_id: SceneId, item_id: ItemId, manager: Manager) -> Response:
         manager.delete_assignment(scene_id, kind, item_id)
         return Response(status_code=204)
 

@@ -4,9 +4,18 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import Depends, Request
+from fastapi import Depends, Path, Request
 
+from service.schemas import GEOMETRY_PATTERN, UUID_PATTERN
 from service.state import SceneManager
+
+# path parameters: their forms, in the OpenAPI document and checked (422 naming the parameter) before any lookup
+SceneId = Annotated[str, Path(pattern=UUID_PATTERN, description="the scene's id, a UUID (POST /scenes answers it)")]
+NodeId = Annotated[str, Path(pattern=UUID_PATTERN, description="a node's UUID, as the CAD adapter pushed it")]
+ItemId = Annotated[str, Path(pattern=UUID_PATTERN, description="a light's, sensor's or object's id, a UUID")]
+GeometryPath = Annotated[str, Path(pattern=GEOMETRY_PATTERN, description="a geometry id: 64 lowercase hex digits "
+                                                                          "(`tracer.geometry_id`)")]
+JobId = Annotated[str, Path(pattern=r"^[0-9a-f]{32}$", description="a job id: 32 lowercase hex digits")]
 
 
 def get_manager(request: Request) -> SceneManager:

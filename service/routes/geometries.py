@@ -8,7 +8,7 @@ from fastapi import APIRouter, Request, Response
 from starlette.concurrency import run_in_threadpool
 
 from service.meshes import check_id
-from service.routes.deps import Manager
+from service.routes.deps import GeometryPath, Manager
 from service.schemas import GeometryPublic, MissingPublic, MissingQuery
 
 router = APIRouter(tags=["geometries"])
@@ -26,7 +26,7 @@ def missing(body: MissingQuery, manager: Manager) -> dict[str, Any]:
     openapi_extra={"requestBody": {"required": True, "content": {"model/gltf-binary": {
         "schema": {"type": "string", "format": "binary"}}}}},
 )
-async def put_geometry(gid: str, request: Request, manager: Manager, response: Response) -> dict[str, Any]:
+async def put_geometry(gid: GeometryPath, request: Request, manager: Manager, response: Response) -> dict[str, Any]:
     """Store one mesh (GLB, one primitive). 400 if it does not hash to `gid`, 422 if it is no valid mesh."""
     check_id(gid)
     data = await request.body()
@@ -37,6 +37,6 @@ async def put_geometry(gid: str, request: Request, manager: Manager, response: R
 
 @router.get("/geometries/{gid}", response_class=Response,
             responses={200: {"content": {"model/gltf-binary": {}}}})
-def get_geometry(gid: str, manager: Manager) -> Response:
+def get_geometry(gid: GeometryPath, manager: Manager) -> Response:
     """The GLB exactly as uploaded."""
     return Response(manager.geometry_glb(check_id(gid)), media_type="model/gltf-binary")

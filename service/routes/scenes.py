@@ -8,7 +8,7 @@ from fastapi import APIRouter, Request, Response
 from fastapi.responses import JSONResponse
 from starlette.concurrency import run_in_threadpool
 
-from service.routes.deps import Manager
+from service.routes.deps import Manager, SceneId
 from service.schemas import DocumentPush, PushPublic, SceneCreate, SceneListItem, ScenePublic
 
 router = APIRouter(tags=["scenes"])
@@ -26,19 +26,19 @@ def list_scenes(manager: Manager) -> list[dict[str, Any]]:
 
 
 @router.get("/scenes/{scene_id}", response_model=ScenePublic)
-def get_scene(scene_id: str, manager: Manager) -> dict[str, Any]:
+def get_scene(scene_id: SceneId, manager: Manager) -> dict[str, Any]:
     """Counts, effect set, orphaned assignments and the default material of one scene."""
     return manager.summary(scene_id)
 
 
 @router.delete("/scenes/{scene_id}", status_code=204)
-def delete_scene(scene_id: str, manager: Manager) -> Response:
+def delete_scene(scene_id: SceneId, manager: Manager) -> Response:
     manager.delete_scene(scene_id)
     return Response(status_code=204)
 
 
 @router.get("/scenes/{scene_id}/nodes")
-def get_nodes(scene_id: str, manager: Manager) -> list[dict[str, Any]]:
+def get_nodes(scene_id: SceneId, manager: Manager) -> list[dict[str, Any]]:
     """The current tree: one record per node, in document order.
 
     Each record: ``uuid``, ``parent``, ``name``, ``transform`` (local, 16 numbers row-major),
@@ -52,7 +52,7 @@ def get_nodes(scene_id: str, manager: Manager) -> list[dict[str, Any]]:
 
 
 @router.get("/scenes/{scene_id}/revisions")
-def get_revisions(scene_id: str, manager: Manager) -> list[dict[str, Any]]:
+def get_revisions(scene_id: SceneId, manager: Manager) -> list[dict[str, Any]]:
     """The scene's history: per accepted push, how many nodes were added, removed, moved… and the seconds."""
     return manager.revisions(scene_id)
 
@@ -67,7 +67,7 @@ DOCUMENT_SCHEMA_DEFS = DOCUMENT_SCHEMA.pop("$defs", {})
     response_model=PushPublic,
     openapi_extra={"requestBody": {"required": True, "content": {"application/json": {"schema": DOCUMENT_SCHEMA}}}},
 )
-async def push_document(scene_id: str, request: Request, manager: Manager, dry_run: bool = False) -> JSONResponse:
+async def push_document(scene_id: SceneId, request: Request, manager: Manager, dry_run: bool = False) -> JSONResponse:
     """Push a CAD tree: validate, diff by UUID, rebuild only what changed, store one revision.
 
     The body (a `DocumentPush`) is decoded here rather than by FastAPI so that a 20,000-node

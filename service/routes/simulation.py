@@ -25,6 +25,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from service.errors import NotFound, TooLarge
 from service.jobs import JobNotFound, QueueFull
 from service.maps import colour_map_png, illuminance_map_png
+from service.routes.deps import ItemId, JobId, SceneId
 from service.simulation import SimulationHub, Unavailable, find_sensor, hub_for, resolve_budget
 
 router = APIRouter(tags=["simulation"])
@@ -240,7 +241,7 @@ def _submit(hub: SimulationHub, kind: str, scene_id: str, revision: int, work: A
 
 @router.post("/scenes/{scene_id}/illuminance", response_model=IlluminancePublic, response_model_exclude_none=True,
              responses={202: {"model": JobAccepted}, 413: {}, 503: {}})
-async def illuminance(scene_id: str, query: IlluminanceQuery, request: Request, mode: Mode = "sync") -> Any:
+async def illuminance(scene_id: SceneId, query: IlluminanceQuery, request: Request, mode: Mode = "sync") -> Any:
     """Illuminance (lx) with its standard error at each point, for receivers facing `normals`."""
     return await _answer(request, mode, _points_query, scene_id, query, request)
 
@@ -285,7 +286,7 @@ def _points_query(scene_id: str, query: IlluminanceQuery, request: Request) -> t
 
 @router.post("/scenes/{scene_id}/sensors/{sensor_id}/simulate", response_model=SensorPublic,
              responses={202: {"model": JobAccepted}, 413: {}, 503: {}})
-async def simulate_sensor(scene_id: str, sensor_id: str, request: Request, query: SensorSimulate | None = None,
+async def simulate_sensor(scene_id: SceneId, sensor_id: ItemId, request: Request, query: SensorSimulate | None = None,
                           mode: Mode = "sync") -> Any:
     """Trace photons for one sensor; a grid's result is kept for `map.png` until the scene changes."""
     return await _answer(request, mode, _sensor_query, scene_id, sensor_id, query or SensorSimulate(), request)
@@ -317,7 +318,7 @@ def _sensor_query(scene_id: str, sensor_id: str, query: SensorSimulate, request:
 
 @router.get("/scenes/{scene_id}/sensors/{sensor_id}/map.png", name="sensor_map",
             response_class=Response, responses={200: {"content": {"image/png": {}}}, 404: {}})
-def sensor_map(scene_id: str, sensor_id: str, request: Request,
+def sensor_map(scene_id: SceneId, sensor_id: ItemId, request: Request,
                vmax: Annotated[float | None, Query(gt=0.0, allow_inf_nan=False,
                                                    description="Top of the colour scale, lx.")] = None,
                show: Annotated[Literal["lux", "colour"], Query(
@@ -379,7 +380,7 @@ def _public(hub: SimulationHub, request: Request, state: dict[str, Any]) -> dict
 
 
 @router.get("/jobs/{job_id}", name="get_job", response_model=JobPublic)
-def get_job(job_id: str, request: Request) -> dict[str, Any]:
+def get_job(job_id: JobId, request: Request) -> dict[str, Any]:
     """A job's status, progress (photons, worst relative error, seconds, seconds left) and result.
 
     ``current`` is false once the scene changed after the job started: the result still describes
@@ -390,7 +391,7 @@ def get_job(job_id: str, request: Request) -> dict[str, Any]:
 
 
 @router.delete("/jobs/{job_id}", response_model=JobPublic)
-def cancel_job(job_id: str, request: Request) -> dict[str, Any]:
+def cancel_job(job_id: JobId, request: Request) -> dict[str, Any]:
     """Cancel a job: a queued one never starts, a running one stops after its current batch."""
     hub = _hub(request)
     try:

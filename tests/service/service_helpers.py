@@ -62,6 +62,9 @@ def car_document(gid_body: str, gid_wheel: str, base_revision: int | None = 0, d
             "source": {"name": "car.step", "tessellation": {"linear": 0.1, "angular": 0.5}}, "nodes": nodes}
 
 
+UNKNOWN_ID = "00000000-0000-4000-8000-00000000dead"   # a well-formed id no scene, node, light or sensor has
+
+
 def make_client(data_dir: Path, **settings: Any):
     """A TestClient on a fresh app whose data live in `data_dir` (real tracer, real SQLite file)."""
     from fastapi.testclient import TestClient

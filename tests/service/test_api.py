@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from service_helpers import car_document, glb, grid_mesh, make_client, node, translation, uid
+from service_helpers import UNKNOWN_ID, car_document, glb, grid_mesh, make_client, node, translation, uid
 
 PROBLEM = "application/problem+json"
 
@@ -168,7 +168,7 @@ def test_revision_history(client, scene, meshes) -> None:
     history = client.get(f"/scenes/{scene}/revisions").json()
     assert [h["revision"] for h in history] == [1, 2]
     assert history[0]["added"] == 8 and history[1]["moved"] == 1 and "tlas" in history[1]["seconds"]
-    assert client.get("/scenes/nope/revisions").status_code == 404
+    assert client.get(f"/scenes/{UNKNOWN_ID}/revisions").status_code == 404
 
 
 def test_push_without_base_revision_is_unconditional(client, scene, meshes) -> None:

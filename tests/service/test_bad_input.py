@@ -8,7 +8,7 @@ import json
 
 import numpy as np
 import pytest
-from service_helpers import car_document, glb, grid_mesh, make_client, raw_glb, translation, uid
+from service_helpers import UNKNOWN_ID, car_document, glb, grid_mesh, make_client, raw_glb, translation, uid
 
 PROBLEM = "application/problem+json"
 
@@ -160,8 +160,8 @@ def test_stale_base_revision(world, unchanged) -> None:
 def test_unknown_scene(world, unchanged) -> None:
     c = world["client"]
     refused(c.put("/scenes/00000000-0000-0000-0000-000000000000/document", json=world["doc"]), 404, "scene")
-    refused(c.get("/scenes/nope"), 404)
-    refused(c.post("/scenes/nope/lights", json={"type": "point", "position": [0, 0, 0], "flux_lm": 1}), 404)
+    refused(c.get(f"/scenes/{UNKNOWN_ID}"), 404)
+    refused(c.post(f"/scenes/{UNKNOWN_ID}/lights", json={"type": "point", "position": [0, 0, 0], "flux_lm": 1}), 404)
 
 
 def test_body_larger_than_the_limit(world, unchanged) -> None:
@@ -327,9 +327,9 @@ def test_bad_objects(world, unchanged, obj, status: int, text: str) -> None:
 
 def test_deleting_unknown_assignments(world, unchanged) -> None:
     c, sid = world["client"], world["scene"]
-    refused(c.delete(f"/scenes/{sid}/lights/nope"), 404)
+    refused(c.delete(f"/scenes/{sid}/lights/{UNKNOWN_ID}"), 404)
     refused(c.delete(f"/scenes/{sid}/materials/{uid(5)}"), 404)
-    refused(c.get(f"/scenes/{sid}/sensors/nope"), 404)
+    refused(c.get(f"/scenes/{sid}/sensors/{UNKNOWN_ID}"), 404)
 
 
 def test_unknown_route_and_method(world, unchanged) -> None:

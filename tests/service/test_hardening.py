@@ -303,3 +303,124 @@ def test_the_openapi_document_resolves_every_ref_and_documents_its_errors_as_sen
             for code, r in errors.items():
                 assert list(r.get("content", {})) == ["application/problem+json"], (path, method, code)
     assert "HTTPValidationError" not in text
+
+
+def test_concurrent_queries_on_an_unchanged_scene_all_answer_and_share_the_cores_fairly(tmp_path):
+    """Item 1, through a real uvicorn process: ten identical forward queries at once all answer 200 with the same
+    lux (the same seed; none sees "changes not committed"), and two concurrent time-bound queries trace within a
+    factor 2 of each other's photons (the batches of both go to one pool in turn)."""
+    import sys
+    from concurrent.futures import ThreadPoolExecutor
+    from pathlib import Path
+
+    import httpx
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from service_process import running_service
+
+    with running_service(tmp_path / "data", env={"LUMENLINK_MAX_CONCURRENT_QUERIES": "10"}) as base, \
+            httpx.Client(base_url=base, timeout=900) as c:
+        sid, _, _ = floor_scene(c, "together")
+        q = {"points": [[0, 0, 0], [0.5, 0, 0]], "normals": [[0, 0, 1]] * 2, "estimator": "forward", "seed": 4}
+        assert c.post(f"/scenes/{sid}/illuminance", json={**q, "max_photons": 1000}).status_code == 200  # compiles
+
+        def ask(body):
+            with httpx.Client(base_url=base, timeout=120) as own:
+                r = own.post(f"/scenes/{sid}/illuminance", json=body)
+                return r.status_code, r.json()
+
+        with ThreadPoolExecutor(10) as pool:
+            answers = list(pool.map(ask, [{**q, "max_photons": 200_000}] * 10))
+        assert [code for code, _ in answers] == [200] * 10, answers
+        assert len({tuple(a["lux"]) for _, a in answers}) == 1
+        with ThreadPoolExecutor(2) as pool:
+            pair = list(pool.map(ask, [{**q, "max_seconds": 3.0, "seed": s} for s in (1, 2)]))
+        photons = [a["photons"] for _, a in pair]
+        assert [code for code, _ in pair] == [200, 200] and max(photons) <= 2 * min(photons), photons
+
+
+def test_parallel_uploads_share_one_budget_of_bytes_in_flight():
+    """Item 7: the body guard counts the bytes of every body being received at once. A declared body is reserved
+    up front, a chunked one counts as it arrives; the body that would pass the budget gets 503 with Retry-After,
+    and the budget is whole again once the uploads end."""
+    import asyncio
+
+    from service.middleware import BodyLimit
+
+    async def app(scope, receive, send):
+        while (await receive()).get("more_body"):
+            pass
+        await send({"type": "http.response.start", "status": 200, "headers": []})
+        await send({"type": "http.response.body", "body": b"ok"})
+
+    guard = BodyLimit(app, max_bytes=1000, in_flight=1500)
+
+    async def upload(parts, declared=None, gate=None):
+        headers = [] if declared is None else [(b"content-length", str(declared).encode())]
+        messages = [{"type": "http.request", "body": b"x" * n, "more_body": k < len(parts) - 1}
+                    for k, n in enumerate(parts)]
+        sent = []
+
+        async def receive():
+            if len(messages) == 1 and gate is not None:
+                await gate.wait()     # hold the upload open half-way
+            return messages.pop(0)
+
+        async def send(message):
+            sent.append(message)
+
+        await guard({"type": "http", "method": "PUT", "path": "/x", "headers": headers}, receive, send)
+        start = sent[0]
+        return start["status"], dict(start["headers"])
+
+    async def scenario():
+        gate = asyncio.Event()
+        slow = asyncio.create_task(upload([400, 400], declared=800, gate=gate))
+        await asyncio.sleep(0.01)
+        assert guard.receiving == 800
+        refused = await upload([800], declared=800)            # 800 + 800 > 1500: refused before reading
+        chunked = await upload([600, 200])                      # 800 + 600 fits, + 200 passes the budget
+        gate.set()
+        first = await slow
+        after = await upload([800], declared=800)
+        return refused, chunked, first, after
+
+    refused, chunked, first, after = asyncio.run(scenario())
+    assert refused[0] == 503 and refused[1][b"retry-after"] == b"1"
+    assert chunked[0] == 503 and first[0] == 200 and after[0] == 200
+    assert guard.receiving == 0
+
+
+def test_the_budget_of_bytes_in_flight_holds_at_least_one_largest_body(tmp_path):
+    from service.config import Settings
+
+    with pytest.raises(ValueError, match="at least max_body_bytes"):
+        Settings(data_dir=tmp_path, max_body_bytes=1000, max_upload_bytes_in_flight=999)
+
+
+@pytest.mark.parametrize(("path", "param"), [
+    ("/scenes/not-a-scene", "scene_id"), ("/scenes/{sid}/nodes/../x", None), ("/geometries/ABC", "gid"),
+    ("/geometries/" + "A" * 64, "gid"), ("/jobs/123", "job_id"), ("/scenes/{sid}/lights/lamp-1", "item_id"),
+    ("/scenes/{sid}/sensors/{bad}/map.png", "sensor_id")])
+def test_a_malformed_id_in_the_path_is_a_422_naming_the_parameter(world, path, param):
+    """Item 10: path parameters have their forms (UUIDs, 64-hex geometry ids, 32-hex job ids), in the OpenAPI
+    document and checked before any lookup; a well-formed unknown id stays a 404."""
+    client, sid = world[0], world[1]
+    r = client.get(path.format(sid=sid, bad="x" * 36))
+    if param is None:
+        assert r.status_code == 404
+        return
+    assert r.status_code == 422 and param in r.text, r.text
+    assert r.headers["content-type"].startswith("application/problem+json")
+
+
+def test_the_openapi_document_states_the_form_of_each_path_parameter(world):
+    client = world[0]
+    doc = client.get("/openapi.json").json()
+    for path, item in doc["paths"].items():
+        for operation in item.values():
+            for p in operation.get("parameters", []):
+                if p["in"] == "path":
+                    assert p["schema"].get("pattern"), (path, p["name"])
+    assert client.get("/scenes/00000000-0000-4000-8000-000000000000").status_code == 404
+    assert client.get("/jobs/" + "0" * 32).status_code == 404

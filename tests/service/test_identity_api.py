@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import pytest
 import sqlalchemy as sa
-from service_helpers import car_document, glb, grid_mesh, make_client, node, translation, uid
+from service_helpers import UNKNOWN_ID, car_document, glb, grid_mesh, make_client, node, translation, uid
 
 PROBLEM = "application/problem+json"
 HDR = {"content-type": "application/json"}
@@ -427,7 +427,7 @@ def test_dry_run_refuses_what_a_push_refuses(client, scene, meshes) -> None:
     put(client, scene, b'{"nodes": [', 400, dry_run=True)
     put(client, scene, raw(assembly(meshes, base_revision=2, author="me")), 422, dry_run=True)
     assert snapshot(client, scene) == before
-    assert client.put("/scenes/nope/document?dry_run=true", content=raw(assembly(meshes)),
+    assert client.put(f"/scenes/{UNKNOWN_ID}/document?dry_run=true", content=raw(assembly(meshes)),
                       headers=HDR).status_code == 404
 
 

@@ -15,7 +15,7 @@ import time
 import matplotlib.image as mpimg
 import numpy as np
 import pytest
-from service_helpers import glb, grid_mesh, make_client, node, translation, uid
+from service_helpers import UNKNOWN_ID, glb, grid_mesh, make_client, node, translation, uid
 
 I_CD = 100.0
 H = 2.0
@@ -242,13 +242,13 @@ def test_nan_and_infinity_are_refused(world) -> None:
 def test_unknown_scene_sensor_and_job_are_404(world) -> None:
     client, sid, sensor = world
     cases = [
-        client.post("/scenes/nope/illuminance", json=query([[0, 0, 0]])),
-        client.post("/scenes/nope/sensors/x/simulate", json={}),
-        client.post(f"/scenes/{sid}/sensors/nope/simulate", json={}),
-        client.get(f"/scenes/{sid}/sensors/nope/map.png"),
-        client.get("/scenes/nope/sensors/x/map.png"),
-        client.get("/jobs/nope"),
-        client.delete("/jobs/nope"),
+        client.post(f"/scenes/{UNKNOWN_ID}/illuminance", json=query([[0, 0, 0]])),
+        client.post(f"/scenes/{UNKNOWN_ID}/sensors/{UNKNOWN_ID}/simulate", json={}),
+        client.post(f"/scenes/{sid}/sensors/{UNKNOWN_ID}/simulate", json={}),
+        client.get(f"/scenes/{sid}/sensors/{UNKNOWN_ID}/map.png"),
+        client.get(f"/scenes/{UNKNOWN_ID}/sensors/{UNKNOWN_ID}/map.png"),
+        client.get("/jobs/00000000000000000000000000000000"),
+        client.delete("/jobs/00000000000000000000000000000000"),
     ]
     for r in cases:
         assert r.status_code == 404, r.text

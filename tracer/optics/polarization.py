@@ -46,6 +46,16 @@ class PolarizationError(ValueError):
     """A light's polarization body the tracer cannot use; the message names the field."""
 
 
+def unit_axis(v) -> tuple[float, float, float] | None:
+    """[x, y, z] of finite numbers, not all zero, made unit; None for anything else (the caller says what is wrong)."""
+    ok = isinstance(v, list | tuple) and len(v) == 3 and all(
+        not isinstance(x, bool) and isinstance(x, int | float) and math.isfinite(x) for x in v)
+    n = math.sqrt(sum(float(x) ** 2 for x in v)) if ok else 0.0
+    if not n > 0.0:
+        return None
+    return float(v[0]) / n, float(v[1]) / n, float(v[2]) / n
+
+
 def light_polarization(v, where: str) -> np.ndarray:
     """A light's ``polarization`` body as its packed row (4,) [type, a, b, c]: the axis (world) of a linear one,
     [±1, 0, 0] (right / left) of a circular one; zeros where absent (unpolarized)."""
@@ -59,14 +69,11 @@ def light_polarization(v, where: str) -> np.ndarray:
         if set(v) != {"type", "axis"}:
             raise PolarizationError(f"{at}: a linear polarization has exactly the fields 'type' and 'axis', "
                                     f"got {sorted(v)}")
-        a = v["axis"]
-        ok = isinstance(a, list | tuple) and len(a) == 3 and all(
-            not isinstance(x, bool) and isinstance(x, int | float) and math.isfinite(x) for x in a)
-        n = math.sqrt(sum(float(x) ** 2 for x in a)) if ok else 0.0
-        if not ok or not n > 0.0:
+        a = unit_axis(v["axis"])
+        if a is None:
             raise PolarizationError(f"{at}: 'axis' must be 3 finite numbers, not all zero (the field's direction, "
-                                    f"world axes), got {a!r}"[:300])
-        return np.array([LINEAR, float(a[0]) / n, float(a[1]) / n, float(a[2]) / n])
+                                    f"world axes), got {v['axis']!r}"[:300])
+        return np.array([LINEAR, *a])
     if set(v) != {"type", "handedness"} or v["handedness"] not in ("right", "left"):
         raise PolarizationError(f"{at}: a circular polarization has 'handedness': 'right' or 'left', got {v!r}"[:300])
     return np.array([CIRCULAR, 1.0 if v["handedness"] == "right" else -1.0, 0.0, 0.0])

@@ -13,22 +13,19 @@ An element with an axis in its sheet (a polarizer's, a retarder's fast axis) tak
 
 from __future__ import annotations
 
-import math
-
 from numba import njit
 
+from tracer.optics.polarization import unit_axis
 from tracer.optics.surfaces.base import MaterialError
 
 
 def parse_axis(v, name: str, where: str) -> tuple[float, float, float]:
     """A direction [x, y, z] in the node's frame, made unit; `MaterialError` naming the field."""
-    ok = isinstance(v, list | tuple) and len(v) == 3 and all(
-        not isinstance(x, bool) and isinstance(x, int | float) and math.isfinite(x) for x in v)
-    n = math.sqrt(sum(float(x) ** 2 for x in v)) if ok else 0.0
-    if not ok or not n > 0.0:
+    a = unit_axis(v)
+    if a is None:
         raise MaterialError(f"{where}: {name!r} must be 3 finite numbers, not all zero (a direction in the "
                             f"node's frame, in the sheet's plane), got {v!r}"[:300])
-    return float(v[0]) / n, float(v[1]) / n, float(v[2]) / n
+    return a
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
