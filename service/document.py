@@ -108,15 +108,15 @@ def _columns(nodes: list, known_uuids: Container[str], known_geometries: Contain
     colors_in = [n.get("color") for n in nodes]
     fullmatch = _UUID.fullmatch
     for u in uuids:
-        if u not in known_uuids and (type(u) is not str or fullmatch(u) is None):
+        if type(u) is not str or (u not in known_uuids and fullmatch(u) is None):   # str first: a list is unhashable
             return None
     for p in parents:
-        if p is not None and p not in known_uuids and (type(p) is not str or fullmatch(p) is None):
+        if p is not None and (type(p) is not str or (p not in known_uuids and fullmatch(p) is None)):
             return None
     if any(type(x) is not str for x in names) or (names and max(map(len, names)) > MAX_NAME):
         return None
     for g in geometries:
-        if g is not None and g not in known_geometries:
+        if g is not None and (type(g) is not str or g not in known_geometries):
             return None
     try:
         t = np.array(transforms)

@@ -107,7 +107,7 @@ Metal = Annotated[tuple[Annotated[float, Strict(), Field(gt=0.0, le=20.0)],
 class ParticlesWire(_MaterialWire):
     """Spheres suspended in the dielectric: Mie scattering and absorption at each wavelength (`tracer.optics.mie`)."""
 
-    radius_um: Annotated[float, Strict(), Field(gt=0.0, le=1000.0, description="sphere radius, µm")]
+    radius_um: Annotated[float, Strict(), Field(ge=1e-4, le=1000.0, description="sphere radius, µm")]
     ior: Annotated[tuple[Annotated[float, Strict(), Field(gt=0.0, le=10.0)],
                          Annotated[float, Strict(), Field(ge=0.0, le=10.0)]],
                    Field(description="the spheres' complex index [n, k] (n − ik); relative to the host's ior")]

@@ -4,7 +4,7 @@ Body (a ``dielectric``'s ``particles`` field): ``{"radius_um": 0.5, "ior": [1.59
 
 | field | unit | range | default |
 | --- | --- | --- | --- |
-| radius_um | µm | (0, 1000]; the size parameter x = 2π r n_host/λ at most `X_MAX` | required |
+| radius_um | µm | [1e-4, 1000] (`MIN_RADIUS_UM`); the size parameter x = 2π r n_host/λ at most `X_MAX` | required |
 | ior | [n, k]: the sphere's index n − ik | n in (0, 10], k in [0, 10] (k > 0 absorbs) | required |
 | number_per_m3 | 1/m³ | (0, 1e30]; σ_ext = N C_ext at most `SIGMA_MAX` 1/m at every λ | required |
 
@@ -82,6 +82,7 @@ ROWS_PER_NM = 4              # packed rows per sample: cdf, s12, s33, s34
 MU_ROW = 0                   # packed row of the μ nodes
 CDF, S12, S33, S34 = 0, 1, 2, 3   # row offsets inside a sample's block
 PACKED_ROWS = 1 + N_MIE * ROWS_PER_NM
+MIN_RADIUS_UM = 1e-4         # µm: 0.1 nm, an atom; smaller radii underflow the Mie series
 X_MAX = 3.0e4                # largest size parameter built (cost ∝ x², see module docstring)
 SIGMA_MAX = 1e9              # 1/m: largest extinction coefficient
 SUB_DTHETA_X = 2.0           # sub-samples at most 2/x rad apart inside a node interval
@@ -141,7 +142,7 @@ def parse_particles(v, name: str, where: str) -> Particles:
         problems = ([f"unknown field(s) {sorted(extra)}"] if extra else []) + (
             [f"missing {sorted(missing)}"] if missing else [])
         raise MaterialError(f"{at}: " + "; ".join(problems) + "; the fields are 'radius_um', 'ior', 'number_per_m3'")
-    r = _number(v["radius_um"], "radius_um", at, 0.0, 1000.0, lo_open=True)
+    r = _number(v["radius_um"], "radius_um", at, MIN_RADIUS_UM, 1000.0, lo_open=False)
     ior = v["ior"]
     if not isinstance(ior, list | tuple) or len(ior) != 2:
         raise MaterialError(f"{at}: 'ior' must be [n, k] (the index n − ik), got {ior!r}"[:300])
@@ -283,6 +284,11 @@ def _check_size(p: Particles, host: np.ndarray, where: str) -> None:
 
 
 def _build(p: Particles, host: np.ndarray, where: str) -> MieTable:
+    with np.errstate(all="ignore"):   # a series that over- or underflows gives a non-finite Q: refused below
+        return _build_table(p, host, where)
+
+
+def _build_table(p: Particles, host: np.ndarray, where: str) -> MieTable:
     area = math.pi * (p.radius_um * 1e-6) ** 2              # m²
     xs = _size_parameters(p, host)
     c_ext, c_sca, g = np.zeros(N_MIE), np.zeros(N_MIE), np.zeros(N_MIE)
