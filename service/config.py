@@ -34,7 +34,9 @@ class Settings(BaseSettings):
                                                                      "wait (see queue_wait_seconds), then 503.")
     queue_wait_seconds: float = Field(default=30.0, gt=0, description="How long a synchronous query waits for a "
                                                                       "free slot before it is answered 503, s.")
-    max_nodes: int = Field(default=1_000_000, gt=0, description="Most nodes one pushed document may have.")
+    max_nodes: int = Field(default=250_000, gt=0, description="Most nodes one pushed document may have (a whole "
+                                                              "vehicle's product tree has ~1e5); more: 413, counted "
+                                                              "from the bytes before any decoding.")
     log_requests: bool = Field(default=True, description="Log one line per request (method, path, status, ms).")
     token: str | None = Field(default=None, min_length=16, description=(
         "Bearer token every request but /health, /docs, /redoc and /openapi.json must carry "

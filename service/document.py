@@ -145,6 +145,17 @@ _WS = b" \t\r\n"
 MAX_FRESH = 64  # at most this many changed nodes are decoded one by one; more: a full decode
 
 
+_UUID_KEY = re.compile(rb'"uuid"\s*:')
+
+
+def count_nodes(body: bytes) -> int:
+    """How many nodes the body's node list holds, from its bytes (no decoding): the ``"uuid"`` keys after
+    ``"nodes": [``. Exact for a body whose node list is its last member (as clients send it), an upper bound
+    otherwise; 0 without a node list. A ``"uuid":`` inside a JSON string has its quotes escaped: it never counts."""
+    at = _nodes_key(body)
+    return 0 if at < 0 else len(_UUID_KEY.findall(body, at))
+
+
 def _nodes_key(body: bytes) -> int:
     """Offset of the ``"nodes": [`` member, or -1.
 

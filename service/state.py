@@ -44,8 +44,15 @@ from sqlalchemy import Engine, delete, insert, select, update
 
 from service import db
 from service.config import Settings
-from service.document import NodeBytes, decode_document, decode_incremental, remember, same_nodes
-from service.errors import Conflict, Invalid, NotFound
+from service.document import (
+    NodeBytes,
+    count_nodes,
+    decode_document,
+    decode_incremental,
+    remember,
+    same_nodes,
+)
+from service.errors import Conflict, Invalid, NotFound, TooLarge
 from service.live import DELETED, LiveRegistry, LiveScene
 from service.meshes import MeshStore
 from service.schemas import LENGTH_UNITS, DocumentPush, IdentityIn, Light, Material, ObjectCreate, Sensor
@@ -342,6 +349,10 @@ class SceneManager:
         """
         t0 = time.perf_counter()
         state = self.state(scene_id)  # 404 before any work
+        counted = count_nodes(body)   # a too-large tree is refused from its bytes: no decoding, no lock taken
+        if counted > self.settings.max_nodes:
+            raise TooLarge(f"the document has {counted} nodes; this service accepts at most "
+                           f"{self.settings.max_nodes} (LUMENLINK_MAX_NODES)", limit=self.settings.max_nodes)
         with state.lock, gc_paused():
             if self._states.get(scene_id) is not state:  # reloaded meanwhile (a failed store)
                 state = self.state(scene_id)
@@ -363,9 +374,9 @@ class SceneManager:
                     node_bytes = None
                 doc = decoded.header
                 t_decode = time.perf_counter()
-                if len(decoded.uuids) > self.settings.max_nodes:
-                    raise Invalid(f"the document has {len(decoded.uuids)} nodes; this service accepts at most "
-                                  f"{self.settings.max_nodes}")
+                if len(decoded.uuids) > self.settings.max_nodes:   # a node list that is not the last member
+                    raise TooLarge(f"the document has {len(decoded.uuids)} nodes; this service accepts at most "
+                                   f"{self.settings.max_nodes} (LUMENLINK_MAX_NODES)", limit=self.settings.max_nodes)
                 try:
                     new = Tree.build(*decoded.columns(), doc.length_unit, like=state.tree)
                 except TreeError as exc:
