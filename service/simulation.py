@@ -175,6 +175,7 @@ def result_payload(result: Any, revision: int) -> dict[str, Any]:
         "estimator": str(result.estimator),
         "stop_reason": str(result.stop_reason),
         "compile_seconds": float(getattr(result, "compile_seconds", 0.0)),
+        "cost": getattr(result, "cost", None),
         **_spectral_payload(result),
         **_stokes_payload(result),
     }

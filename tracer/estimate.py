@@ -12,6 +12,7 @@ queries) exactly: merging is addition of the sums.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -80,3 +81,34 @@ class Estimate:
         if self.batches < 2:
             r[:] = np.inf
         return r
+
+
+COST_TARGETS = (0.05, 0.02, 0.01, 0.005, 0.002)   # relative errors an answer's `cost` predicts the price of
+
+
+def cost_of(lux: np.ndarray, stderr: np.ndarray, photons: int, seconds: float,
+            targets: tuple[float, ...] | list[float] = COST_TARGETS) -> dict:
+    """What tighter errors would cost, predicted from a run's own variance and speed: the error of a Monte Carlo
+    estimate falls as 1/√photons, so reaching relative error t from r after N photons takes N (r / t)² photons, at
+    this run's photons per second (on this scene and this machine).
+
+    lux, stderr : (k,) the run's values and standard errors (any shape; flattened); photons, seconds : what the run
+    traced and the seconds it spent tracing (compilation excluded). Returns ``{"targets", "photons_per_second",
+    "worst", "median", "dark_points"}``: for the worst and the median relative error over the lit points
+    (lux > 0), ``{"relative_error", "photons": [...], "seconds": [...]}`` per target (None where no point is
+    lit); `dark_points` counts the points no light reached, where no target means anything.
+    """
+    v = np.asarray(lux, float).ravel()
+    e = np.asarray(stderr, float).ravel()
+    lit = (v > 0) & np.isfinite(e)
+    rate = photons / seconds if seconds > 0 else float("inf")
+    out: dict = {"targets": [float(t) for t in targets], "photons_per_second": float(rate),
+                 "dark_points": int(np.count_nonzero(v <= 0)), "worst": None, "median": None}
+    if not lit.any() or photons <= 0:
+        return out
+    rel = e[lit] / v[lit]
+    for name, r in (("worst", float(np.max(rel))), ("median", float(np.median(rel)))):
+        needed = [photons * (r / t) ** 2 for t in targets]
+        out[name] = {"relative_error": r, "photons": [int(math.ceil(n)) for n in needed],
+                     "seconds": [n / rate for n in needed]}
+    return out

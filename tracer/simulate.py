@@ -59,7 +59,7 @@ import numpy as np
 
 from tracer.backward import QueryArrays, backward_batches, disk_queries
 from tracer.effects import EffectError, canonical, photon_state, with_forced
-from tracer.estimate import Estimate
+from tracer.estimate import Estimate, cost_of
 from tracer.optics import spectra
 from tracer.optics.lights import connectable, pack_lights
 from tracer.optics.lights.dispatch import any_polarized, polarized_lights, spectral_lights
@@ -129,6 +129,7 @@ class IlluminanceResult:
     Where the query observes the spectrum: nm (N_BINS,) — centres of the 5 nm bands;
     spectral_irradiance, spectral_stderr (k, N_BINS) — W/m²/nm in each band and its standard error;
     cie_xy (k, 2) — CIE 1931 chromaticity of the light arriving (NaN where nothing arrived).
+    cost : dict — what tighter errors would cost on this scene and machine (`tracer.estimate.cost_of`).
     Where the query observes Stokes (`tracer.optics.polarization`): stokes, stokes_stderr (k, 4) — lx, S0 = lux,
     in each receiver's frame (x axis: its `reference` in its plane, taken across each photon's direction);
     dop (k,) — degree of polarization √(S1² + S2² + S3²) / S0 (NaN where nothing arrived).
@@ -152,6 +153,7 @@ class IlluminanceResult:
     stokes: np.ndarray | None = None
     stokes_stderr: np.ndarray | None = None
     dop: np.ndarray | None = None
+    cost: dict | None = None
 
 
 @dataclass
@@ -390,7 +392,7 @@ class Simulation:
         return GridResult(cells(res.lux), cells(res.stderr), res.photons, res.seconds, res.effects, res.estimator,
                           res.stop_reason, res.batches, res.rejected, res.counters, res.compile_seconds, res.nm,
                           cells(res.spectral_irradiance), cells(res.spectral_stderr), cells(res.cie_xy),
-                          cells(res.stokes), cells(res.stokes_stderr), cells(res.dop))
+                          cells(res.stokes), cells(res.stokes_stderr), cells(res.dop), res.cost)
 
     # ------------------------------------------------------------------------------------------ engine
 
@@ -416,10 +418,13 @@ class Simulation:
             effects = ["lambertian"]
         t0 = time.perf_counter()
         if which == "forward":
-            return self._forward(is_grid, centers, normals, radius, grid, budget, int(seed), effects, progress,
-                                 cancel, t0, observe_spectrum, refs if observe_stokes else None)
-        return self._backward(is_grid, centers, normals, radius, grid, budget, int(seed), effects, progress,
-                              cancel, t0)
+            res = self._forward(is_grid, centers, normals, radius, grid, budget, int(seed), effects, progress,
+                                cancel, t0, observe_spectrum, refs if observe_stokes else None)
+        else:
+            res = self._backward(is_grid, centers, normals, radius, grid, budget, int(seed), effects, progress,
+                                 cancel, t0)
+        res.cost = cost_of(res.lux, res.stderr, res.photons, res.seconds - res.compile_seconds)
+        return res
 
     def _loop(self, run_round, n_bins, per_batch, budget, progress, cancel, t0, n_stop=None):
         """Rounds of batches until a stop rule holds; returns (Estimate, batches, stop_reason, counters).

@@ -20,13 +20,14 @@ import numpy as np
 from fastapi import APIRouter, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, Strict, field_validator, model_validator
 
 from service.errors import NotFound, TooLarge
 from service.jobs import JobNotFound, QueueFull
 from service.maps import colour_map_png, illuminance_map_png
 from service.routes.deps import ItemId, JobId, SceneId
 from service.simulation import SimulationHub, Unavailable, find_sensor, hub_for, resolve_budget
+from tracer.estimate import cost_of
 
 router = APIRouter(tags=["simulation"])
 
@@ -37,6 +38,9 @@ FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
 Vec3 = tuple[FiniteFloat, FiniteFloat, FiniteFloat]
 Mode = Annotated[Literal["sync", "async"], Query(description="`async`: answer 202 at once with a job URL.")]
 EFFECT_NAME = r"^[a-z_]{1,32}$"
+
+
+RelativeError = Annotated[float, Strict(), Field(gt=0.0, lt=1.0)]
 
 
 class _Budget(BaseModel):
@@ -63,6 +67,9 @@ class _Budget(BaseModel):
                                           "(effect `spectral`). `stokes`: add the Stokes vector (lx) and the degree "
                                           "of polarization in each receiver's frame (effect `polarization`). Either "
                                           "way the forward estimator answers.")
+    cost_targets: Annotated[list[RelativeError], Field(min_length=1, max_length=10)] | None = Field(
+        default=None, description="The relative errors the answer's `cost` predicts the price of (fractions; "
+                                  "default 0.05, 0.02, 0.01, 0.005, 0.002).")
     reference: Vec3 | None = Field(
         default=None, description="With observe stokes: the x axis of each receiver's polarization frame (world), "
                                   "taken onto its plane; default world x, or world y where x is within 25° of "
@@ -79,6 +86,23 @@ class _Budget(BaseModel):
         """The forced effects and those the observables call for."""
         extra = {"spectrum": "spectral", "stokes": "polarization"}
         return tuple(self.force_effects) + tuple(extra[o] for o in self.observe)
+
+
+class CostLine(BaseModel):
+    relative_error: float = Field(description="The run's relative error (stderr / lux) at this point.")
+    photons: list[int] = Field(description="Photons (forward) or paths (backward) to reach each target.")
+    seconds: list[float] = Field(description="Seconds of tracing to reach each target at this run's speed, s.")
+
+
+class Cost(BaseModel):
+    """What tighter errors would cost on this scene and this machine, from the run's own variance and speed (error
+    ∝ 1/√photons): for the worst lit point and the median one (`tracer.estimate.cost_of`)."""
+
+    targets: list[float] = Field(description="Relative errors (fractions), in the order of each line's lists.")
+    photons_per_second: float = Field(description="This run's tracing speed (compilation excluded).")
+    worst: CostLine | None = Field(description="At the lit point with the largest relative error; null if none is lit.")
+    median: CostLine | None = Field(description="At the median lit point.")
+    dark_points: int = Field(description="Points no light reached: no target means anything there.")
 
 
 class IlluminanceQuery(_Budget):
@@ -129,6 +153,7 @@ class IlluminancePublic(BaseModel):
     spectral_stderr: list[Any] | None = Field(None, description="Standard error of each band, W/m²/nm.")
     cie_xy: list[Any] | None = Field(
         None, description="With observe spectrum: CIE 1931 (x, y) of the light arriving; null where none arrived.")
+    cost: Cost | None = Field(None, description="What tighter errors would cost (seconds and photons per target).")
     stokes: list[Any] | None = Field(
         None, description="With observe stokes: [S0, S1, S2, S3] per point, lx (S0 = lux), in the receiver's frame.")
     stokes_stderr: list[Any] | None = Field(None, description="Standard error of each Stokes component, lx.")
@@ -156,6 +181,7 @@ class SensorPublic(BaseModel):
     spectral_irradiance: list[Any] | None = None
     spectral_stderr: list[Any] | None = None
     cie_xy: list[Any] | None = None
+    cost: Cost | None = None
     stokes: list[Any] | None = None
     stokes_stderr: list[Any] | None = None
     dop: list[Any] | None = None
@@ -261,6 +287,26 @@ async def _answer(request: Request, mode: str, setup: Any, *args: Any) -> Any:
     return payload
 
 
+def _targeted(payload: dict[str, Any], targets: list[float] | None) -> None:
+    """The answer's `cost` for the query's own targets (the tracer's holds the default ones)."""
+    if targets:
+        payload["cost"] = cost_of(payload["lux"], payload["stderr"], payload["photons"],
+                                  payload["seconds"] - payload["compile_seconds"], targets)
+
+
+PILOT_SECONDS = 2.0   # s: the pilot run of a plan, unless the query asks for less
+
+
+@router.post("/scenes/{scene_id}/illuminance/plan", response_model=IlluminancePublic,
+             response_model_exclude_none=True, responses={413: {}, 503: {}})
+async def plan_illuminance(scene_id: SceneId, query: IlluminanceQuery, request: Request) -> Any:
+    """What an illuminance query would cost before it is run: a short pilot (at most 2 s, or the query's own
+    smaller budget; no target) answers its lux and, in `cost`, the seconds and photons each target would take."""
+    pilot = query.model_copy(update={"target_relative_error": None,
+                                     "max_seconds": min(query.max_seconds or PILOT_SECONDS, PILOT_SECONDS)})
+    return await _answer(request, "sync", _points_query, scene_id, pilot, request)
+
+
 def _points_query(scene_id: str, query: IlluminanceQuery, request: Request) -> tuple:
     hub = _hub(request)
     if len(query.points) > hub.limits.max_points:
@@ -278,6 +324,7 @@ def _points_query(scene_id: str, query: IlluminanceQuery, request: Request) -> t
         payload = hub.run_points(prepared, points, normals, query.radius, budget, query.seed, query.estimator,
                                  effects, progress=progress, cancel=cancel, observe=tuple(query.observe),
                                  reference=query.reference)
+        _targeted(payload, query.cost_targets)
         payload["current"] = hub.is_current(scene_id, prepared.generation)
         return payload
 
@@ -309,6 +356,7 @@ def _sensor_query(scene_id: str, sensor_id: str, query: SensorSimulate, request:
         payload = hub.run_grid(prepared, sensor, budget, query.seed, query.estimator, effects,
                                progress=progress, cancel=cancel, observe=tuple(query.observe),
                                reference=query.reference)
+        _targeted(payload, query.cost_targets)
         if payload["type"] == "grid":
             payload["map_url"] = map_url
         return payload

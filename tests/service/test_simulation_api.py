@@ -295,3 +295,29 @@ def test_push_while_a_query_runs_leaves_both_intact(world) -> None:
     assert client.get(f"/scenes/{sid}").json()["objects"] == objects
     again = client.post(f"/scenes/{sid}/illuminance", json=query([[0.0, 0.0, 0.0]], max_photons=10_000))
     assert again.status_code == 200 and again.json()["revision"] == rev + 2
+
+
+def test_every_answer_says_what_tighter_errors_would_cost_and_a_plan_says_it_first(world) -> None:
+    """Issue 24, in part: `cost` in every answer (the default targets, or the query's own), and
+    `POST …/illuminance/plan`, a pilot of at most 2 s that answers the same before the full run."""
+    client, sid, sensor = world
+    pts = [[0.0, 0.0, 0.0], [0.5, 0.0, 0.0]]
+    a = client.post(f"/scenes/{sid}/illuminance", json=query(pts, max_photons=100_000)).json()
+    cost = a["cost"]
+    assert cost["targets"] == [0.05, 0.02, 0.01, 0.005, 0.002] and cost["dark_points"] == 0
+    worst = cost["worst"]
+    r = max(s / v for s, v in zip(a["stderr"], a["lux"], strict=True))
+    assert worst["relative_error"] == pytest.approx(r)
+    assert worst["photons"][2] == pytest.approx(a["photons"] * (r / 0.01) ** 2, rel=1e-6, abs=1)
+    assert all(x < y for x, y in zip(worst["seconds"], worst["seconds"][1:], strict=False))   # tighter costs more
+    own = client.post(f"/scenes/{sid}/illuminance", json=query(pts, max_photons=100_000, cost_targets=[0.03])).json()
+    assert own["cost"]["targets"] == [0.03] and len(own["cost"]["median"]["seconds"]) == 1
+    plan = client.post(f"/scenes/{sid}/illuminance/plan", json=query(pts, target_relative_error=0.001))
+    assert plan.status_code == 200, plan.text
+    p = plan.json()
+    assert p["seconds"] <= 2.0 + 1.0 and p["stop_reason"] != "target_relative_error" and p["cost"]["worst"]
+    grid = client.post(f"/scenes/{sid}/sensors/{sensor}/simulate", json={"max_photons": 100_000}).json()
+    assert grid["cost"]["worst"]["relative_error"] > 0
+    for bad in ([], [0.0], [1.0], [0.1] * 11, ["0.1"]):
+        r = client.post(f"/scenes/{sid}/illuminance", json=query(pts, max_photons=1000, cost_targets=bad))
+        assert r.status_code == 422 and "cost_targets" in r.text, r.text
