@@ -95,7 +95,7 @@ def test_point_source_over_black_floor_follows_inverse_square_cosine_law(world) 
     assert r.status_code == 200, r.text
     a = r.json()
     assert set(a) == {"lux", "stderr", "photons", "seconds", "effects", "revision", "estimator", "stop_reason",
-                      "compile_seconds"}
+                      "compile_seconds", "cost"}
     assert 0.0 <= a["compile_seconds"] <= a["seconds"]
     for (x, y, _), e, s in zip(pts, a["lux"], a["stderr"], strict=True):
         ref = disk_average_lux(x, y, 0.005)
