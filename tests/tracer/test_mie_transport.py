@@ -142,3 +142,26 @@ def test_everything_on_at_once_neither_rejects_nor_gains_power():
     emitted = 100.0 * math.pi * 0.25 ** 2
     assert caught <= emitted + 4 * math.sqrt(err2), (caught, emitted)
     assert caught > 0.05 * emitted
+
+
+def test_a_polarized_mie_scattering_takes_its_frame_across_the_direction_whatever_it_was_left():
+    """A depolarizing event (a diffuse bounce, a re-emission) may leave the frame axis along the new direction;
+    the next Mie scattering must still scatter by the phase function: the mean cos θ over many events is g."""
+    from tracer.optics import polarization as P
+    from tracer.optics.media.homogeneous import mie_scatter
+    from tracer.optics.mie import packed
+    from tracer.rng import path_key
+
+    t = mie_table(Particles(0.5, 1.59, 0.0, 1e12), np.ones(471))
+    tab = packed(t)
+    n = 20_000
+    mus = np.empty(n)
+    for i in range(n):
+        pol = np.zeros(P.N_POL)
+        pol[P.ON] = 1.0
+        pol[P.E + 2] = 1.0            # stale: along d
+        dx, dy, dz, _ = mie_scatter(tab, 0, 0.0, 0.0, 1.0, 550.0, np.uint64(path_key(7, 0, i)), 0, pol)
+        mus[i] = dz
+        assert abs(math.sqrt(dx * dx + dy * dy + dz * dz) - 1.0) < 1e-12
+    g = float(t.g[550 - 360])
+    assert abs(mus.mean() - g) <= 4 * mus.std() / math.sqrt(n), (mus.mean(), g)

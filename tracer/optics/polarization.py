@@ -151,7 +151,9 @@ def apply_interface(pol, a, b, c, d):
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def depolarize(pol):
-    """Unpolarized light: what a diffuse reflection or an isotropic-frame scattering leaves."""
+    """Unpolarized light: what a diffuse reflection or an isotropic-frame scattering leaves. The frame axis is left
+    as it was, possibly no longer across the new direction: an unpolarized state reads the same in any frame, and
+    whatever polarizes it next sets its frame (`set_frame`); `rotation` and `across` take any axis."""
     pol[S1] = 0.0
     pol[S2] = 0.0
     pol[S3] = 0.0

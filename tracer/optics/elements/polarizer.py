@@ -57,10 +57,6 @@ def diffuse_only(spec: Spec) -> bool:
     return False
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
-def albedo(M, inst):
-    return 0.0
-
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol):

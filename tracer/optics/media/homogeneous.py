@@ -22,7 +22,7 @@ from numba import njit
 from tracer.optics.frames import onb
 from tracer.optics.media.fluorescence import SIGMA_F, reemit
 from tracer.optics.mie import mie_ratios, mie_sample_mu
-from tracer.optics.polarization import ON, S1, S2, E, apply_interface, depolarize, rotate_into, set_frame
+from tracer.optics.polarization import ON, S1, S2, E, across, apply_interface, depolarize, rotate_into, set_frame
 from tracer.optics.surfaces.base import MIE_ROW, mparam
 from tracer.rng import uniform
 
@@ -126,8 +126,11 @@ def mie_scatter(tab, row0, dx, dy, dz, lam, key, dim, pol):
     dim += 1
     sin_t = math.sqrt(max(0.0, 1.0 - mu * mu))
     polarized = pol[ON] != 0.0
-    if polarized:
-        ex, ey, ez = pol[E], pol[E + 1], pol[E + 2]
+    if polarized:   # the photon's frame axis, taken across d (a depolarizing event may have left it stale)
+        ok, ex, ey, ez = across(dx, dy, dz, pol[E], pol[E + 1], pol[E + 2])
+        if not ok:
+            t, _ = onb(dx, dy, dz)
+            ex, ey, ez = t[0], t[1], t[2]
         yx, yy, yz = dy * ez - dz * ey, dz * ex - dx * ez, dx * ey - dy * ex
         s12, s33, s34 = mie_ratios(tab, row0, lam, mu)
         phi = 0.0

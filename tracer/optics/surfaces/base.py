@@ -16,7 +16,8 @@ A surface kind is one module in this folder (or in `tracer/optics/elements/`, fo
   into ``layers``/``coat`` the same way.
 - ``effects(spec) -> tuple[str, ...]``: the effects it calls for (`tracer.effects.EFFECTS`).
 - ``diffuse_only(spec) -> bool``: whether the backward estimator can follow it (it reflects only
-  diffusely, with albedo ``albedo(M, inst)``; a black surface is diffuse with albedo 0).
+  diffusely; a black surface is diffuse with albedo 0). A kind that can be diffuse also has the jitted
+  ``albedo(M, inst)``, its diffuse albedo, and a branch in `dispatch.albedo` (0 for every other kind).
 - the jitted ``scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol)``
   returning ``(status, dx, dy, dz, f, depth, dim)``:
 

@@ -161,10 +161,6 @@ def diffuse_only(spec: Spec) -> bool:
     return False
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
-def albedo(M, inst):
-    return 0.0
-
 
 @njit(cache=True)
 def fresnel_dielectric(cos_i, n1, n2):
