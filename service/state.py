@@ -886,7 +886,7 @@ def _validate_photometry(fmt: str, text: str) -> None:
 
 def scene_effects(live: LiveScene, uses_default: bool = True) -> list[str]:
     """The scene's effect set, by the transport's one rule (`tracer.effects.derive_effects`) over its
-    materials (and the default material where some instance uses it). A body stored under older, looser
+    materials (and the default material where some instance uses it) and its lights. A body stored under older, looser
     rules that the tracer now refuses is left out here (a summary never fails); a query says what is wrong."""
     from tracer.effects import derive_effects
     from tracer.optics.surfaces.dispatch import MaterialError, material_spec
@@ -897,7 +897,7 @@ def scene_effects(live: LiveScene, uses_default: bool = True) -> list[str]:
             specs.append(material_spec(body))
         except MaterialError:
             continue
-    return derive_effects(specs)
+    return derive_effects(specs, live.lights)
 
 
 def validate_body(kind: str, body: Any) -> dict:

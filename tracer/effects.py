@@ -51,12 +51,14 @@ def canonical(effects: Iterable[str]) -> list[str]:
     return [e for e in EFFECTS if e in s]
 
 
-def derive_effects(materials: Iterable) -> list[str]:
-    """The effect set of a scene from its materials (bodies or specs), as their kinds declare it.
+def derive_effects(materials: Iterable, lights: Iterable[dict] = ()) -> list[str]:
+    """The effect set of a scene from its materials (bodies or specs), as their kinds declare it, and its light
+    bodies (a polarized light calls for `polarization`).
 
     Raises `tracer.optics.surfaces.base.MaterialError` for an invalid material body.
     """
-    return canonical(effects_of(material_spec(m) for m in materials))
+    polarized = {"polarization"} if any(isinstance(b, dict) and b.get("polarization") for b in lights) else set()
+    return canonical(effects_of(material_spec(m) for m in materials) | polarized)
 
 
 def with_forced(effects: list[str], force: tuple[str, ...] | list[str] | str) -> list[str]:

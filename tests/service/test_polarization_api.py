@@ -51,6 +51,7 @@ def test_a_polarizer_on_a_node_passes_half_of_unpolarized_light_polarized_along_
         assert len(a["stokes_stderr"]) == 2 and len(a["stokes_stderr"][0]) == 4
         plain = client.post(f"/scenes/{sid}/illuminance", json=query(BELOW, radius=0.1, max_photons=20_000)).json()
         assert "stokes" not in plain and "dop" not in plain and "polarization" in plain["effects"]
+        assert "polarization" in client.get(f"/scenes/{sid}").json()["effects"]
     finally:
         client.delete(f"/scenes/{sid}/lights/{lid}")
 

@@ -154,6 +154,10 @@ def test_effect_sets_follow_the_materials():
     assert photon_state(["lambertian", "polarization"]) == "polarized"
     assert photon_state(with_forced(["lambertian", "polarization"], ("coating",))) == "polarized-spectral"
     assert eff({"type": "polarizer", "axis": [1, 0, 0]}) == ["lambertian", "polarization"]
+    light = {"type": "point", "position": [0, 0, 0], "flux_lm": 1.0, "polarization": {"type": "circular",
+                                                                                     "handedness": "left"}}
+    assert derive_effects([{"type": "black"}], [light]) == ["lambertian", "polarization"]
+    assert derive_effects([{"type": "black"}], [{**light, "polarization": None}]) == ["lambertian"]
     with pytest.raises(EffectError, match="unknown effect"):
         with_forced(["lambertian"], ("birefringence",))
 
