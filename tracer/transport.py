@@ -54,7 +54,8 @@ from tracer.traverse import closest_with_stacks, new_stacks, sensor_crossings_wi
 
 COUNTERS = ("rejected", "truncated", "stack_overflow", "sensor_buffer_full")
 C_REJECTED, C_TRUNCATED, C_STACK, C_SENSOR_FULL = range(4)
-RR_DEPTH = 64          # bounces after which every photon plays Russian roulette
+RR_DEPTH = 256         # bounces after which every photon plays Russian roulette (64 made a stack of 20 plates,
+                       # 40 interfaces, a heavy-tailed estimate: 21 % error on 100k photons against 0.3 % now)
 RR_SURVIVE = 0.9       # its survival probability there
 RR_WEIGHT = 0.01       # fraction of the initial weight below which a photon plays roulette
 MAX_BOUNCES = 100_000  # a longer path is cut and counted
