@@ -462,6 +462,9 @@ def test_scene_effects_follow_the_tracer_and_skip_bodies_it_now_refuses() -> Non
 
     live = SimpleNamespace(materials={0: {"type": "mirror", "reflectance": 0.9},
                                       1: {"type": "dielectric", "ior": 1.5, "scattering_per_m": 1e12}},
-                           default_material={"type": "dielectric", "ior": 1.5, "absorption_per_m": 2.0})
+                           default_material={"type": "dielectric", "ior": 1.5, "absorption_per_m": 2.0},
+                           lights=[{"type": "point", "position": [0, 0, 1], "flux_lm": 1.0}])
     assert scene_effects(live) == ["lambertian", "specular", "fresnel", "absorption"]
     assert scene_effects(live, uses_default=False) == ["lambertian", "specular"]
+    live.lights[0]["polarization"] = {"type": "linear", "axis": [1, 0, 0]}
+    assert scene_effects(live, uses_default=False) == ["lambertian", "specular", "polarization"]
