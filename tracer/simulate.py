@@ -58,12 +58,12 @@ import numba
 import numpy as np
 
 from tracer.backward import QueryArrays, backward_batches, disk_queries
-from tracer.effects import EffectError, canonical, photon_state, with_forced
+from tracer.effects import EffectError, derive_effects, photon_state, with_forced
 from tracer.estimate import Estimate, cost_of
 from tracer.optics import spectra
 from tracer.optics.lights import connectable, pack_lights
-from tracer.optics.lights.dispatch import any_polarized, polarized_lights, spectral_lights
-from tracer.optics.surfaces.dispatch import backward_ok, effects_of, material_spec, pack_materials
+from tracer.optics.lights.dispatch import polarized_lights, spectral_lights
+from tracer.optics.surfaces.dispatch import backward_ok, material_spec, pack_materials
 from tracer.scene import Scene
 from tracer.transport import COUNTERS, SensorArrays, forward_kernel, tally_columns
 from tracer.traverse import closest_each
@@ -294,8 +294,7 @@ class Simulation:
         geometry_ids = [i for i in ids if i not in self._sensor_ids]
         # the distinct specs in use (a scene of 100k instances has a handful of materials)
         self._specs = list(dict.fromkeys(m for m in (mats.get(i, default_spec) for i in geometry_ids) if m is not None))
-        self.effects: list[str] = canonical(effects_of(self._specs) | (
-            {"polarization"} if any_polarized(self._lights) else set()))
+        self.effects: list[str] = derive_effects(self._specs, lights)   # the one rule, as the service's summary
 
     # ------------------------------------------------------------------------------------------ helpers
 

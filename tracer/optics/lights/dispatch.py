@@ -116,11 +116,6 @@ def polarized_lights(L: LightArrays) -> LightArrays:
     return L._replace(polarized=np.ones(1, np.int64))
 
 
-def any_polarized(L: LightArrays) -> bool:
-    """Whether some light emits polarized light (it then calls for the effect `polarization`)."""
-    return bool(np.any(L.pol[:, 0] != 0))
-
-
 def connectable(L: LightArrays) -> tuple[bool, str]:
     """Whether next-event estimation can sample every light of L, and if not why ("" if it can)."""
     for k in sorted(set(int(k) for k in L.kind)):
