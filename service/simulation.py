@@ -176,6 +176,8 @@ def result_payload(result: Any, revision: int) -> dict[str, Any]:
         "stop_reason": str(result.stop_reason),
         "compile_seconds": float(getattr(result, "compile_seconds", 0.0)),
         "cost": getattr(result, "cost", None),
+        **({"error_budget": {name: _finite_list(v) for name, v in result.error_budget.items()}}
+           if getattr(result, "error_budget", None) else {}),
         **_spectral_payload(result),
         **_stokes_payload(result),
     }

@@ -65,6 +65,7 @@ from tracer.optics.lights import connectable, pack_lights
 from tracer.optics.lights.dispatch import polarized_lights, spectral_lights
 from tracer.optics.surfaces.dispatch import backward_ok, material_spec, pack_materials
 from tracer.scene import Scene
+from tracer.tessellation_error import grid_cells, lux_budget, scene_surfaces
 from tracer.transport import COUNTERS, SensorArrays, forward_kernel, tally_columns
 from tracer.traverse import closest_each
 from tracer.warmup import wait_background
@@ -130,6 +131,9 @@ class IlluminanceResult:
     spectral_irradiance, spectral_stderr (k, N_BINS) — W/m²/nm in each band and its standard error;
     cie_xy (k, 2) — CIE 1931 chromaticity of the light arriving (NaN where nothing arrived).
     cost : dict — what tighter errors would cost on this scene and machine (`tracer.estimate.cost_of`).
+    error_budget : dict or None — ``{"tessellation": (k,) lx}`` where the scene holds curved optical surfaces
+    (mirror or glass meshes with vertex normals): how far each value may move when they are tessellated finely
+    enough (`tracer.tessellation_error`); None elsewhere.
     Where the query observes Stokes (`tracer.optics.polarization`): stokes, stokes_stderr (k, 4) — lx, S0 = lux,
     in each receiver's frame (x axis: its `reference` in its plane, taken across each photon's direction);
     dop (k,) — degree of polarization √(S1² + S2² + S3²) / S0 (NaN where nothing arrived).
@@ -154,6 +158,7 @@ class IlluminanceResult:
     stokes_stderr: np.ndarray | None = None
     dop: np.ndarray | None = None
     cost: dict | None = None
+    error_budget: dict | None = None
 
 
 @dataclass
@@ -295,6 +300,7 @@ class Simulation:
         # the distinct specs in use (a scene of 100k instances has a handful of materials)
         self._specs = list(dict.fromkeys(m for m in (mats.get(i, default_spec) for i in geometry_ids) if m is not None))
         self.effects: list[str] = derive_effects(self._specs, lights)   # the one rule, as the service's summary
+        self._curved = scene_surfaces(scene, {i: mats.get(i, default_spec) for i in geometry_ids}, geometry_ids)
 
     # ------------------------------------------------------------------------------------------ helpers
 
@@ -388,10 +394,13 @@ class Simulation:
         def cells(a):
             return None if a is None else a.reshape(shape + a.shape[1:])
 
-        return GridResult(cells(res.lux), cells(res.stderr), res.photons, res.seconds, res.effects, res.estimator,
-                          res.stop_reason, res.batches, res.rejected, res.counters, res.compile_seconds, res.nm,
-                          cells(res.spectral_irradiance), cells(res.spectral_stderr), cells(res.cie_xy),
-                          cells(res.stokes), cells(res.stokes_stderr), cells(res.dop), res.cost)
+        out = GridResult(cells(res.lux), cells(res.stderr), res.photons, res.seconds, res.effects, res.estimator,
+                         res.stop_reason, res.batches, res.rejected, res.counters, res.compile_seconds, res.nm,
+                         cells(res.spectral_irradiance), cells(res.spectral_stderr), cells(res.cie_xy),
+                         cells(res.stokes), cells(res.stokes_stderr), cells(res.dop), res.cost)
+        if res.error_budget is not None:
+            out.error_budget = {name: cells(v) for name, v in res.error_budget.items()}
+        return out
 
     # ------------------------------------------------------------------------------------------ engine
 
@@ -423,6 +432,13 @@ class Simulation:
             res = self._backward(is_grid, centers, normals, radius, grid, budget, int(seed), effects, progress,
                                  cancel, t0)
         res.cost = cost_of(res.lux, res.stderr, res.photons, res.seconds - res.compile_seconds)
+        if self._curved:
+            if is_grid:
+                cell_centres, cell = grid_cells(centers, *grid)
+                budget_lux = lux_budget(res.lux, cell_centres, self._curved, cell=cell)
+            else:
+                budget_lux = lux_budget(res.lux, centers, self._curved, radius=radius)
+            res.error_budget = {"tessellation": budget_lux}
         return res
 
     def _loop(self, run_round, n_bins, per_batch, budget, progress, cancel, t0, n_stop=None):

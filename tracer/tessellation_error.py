@@ -1,0 +1,255 @@
+"""The tessellation error budget (DESIGN.md, "Accuracy is a quantity"): how far a tessellated curved optical
+surface may be from the true one, and how far that may move the illuminance an answer reports.
+
+Contract
+--------
+Geometry, in the mesh's own units (`SurfaceError`):
+
+- ``position``: a bound on the distance of any point of the mesh from the true surface (the sagitta);
+- ``normal``: a bound on the angle (rad) between the normal the tracer reflects and refracts about and the true
+  normal at the nearest surface point. Where the mesh has vertex normals (`cad_adapter.tessellate` writes the
+  B-rep's own, exact at the vertices) the tracer uses the interpolated vertex normal (`tracer.optics.surfaces.base.
+  specular_normal`), and that is what is bounded;
+- ``curvature``: the largest normal curvature, 1/units (0 for a flat surface).
+
+Two sources, both plain numpy (nothing here runs per photon):
+
+- `from_settings(linear, angular, radius)`: from the deflections the mesh was made with (OCCT's
+  ``BRepMesh_IncrementalMesh``; linear ``d`` in the mesh's units, angular ``a`` in rad) and the surface's smallest
+  radius of curvature ``R``. OCCT refines until the chord–arc distance at the points it checks is at most ``d`` and
+  the normals at neighbouring nodes differ by at most ``a``; a triangle spans two parametric directions, so its
+  diagonal may turn the normal by √2·a, an arc of sagitta R(1 − cos(a/√2)). OCCT does not check every point of a
+  triangle: measured on a cadquery sphere of radius 10, the mesh lies up to 2.08·d from it (d ≤ 0.01, triangles
+  by the seam whose long edge OCCT left with a midpoint sagitta of 2.07·d), 1.3·d at d = 0.02, and under 0.8·d on
+  a paraboloid (tests/tracer/test_tessellation_error.py). So position ≤ `OCCT_EXCESS` · min(d, R(1 − cos(a/√2)))
+  with OCCT_EXCESS = 2.5: an empirical constant with a margin over the 2.08 measured, not a proof. The normal
+  spread over a triangle is ψ ≤ min(√2·a, 2·acos(1 − position/R)), and the normal error at most ψ (below).
+- `from_mesh(vertices, triangles, normals)`: for a mesh pushed alone (no settings known), from its vertex normals.
+  Per triangle, ψ is the largest angle between two of its vertex normals and ℓ its longest edge; an arc whose
+  normal turns by ψ over a chord ℓ lies at most (ℓ/2)·tan(ψ/4) off the chord. Inside a triangle whose vertices lie
+  on a sphere the largest distance is at the circumcentre, ρ²/2R (ρ the circumradius), against (ℓ/2)²/2R at the
+  midpoint of the longest edge; ρ ≤ ℓ/√3 in an acute triangle (in an obtuse one the largest distance is on an
+  edge), so the interior exceeds the edge by at most 4/3, and position ≤ max over triangles of
+  4/3 · (ℓ/2) tan(ψ/4) ≈ ℓψ/6 (measured: 1.04× to 1.48× the true distance on the sphere and the paraboloid).
+  The first candidate, θ = the angle between
+  the facet normal and the vertex normals (sagitta ≈ ℓθ/4), was measured and dropped: on the thin triangles OCCT
+  makes at a pole or an apex the facet normal of a float32 triangle is noise (θ = 1.9 rad on a 1.6e-4 mm² sliver
+  at a paraboloid's apex, and 0.83 rad on a sphere where the true error is 0), while the vertex normals the
+  tracer actually uses stay within ψ = 0.03 rad. The interpolated normal and the true normal both lie within the
+  cone of the three vertex normals (the surface bends one way over a triangle), so normal ≤ ψ. That bound is first
+  order and the interpolated normal's error second order: on the paraboloid it is 0.1–0.2 ψ², so ψ is 13× to 250×
+  the measured error (and on a sphere the interpolated normal is exact: p/|p| at every point of a facet), which
+  makes the illuminance budget below loose where the normal term dominates. A second-order bound needs the
+  derivative of the curvature, which the mesh gives only noisily; not done. Curvature: the largest angle between
+  the two end normals of an edge over its length.
+
+Both are bounds of the same quantity; where both are known the smaller one holds.
+
+Illuminance (`lux_budget`), lx per query point. A photon that meets the tessellated surface instead of the true
+one meets it up to position/cos(i) further along its path (i ≤ 60° assumed: ≤ 2·position) and turns about a normal
+that is off by up to normal + curvature·2·position (the normal error, and the true normal's own change over that
+displacement). Reflection doubles an angle error; refraction turns the ray by less than the normal's tilt when it
+enters glass and by (n cos i / cos t − 1) × tilt when it leaves it, at most 2× except within a few degrees of
+total internal reflection, so 2× is taken for both. A photon therefore lands, at a distance L from the surface, at
+most Δ = m · (2·position + 2·(normal + 2·curvature·position)·L) from where the true surface would have sent it,
+with m the interactions per passage (1 for a mirror, 2 for a solid of glass: in and out) and L the largest
+distance from the receiver to the surface's bounding box. Moving every photon by at most Δ changes the flux into a
+receiver only through those landing within Δ of its rim: for a disk of radius r a band of area
+π((r + Δ)² − max(r − Δ, 0)²), for a w × h cell (w + 2Δ)(h + 2Δ) − max(w − 2Δ, 0)·max(h − 2Δ, 0). Taking the
+illuminance over that band to be the receiver's own |E| (the field varies little over Δ near the rim: stated,
+not proven; at a focus smaller than the receiver the band is darker and the bound loose), the value may move by
+
+    budget = |E| × band area / receiver area.
+
+All the light at the point is treated as having met the surface (conservative where some did not). Several curved
+surfaces add their Δ. The Fresnel split (reflect or refract) also changes with the angle; that second-order term
+is left out.
+
+Measured (tests/tracer/test_tessellation_error.py, a paraboloid mirror of focal length 0.25 m and rim 0.5 m under a
+collimated beam, disks of radius 5 cm, 400k photons): at the focus the coarse dish (linear 1 cm, angular 0.5)
+gives 71,554 ± 37 lx against 81,000 through the fine one (0.5 mm, 0.05), a gap of 9,446 lx, and a budget of
+6.8e6 lx; beyond the focus gaps of 6.5 and 8.5 lx (within noise) against budgets of 7.3e4 and 7.1e4. The budget
+holds and is loose by two orders of magnitude: Δ ≈ 0.34 m against a 5 cm receiver, almost all of it the
+first-order normal term 2ψL (ψ = 0.26 rad where the interpolated normal is off by ~0.01).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+INTERIOR = 4.0 / 3.0          # a triangle's interior sagitta over its edges' (sphere, circumcentre argument)
+OCCT_EXCESS = 2.5             # OCCT's mesh distance over its linear deflection: 2.08 measured (module docstring)
+INCIDENCE_FACTOR = 2.0        # 1 / cos(60°): the path excess over a sagitta at the largest incidence assumed
+TURN_FACTOR = 2.0             # ray turn per normal error: exact for reflection, refraction away from TIR
+FLAT = 1e-6                   # rad: a mesh whose vertex normals spread less than this is flat (float32 noise)
+
+
+@dataclass(frozen=True)
+class SurfaceError:
+    """Bounds on a tessellation's error (mesh units; see the module docstring).
+
+    position : float — distance of the mesh from the true surface; normal : float, rad — error of the normal the
+    tracer uses; curvature : float, 1/units — largest normal curvature.
+    """
+
+    position: float
+    normal: float
+    curvature: float
+
+    @property
+    def curved(self) -> bool:
+        return self.curvature > 0.0 and self.normal > FLAT
+
+    def tighter(self, other: SurfaceError) -> SurfaceError:
+        """Both bound the same mesh: the smaller of each (curvature: the larger estimate, it is not a bound)."""
+        return SurfaceError(min(self.position, other.position), min(self.normal, other.normal),
+                            max(self.curvature, other.curvature))
+
+
+
+def from_settings(linear: float, angular: float, radius: float) -> SurfaceError:
+    """Bounds from OCCT's deflections: linear ``d`` (mesh units), angular ``a`` (rad) and the surface's smallest
+    radius of curvature ``radius`` (mesh units; inf for a flat one). See the module docstring for the derivation."""
+    for name, v in (("linear", linear), ("angular", angular), ("radius", radius)):
+        if not v > 0:
+            raise ValueError(f"{name} must be > 0, got {v!r}")
+    if math.isinf(radius):
+        return SurfaceError(0.0, 0.0, 0.0)
+    position = OCCT_EXCESS * min(linear, radius * (1.0 - math.cos(angular / math.sqrt(2.0))))
+    spread = min(math.sqrt(2.0) * angular, 2.0 * math.acos(max(-1.0, 1.0 - position / radius)))
+    return SurfaceError(position, spread, 1.0 / radius)
+
+
+def _angles(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angles between unit vectors (…, 3), accurate for small ones (atan2 of |a×b| and a·b)."""
+    return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1))
+
+
+def from_mesh(vertices, triangles, normals) -> SurfaceError:
+    """Bounds from a mesh's vertex normals (a mesh pushed alone). vertices (n, 3), triangles (m, 3) int,
+    normals (n, 3) (any length; zero rows are ignored). See the module docstring for the derivation."""
+    v = np.asarray(vertices, np.float64)
+    t = np.asarray(triangles, np.int64)
+    n = np.asarray(normals, np.float64)
+    if v.ndim != 2 or v.shape[1] != 3 or n.shape != v.shape or t.ndim != 2 or t.shape[1] != 3:
+        raise ValueError(f"expected vertices (n, 3), normals (n, 3), triangles (m, 3); got {v.shape}, {n.shape}, "
+                         f"{t.shape}")
+    if len(t) == 0:
+        return SurfaceError(0.0, 0.0, 0.0)
+    ln = np.linalg.norm(n, axis=1, keepdims=True)
+    n = np.where(ln > 0, n / np.where(ln > 0, ln, 1.0), 0.0)
+    nt, pt = n[t], v[t]                                        # (m, 3, 3)
+    ok = np.all(np.linalg.norm(nt, axis=2) > 0.5, axis=1)      # triangles with three usable normals
+    if not ok.any():
+        return SurfaceError(0.0, 0.0, 0.0)
+    nt, pt = nt[ok], pt[ok]
+    nxt = [1, 2, 0]
+    spread_e = _angles(nt, nt[:, nxt])                          # (m, 3): the angle across each edge
+    length_e = np.linalg.norm(pt - pt[:, nxt], axis=2)
+    spread = spread_e.max(axis=1)                               # ψ per triangle
+    longest = length_e.max(axis=1)
+    position = float(np.max(INTERIOR * 0.5 * longest * np.tan(spread / 4.0)))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        kappa = np.where(length_e > 0, spread_e / np.where(length_e > 0, length_e, 1.0), 0.0)
+    normal = float(spread.max())
+    if normal <= FLAT:
+        return SurfaceError(0.0, 0.0, 0.0)
+    return SurfaceError(position, normal, float(kappa.max()))
+
+
+def shift(err: SurfaceError, distance, interactions: int = 1) -> np.ndarray:
+    """Δ: how far a photon may land from where the true surface would send it, at `distance` (any shape, world
+    units) from the surface; `err` in world units. See the module docstring."""
+    L = np.asarray(distance, np.float64)
+    tilt = err.normal + err.curvature * INCIDENCE_FACTOR * err.position
+    return interactions * (INCIDENCE_FACTOR * err.position + TURN_FACTOR * tilt * L)
+
+
+def rim_fraction(delta, radius: float | None = None, cell: tuple[float, float] | None = None) -> np.ndarray:
+    """The area within `delta` (any shape) of a receiver's rim over the receiver's area: a disk of `radius`, or a
+    rectangular `cell` (w, h)."""
+    d = np.asarray(delta, np.float64)
+    if (radius is None) == (cell is None):
+        raise ValueError("give a disk radius or a cell (w, h), one of them")
+    if radius is not None:
+        r = float(radius)
+        return ((r + d) ** 2 - np.maximum(r - d, 0.0) ** 2) / (r * r)
+    w, h = (float(x) for x in cell)  # type: ignore[union-attr]
+    return ((w + 2 * d) * (h + 2 * d) - np.maximum(w - 2 * d, 0.0) * np.maximum(h - 2 * d, 0.0)) / (w * h)
+
+
+@dataclass(frozen=True)
+class CurvedSurface:
+    """A curved optical surface in the scene: its error in world units, its world bounding box (2, 3) and the
+    interactions a photon has with it per passage (1 mirror, 2 glass solid)."""
+
+    error: SurfaceError
+    bounds: np.ndarray
+    interactions: int
+
+
+def farthest(points: np.ndarray, bounds: np.ndarray) -> np.ndarray:
+    """Largest distance from each point (k, 3) to the box `bounds` (2, 3): to its farthest corner."""
+    b = np.asarray(bounds, np.float64)
+    p = np.asarray(points, np.float64)
+    far = np.maximum(np.abs(p - b[0]), np.abs(p - b[1]))
+    return np.linalg.norm(far, axis=-1)
+
+
+def lux_budget(lux, points, surfaces: Sequence[CurvedSurface], radius: float | None = None,
+               cell: tuple[float, float] | None = None) -> np.ndarray:
+    """How far each value may move when the curved surfaces are tessellated finely enough, lx.
+
+    lux : (k,) the answer's values; points : (k, 3) receiver centres (world); surfaces : the scene's curved
+    optical surfaces; radius (disk receivers) or cell (w, h) (a grid's cells), world units. Returns (k,) ≥ 0.
+    """
+    e = np.abs(np.asarray(lux, np.float64)).ravel()
+    p = np.asarray(points, np.float64).reshape(-1, 3)
+    delta = np.zeros(len(p))
+    for s in surfaces:
+        delta += shift(s.error, farthest(p, s.bounds), s.interactions)
+    return e * rim_fraction(delta, radius=radius, cell=cell)
+
+
+def scene_surfaces(scene, spec_of: dict, instances) -> list[CurvedSurface]:
+    """The curved optical surfaces of a committed `tracer.Scene`: instances whose material reflects specularly
+    (effect ``specular``: one interaction per passage) or refracts (``fresnel``: a solid, two) and whose mesh has
+    vertex normals that spread (`from_mesh`). spec_of : {instance id: material spec}; instances : the ids to look
+    at. Errors in world units: the mesh's scaled by the instance transform's largest singular value (its
+    curvature by the smallest)."""
+    from tracer.optics.surfaces.dispatch import effects_of
+
+    per_geometry: dict[str, SurfaceError] = {}
+    out = []
+    for i in instances:
+        spec = spec_of.get(i)
+        if spec is None:
+            continue
+        fx = effects_of([spec])
+        interactions = 2 if "fresnel" in fx else 1 if "specular" in fx else 0
+        if not interactions:
+            continue
+        gid = scene.instance_geometry(i)
+        if gid not in per_geometry:
+            v, t, n = scene.geometry_arrays(gid)
+            per_geometry[gid] = SurfaceError(0.0, 0.0, 0.0) if n is None else from_mesh(v, t, n)
+        err = per_geometry[gid]
+        if not err.curved:
+            continue
+        sv = np.linalg.svd(scene.instance_transform(i)[:3, :3], compute_uv=False)
+        world = SurfaceError(err.position * float(sv[0]), err.normal,
+                             err.curvature / float(sv[-1]) if sv[-1] > 0 else math.inf)
+        out.append(CurvedSurface(world, scene.instance_bounds(i), interactions))
+    return out
+
+
+def grid_cells(origin, u, v, nu: int, nv: int) -> tuple[np.ndarray, tuple[float, float]]:
+    """Centres (nv·nu, 3), row j = v-cell j as a grid's lux, and the (w, h) of the cells of origin + s u + t v."""
+    o, uu, vv = (np.asarray(x, np.float64) for x in (origin, u, v))
+    jj, ii = np.divmod(np.arange(nu * nv), nu)
+    centres = o + ((ii + 0.5) / nu)[:, None] * uu + ((jj + 0.5) / nv)[:, None] * vv
+    return centres, (float(np.linalg.norm(uu)) / nu, float(np.linalg.norm(vv)) / nv)
