@@ -43,9 +43,12 @@ def serve(
     token: Annotated[str | None, typer.Option(
         envvar="LUMENLINK_TOKEN", help="Bearer token every request must carry (Authorization: Bearer …); "
                                        "required with a --host beyond loopback.")] = None,
+    dask: Annotated[str | None, typer.Option(
+        envvar="LUMENLINK_DASK_SCHEDULER", help="Run the photon batches on the Dask cluster whose scheduler is at "
+                                                "this address (tcp://host:8786); the answers are the same.")] = None,
 ) -> None:
     """Start the REST service (uvicorn)."""
-    _call("service.server", "run", 5, host=host, port=port, data_dir=data_dir, warm=warm, token=token)
+    _call("service.server", "run", 5, host=host, port=port, data_dir=data_dir, warm=warm, token=token, dask=dask)
 
 
 @app.command()

@@ -46,7 +46,9 @@ def create_app(settings: Settings | None = None, scene_factory: Callable[[], Any
     install_handlers(app)
 
     app.state.kernels = None
-    if settings.warm_kernels:  # compile the query kernels in a child process, on the other core (tracer.warmup)
+    # compile the query kernels in a child process, on the other core (tracer.warmup); with a Dask cluster the
+    # workers compile their own, and this process runs no batch
+    if settings.warm_kernels and not settings.dask_scheduler:
         from tracer.warmup import start_background
 
         app.state.kernels = start_background()

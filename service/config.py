@@ -41,6 +41,13 @@ class Settings(BaseSettings):
     token: str | None = Field(default=None, min_length=16, description=(
         "Bearer token every request but /health, /docs, /redoc and /openapi.json must carry "
         "(`Authorization: Bearer …`); required when the service listens beyond loopback."))
+    dask_scheduler: str | None = Field(default=None, pattern=r"^[a-z0-9+]+://\S+$", description=(
+        "Address of a Dask scheduler (`tcp://host:8786`): the photon batches of every query, sensor simulation "
+        "and job then run as tasks on its workers (`tracer.backends`), with the same answers; unset: in this "
+        "process."))
+    dask_timeout: float = Field(default=10.0, gt=0, le=600, description=(
+        "Seconds to wait for the Dask scheduler (to connect, or for a stalled round to move) before a query "
+        "is answered 503."))
     warm_kernels: bool = Field(default=False, description="Compile the query kernels in a child process from the "
                                                           "start (`tracer.warmup`; `lumenlink serve` turns it on).")
 

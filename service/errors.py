@@ -9,6 +9,7 @@ useful, extension members (e.g. ``missing``, ``current_revision``, ``errors``).
 from __future__ import annotations
 
 import logging
+import math
 import uuid
 from typing import Any
 
@@ -69,6 +70,11 @@ class Unavailable(ServiceError):
 
     status = 503
     title = "Service unavailable"
+
+    def __init__(self, detail: str, **extensions: Any) -> None:
+        super().__init__(detail, **extensions)
+        if "retry_after_seconds" in extensions:   # said in the body and, for clients that read it, the header
+            self.headers = {"Retry-After": str(max(1, math.ceil(extensions["retry_after_seconds"])))}
 
 
 def problem(status: int, title: str, detail: str, **extensions: Any) -> JSONResponse:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import os
+import re
 import sys
 from pathlib import Path
 
@@ -11,10 +12,11 @@ LOOPBACK = ("127.0.0.1", "::1", "localhost")
 
 
 def run(host: str = "127.0.0.1", port: int = 8000, data_dir: Path | str = "./var", warm: bool = True,
-        token: str | None = None) -> None:
+        token: str | None = None, dask: str | None = None) -> None:
     """Start uvicorn on `host`:`port` with the data (SQLite file, meshes, BLAS cache) under `data_dir`;
     `warm`: compile the light-transport kernels in the background from the start (`tracer.warmup`); `token`:
-    the bearer token every request must carry (required beyond loopback)."""
+    the bearer token every request must carry (required beyond loopback); `dask`: the address of a Dask scheduler
+    whose workers run the photon batches (`tracer.backends`)."""
     import uvicorn
 
     from service.app import create_app
@@ -26,12 +28,15 @@ def run(host: str = "127.0.0.1", port: int = 8000, data_dir: Path | str = "./var
                    f"LUMENLINK_TOKEN (or --token) to a secret of at least 16 characters, or listen on 127.0.0.1")
     elif token and len(token) < 16:
         problem = "the token must have at least 16 characters"
+    elif dask and not re.fullmatch(r"[a-z0-9+]+://\S+", dask):
+        problem = f"--dask takes a scheduler address such as tcp://127.0.0.1:8786, got {dask!r}"
     if problem:
         print(f"lumenlink serve: {problem}", file=sys.stderr)
         raise SystemExit(2)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     logging.getLogger("alembic").setLevel(logging.WARNING)  # migrations: only say something when it matters
-    settings = Settings(host=host, port=port, data_dir=Path(data_dir), warm_kernels=warm, token=token or None)
+    settings = Settings(host=host, port=port, data_dir=Path(data_dir), warm_kernels=warm, token=token or None,
+                        dask_scheduler=dask or None)
     app = create_app(settings)
     uvicorn.run(app, host=host, port=port, log_level="info", access_log=False, workers=1)
 

@@ -176,6 +176,7 @@ def result_payload(result: Any, revision: int) -> dict[str, Any]:
         "stop_reason": str(result.stop_reason),
         "compile_seconds": float(getattr(result, "compile_seconds", 0.0)),
         "cost": getattr(result, "cost", None),
+        "backend": getattr(result, "backend", None),
         **({"error_budget": {name: _finite_list(v) for name, v in result.error_budget.items()}}
            if getattr(result, "error_budget", None) else {}),
         **_spectral_payload(result),
@@ -220,12 +221,18 @@ class SimulationHub:
         Bounds of every query.
     build : callable(LiveScene) -> Simulation, optional
         How to make a simulation; default `tracer.simulate.Simulation` from the snapshot.
+    dask_scheduler, dask_timeout : optional
+        Run the batches on the Dask cluster at this address (`tracer.backends.DaskBackend`); default in this
+        process. An unreachable cluster answers 503, never hangs.
     """
 
     def __init__(self, live: LiveRegistry, limits: Limits,
                  build: Callable[[LiveScene], Any] | None = None,
-                 scene_lock: Callable[[str], Any] | None = None) -> None:
+                 scene_lock: Callable[[str], Any] | None = None, dask_scheduler: str | None = None,
+                 dask_timeout: float = 10.0) -> None:
         self.live = live
+        self.dask_scheduler, self.dask_timeout = dask_scheduler, dask_timeout
+        self._backend: Any = None
         self._scene_lock = scene_lock or (lambda scene_id: contextlib.nullcontext())
         self.limits = limits
         self.jobs = JobRunner(workers=JOB_WORKERS, max_queued=MAX_QUEUED_JOBS, keep_finished=KEEP_FINISHED_JOBS)
@@ -261,13 +268,24 @@ class SimulationHub:
 
     # -- simulations --------------------------------------------------------------------------
 
-    @staticmethod
-    def _build_default(live: LiveScene) -> Any:
+    def backend(self) -> Any:
+        """Where batches run (`tracer.backends`), made on first use: this process, or the Dask cluster."""
+        with self._lock:
+            if self._backend is None:
+                load_transport()
+                from tracer.backends import IN_PROCESS, DaskBackend
+
+                self._backend = (IN_PROCESS if not self.dask_scheduler else
+                                 DaskBackend(self.dask_scheduler, connect_timeout=self.dask_timeout,
+                                             stall_timeout=self.dask_timeout))
+            return self._backend
+
+    def _build_default(self, live: LiveScene) -> Any:
         simulate = load_transport()
         try:
             materials = {int(k): to_spec(v) for k, v in live.materials.items()}
             return simulate.Simulation(live.tracer, materials, transport_lights(live),
-                                       default_material=to_spec(live.default_material))
+                                       default_material=to_spec(live.default_material), backend=self.backend())
         except ServiceError:
             raise
         except ValueError as exc:  # the transport refuses a body it cannot simulate, saying why
@@ -380,14 +398,22 @@ class SimulationHub:
 
     def shutdown(self) -> None:
         self.jobs.shutdown(wait=1.0)
+        close = getattr(self._backend, "close", None)
+        if close is not None:
+            close()
 
 
 @contextlib.contextmanager
 def _refusals() -> Any:
-    """Map the transport's refusal of a query (a ValueError saying why) to a 422."""
+    """Map the transport's refusal of a query (a ValueError saying why) to a 422, and an unreachable compute
+    backend (`tracer.backends.BackendUnavailable`) to a 503."""
     try:
         yield
     except ServiceError:
+        raise
+    except RuntimeError as exc:
+        if type(exc).__name__ == "BackendUnavailable":
+            raise Unavailable(str(exc), retry_after_seconds=10) from exc
         raise
     except ValueError as exc:
         raise Invalid(f"the light transport refused the query: {exc}") from exc
@@ -440,7 +466,8 @@ def hub_for(app: Any) -> SimulationHub:
 
                 settings = Settings()
             live = app.state.live
-            hub = SimulationHub(live, Limits.from_settings(settings), scene_lock=live.lock)
+            hub = SimulationHub(live, Limits.from_settings(settings), scene_lock=live.lock,
+                                dask_scheduler=settings.dask_scheduler, dask_timeout=settings.dask_timeout)
             app.state.simulation_hub = hub
     return hub
 

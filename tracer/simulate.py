@@ -48,16 +48,13 @@ from the light can stop at 0 early; give it a photon budget.
 from __future__ import annotations
 
 import math
-import threading
 import time
-from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
-import numba
 import numpy as np
 
-from tracer.backward import QueryArrays, backward_batches, disk_queries
+from tracer.backends import IN_PROCESS, DaskBackend, InProcess, Shipment
+from tracer.backward import QueryArrays, disk_queries
 from tracer.effects import EffectError, derive_effects, photon_state, with_forced
 from tracer.estimate import Estimate, cost_of
 from tracer.optics import spectra
@@ -66,7 +63,7 @@ from tracer.optics.lights.dispatch import polarized_lights, spectral_lights
 from tracer.optics.surfaces.dispatch import backward_ok, material_spec, pack_materials
 from tracer.scene import Scene
 from tracer.tessellation_error import grid_cells, lux_budget, scene_surfaces
-from tracer.transport import COUNTERS, SensorArrays, forward_kernel, tally_columns
+from tracer.transport import COUNTERS, SensorArrays, tally_columns
 from tracer.traverse import closest_each
 from tracer.warmup import wait_background
 
@@ -81,33 +78,6 @@ OBSERVABLES = ("spectrum", "stokes")
 MAX_SPECTRAL_TALLIES = 4_000_000   # bins × spectral columns a query may record per batch
 
 _COMPILE_SECONDS: dict[tuple, float] = {}   # first call of each compiled variant in this process
-_POOL: ThreadPoolExecutor | None = None
-_POOL_LOCK = threading.Lock()
-
-
-def _pool() -> ThreadPoolExecutor:
-    global _POOL
-    with _POOL_LOCK:
-        if _POOL is None:
-            _POOL = ThreadPoolExecutor(max(1, numba.config.NUMBA_NUM_THREADS), thread_name_prefix="lumenlink-batch")
-        return _POOL
-
-
-def _run_batches(kernel, *args):
-    """Run batches ``batch0 … batch0 + n_batches − 1`` (the last three arguments: batch0, n_batches, size) of a
-    batch kernel, split into contiguous runs over `numba.get_num_threads()` threads of a pool shared by all
-    queries. The kernels are serial and release the GIL (``nogil=True``): no numba threading layer, so
-    concurrent queries share the cores batch by batch, and no parallel-loop wrapper to compile (9 s of a cold
-    start). Each batch is seeded by its index, so the answer does not depend on the split."""
-    *head, batch0, n_batches, size = args
-    threads = max(1, min(n_batches, numba.get_num_threads()))
-    if threads == 1:
-        return kernel(*head, batch0, n_batches, size)
-    bounds = np.linspace(0, n_batches, threads + 1).astype(int)
-    runs = [_pool().submit(kernel, *head, batch0 + lo, hi - lo, size)
-            for lo, hi in zip(bounds[:-1], bounds[1:], strict=True) if hi > lo]
-    parts = [r.result() for r in runs]
-    return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
 
 class SimulationError(ValueError):
@@ -134,6 +104,8 @@ class IlluminanceResult:
     error_budget : dict or None — ``{"tessellation": (k,) lx}`` where the scene holds curved optical surfaces
     (mirror or glass meshes with vertex normals): how far each value may move when they are tessellated finely
     enough (`tracer.tessellation_error`); None elsewhere.
+    backend : dict — where the batches ran (`tracer.backends`): {"name": "in-process", "threads": n} or
+    {"name": "dask", "address": …, "workers": n, "threads": n}.
     Where the query observes Stokes (`tracer.optics.polarization`): stokes, stokes_stderr (k, 4) — lx, S0 = lux,
     in each receiver's frame (x axis: its `reference` in its plane, taken across each photon's direction);
     dop (k,) — degree of polarization √(S1² + S2² + S3²) / S0 (NaN where nothing arrived).
@@ -159,6 +131,7 @@ class IlluminanceResult:
     dop: np.ndarray | None = None
     cost: dict | None = None
     error_budget: dict | None = None
+    backend: dict | None = None
 
 
 @dataclass
@@ -268,6 +241,8 @@ class Simulation:
         World metres (`tracer.optics.lights`); area lights carry ``"instances"``.
     default_material : material body, optional
         For instances not in `materials`; without it every non-sensor instance needs a material.
+    backend : `tracer.backends.InProcess` or `DaskBackend`, optional
+        Where the batches run; default this process's threads. The answer is the same wherever they run.
 
     Raises
     ------
@@ -275,13 +250,18 @@ class Simulation:
         Saying which body or field is wrong.
     """
 
-    def __init__(self, scene, materials: dict[int, dict], lights: list[dict], default_material: dict | None = None):
+    def __init__(self, scene, materials: dict[int, dict], lights: list[dict], default_material: dict | None = None,
+                 backend: InProcess | DaskBackend | None = None):
         if scene is None or not hasattr(scene, "arrays"):
             raise SimulationError("scene must be a tracer.Scene")
         if getattr(scene, "dirty", False) is True:
             raise SimulationError("the scene has changes that are not committed: call scene.commit() first")
         if not isinstance(materials, dict):
             raise SimulationError(f"materials must be a dict {{instance id: body}}, got {type(materials).__name__}")
+        if backend is not None and not isinstance(backend, InProcess | DaskBackend):
+            raise SimulationError(f"backend must be a tracer.backends backend, got {type(backend).__name__}")
+        self.backend = IN_PROCESS if backend is None else backend
+        self._shipments: dict[str, Shipment] = {}   # the snapshot each kernel reads, per photon state
         self.scene = scene
         self._arrays = scene.arrays()   # the committed scene, read-only from here on
         ids = [int(i) for i in scene.instances()]
@@ -397,7 +377,7 @@ class Simulation:
         out = GridResult(cells(res.lux), cells(res.stderr), res.photons, res.seconds, res.effects, res.estimator,
                          res.stop_reason, res.batches, res.rejected, res.counters, res.compile_seconds, res.nm,
                          cells(res.spectral_irradiance), cells(res.spectral_stderr), cells(res.cie_xy),
-                         cells(res.stokes), cells(res.stokes_stderr), cells(res.dop), res.cost)
+                         cells(res.stokes), cells(res.stokes_stderr), cells(res.dop), res.cost, backend=res.backend)
         if res.error_budget is not None:
             out.error_budget = {name: cells(v) for name, v in res.error_budget.items()}
         return out
@@ -439,7 +419,32 @@ class Simulation:
             else:
                 budget_lux = lux_budget(res.lux, centers, self._curved, radius=radius)
             res.error_budget = {"tessellation": budget_lux}
+        res.backend = self.backend.describe()
         return res
+
+    def _snapshot(self, state: str) -> Shipment:
+        """The read-only scene a kernel takes (arrays, materials, lights packed for the photon state), one
+        `Shipment` per state for the life of this simulation: sent to a cluster's workers once."""
+        if state not in self._shipments:
+            lights = self._lights_spectral if state.endswith("spectral") else self._lights
+            if state.startswith("polarized"):
+                lights = polarized_lights(lights)
+            self._shipments[state] = Shipment((self._arrays, self._mats, lights))
+        return self._shipments[state]
+
+    def _warm(self, kernel_id: tuple, scene: Shipment, query: Shipment) -> float:
+        """Compile (or load from cache) a kernel where it runs, on a one-photon batch; seconds it took, once per
+        process and backend (waiting for a child process that compiles it, `tracer.warmup`, included)."""
+        local = isinstance(self.backend, InProcess)
+        variant = kernel_id if local else (self.backend.name, *kernel_id)
+        if variant in _COMPILE_SECONDS:
+            return 0.0
+        t = time.perf_counter()
+        if local:
+            wait_background(kernel_id[0])
+        self.backend.run(kernel_id, scene, query, 0, 1, 1)
+        _COMPILE_SECONDS.setdefault(variant, time.perf_counter() - t)
+        return _COMPILE_SECONDS[variant]
 
     def _loop(self, run_round, n_bins, per_batch, budget, progress, cancel, t0, n_stop=None):
         """Rounds of batches until a stop rule holds; returns (Estimate, batches, stop_reason, counters).
@@ -507,18 +512,14 @@ class Simulation:
         if budget.max_photons is not None:
             per_batch = int(min(FORWARD_BATCH, max(1, budget.max_photons // (4 * ROUND_BATCHES))))
         state = photon_state(effects)
-        kernel = forward_kernel(state)
-        sa, mats = self._arrays, self._mats
-        lights = self._lights_spectral if state.endswith("spectral") else self._lights
-        if state.startswith("polarized"):
-            lights = polarized_lights(lights)
-        compile_s = _warm(("forward", state), lambda: _run_batches(kernel, sa, ra, mats, lights, sens, n_bins, seed,
-                                                                  0, 1, 1))
+        kernel_id = ("forward", state)
+        scene, query = self._snapshot(state), Shipment((ra, sens, n_bins, seed))
+        compile_s = self._warm(kernel_id, scene, query)
 
         per_area = np.tile(1.0 / area, n_cols)
 
         def run_round(b0, nb):
-            flux, cnt = _run_batches(kernel, sa, ra, mats, lights, sens, n_bins, seed, b0, nb, per_batch)
+            flux, cnt = self.backend.run(kernel_id, scene, query, b0, nb, per_batch)
             return flux * per_area[None, :], cnt
 
         est, batches, stop, counters = self._loop(run_round, n_bins * n_cols, per_batch, budget, progress, cancel, t0,
@@ -553,17 +554,16 @@ class Simulation:
         else:
             q = disk_queries(centers, normals, radius)
             k = len(centers)
-        sa, mats = self._arrays, self._mats
         paths = BACKWARD_BATCH
         per_batch = paths * k
         if budget.max_photons is not None:
             paths = int(min(BACKWARD_BATCH, max(1, budget.max_photons // (4 * ROUND_BATCHES * k))))
             per_batch = paths * k
-        compile_s = _warm(("backward",), lambda: _run_batches(backward_batches, sa, mats, self._lights, q, seed,
-                                                                  0, 1, 1))
+        scene, query = self._snapshot("backward"), Shipment((q, seed))
+        compile_s = self._warm(("backward",), scene, query)
 
         def run_round(b0, nb):
-            return _run_batches(backward_batches, sa, mats, self._lights, q, seed, b0, nb, paths)
+            return self.backend.run(("backward",), scene, query, b0, nb, paths)
 
         est, batches, stop, counters = self._loop(run_round, k, per_batch, budget, progress, cancel, t0)
         cdict = {"rejected": int(counters[0]), "truncated": int(counters[1])}
@@ -597,18 +597,6 @@ def _references(reference, normals: np.ndarray) -> np.ndarray:
         raise SimulationError(f"reference {reference!r} lies along the normal of receiver "
                               f"{int(np.argmax(ln <= 1e-9))}: give an axis in the receiver's plane")
     return x / ln[:, None]
-
-
-def _warm(variant: tuple, call: Callable[[], object]) -> float:
-    """Compile (or load from cache) a kernel variant on a one-photon batch; seconds it took, once per process
-    (waiting for a child process that compiles it, `tracer.warmup`, included)."""
-    if variant in _COMPILE_SECONDS:
-        return 0.0
-    t = time.perf_counter()
-    wait_background(variant[0])
-    call()
-    _COMPILE_SECONDS.setdefault(variant, time.perf_counter() - t)
-    return _COMPILE_SECONDS[variant]
 
 
 def compile_seconds() -> dict[str, float]:

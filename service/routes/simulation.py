@@ -105,6 +105,23 @@ class Cost(BaseModel):
     dark_points: int = Field(description="Points no light reached: no target means anything there.")
 
 
+class Backend(BaseModel):
+    """Where an answer's photon batches ran (`tracer.backends`); the answer is the same wherever they ran."""
+
+    name: Literal["in-process", "dask"] = Field(description="`in-process`: threads of the service's own process; "
+                                                            "`dask`: tasks on a Dask cluster.")
+    threads: int = Field(description="Threads the batches were spread over (all workers' threads for dask).")
+    address: str | None = Field(None, description="The Dask scheduler's address.")
+    workers: int | None = Field(None, description="Dask workers connected when the answer was made.")
+
+
+class ErrorBudget(BaseModel):
+    """Errors beside the Monte Carlo one (`tracer.tessellation_error`), lx per point (per cell for a grid)."""
+
+    tessellation: list[Any] = Field(description="How far each value may move when the curved mirror and glass "
+                                                "surfaces are tessellated finely enough (a bound), lx.")
+
+
 class IlluminanceQuery(_Budget):
     """Body of ``POST /scenes/{id}/illuminance``: receivers at points, facing their normals (metres)."""
 
@@ -154,6 +171,9 @@ class IlluminancePublic(BaseModel):
     cie_xy: list[Any] | None = Field(
         None, description="With observe spectrum: CIE 1931 (x, y) of the light arriving; null where none arrived.")
     cost: Cost | None = Field(None, description="What tighter errors would cost (seconds and photons per target).")
+    backend: Backend | None = Field(None, description="Where the photon batches ran.")
+    error_budget: ErrorBudget | None = Field(None, description="Where the scene has curved mirror or glass meshes: "
+                                                               "the tessellation's share of the error, lx.")
     stokes: list[Any] | None = Field(
         None, description="With observe stokes: [S0, S1, S2, S3] per point, lx (S0 = lux), in the receiver's frame.")
     stokes_stderr: list[Any] | None = Field(None, description="Standard error of each Stokes component, lx.")
@@ -182,6 +202,8 @@ class SensorPublic(BaseModel):
     spectral_stderr: list[Any] | None = None
     cie_xy: list[Any] | None = None
     cost: Cost | None = None
+    backend: Backend | None = None
+    error_budget: ErrorBudget | None = None
     stokes: list[Any] | None = None
     stokes_stderr: list[Any] | None = None
     dop: list[Any] | None = None

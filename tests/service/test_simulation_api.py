@@ -95,8 +95,9 @@ def test_point_source_over_black_floor_follows_inverse_square_cosine_law(world) 
     assert r.status_code == 200, r.text
     a = r.json()
     assert set(a) == {"lux", "stderr", "photons", "seconds", "effects", "revision", "estimator", "stop_reason",
-                      "compile_seconds", "cost"}
+                      "compile_seconds", "cost", "backend"}
     assert 0.0 <= a["compile_seconds"] <= a["seconds"]
+    assert a["backend"]["name"] == "in-process" and a["backend"]["threads"] >= 1
     for (x, y, _), e, s in zip(pts, a["lux"], a["stderr"], strict=True):
         ref = disk_average_lux(x, y, 0.005)
         assert 0 < s <= 0.011 * e or a["stop_reason"] != "target_relative_error"

@@ -1,0 +1,307 @@
+"""Where a query's photon batches run: threads of this process, or tasks on a Dask cluster.
+
+The contract (docs/CONTRACTS.md, "light transport → backends"). A backend runs batches
+``batch0 … batch0 + n_batches − 1`` of a named kernel and returns ``(values, counters)``, numpy arrays
+of shape (n_batches, bins) and (n_batches, counters), in batch order:
+
+    backend.run(kernel_id, scene: Shipment, query: Shipment, batch0, n_batches, size)
+    backend.describe() -> {"name": "in-process", "threads": 2} | {"name": "dask", "address": …, "workers": 2, …}
+
+``kernel_id`` names a kernel that any process with `tracer` can make: ``("forward", photon_state)`` or
+``("backward",)`` (`run_kernel`). A `Shipment` is the read-only data a kernel takes, with a content key:
+the scene's snapshot (committed arrays, materials, lights) is one shipment per revision and photon state,
+the query's receivers another. Each batch is seeded by its index (`tracer.rng`), so however the batches
+are split (threads, tasks, workers, a re-run after a lost worker) the values are bit-identical.
+
+`DaskBackend` sends a snapshot to the workers once (``scatter(broadcast=True)``, keyed by its content),
+keeps it there while the backend holds it (the last `DaskBackend.KEEP_SHIPMENTS`), and splits each round
+of batches into one task per worker thread: a task of several batches of 20,000 photons runs for 0.1 s
+or more, far above Dask's ~1 ms per task. A worker compiles (or loads from numba's cache) each kernel
+once, in its own process. A worker lost mid-round has its tasks re-run elsewhere by the scheduler; a
+snapshot lost with it is sent again. An unreachable scheduler raises `BackendUnavailable` within
+`connect_timeout` seconds, never a hang.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import threading
+import time
+import uuid
+from collections import OrderedDict
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+import numba
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+KernelId = tuple[str, ...]
+
+
+class BackendUnavailable(RuntimeError):
+    """The compute backend cannot be reached (the message says which and why); retry later."""
+
+
+class Shipment:
+    """Read-only arguments of a kernel (a tuple of arrays, NamedTuples of arrays and numbers), with a content
+    key computed once: BLAKE2b over every array's dtype, shape and bytes, in order."""
+
+    __slots__ = ("_key", "parts")
+
+    def __init__(self, parts: tuple) -> None:
+        self.parts = parts
+        self._key: str | None = None
+
+    @property
+    def key(self) -> str:
+        if self._key is None:
+            h = hashlib.blake2b(digest_size=16)
+            _digest(h, self.parts)
+            self._key = h.hexdigest()
+        return self._key
+
+
+def _digest(h: Any, obj: Any) -> None:
+    if isinstance(obj, np.ndarray):
+        a = np.ascontiguousarray(obj)
+        h.update(f"{a.dtype.str}{a.shape}".encode())
+        h.update(a.data.cast("B") if a.size else b"")
+    elif isinstance(obj, tuple | list):
+        h.update(f"({type(obj).__name__}{len(obj)}".encode())
+        for item in obj:
+            _digest(h, item)
+    else:
+        h.update(repr(obj).encode())
+
+
+def run_kernel(kernel_id: KernelId, scene: tuple, query: tuple, batch0: int, n_batches: int, size: int):
+    """Run batches of the kernel `kernel_id` here: ``("forward", state)`` takes scene = (scene arrays,
+    materials, lights) and query = (receiver arrays, sensor arrays, bins, seed); ``("backward",)`` takes
+    scene = (scene arrays, materials, lights) and query = (query arrays, seed). Module-level, so a Dask
+    worker runs it by import; the kernel is compiled once per process (numba's dispatcher and disk cache)."""
+    sa, mats, lights = scene
+    if kernel_id[0] == "forward":
+        from tracer.transport import forward_kernel
+
+        ra, sens, n_bins, seed = query
+        return forward_kernel(kernel_id[1])(sa, ra, mats, lights, sens, n_bins, seed, batch0, n_batches, size)
+    if kernel_id[0] == "backward":
+        from tracer.backward import backward_batches
+
+        q, seed = query
+        return backward_batches(sa, mats, lights, q, seed, batch0, n_batches, size)
+    raise ValueError(f"unknown kernel {kernel_id!r}")
+
+
+def _splits(batch0: int, n_batches: int, parts: int) -> list[tuple[int, int]]:
+    """Contiguous (first batch, count) runs of `n_batches` batches over at most `parts` workers."""
+    parts = max(1, min(n_batches, parts))
+    bounds = np.linspace(0, n_batches, parts + 1).astype(int)
+    return [(batch0 + int(lo), int(hi - lo)) for lo, hi in zip(bounds[:-1], bounds[1:], strict=True) if hi > lo]
+
+
+def _join(parts: list) -> tuple[np.ndarray, np.ndarray]:
+    if len(parts) == 1:
+        return parts[0]
+    return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+
+
+class InProcess:
+    """Batches on threads of this process (the embedded default): contiguous runs over
+    `numba.get_num_threads()` threads of one pool shared by all queries. The kernels are serial and release
+    the GIL (``nogil=True``): no numba threading layer, so concurrent queries share the cores batch by
+    batch, and no parallel-loop wrapper to compile (9 s of a cold start)."""
+
+    name = "in-process"
+    _pool: ThreadPoolExecutor | None = None
+    _pool_lock = threading.Lock()
+
+    @classmethod
+    def pool(cls) -> ThreadPoolExecutor:
+        with cls._pool_lock:
+            if cls._pool is None:
+                cls._pool = ThreadPoolExecutor(max(1, numba.config.NUMBA_NUM_THREADS),
+                                               thread_name_prefix="lumenlink-batch")
+            return cls._pool
+
+    def run(self, kernel_id: KernelId, scene: Shipment, query: Shipment, batch0: int, n_batches: int, size: int):
+        runs = _splits(batch0, n_batches, numba.get_num_threads())
+        if len(runs) == 1:
+            return run_kernel(kernel_id, scene.parts, query.parts, batch0, n_batches, size)
+        futures = [self.pool().submit(run_kernel, kernel_id, scene.parts, query.parts, b0, nb, size)
+                   for b0, nb in runs]
+        return _join([f.result() for f in futures])
+
+    def describe(self) -> dict[str, Any]:
+        return {"name": self.name, "threads": int(numba.get_num_threads())}
+
+
+IN_PROCESS = InProcess()
+
+
+class DaskBackend:
+    """Batches as tasks on the Dask cluster whose scheduler listens at `address` (``tcp://host:port``).
+
+    Connects on first use and again after the scheduler went away. `connect_timeout` (s) bounds every
+    wait for the scheduler; `stall_timeout` (s) is how long a round may make no progress while the
+    scheduler is unreachable or has no workers before `BackendUnavailable`."""
+
+    name = "dask"
+    KEEP_SHIPMENTS = 16      # snapshots and queries kept scattered on the workers, most recent first
+    RESEND_TRIES = 3         # a round whose data was lost with a worker is sent again this often
+
+    def __init__(self, address: str, connect_timeout: float = 10.0, stall_timeout: float = 30.0) -> None:
+        if not isinstance(address, str) or "://" not in address:
+            raise ValueError(f"a Dask scheduler address looks like tcp://host:8786, got {address!r}")
+        self.address = address
+        self.connect_timeout = float(connect_timeout)
+        self.stall_timeout = float(stall_timeout)
+        self._client: Any = None
+        self._lock = threading.Lock()
+        self._shipped: OrderedDict[str, Any] = OrderedDict()   # content key -> Future of the scattered parts
+
+    # -- connection -----------------------------------------------------------------------------
+
+    def client(self) -> Any:
+        """The connected `distributed.Client`; `BackendUnavailable` if the scheduler does not answer."""
+        from distributed import Client
+
+        with self._lock:
+            if self._client is not None and self._client.status == "running":
+                return self._client
+            self._drop_client()
+            try:
+                self._client = Client(self.address, timeout=self.connect_timeout, set_as_default=False)
+            except (OSError, TimeoutError) as exc:
+                raise BackendUnavailable(f"the Dask scheduler at {self.address} does not answer ({exc}); start "
+                                         f"it, or serve without --dask to compute in this process") from None
+            return self._client
+
+    def _drop_client(self) -> None:
+        self._shipped.clear()
+        if self._client is not None:
+            client, self._client = self._client, None
+            try:
+                client.close(timeout=2)
+            except Exception:  # noqa: BLE001 - a broken connection may fail to close; it is dropped either way
+                log.debug("closing a broken Dask client failed", exc_info=True)
+
+    def close(self) -> None:
+        with self._lock:
+            self._drop_client()
+
+    def workers(self) -> dict[str, int]:
+        """{worker address: threads} of the cluster now."""
+        info = self.client().scheduler_info(n_workers=-1)
+        return {addr: int(w.get("nthreads", 1)) for addr, w in info.get("workers", {}).items()}
+
+    def describe(self) -> dict[str, Any]:
+        try:
+            workers = self.workers()
+        except BackendUnavailable:
+            workers = {}
+        return {"name": self.name, "address": self.address, "workers": len(workers),
+                "threads": int(sum(workers.values()))}
+
+    # -- data -----------------------------------------------------------------------------------
+
+    def _ship(self, client: Any, shipment: Shipment) -> Any:
+        """The future of `shipment` on the workers, scattered to every worker once per content key."""
+        key = shipment.key
+        with self._lock:
+            future = self._shipped.get(key)
+            if future is not None and future.status == "finished":
+                self._shipped.move_to_end(key)
+                return future
+        name = f"lumenlink-shipment-{key}"
+        future = client.scatter({name: shipment.parts}, broadcast=True, timeout=self.connect_timeout)[name]
+        with self._lock:
+            self._shipped[key] = future
+            self._shipped.move_to_end(key)
+            while len(self._shipped) > self.KEEP_SHIPMENTS:
+                self._shipped.popitem(last=False)
+        return future
+
+    def _forget(self, *shipments: Shipment) -> None:
+        with self._lock:
+            for s in shipments:
+                self._shipped.pop(s.key, None)
+
+    # -- batches --------------------------------------------------------------------------------
+
+    def run(self, kernel_id: KernelId, scene: Shipment, query: Shipment, batch0: int, n_batches: int, size: int):
+        for attempt in range(self.RESEND_TRIES):
+            client = self.client()
+            threads = self._threads_or_wait(client)
+            try:
+                scene_f, query_f = self._ship(client, scene), self._ship(client, query)
+                token = uuid.uuid4().hex
+                futures = [client.submit(run_kernel, kernel_id, scene_f, query_f, b0, nb, size, pure=False,
+                                         key=f"lumenlink-{kernel_id[0]}-{token}-{b0}")
+                           for b0, nb in _splits(batch0, n_batches, threads)]
+                return _join(self._gather(client, futures))
+            except _LostData as exc:
+                # a worker died holding the only copy of something, or the scheduler restarted: send again
+                log.warning("Dask round lost (%s); sending the data again (attempt %d)", exc, attempt + 1)
+                self._forget(scene, query)
+            except OSError as exc:
+                self.close()
+                raise BackendUnavailable(f"the Dask scheduler at {self.address} went away ({exc})") from None
+        raise BackendUnavailable(f"the Dask cluster at {self.address} lost this round's data "
+                                 f"{self.RESEND_TRIES} times; is a worker restarting in a loop?")
+
+    def _threads_or_wait(self, client: Any) -> int:
+        """Worker threads now; waits up to `stall_timeout` for a first worker."""
+        deadline = time.monotonic() + self.stall_timeout
+        while True:
+            threads = sum(int(w.get("nthreads", 1)) for w in client.scheduler_info(n_workers=-1)
+                          .get("workers", {}).values())
+            if threads > 0:
+                return threads
+            if time.monotonic() >= deadline:
+                raise BackendUnavailable(f"the Dask scheduler at {self.address} has no workers "
+                                         f"(waited {self.stall_timeout:g} s); start some with "
+                                         f"`dask worker {self.address}`")
+            time.sleep(0.2)
+
+    def _gather(self, client: Any, futures: list) -> list:
+        """The results of `futures` in order; `BackendUnavailable` when the scheduler stays unreachable (or the
+        cluster workerless) for `stall_timeout` seconds, `_LostData` when a task's input went with a worker."""
+        from distributed import KilledWorker
+        from distributed.client import FutureCancelledError
+
+        out = []
+        stalled_since: float | None = None
+        for f in futures:
+            while True:
+                try:
+                    out.append(f.result(timeout=0.5))
+                    break
+                except TimeoutError:
+                    pass
+                except (FutureCancelledError, KilledWorker) as exc:
+                    raise _LostData(f"{type(exc).__name__}: {exc}") from None
+                healthy = client.status == "running" and bool(client.scheduler_info().get("workers"))
+                if healthy:
+                    stalled_since = None
+                elif stalled_since is None:
+                    stalled_since = time.monotonic()
+                elif time.monotonic() - stalled_since > self.stall_timeout:
+                    for g in futures:
+                        g.cancel()
+                    self.close()
+                    raise BackendUnavailable(f"the Dask cluster at {self.address} made no progress for "
+                                             f"{self.stall_timeout:g} s (scheduler gone or no workers)")
+        return out
+
+
+class _LostData(RuntimeError):
+    """A task's input went away with a worker (internal: the round is sent again)."""
+
+
+def backend_for(address: str | None) -> InProcess | DaskBackend:
+    """The in-process backend, or a Dask one for a scheduler address (``LUMENLINK_DASK_SCHEDULER``)."""
+    return IN_PROCESS if not address else DaskBackend(address)
