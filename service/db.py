@@ -2,7 +2,10 @@
 
 Tables (one row per thing, keyed by scene):
 
-- ``scenes``: id, name (unique), current revision, the document's length unit and source.
+- ``scenes``: id, name (unique), current revision, the document's length unit and source, and
+  ``assign_revision``: a counter bumped by every change that keeps the revision (an assignment, an
+  identity-only push), so that several service processes on one database can tell, with one SELECT of
+  ``(revision, assign_revision)``, whether what they hold in memory is behind (`service.state`).
 - ``revisions``: one row per accepted push that changed something (the diff summary, seconds).
 - ``nodes``: the current tree, one row per node uuid; a push writes only the rows that changed.
   Transforms are 16 little-endian float64 (exact round trip).
@@ -37,6 +40,7 @@ from sqlalchemy import (
     create_engine,
     event,
     func,
+    text,
 )
 
 metadata = MetaData()
@@ -46,6 +50,7 @@ scenes = Table(
     Column("id", String(36), primary_key=True),
     Column("name", String(200), nullable=False, unique=True),
     Column("revision", Integer, nullable=False, default=0),
+    Column("assign_revision", Integer, nullable=False, server_default="0"),
     Column("length_unit", String(8), nullable=True),
     Column("source", JSON, nullable=True),
     Column("created_at", DateTime(timezone=True), nullable=False, server_default=func.now()),
@@ -122,6 +127,7 @@ sim_objects = Table(
 )
 
 MIGRATIONS = Path(__file__).resolve().parent / "migrations"
+MIGRATION_LOCK = 0x4C756D656E   # PostgreSQL advisory lock key held while migrating ("Lumen")
 
 
 def _sqlite_pragmas(dbapi_connection, _record) -> None:  # pragma: no cover - trivial
@@ -133,8 +139,18 @@ def _sqlite_pragmas(dbapi_connection, _record) -> None:  # pragma: no cover - tr
     cur.close()
 
 
+def engine_url(url: str) -> str:
+    """`url` with PostgreSQL's plain schemes (``postgresql://``, ``postgres://``) naming the driver this
+    project installs (psycopg 3: ``postgresql+psycopg://``); SQLAlchemy would otherwise look for psycopg2."""
+    for plain in ("postgresql://", "postgres://"):
+        if url.startswith(plain):
+            return "postgresql+psycopg://" + url[len(plain):]
+    return url
+
+
 def open_engine(url: str, migrate: bool = True) -> Engine:
     """An engine for `url` (SQLite gets WAL, foreign keys, a busy timeout), migrated to the latest schema."""
+    url = engine_url(url)
     is_sqlite = url.startswith("sqlite")
     engine = create_engine(url, connect_args={"check_same_thread": False} if is_sqlite else {},
                            pool_pre_ping=not is_sqlite)
@@ -153,5 +169,10 @@ def upgrade(engine: Engine) -> None:
     cfg = Config(str(MIGRATIONS / "alembic.ini"))
     cfg.set_main_option("script_location", str(MIGRATIONS))
     with engine.begin() as connection:
+        if connection.dialect.name == "postgresql":
+            # several service processes starting at once on one database migrate one after the other:
+            # the lock lasts until this transaction commits (PostgreSQL's DDL is transactional), and
+            # the next process then finds the schema at head
+            connection.execute(text("SELECT pg_advisory_xact_lock(:key)"), {"key": MIGRATION_LOCK})
         cfg.attributes["connection"] = connection
         command.upgrade(cfg, "head")

@@ -15,6 +15,10 @@ in place (and commits before it lets go of the scene's lock), so a long query sh
 `revision` with `LiveRegistry.revision(scene_id)` when it ends if it wants to know that its
 answer is stale. ``LiveRegistry.lock(scene_id)`` is that lock (re-entrant): hold it while taking
 ``tracer.arrays()`` or copying the scene, to never see a scene between a change and its commit.
+
+With several service processes on one database, `get`, `revision` and `lock` first bring the scene up to
+date with what the others committed (one SELECT; `service.state.SceneManager.state`), and a scene changed
+through another process notifies the listeners here like a change made through this one.
 """
 
 from __future__ import annotations

@@ -21,6 +21,15 @@ objects, all keyed by uuid). Every change runs under the scene's lock:
   way and answers what the push would do, changing nothing.
 - after a restart a scene is loaded on first use: tree, identity records, assignments, and a tracer
   scene whose bottom levels come from the BLAS cache under the data directory (none rebuilt if intact).
+- several service processes may share one database (and one data directory: the mesh store and the
+  BLAS cache). Every use of a scene (`state`) compares ``(revision, assign_revision)`` in the database
+  with the scene in memory — one SELECT of one row — and catches up when the database is ahead: a newer
+  revision reloads the scene as after a restart; a newer ``assign_revision`` (another process changed an
+  assignment or only identity records) reloads those tables in place and moves sim objects' instances.
+  Listeners hear of it as of any change. Each change is guarded in its own transaction: a push by
+  ``UPDATE … WHERE revision = old`` (the loser gets 409 and its scene is reloaded), an assignment by
+  ``UPDATE … WHERE revision = r AND assign_revision = a`` (on a lost race the scene is reloaded and the
+  change tried again on it).
 
 Domain errors are raised as `service.errors` exceptions; the routes stay thin.
 """
@@ -29,6 +38,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import functools
 import gc
 import logging
 import threading
@@ -41,6 +51,7 @@ from typing import Any
 import numpy as np
 from pydantic import TypeAdapter
 from sqlalchemy import Engine, delete, insert, select, update
+from sqlalchemy.exc import IntegrityError
 
 from service import db
 from service.config import Settings
@@ -52,7 +63,7 @@ from service.document import (
     remember,
     same_nodes,
 )
-from service.errors import Conflict, Invalid, NotFound, TooLarge
+from service.errors import Conflict, Invalid, NotFound, TooLarge, Unavailable
 from service.live import DELETED, LiveRegistry, LiveScene
 from service.meshes import MeshStore
 from service.schemas import LENGTH_UNITS, DocumentPush, IdentityIn, Light, Material, ObjectCreate, Sensor
@@ -65,6 +76,34 @@ DEFAULT_MATERIAL: dict[str, Any] = {"type": "lambertian", "reflectance": 0.5}
 material_adapter: TypeAdapter = TypeAdapter(Material)
 light_adapter: TypeAdapter = TypeAdapter(Light)
 sensor_adapter: TypeAdapter = TypeAdapter(Sensor)
+
+
+class _Raced(Exception):
+    """Another service process changed the scene between this process's check and its write."""
+
+    def __init__(self, scene_id: str) -> None:
+        super().__init__(scene_id)
+        self.scene_id = scene_id
+
+
+RACE_TRIES = 3
+
+
+def _retried(method: Callable[..., Any]) -> Callable[..., Any]:
+    """Run an assignment change again on the reloaded scene when another process changed the scene between
+    this one's check and its guarded write (`SceneManager._bump_assignments`); 409 after `RACE_TRIES` tries."""
+
+    @functools.wraps(method)
+    def run(self: SceneManager, scene_id: str, *args: Any, **kwargs: Any) -> Any:
+        for _ in range(RACE_TRIES):
+            try:
+                return method(self, scene_id, *args, **kwargs)
+            except _Raced:
+                self.forget(scene_id)   # memory may be ahead of the database (an object placed): reload it
+        raise Conflict(f"scene {scene_id} kept changing through other service processes during this change "
+                       f"({RACE_TRIES} tries); nothing was changed, try again")
+
+    return run
 
 
 @contextlib.contextmanager
@@ -98,6 +137,7 @@ class SceneState:
     length_unit: str | None
     tree: Tree
     tracer: Any
+    assign_revision: int = 0  # scenes.assign_revision this memory reflects (see service.db)
     instances: dict[str, int] = field(default_factory=dict)  # document node uuid -> instance
     object_instances: dict[str, int] = field(default_factory=dict)  # sim object id -> instance
     geometries: set[str] = field(default_factory=set)  # geometry ids added to `tracer`
@@ -179,15 +219,17 @@ class SceneManager:
 
     def create_scene(self, name: str) -> dict[str, Any]:
         scene_id = str(uuidlib.uuid4())
-        with self.engine.begin() as conn:
-            if conn.execute(select(db.scenes.c.id).where(db.scenes.c.name == name)).first() is not None:
-                raise Conflict(f"a scene named {name!r} exists already")
-            conn.execute(insert(db.scenes).values(id=scene_id, name=name, revision=0))
+        try:
+            with self.engine.begin() as conn:
+                if conn.execute(select(db.scenes.c.id).where(db.scenes.c.name == name)).first() is not None:
+                    raise Conflict(f"a scene named {name!r} exists already")
+                conn.execute(insert(db.scenes).values(id=scene_id, name=name, revision=0))
+        except IntegrityError as exc:  # created by another service process between the check and the insert
+            raise Conflict(f"a scene named {name!r} exists already") from exc
         return {"id": scene_id, "name": name, "revision": 0}
 
     def delete_scene(self, scene_id: str) -> None:
-        state = self.state(scene_id)
-        with state.lock:
+        with self._current(scene_id):
             with self.engine.begin() as conn:
                 for table in (db.materials, db.lights, db.sensors, db.sim_objects, db.node_identity, db.nodes,
                               db.revisions):
@@ -201,40 +243,93 @@ class SceneManager:
         return self.state(scene_id).revision
 
     def state(self, scene_id: str) -> SceneState:
-        """The in-memory scene, loaded from the database on first use (NotFound if there is none)."""
+        """The in-memory scene, current with the database (NotFound if there is none).
+
+        Loaded on first use; afterwards one SELECT compares the scene's ``(revision, assign_revision)``
+        in the database with memory, and a scene another service process changed is brought up to date
+        first (under the scene's lock): reloaded for a newer revision, its assignments reloaded for a newer
+        ``assign_revision``, dropped (NotFound) if it was deleted.
+        """
         state = self._states.get(scene_id)
-        if state is not None:
+        if state is not None and self._version(scene_id) == (state.revision, state.assign_revision):
             return state
-        with self._lock:
-            lock = self._scene_locks.setdefault(scene_id, threading.RLock())
+        lock = self._scene_lock(scene_id)
         with lock:
             state = self._states.get(scene_id)
             if state is None:
                 state = self._load(scene_id, lock)
                 with self._lock:
                     self._states[scene_id] = state
-        return state
+                return state
+            version = self._version(scene_id)
+            if version == (state.revision, state.assign_revision):  # a change by this process, done meanwhile
+                return state
+            if version is None:  # deleted through another process
+                with self._lock:
+                    self._states.pop(scene_id, None)
+                self.live.notify(scene_id, DELETED)
+                raise NotFound(f"no scene {scene_id}")
+            log.info("scene %s changed in the database (revision %d, assignments %d; this process had %d, %d): "
+                     "catching up", scene_id, version[0], version[1], state.revision, state.assign_revision)
+            try:
+                if version[0] == state.revision:
+                    self._reload_assignments(state)
+                else:
+                    state = self._load(scene_id, lock)
+                    with self._lock:
+                        self._states[scene_id] = state
+            except Exception:
+                self.forget(scene_id)
+                raise
+            self.live.notify(scene_id, state.revision)
+            return state
+
+    @contextlib.contextmanager
+    def _current(self, scene_id: str) -> Iterator[SceneState]:
+        """The scene's lock held, and the scene brought up to date under it (for a change)."""
+        with self._scene_lock(scene_id):
+            yield self.state(scene_id)
+
+    def _scene_lock(self, scene_id: str) -> threading.RLock:
+        with self._lock:
+            return self._scene_locks.setdefault(scene_id, threading.RLock())
+
+    def _version(self, scene_id: str) -> tuple[int, int] | None:
+        """``(revision, assign_revision)`` of the scene in the database, or None if it has no row."""
+        with self.engine.connect() as conn:
+            row = conn.execute(select(db.scenes.c.revision, db.scenes.c.assign_revision)
+                               .where(db.scenes.c.id == scene_id)).first()
+        return None if row is None else (row.revision, row.assign_revision)
 
     def forget(self, scene_id: str) -> None:
         """Drop the in-memory scene; the next use reloads it from the database."""
         with self._lock:
             self._states.pop(scene_id, None)
 
+    @staticmethod
+    def _read_assignments(conn: Any, scene_id: str) -> dict[str, Any]:
+        """The scene's assignments and identity records as stored."""
+        out: dict[str, Any] = {
+            "materials": {m.node: m.body for m in conn.execute(select(db.materials)
+                                                               .where(db.materials.c.scene_id == scene_id))},
+            "identity": {r.uuid: IdentityIn.model_validate({"product": r.product, "signature": r.signature})
+                         for r in conn.execute(select(db.node_identity)
+                                               .where(db.node_identity.c.scene_id == scene_id))}}
+        for name, table in (("lights", db.lights), ("sensors", db.sensors), ("objects", db.sim_objects)):
+            out[name] = {r.id: r.body for r in conn.execute(
+                select(table).where(table.c.scene_id == scene_id).order_by(table.c.created_at, table.c.id))}
+        return out
+
     def _load(self, scene_id: str, lock: threading.RLock) -> SceneState:
+        # the scene's row is read first: if another process commits while the rest is read, memory holds
+        # newer rows under an older (revision, assign_revision), and the next `state` reloads again
         with self.engine.connect() as conn:
             row = conn.execute(select(db.scenes).where(db.scenes.c.id == scene_id)).first()
             if row is None:
                 raise NotFound(f"no scene {scene_id}")
             node_rows = conn.execute(select(db.nodes).where(db.nodes.c.scene_id == scene_id)
                                      .order_by(db.nodes.c.position)).all()
-            mats = conn.execute(select(db.materials).where(db.materials.c.scene_id == scene_id)).all()
-            identity = {r.uuid: IdentityIn.model_validate({"product": r.product, "signature": r.signature})
-                        for r in conn.execute(select(db.node_identity)
-                                              .where(db.node_identity.c.scene_id == scene_id))}
-            tables = {}
-            for name, table in (("lights", db.lights), ("sensors", db.sensors), ("objects", db.sim_objects)):
-                tables[name] = {r.id: r.body for r in conn.execute(
-                    select(table).where(table.c.scene_id == scene_id).order_by(table.c.created_at, table.c.id))}
+            stored = self._read_assignments(conn, scene_id)
         unit = row.length_unit or "m"
         transforms = (np.frombuffer(b"".join(r.transform for r in node_rows), dtype="<f8").reshape(-1, 16)
                       if node_rows else np.zeros((0, 16)))
@@ -242,9 +337,9 @@ class SceneManager:
                           transforms, [r.geometry for r in node_rows],
                           [tuple(r.color) if r.color is not None else None for r in node_rows], unit)
         state = SceneState(scene_id, row.name, row.revision, row.length_unit, Tree.empty(unit),
-                           self.new_tracer_scene(), materials={m.node: m.body for m in mats},
-                           lights=tables["lights"], sensors=tables["sensors"], objects=tables["objects"], lock=lock,
-                           identity=identity)
+                           self.new_tracer_scene(), assign_revision=row.assign_revision,
+                           materials=stored["materials"], lights=stored["lights"], sensors=stored["sensors"],
+                           objects=stored["objects"], lock=lock, identity=stored["identity"])
         diff = diff_trees(state.tree, tree)
         state.tree = tree
         apply_to_scene(state.tracer, state.instances, tree, diff, lambda g: self._ensure_geometry(state, g))
@@ -255,12 +350,59 @@ class SceneManager:
                  state.last_commit)
         return state
 
+    def _reload_assignments(self, state: SceneState) -> None:
+        """Bring the assignments and identity records of `state` (tree unchanged) up to the database's, in place:
+        sim objects gone or new get their instances removed or added (one top-level commit if any did)."""
+        with self.engine.connect() as conn:
+            assign_revision = conn.execute(select(db.scenes.c.assign_revision)
+                                           .where(db.scenes.c.id == state.id)).scalar_one()
+            stored = self._read_assignments(conn, state.id)
+        moved = False
+        for oid, body in state.objects.items():
+            if stored["objects"].get(oid) != body:
+                inst = state.object_instances.pop(oid, None)
+                if inst is not None:
+                    state.tracer.remove_instance(inst)
+                    moved = True
+        for oid, body in stored["objects"].items():
+            if oid not in state.object_instances:
+                self._place_object(state, oid, body)
+                moved = moved or oid in state.object_instances
+        if moved:
+            state.last_commit = self._commit(state)
+        state.materials, state.lights, state.sensors = stored["materials"], stored["lights"], stored["sensors"]
+        state.objects, state.identity = stored["objects"], stored["identity"]
+        state.assign_revision = assign_revision
+        state.live = None
+
+    def _bump_assignments(self, conn: Any, state: SceneState) -> None:
+        """In the caller's transaction: count one change that keeps the revision, provided the database still
+        holds the scene as `state` does (else `_Raced`: the caller's transaction rolls back)."""
+        c = db.scenes.c
+        res = conn.execute(update(db.scenes).where(c.id == state.id).where(c.revision == state.revision)
+                           .where(c.assign_revision == state.assign_revision)
+                           .values(assign_revision=state.assign_revision + 1))
+        if res.rowcount != 1:
+            raise _Raced(state.id)
+
     # ------------------------------------------------------------ geometry
 
+    def _look_up_geometries(self, ids: Any) -> None:
+        """Add to the known geometries those of `ids` that another service process stored (one SELECT)."""
+        unknown = list({g for g in ids if isinstance(g, str) and g not in self._known_geometries})
+        if not unknown:
+            return
+        with self.engine.connect() as conn:
+            for i in range(0, len(unknown), 500):
+                self._known_geometries.update(conn.execute(
+                    select(db.geometries.c.id).where(db.geometries.c.id.in_(unknown[i:i + 500]))).scalars())
+
     def known_geometries(self, ids: list[str]) -> set[str]:
+        self._look_up_geometries(ids)
         return {g for g in ids if g in self._known_geometries}
 
     def missing_geometries(self, ids: list[str]) -> list[str]:
+        self._look_up_geometries(ids)
         seen: set[str] = set()
         out = []
         for g in ids:
@@ -272,20 +414,25 @@ class SceneManager:
     def put_geometry(self, gid: str, data: bytes) -> dict[str, Any]:
         """Store an uploaded GLB (idempotent): 400 if it does not hash to `gid`, 422 if it is no valid mesh."""
         mesh = self.meshes.validate_upload(gid, data)
+        self._look_up_geometries([gid])
         created = gid not in self._known_geometries or not self.meshes.has(gid)
         if created:
             self.meshes.write(gid, data, mesh)
-            with self.engine.begin() as conn:
-                exists = conn.execute(select(db.geometries.c.id).where(db.geometries.c.id == gid)).first()
-                if exists is None:
-                    conn.execute(insert(db.geometries).values(
-                        id=gid, n_vertices=len(mesh.vertices), n_triangles=len(mesh.triangles),
-                        has_normals=mesh.normals is not None, size_bytes=len(data)))
+            try:
+                with self.engine.begin() as conn:
+                    exists = conn.execute(select(db.geometries.c.id).where(db.geometries.c.id == gid)).first()
+                    if exists is None:
+                        conn.execute(insert(db.geometries).values(
+                            id=gid, n_vertices=len(mesh.vertices), n_triangles=len(mesh.triangles),
+                            has_normals=mesh.normals is not None, size_bytes=len(data)))
+            except IntegrityError:  # the same mesh stored by another service process at the same moment
+                pass
             self._known_geometries.add(gid)
         return {"id": gid, "vertices": len(mesh.vertices), "triangles": len(mesh.triangles),
                 "normals": mesh.normals is not None, "bytes": len(data), "created": created}
 
     def geometry_glb(self, gid: str) -> bytes:
+        self._look_up_geometries([gid])
         if gid not in self._known_geometries:
             raise NotFound(f"no geometry {gid}")
         return self.meshes.glb(gid)
@@ -293,6 +440,11 @@ class SceneManager:
     def _ensure_geometry(self, state: SceneState, gid: str) -> bool:
         if gid in state.geometries:
             return False
+        if not self.meshes.has(gid):
+            # stored by another service process whose data directory this one does not share
+            raise Unavailable(f"geometry {gid} is in the database but not in this process's mesh store "
+                              f"({self.meshes.root}): every service process on one database must share one data "
+                              f"directory (LUMENLINK_DATA_DIR)", geometry=gid)
         mesh = self.meshes.load(gid)
         got = state.tracer.add_geometry(mesh.vertices, mesh.triangles, mesh.normals)
         if got != gid:
@@ -354,8 +506,7 @@ class SceneManager:
             raise TooLarge(f"the document has {counted} nodes; this service accepts at most "
                            f"{self.settings.max_nodes} (LUMENLINK_MAX_NODES)", limit=self.settings.max_nodes)
         with state.lock, gc_paused():
-            if self._states.get(scene_id) is not state:  # reloaded meanwhile (a failed store)
-                state = self.state(scene_id)
+            state = self.state(scene_id)  # up to date under the lock (changed through another process, reloaded)
             node_bytes = state.node_bytes
             missing: list[str] = []
             doc = same_nodes(body, node_bytes) if node_bytes is not None else None
@@ -442,11 +593,19 @@ class SceneManager:
             if changes is not None:  # only the identity records changed: stored, no new revision
                 try:
                     with self.engine.begin() as conn:
+                        self._bump_assignments(conn, state)
                         _store_identity(conn, state.id, *changes)
+                except _Raced as exc:
+                    self.forget(state.id)
+                    now = self._version(state.id)
+                    current = now[0] if now is not None else None
+                    raise Conflict(f"the scene changed under this push through another service process (now at "
+                                   f"revision {current})", current_revision=current) from exc
                 except Exception:
                     self.forget(state.id)
                     raise
                 state.identity = identity
+                state.assign_revision += 1
             seconds = {"decode": t_decode - t0, "validate": t_validate - t_decode, "diff": t_diff - t_validate,
                        "blas": 0.0, "tlas": 0.0, "commit": 0.0, "store": time.perf_counter() - t_store}
             seconds["total"] = time.perf_counter() - t0
@@ -553,17 +712,20 @@ class SceneManager:
             raise NotFound(f"{what}: no node {node} in scene {state.id} (revision {state.revision})", node=node)
 
     def _changed(self, state: SceneState) -> None:
+        """After a stored assignment change (`_bump_assignments` counted it in the database)."""
+        state.assign_revision += 1
         state.live = None
         self.live.notify(state.id, state.revision)
 
+    @_retried
     def set_material(self, scene_id: str, key: str, body: dict) -> dict[str, Any]:
         material = material_adapter.validate_python(body)
         clean = material.model_dump(exclude_none=True)
-        state = self.state(scene_id)
-        with state.lock:
+        with self._current(scene_id) as state:
             if not state.has_node(key) and key not in state.objects:
                 raise NotFound(f"no node or object {key} in scene {scene_id}", node=key)
             with self.engine.begin() as conn:
+                self._bump_assignments(conn, state)
                 conn.execute(delete(db.materials).where(db.materials.c.scene_id == scene_id)
                              .where(db.materials.c.node == key))
                 conn.execute(insert(db.materials).values(scene_id=scene_id, node=key, body=clean))
@@ -571,12 +733,13 @@ class SceneManager:
             self._changed(state)
         return {"node": key, "material": clean, "orphaned": False}
 
+    @_retried
     def delete_material(self, scene_id: str, key: str) -> None:
-        state = self.state(scene_id)
-        with state.lock:
+        with self._current(scene_id) as state:
             if key not in state.materials:
                 raise NotFound(f"no material assigned to {key} in scene {scene_id}")
             with self.engine.begin() as conn:
+                self._bump_assignments(conn, state)
                 conn.execute(delete(db.materials).where(db.materials.c.scene_id == scene_id)
                              .where(db.materials.c.node == key))
             del state.materials[key]
@@ -592,19 +755,21 @@ class SceneManager:
         return {"light": (db.lights, "lights"), "sensor": (db.sensors, "sensors"),
                 "object": (db.sim_objects, "objects")}[kind]
 
+    @_retried
     def add_assignment(self, scene_id: str, kind: str, body: dict) -> dict[str, Any]:
         """Add a light, sensor or sim-owned object (validated body); answers its public form."""
-        state = self.state(scene_id)
-        with state.lock:
+        body = dict(body)  # a retry (`_retried`) starts again from the body as given
+        with self._current(scene_id) as state:
             anchor = state.anchor_of(body)
             self._check_anchor(state, anchor, kind)
             if kind == "light" and body["type"] == "goniometric":
                 _validate_photometry(body["format"], body["data"])
-            if kind == "object" and body["geometry"] not in self._known_geometries:
+            if kind == "object" and self.missing_geometries([body["geometry"]]):
                 raise Invalid(f"geometry {body['geometry']} is not uploaded (PUT /geometries/{{id}} first)",
                               missing=[body["geometry"]])
             aid = str(uuidlib.uuid4())
             table, attr = self._table(kind)
+            material = None
             if kind == "object":
                 material = body.pop("material", None)
                 try:
@@ -614,6 +779,7 @@ class SceneManager:
                     self.forget(scene_id)
                     raise
             with self.engine.begin() as conn:
+                self._bump_assignments(conn, state)
                 conn.execute(insert(table).values(id=aid, scene_id=scene_id, body=body))
                 if kind == "object" and material is not None:
                     conn.execute(insert(db.materials).values(scene_id=scene_id, node=aid, body=material))
@@ -639,10 +805,10 @@ class SceneManager:
                 return item
         raise NotFound(f"no {kind} {aid} in scene {scene_id}")
 
+    @_retried
     def delete_assignment(self, scene_id: str, kind: str, aid: str) -> None:
-        state = self.state(scene_id)
         table, attr = self._table(kind)
-        with state.lock:
+        with self._current(scene_id) as state:
             items = getattr(state, attr)
             if aid not in items:
                 raise NotFound(f"no {kind} {aid} in scene {scene_id}")
@@ -656,6 +822,7 @@ class SceneManager:
                         self.forget(scene_id)
                         raise
             with self.engine.begin() as conn:
+                self._bump_assignments(conn, state)
                 conn.execute(delete(table).where(table.c.id == aid))
                 if kind == "object":
                     conn.execute(delete(db.materials).where(db.materials.c.scene_id == scene_id)
@@ -666,8 +833,7 @@ class SceneManager:
 
     def purge_orphans(self, scene_id: str) -> list[dict[str, str]]:
         """Delete every orphaned assignment of the scene; answers what was deleted."""
-        state = self.state(scene_id)
-        with state.lock:
+        with self._current(scene_id) as state:
             gone = state.orphans()
             for o in gone:
                 if o["kind"] == "material":

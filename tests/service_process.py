@@ -3,7 +3,7 @@
     with running_service(tmp_path) as base_url:
         httpx.get(f"{base_url}/health")
 
-The process's output goes to ``<data_dir>/service.log`` (shown in the error if it fails to
+The process's output goes to ``<data_dir>/<log_name>`` (``service.log`` unless told; shown in the error if it fails to
 start). On exit it gets SIGTERM (uvicorn shuts down cleanly) and, if it lingers, SIGKILL.
 """
 
@@ -32,7 +32,7 @@ def free_port() -> int:
 
 @contextlib.contextmanager
 def running_service(data_dir: Path | str, env: dict[str, str] | None = None,
-                    startup_timeout: float = 120.0) -> Iterator[str]:
+                    startup_timeout: float = 120.0, log_name: str = "service.log") -> Iterator[str]:
     """Start ``lumenlink serve --data-dir data_dir`` and yield its base URL once /health answers 200.
 
     Parameters
@@ -40,6 +40,7 @@ def running_service(data_dir: Path | str, env: dict[str, str] | None = None,
     data_dir : the service's data directory (SQLite file, meshes, BLAS cache); created if missing.
     env : extra environment variables, e.g. ``{"LUMENLINK_MAX_BODY_BYTES": "1000"}``.
     startup_timeout : seconds to wait for /health.
+    log_name : the log file's name in `data_dir` (processes sharing one data dir keep their own).
     """
     data_dir = Path(data_dir)
     data_dir.mkdir(parents=True, exist_ok=True)
@@ -49,7 +50,7 @@ def running_service(data_dir: Path | str, env: dict[str, str] | None = None,
     # a test that wants one says so in `env`
     full_env = {**os.environ, "LUMENLINK_WARM_KERNELS": "false", **(env or {})}
     full_env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), full_env.get("PYTHONPATH")]))
-    log_path = data_dir / "service.log"
+    log_path = data_dir / log_name
     with open(log_path, "ab") as log:
         proc = subprocess.Popen(
             [sys.executable, "-m", "lumenlink.cli", "serve", "--host", "127.0.0.1", "--port", str(port),
