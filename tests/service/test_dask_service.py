@@ -13,9 +13,10 @@ import time
 
 import httpx
 import pytest
-from dask_cluster import dask_cluster
 from service_helpers import glb, grid_mesh, make_client, node, translation, uid
 from service_process import ROOT, free_port, running_service
+
+from bench.dask_cluster import dask_cluster
 
 
 def _lit_floor(base: str) -> str:

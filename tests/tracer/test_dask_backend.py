@@ -11,8 +11,8 @@ import time
 
 import numpy as np
 import pytest
-from dask_cluster import dask_cluster
 
+from bench.dask_cluster import dask_cluster
 from tracer.backends import IN_PROCESS, BackendUnavailable, DaskBackend, Shipment
 from tracer.scene import Scene
 from tracer.simulate import Simulation

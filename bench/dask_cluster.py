@@ -1,4 +1,5 @@
-"""A real Dask cluster for tests: a ``dask scheduler`` process and ``dask worker`` processes on loopback.
+"""A real Dask cluster on this machine, for tests and benchmarks: a ``dask scheduler`` process and ``dask worker``
+processes on loopback.
 
     with dask_cluster(workers=2) as cluster:
         DaskBackend(cluster.address)
@@ -13,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import socket
 import subprocess
 import sys
 import time
@@ -20,9 +22,15 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from service_process import ROOT, free_port
-
+ROOT = Path(__file__).resolve().parents[1]
 DASK = str(Path(sys.executable).with_name("dask"))
+
+
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 that nothing listens on right now."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
 
 
 @dataclass
