@@ -152,6 +152,7 @@ class DaskBackend:
     name = "dask"
     KEEP_SHIPMENTS = 16      # snapshots and queries kept scattered on the workers, most recent first
     RESEND_TRIES = 3         # a round whose data was lost with a worker is sent again this often
+    THREADS_TTL = 1.0        # s: how long the cluster's thread count is taken as known
 
     def __init__(self, address: str, connect_timeout: float = 10.0, stall_timeout: float = 30.0) -> None:
         if not isinstance(address, str) or "://" not in address:
@@ -162,6 +163,7 @@ class DaskBackend:
         self._client: Any = None
         self._lock = threading.Lock()
         self._shipped: OrderedDict[str, Any] = OrderedDict()   # content key -> Future of the scattered parts
+        self._threads_seen: tuple[float, int] = (0.0, 0)        # (when, worker threads then)
 
     # -- connection -----------------------------------------------------------------------------
 
@@ -254,11 +256,16 @@ class DaskBackend:
                                  f"{self.RESEND_TRIES} times; is a worker restarting in a loop?")
 
     def _threads_or_wait(self, client: Any) -> int:
-        """Worker threads now; waits up to `stall_timeout` for a first worker."""
+        """Worker threads now (asked of the scheduler at most every `THREADS_TTL` seconds: a round trip of its
+        own); waits up to `stall_timeout` for a first worker."""
+        seen, threads = self._threads_seen
+        if threads > 0 and time.monotonic() - seen < self.THREADS_TTL:
+            return threads
         deadline = time.monotonic() + self.stall_timeout
         while True:
             threads = sum(int(w.get("nthreads", 1)) for w in client.scheduler_info(n_workers=-1)
                           .get("workers", {}).values())
+            self._threads_seen = (time.monotonic(), threads)
             if threads > 0:
                 return threads
             if time.monotonic() >= deadline:

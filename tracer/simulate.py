@@ -33,8 +33,10 @@ the receiver from behind (spawned rays start 2⁻³² × magnitude off the surfa
 
 Estimation: independent batches seeded from (seed, batch index) through the counter-based
 `tracer.rng`; batch sizes depend only on the request, batches are started in rounds of
-`ROUND_BATCHES`, and the stop test runs between rounds, so for the same seed and stop rule (target
-error or photon budget) the answer is bit-identical whatever the number of threads. Standard errors
+`ROUND_BATCHES`, growing to a quarter of the batches run so far (at most `MAX_ROUND_BATCHES`: a long query
+gives a cluster's workers tasks of 0.1 s or more while a stop overshoots its rule by at most a quarter), and the
+stop test runs between rounds, so for the same seed and stop rule (target error or photon budget) the answer is
+bit-identical whatever the number of threads, processes or machines the batches ran on. Standard errors
 are batch means (`tracer.estimate`). A query stops when every point's relative error is at most
 `target_relative_error` (``"target_relative_error"``), at `max_photons` (``"max_photons"``),
 `max_seconds` (``"max_seconds"``) or when `cancel()` is truthy (``"cancelled"``). Without any
@@ -69,7 +71,8 @@ from tracer.warmup import wait_background
 
 DEFAULT_RADIUS = 0.05          # m: disk receiver radius when the query gives none
 DEFAULT_MAX_SECONDS = 30.0     # s: budget of a query that states none
-ROUND_BATCHES = 8              # batches started between two stop tests
+ROUND_BATCHES = 8              # batches started between two stop tests (the first rounds)
+MAX_ROUND_BATCHES = 128        # the largest round, however long the query has run
 MIN_BATCHES = 8                # batches before the error bar is trusted for a target-error stop
 FORWARD_BATCH = 20_000         # photons per forward batch (fewer when max_photons is small)
 BACKWARD_BATCH = 32            # paths per patch per backward batch
@@ -453,7 +456,7 @@ class Simulation:
         batches = 0
         counters = None
         while True:
-            nb = ROUND_BATCHES
+            nb = min(MAX_ROUND_BATCHES, max(ROUND_BATCHES, batches // 4))
             if budget.max_photons is not None:
                 nb = min(nb, max(1, (budget.max_photons - batches * per_batch) // per_batch))
             nb = max(nb, 2 - batches)   # an error bar needs two batches, whatever the budget
