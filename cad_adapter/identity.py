@@ -26,6 +26,7 @@ import hashlib
 import json
 import math
 import os
+import re
 import tempfile
 import time
 import uuid as uuidlib
@@ -45,8 +46,9 @@ from .errors import IdentityError
 from .matching import RULES, ShapeKey, Side, reconcile
 from .tree import UNIT_METRES, Document
 
-SIDECAR_FORMAT = "lumenlink-sidecar-v2"
-OLD_SIDECAR_FORMATS = ("lumenlink-sidecar-v1",)
+SIDECAR_FORMAT = "lumenlink-sidecar-v3"
+#: v1 and v2 numbered every name shared by siblings from [0]; v3 paths follow `service.paths` (first bare, [2], …)
+OLD_SIDECAR_FORMATS = ("lumenlink-sidecar-v1", "lumenlink-sidecar-v2")
 SIDECAR_SUFFIX = ".lumenlink.json"
 MATCH_KINDS = RULES
 
@@ -312,10 +314,23 @@ def load_sidecar(path: str | Path) -> dict:
         if not isinstance(e, dict) or not is_uuid(e.get("uuid")):
             raise IdentityError(f"{p}: entry {e.get('path') if isinstance(e, dict) else e!r} has an invalid uuid "
                                 f"{e.get('uuid') if isinstance(e, dict) else None!r}")
-        if data["format"] != SIDECAR_FORMAT:  # v1: paths and uuids only are trusted
+        if data["format"] == "lumenlink-sidecar-v1":  # v1: paths and uuids only are trusted
             e["signature"], e["world"] = None, None
             e["leaf"] = e.get("world_centroid") is not None
+        if data["format"] != SIDECAR_FORMAT and isinstance(e.get("path"), str):
+            e["path"] = _renumbered(e["path"])
     return data
+
+
+def _renumbered(path: str) -> str:
+    """A path of a v1/v2 sidecar (shared sibling names numbered [0], [1], …) in today's rule ([0] bare, [1] → [2])."""
+    def one(seg: str) -> str:
+        m = re.fullmatch(r"(.*)\[(\d+)\]", seg)
+        if m is None:
+            return seg
+        k = int(m.group(2))
+        return m.group(1) if k == 0 else f"{m.group(1)}[{k + 1}]"
+    return "/".join(one(s) for s in path.split("/"))
 
 
 def write_sidecar(path: str | Path, doc: Document, previous: list[dict] | None = None,

@@ -6,9 +6,9 @@ Conventions
   five times is one :class:`Part` and five :class:`Node` objects with their own transforms.
 * ``Node.transform`` is the 4×4 matrix ``parent_from_node`` (local to the parent), in document units;
   the pushed JSON flattens it row-major. Part geometry lives in the part's own frame.
-* ``Node.path`` is the occurrence path: the names from the root down, joined by ``/``; a name that
-  several siblings share gets ``[k]`` (its rank among those siblings, in document order). It is what a
-  re-import is matched by when the document carries no UUID.
+* ``Node.path`` is the occurrence path: the names from the root down, joined by ``/``; among siblings
+  sharing a name the first (in document order) keeps it bare, the next are ``name[2]``, ``name[3]``… (the
+  service's rule, ``service.paths``). It is what a re-import is matched by when the document carries no UUID.
 """
 
 from __future__ import annotations
@@ -150,22 +150,19 @@ class Document:
 
 
 def assign_paths(doc: Document) -> None:
-    """Fill ``Node.path`` for every node, suffixing ``[k]`` to names shared by siblings.
+    """Fill ``Node.path`` for every node: the service's rule (``service.paths``): among siblings sharing a
+    name the first keeps it bare, the next get ``[2]``, ``[3]``… in document order.
 
     Parameters
     ----------
     doc : Document
         Modified in place; nodes must be ordered parents first.
     """
-    sibling_names: dict[int | None, dict[str, int]] = {}
-    for n in doc.nodes:
-        counts = sibling_names.setdefault(n.parent, {})
-        counts[n.name] = counts.get(n.name, 0) + 1
     seen: dict[tuple[int | None, str], int] = {}
     for n in doc.nodes:
         segment = n.name.replace("/", "\u2215")  # a slash inside a name must not split the path
-        if sibling_names[n.parent][n.name] > 1:
-            k = seen.get((n.parent, n.name), 0)
-            seen[(n.parent, n.name)] = k + 1
+        k = seen.get((n.parent, n.name), 0) + 1
+        seen[(n.parent, n.name)] = k
+        if k > 1:
             segment = f"{segment}[{k}]"
         n.path = segment if n.parent is None else f"{doc.nodes[n.parent].path}/{segment}"

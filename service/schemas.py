@@ -12,9 +12,10 @@ from __future__ import annotations
 import math
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, Strict, StringConstraints, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, Strict, StringConstraints, model_validator
 
 from service import optics
+from service.paths import NODE_REF_PATTERN, is_uuid
 from tracer.optics import spectra
 from tracer.optics.polarization import PolarizationError, light_polarization
 
@@ -23,6 +24,11 @@ GEOMETRY_PATTERN = r"^[0-9a-f]{64}$"
 
 Uuid = Annotated[str, StringConstraints(pattern=UUID_PATTERN, to_lower=True)]
 GeometryId = Annotated[str, StringConstraints(pattern=GEOMETRY_PATTERN)]
+#: a node by its UUID or by its path (`service.paths`); the route resolves a path to the UUID, which is stored
+NodeRef = Annotated[str, StringConstraints(pattern=NODE_REF_PATTERN),
+                    AfterValidator(lambda s: s.lower() if is_uuid(s) else s),
+                    Field(description="a node's UUID, or its path (names from the root joined by `/`, "
+                                      "`name[2]` for the second sibling of that name; `GET /scenes/{id}/nodes`)")]
 Num = Annotated[float, Strict()]  # a JSON number (an integer is fine; a boolean or a string is not)
 Vec3 = tuple[Num, Num, Num]
 Matrix16 = Annotated[list[Num], Field(min_length=16, max_length=16)]
@@ -313,7 +319,7 @@ class _Spectral(Wire):
 
 class _Attachable(_Spectral):
     name: Annotated[str, StringConstraints(max_length=200)] | None = None
-    attached_to: Uuid | None = None  # then positions/directions are in that node's frame, metres
+    attached_to: NodeRef | None = None  # then positions/directions are in that node's frame, metres
 
 
 class _Intensity(_Attachable):
@@ -383,7 +389,7 @@ class CollimatedLight(_Attachable):
 class AreaLight(_Spectral):
     type: Literal["area"]
     name: Annotated[str, StringConstraints(max_length=200)] | None = None
-    node: Uuid  # the node whose surfaces (with its descendants') emit
+    node: NodeRef  # the node whose surfaces (with its descendants') emit
     exitance_lm_m2: Photometric
 
 
@@ -473,7 +479,7 @@ class ObjectCreate(Wire):
     transform: Matrix16 = Field(default_factory=lambda: [1.0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1])
     mesh_unit: LengthUnit = "m"
     name: Annotated[str, StringConstraints(max_length=200)] | None = None
-    attached_to: Uuid | None = None
+    attached_to: NodeRef | None = None
     material: Material | None = None
 
 

@@ -28,6 +28,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from service.paths import occurrence_paths
 from service.schemas import LENGTH_UNITS
 
 # A transform is singular when |det A| falls below this fraction of the product of its column
@@ -199,33 +200,14 @@ class Tree:
         return self.length_unit == other.length_unit and self.records() == other.records()
 
     def paths(self) -> list[str]:
-        """Every node's occurrence path, by the CAD adapter's rule (``cad_adapter.tree.assign_paths``).
+        """Every node's occurrence path, by the rule of `service.paths` (the CAD adapter's too:
+        ``cad_adapter.tree.assign_paths``).
 
-        Names from the root joined by ``/``; a ``/`` inside a name becomes ``∕`` (U+2215); a name
-        shared by several siblings (roots are siblings of each other) gets ``[k]``, its rank among
-        the siblings of that name in document order. O(n).
+        Names from the root joined by ``/``; a ``/`` inside a name becomes ``∕`` (U+2215); among
+        siblings sharing a name (roots are siblings of each other) the first in document order keeps
+        the bare name, the next are ``name[2]``, ``name[3]``…. O(n).
         """
-        n = len(self)
-        counts: dict[tuple[str | None, str], int] = {}
-        keys = list(zip(self.parents, self.names, strict=True))
-        for key in keys:
-            counts[key] = counts.get(key, 0) + 1
-        seen: dict[tuple[str | None, str], int] = {}
-        segments: list[str] = []
-        for key in keys:  # document order
-            segment = key[1].replace("/", "\u2215")
-            if counts[key] > 1:
-                k = seen.get(key, 0)
-                seen[key] = k + 1
-                segment = f"{segment}[{k}]"
-            segments.append(segment)
-        out = [""] * n
-        parent_index = self.parent_index.tolist()
-        for rows in self.levels:  # parents before children
-            for i in rows.tolist():
-                p = parent_index[i]
-                out[i] = segments[i] if p < 0 else f"{out[p]}/{segments[i]}"
-        return out
+        return occurrence_paths(self.uuids, self.parents, self.names)
 
     def subtree(self, uuid: str) -> list[str]:
         """`uuid` and all its descendants (uuids), in document order."""

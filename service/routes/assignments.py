@@ -1,8 +1,9 @@
 """Assignments by UUID: materials, lights, sensors and simulation-owned objects of a scene.
 
-They refer to document nodes by uuid and survive every push; when a push removes their node they
-are *orphaned* (kept, listed, inactive) and live again if the uuid returns. ``DELETE`` purges one;
-``DELETE /scenes/{id}/orphans`` purges every orphan of the scene.
+They refer to document nodes by uuid and survive every push (a node may be named by its path instead,
+`service.paths`: it is resolved to the node's uuid when the call is made, and the uuid is stored); when a push
+removes their node they are *orphaned* (kept, listed, inactive) and live again if the uuid returns. ``DELETE``
+purges one; ``DELETE /scenes/{id}/orphans`` purges every orphan of the scene.
 """
 
 
@@ -10,17 +11,38 @@ from typing import Any
 
 from fastapi import APIRouter, Response
 
-from service.routes.deps import ItemId, Manager, NodeId, SceneId
+from service import paths
+from service.routes.deps import ItemId, Manager, NodeRef, SceneId
 from service.schemas import AssignmentPublic, Light, Material, MaterialPublic, ObjectCreate, OrphanPublic, Sensor
 from service.state import validate_body
 
 router = APIRouter(tags=["assignments"])
 
 
-@router.put("/scenes/{scene_id}/materials/{node}", response_model=MaterialPublic)
-def put_material(scene_id: SceneId, node: NodeId, body: Material, manager: Manager) -> dict[str, Any]:
-    """Assign a material to a node (inherited by its descendants that have none) or to a sim-owned object."""
-    return manager.set_material(scene_id, node.lower(), body.model_dump(exclude_none=True))
+def _node_key(manager: Manager, scene_id: str, ref: str) -> str:
+    """A node (or object) reference as the key assignments are stored under: a UUID as it is, a path resolved."""
+    if paths.is_uuid(ref):
+        return ref.lower()
+    return paths.resolve(manager.nodes(scene_id), ref, scene_id)
+
+
+def _resolve_anchors(manager: Manager, scene_id: str, body: dict[str, Any]) -> dict[str, Any]:
+    """The body with a path in `attached_to` (or an area light's `node`) replaced by that node's uuid."""
+    keys = ["attached_to"] + (["node"] if body.get("type") == "area" else [])
+    refs = {k: body[k] for k in keys if isinstance(body.get(k), str)}
+    if paths.needs_nodes(*refs.values()):
+        nodes = manager.nodes(scene_id)
+        for k, ref in refs.items():
+            body[k] = paths.resolve(nodes, ref, scene_id)
+    return body
+
+
+@router.put("/scenes/{scene_id}/materials/{node:path}", response_model=MaterialPublic)
+def put_material(scene_id: SceneId, node: NodeRef, body: Material, manager: Manager) -> dict[str, Any]:
+    """Assign a material to a node (inherited by its descendants that have none) or to a sim-owned object.
+
+    ``node``: the node's UUID or its path (URL-encoded, or plain: ``car/lens``); the answer names the UUID."""
+    return manager.set_material(scene_id, _node_key(manager, scene_id, node), body.model_dump(exclude_none=True))
 
 
 @router.get("/scenes/{scene_id}/materials", response_model=list[MaterialPublic])
@@ -28,9 +50,9 @@ def list_materials(scene_id: SceneId, manager: Manager) -> list[dict[str, Any]]:
     return manager.list_materials(scene_id)
 
 
-@router.delete("/scenes/{scene_id}/materials/{node}", status_code=204)
-def delete_material(scene_id: SceneId, node: NodeId, manager: Manager) -> Response:
-    manager.delete_material(scene_id, node.lower())
+@router.delete("/scenes/{scene_id}/materials/{node:path}", status_code=204)
+def delete_material(scene_id: SceneId, node: NodeRef, manager: Manager) -> Response:
+    manager.delete_material(scene_id, _node_key(manager, scene_id, node))
     return Response(status_code=204)
 
 
@@ -44,7 +66,7 @@ def _routes(kind: str, plural: str, schema: Any) -> None:
     @router.post(f"/scenes/{{scene_id}}/{plural}", status_code=201, response_model=AssignmentPublic,
                  name=f"add_{kind}")
     def add(scene_id: SceneId, body: schema, manager: Manager) -> dict[str, Any]:  # type: ignore[valid-type]
-        return manager.add_assignment(scene_id, kind, validate_body(kind, body))
+        return manager.add_assignment(scene_id, kind, _resolve_anchors(manager, scene_id, validate_body(kind, body)))
 
     @router.get(f"/scenes/{{scene_id}}/{plural}", response_model=list[AssignmentPublic], name=f"list_{plural}")
     def list_(scene_id: SceneId, manager: Manager) -> list[dict[str, Any]]:

@@ -6,12 +6,16 @@ from typing import Annotated
 
 from fastapi import Depends, Path, Request
 
+from service.paths import NODE_REF_PATTERN
 from service.schemas import GEOMETRY_PATTERN, UUID_PATTERN
 from service.state import SceneManager
 
 # path parameters: their forms, in the OpenAPI document and checked (422 naming the parameter) before any lookup
 SceneId = Annotated[str, Path(pattern=UUID_PATTERN, description="the scene's id, a UUID (POST /scenes answers it)")]
 NodeId = Annotated[str, Path(pattern=UUID_PATTERN, description="a node's UUID, as the CAD adapter pushed it")]
+NodeRef = Annotated[str, Path(pattern=NODE_REF_PATTERN, description=(
+    "a node's UUID, or its path (`service.paths`: names from the root joined by `/`, `name[2]` for the second "
+    "sibling of that name), URL-encoded (`car%2Flens`); also a simulation-owned object's id"))]
 ItemId = Annotated[str, Path(pattern=UUID_PATTERN, description="a light's, sensor's or object's id, a UUID")]
 GeometryPath = Annotated[str, Path(pattern=GEOMETRY_PATTERN, description="a geometry id: 64 lowercase hex digits "
                                                                           "(`tracer.geometry_id`)")]

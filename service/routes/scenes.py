@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Annotated, Any
 
-from fastapi import APIRouter, Request, Response
+from fastapi import APIRouter, Query, Request, Response
 from fastapi.responses import JSONResponse
 from starlette.concurrency import run_in_threadpool
 
+from service import paths
+from service.errors import Invalid
 from service.routes.deps import Manager, SceneId
 from service.schemas import DocumentPush, PushPublic, SceneCreate, SceneListItem, ScenePublic
 
@@ -38,17 +40,35 @@ def delete_scene(scene_id: SceneId, manager: Manager) -> Response:
 
 
 @router.get("/scenes/{scene_id}/nodes")
-def get_nodes(scene_id: SceneId, manager: Manager) -> list[dict[str, Any]]:
+def get_nodes(
+    scene_id: SceneId, manager: Manager,
+    path: Annotated[str | None, Query(pattern=paths.NODE_REF_PATTERN, description=(
+        "Answer the one node at this path (an object, not a list); 404 naming the closest paths if there is "
+        "none."))] = None,
+    name: Annotated[str | None, Query(pattern=paths.NODE_REF_PATTERN, description=(
+        "Only the nodes whose name matches this glob (`*`, `?`, `[abc]`, case-sensitive); a pattern with a "
+        "`/` is matched against whole paths (`car/*lens*`)."))] = None,
+) -> list[dict[str, Any]] | dict[str, Any]:
     """The current tree: one record per node, in document order.
 
     Each record: ``uuid``, ``parent``, ``name``, ``transform`` (local, 16 numbers row-major),
-    ``geometry``, ``color``, ``instance`` (its tracer instance id, null without geometry), and what
-    the CAD adapter reconciles a new document against: ``path`` (the occurrence path, names joined
-    by ``/``, ``[k]`` on names shared by siblings), ``world`` (root_from_node, 16 numbers row-major,
-    in the document's length unit), ``product`` and ``signature`` (the node's identity record from
-    the last push, null without one).
+    ``geometry``, ``color``, ``instance`` (its tracer instance id, null without geometry), ``path``
+    (the name people and scripts use: names from the root joined by ``/``; among siblings sharing a
+    name the first in document order keeps it bare, the next are ``name[2]``, ``name[3]``…; a ``/``
+    inside a name shows as ``∕``, U+2215; `service.paths`), and what the CAD adapter reconciles a new
+    document against: ``world`` (root_from_node, 16 numbers row-major, in the document's length unit),
+    ``product`` and ``signature`` (the node's identity record from the last push, null without one).
+
+    ``?path=car/lens`` answers that node alone; ``?name=lens*`` only the nodes whose name matches.
     """
-    return manager.nodes(scene_id)
+    if path is not None and name is not None:
+        raise Invalid("give either path (one node) or name (a glob), not both")
+    nodes = manager.nodes(scene_id)
+    if path is not None:
+        return paths.find(nodes, path, scene_id)
+    if name is not None:
+        return paths.matching(nodes, name)
+    return nodes
 
 
 @router.get("/scenes/{scene_id}/revisions")

@@ -172,7 +172,7 @@ def test_corrupt_sidecar(tmp_path) -> None:
     with pytest.raises(IdentityError, match="cannot be read"):
         identify(read_assembly(rig()), side)
     side.write_text(json.dumps({"format": "something-else", "nodes": []}))
-    with pytest.raises(IdentityError, match="not a lumenlink-sidecar-v2"):
+    with pytest.raises(IdentityError, match="not a lumenlink-sidecar-v3"):
         identify(read_assembly(rig()), side)
     side.write_text(json.dumps({"format": "lumenlink-sidecar-v2", "nodes": [{"uuid": "x", "path": "rig"}]}))
     with pytest.raises(IdentityError, match="invalid uuid"):

@@ -166,5 +166,5 @@ def test_duplicate_sibling_names_get_ranked_paths(tmp_path) -> None:
     p.write_text(text)
     doc = read_step(p)
     rod = [n.path for n in doc.nodes if n.path.startswith("as1/rod-assembly_1/")]
-    assert rod == ["as1/rod-assembly_1/nut[0]", "as1/rod-assembly_1/nut[1]", "as1/rod-assembly_1/rod_1"]
+    assert rod == ["as1/rod-assembly_1/nut", "as1/rod-assembly_1/nut[2]", "as1/rod-assembly_1/rod_1"]
     assert len({n.path for n in doc.nodes}) == len(doc.nodes)

@@ -137,9 +137,9 @@ def test_identity_is_stored_and_served_with_paths_and_worlds(client, scene, mesh
     assert a["revision"] == 1 and len(a["added"]) == 7 and a["dry_run"] is False and a["reconciliation"] is None
     nodes = nodes_of(client, scene)
     assert {u: n["path"] for u, n in nodes.items()} == {
-        uid(0): "asm[0]", uid(1): "asm[0]/plate\u2215top", uid(2): "asm[0]/plate\u2215top/bolt[0]",
-        uid(5): "asm[0]/plate\u2215top/washer", uid(3): "asm[0]/plate\u2215top/bolt[1]",
-        uid(4): "asm[0]/plate\u2215top/bolt[2]", uid(6): "asm[1]"}
+        uid(0): "asm", uid(1): "asm/plate\u2215top", uid(2): "asm/plate\u2215top/bolt",
+        uid(5): "asm/plate\u2215top/washer", uid(3): "asm/plate\u2215top/bolt[2]",
+        uid(4): "asm/plate\u2215top/bolt[3]", uid(6): "asm[2]"}
     # world = root_from_node, the product of the locals from the root, in the document's unit (mm)
     doc = assembly(meshes)
     local = {n["uuid"]: np.array(n["transform"], dtype=float).reshape(4, 4) for n in doc["nodes"]}
@@ -304,7 +304,7 @@ def test_bad_identity_record_is_422_and_changes_nothing(client, scene, meshes, r
 
 
 RECONCILIATION = {"matched": {"structure": 4, "signature": 2, "alignment": 1},
-                  "ambiguous": [{"uuid": uid(3), "path": "asm[0]/plate\u2215top/bolt[1]",
+                  "ambiguous": [{"uuid": uid(3), "path": "asm/plate\u2215top/bolt[2]",
                                  "candidates": [uid(3), uid(4)], "reason": "identical parts swapped in place"}],
                   "seconds": 0.25, "source": "asm_rev2.step"}
 

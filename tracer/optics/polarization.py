@@ -50,10 +50,12 @@ def unit_axis(v) -> tuple[float, float, float] | None:
     """[x, y, z] of finite numbers, not all zero, made unit; None for anything else (the caller says what is wrong)."""
     ok = isinstance(v, list | tuple) and len(v) == 3 and all(
         not isinstance(x, bool) and isinstance(x, int | float) and math.isfinite(x) for x in v)
-    n = math.sqrt(sum(float(x) ** 2 for x in v)) if ok else 0.0
-    if not n > 0.0:
+    m = max(abs(float(x)) for x in v) if ok else 0.0
+    if not m > 0.0:
         return None
-    return float(v[0]) / n, float(v[1]) / n, float(v[2]) / n
+    s = [float(x) / m for x in v]   # scaled first: squaring 1e154 would overflow
+    n = math.hypot(*s)
+    return s[0] / n, s[1] / n, s[2] / n
 
 
 def light_polarization(v, where: str) -> np.ndarray:
