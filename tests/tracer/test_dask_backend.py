@@ -84,6 +84,21 @@ def test_answers_on_a_real_dask_cluster_are_bit_identical_to_in_process(cluster)
         backend.close()
 
 
+def test_progress_cancellation_and_time_budgets_work_on_the_cluster(cluster):
+    backend = DaskBackend(cluster.address)
+    try:
+        scene, mats, lights = _glass_scene()
+        sim = Simulation(scene, mats, lights, backend=backend)
+        seen = []
+        r = sim.illuminance(POINTS, NORMALS, max_photons=10**9, estimator="forward", seed=1,
+                            progress=lambda p, w, s: seen.append(p), cancel=lambda: len(seen) >= 2)
+        assert r.stop_reason == "cancelled" and len(seen) == 2 and seen[0] < seen[1] == r.photons
+        r = sim.illuminance(POINTS, NORMALS, max_seconds=1.0, estimator="forward", seed=1)
+        assert r.stop_reason == "max_seconds" and r.photons > 0 and r.backend["name"] == "dask"
+    finally:
+        backend.close()
+
+
 def test_a_snapshot_goes_to_the_workers_once_per_content():
     scene, mats, lights = _glass_scene()
     sim = Simulation(scene, mats, lights)
