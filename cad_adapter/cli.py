@@ -195,12 +195,22 @@ def _check_options(linear: float | None, angular: float | None, relative: bool, 
     return True
 
 
+def _check_server(server: str, console: Console) -> bool:
+    """A URL without a scheme is bad usage (exit 2), said with what to add."""
+    if isinstance(server, str) and server.startswith(("http://", "https://")):
+        return True
+    hint = f": add http:// (http://{server})" if isinstance(server, str) and "://" not in server else \
+        ": give one like http://127.0.0.1:8000"
+    console.print(f"[red]error:[/] the server URL {server!r} is not an http(s) URL{hint}")
+    return False
+
+
 def push(file: Path, scene: str, server: str, linear: float | None = None, angular: float | None = None,
          relative: bool = False, json_out: bool = False, *, transport: Any = None,
          cache_dir: Path | None = None, dry_run: bool = False) -> int:
     """``lumenlink push FILE --scene NAME``: one push; returns the exit code."""
     console = Console(stderr=True, soft_wrap=True)
-    if not _check_options(linear, angular, relative, console):
+    if not _check_options(linear, angular, relative, console) or not _check_server(server, console):
         return EXIT_INPUT
     cache = TessellationCache(cache_dir if cache_dir is not None else default_cache_dir())
     return push_once(Path(file), scene, server, linear, angular, relative, cache, console, json_out, transport,
@@ -226,7 +236,7 @@ def watch(file: Path, scene: str, server: str, linear: float | None = None, angu
     cache stays in memory, so each push meshes only the parts that changed.
     """
     console = Console(stderr=True, soft_wrap=True)
-    if not _check_options(linear, angular, relative, console):
+    if not _check_options(linear, angular, relative, console) or not _check_server(server, console):
         return EXIT_INPUT
     if not isinstance(debounce, int | float) or debounce < 0:
         console.print(f"[red]error:[/] debounce must be a number of seconds >= 0, got {debounce!r}")

@@ -94,6 +94,97 @@ def watch(
     raise typer.Exit(code or 0)
 
 
+# ---------------------------------------------------------------- the engineer's loop (issue 22)
+# Built on lumenlink.Client; exit codes as push: 2 bad usage (options, files, a URL without its scheme, an unknown
+# scene or node path, a body the service refuses), 3 the service unreachable, 1 anything else.
+
+Server = Annotated[str, typer.Option(envvar="LUMENLINK_SERVER", help="Service URL (LUMENLINK_TOKEN is sent as the "
+                                                                     "bearer token when set).")]
+SceneOpt = Annotated[str, typer.Option(help="Scene name or id; a name no scene has is an error naming close ones.")]
+Create = Annotated[bool, typer.Option("--create", help="Create the scene if no scene has that name.")]
+
+
+@app.command()
+def nodes(
+    scene: SceneOpt,
+    server: Server = "http://127.0.0.1:8000",
+    create: Create = False,
+    json_out: Annotated[bool, typer.Option("--json", help="Print the nodes as JSON.")] = False,
+) -> None:
+    """Print the scene's tree: each node's path, UUID, material (own or inherited) and the lights attached."""
+    raise typer.Exit(_call("lumenlink.commands", "nodes", 22, scene=scene, server=server, create=create,
+                           json_out=json_out) or 0)
+
+
+@app.command()
+def assign(
+    scene: SceneOpt,
+    path: Annotated[str, typer.Argument(help="The node's path (`lumenlink nodes` lists them) or UUID.")],
+    material: Annotated[str | None, typer.Argument(
+        help='Material JSON, e.g. \'{"type": "dielectric", "ior": 1.5}\'.')] = None,
+    file: Annotated[Path | None, typer.Option(help="Read the material JSON from this file.")] = None,
+    server: Server = "http://127.0.0.1:8000",
+    create: Create = False,
+) -> None:
+    """Give a node a material (its descendants without one inherit it)."""
+    raise typer.Exit(_call("lumenlink.commands", "assign", 22, scene=scene, path=path, material=material, file=file,
+                           server=server, create=create) or 0)
+
+
+@app.command()
+def light(
+    scene: SceneOpt,
+    ies: Annotated[Path | None, typer.Option(help="IES LM-63 (.ies) or EULUMDAT (.ldt) file.")] = None,
+    at: Annotated[str | None, typer.Option(help="Where the light sits: X,Y,Z in metres (in the node's frame with "
+                                                "--attach).")] = None,
+    attach: Annotated[str | None, typer.Option(help="Node path or UUID the light moves with.")] = None,
+    direction: Annotated[str | None, typer.Option(help="The file's gamma = 0 axis, X,Y,Z (default straight "
+                                                       "down).")] = None,
+    body: Annotated[str | None, typer.Option(help="Any light as a JSON body instead of --ies.")] = None,
+    name: Annotated[str | None, typer.Option(help="A name for people.")] = None,
+    server: Server = "http://127.0.0.1:8000",
+    create: Create = False,
+) -> None:
+    """Add a light: a photometric file placed at a point, or a JSON body."""
+    raise typer.Exit(_call("lumenlink.commands", "light", 22, scene=scene, server=server, ies=ies, at=at,
+                           attach=attach, body=body, name=name, direction=direction, create=create) or 0)
+
+
+@app.command()
+def sensor(
+    scene: SceneOpt,
+    grid: Annotated[tuple[str, str, str, int, int] | None, typer.Option(
+        metavar="ORIGIN U V NU NV", help="A grid sensor: the rectangle ORIGIN + s*U + t*V (each X,Y,Z in metres; "
+                                         "front side U x V) in NU x NV cells, e.g. --grid -1,-1,0 2,0,0 0,2,0 20 "
+                                         "20.")] = None,
+    body: Annotated[str | None, typer.Option(help="Any sensor as a JSON body instead of --grid.")] = None,
+    attach: Annotated[str | None, typer.Option(help="Node path or UUID the sensor moves with.")] = None,
+    name: Annotated[str | None, typer.Option(help="A name for people (and for the files simulate writes).")] = None,
+    server: Server = "http://127.0.0.1:8000",
+    create: Create = False,
+) -> None:
+    """Add a sensor."""
+    raise typer.Exit(_call("lumenlink.commands", "sensor", 22, scene=scene, server=server, grid=grid, body=body,
+                           attach=attach, name=name, create=create) or 0)
+
+
+@app.command()
+def simulate(
+    scene: SceneOpt,
+    out: Annotated[Path, typer.Option(help="Directory for <sensor>.csv and <sensor>.png.")],
+    sensor: Annotated[str, typer.Option(help="Sensor id or name, or `all`.")] = "all",
+    target: Annotated[float | None, typer.Option(help="Stop at this relative error (0.01 = 1 %).")] = None,
+    max_seconds: Annotated[float | None, typer.Option(help="Time budget per sensor, s.")] = None,
+    max_photons: Annotated[int | None, typer.Option(help="Photon budget per sensor.")] = None,
+    seed: Annotated[int, typer.Option(help="Same seed and revision: the same numbers.")] = 0,
+    server: Server = "http://127.0.0.1:8000",
+) -> None:
+    """Simulate sensors as jobs with a progress bar; write each one's CSV (cells, lux, stderr) and map."""
+    raise typer.Exit(_call("lumenlink.commands", "simulate", 22, scene=scene, server=server, out=out,
+                           sensor=sensor, target=target, max_seconds=max_seconds, max_photons=max_photons,
+                           seed=seed) or 0)
+
+
 @app.command()
 def demo(
     out_dir: Annotated[Path, typer.Option(help="Where the maps and the STEP files go.")] = Path("demo-output"),

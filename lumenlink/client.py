@@ -1,0 +1,430 @@
+"""A small Python client of the LumenLink service (httpx): the engineer's loop without curl.
+
+    from lumenlink import Client
+
+    with Client("http://127.0.0.1:8000") as ll:
+        lens = ll.node("car", "car/lamp/lens")                  # scenes by name or id, nodes by path
+        ll.assign("car", "car/lamp/lens", {"type": "dielectric", "ior": 1.5})
+        ll.add_light("car", ies="downlight.ies", at=(0, 0, 2.5))
+        sensor = ll.add_sensor("car", {"type": "grid", "origin": [-1, -1, 0], "u": [2, 0, 0], "v": [0, 2, 0],
+                                       "nu": 20, "nv": 20})
+        results = ll.simulate("car", sensor["id"], max_photons=200_000)   # {sensor id: result}
+
+Every call that names a scene takes its name or its id (a UUID); a name no scene has is an error naming the
+closest scene names, unless ``scene(name, create=True)``. Every call that names a node takes its path
+(``GET /scenes/{id}/nodes`` lists them) or its UUID. Positions and lengths are metres in the world (in the
+node's frame for a light or sensor attached to a node). Every failure raises :class:`LumenLinkError`, which
+carries the service's problem+json (``status``, ``problem``); :class:`ServiceUnreachable` is the one raised
+when no service answers. The server defaults to ``$LUMENLINK_SERVER`` (else http://127.0.0.1:8000) and the
+bearer token to ``$LUMENLINK_TOKEN``.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import os
+import re
+import time
+from collections.abc import Callable, Iterable, Sequence
+from pathlib import Path
+from typing import Any
+from urllib.parse import quote
+
+import httpx
+
+DEFAULT_SERVER = "http://127.0.0.1:8000"
+_UUID = re.compile(r"^[0-9a-fA-F]{8}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{12}$")
+#: job states after which a job changes no more
+FINISHED = ("succeeded", "failed", "cancelled")
+
+
+class LumenLinkError(Exception):
+    """Anything that went wrong talking to the service.
+
+    Attributes
+    ----------
+    status : int or None
+        The HTTP status of the service's answer; None when the client refused before asking (a bad
+        argument, a scene name no scene has) or no service answered.
+    problem : dict
+        The service's RFC 9457 problem (``title``, ``detail``, and extensions such as ``errors`` or
+        ``did_you_mean``); empty when the client refused by itself.
+    usage : bool
+        The request itself was wrong (a bad argument, an unknown name, a 4xx other than 409): fix the call.
+    """
+
+    def __init__(self, message: str, *, status: int | None = None, problem: dict[str, Any] | None = None,
+                 usage: bool = False) -> None:
+        super().__init__(message)
+        self.status = status
+        self.problem = problem or {}
+        self.usage = usage
+
+    @property
+    def did_you_mean(self) -> list[str]:
+        return list(self.problem.get("did_you_mean") or [])
+
+
+class ServiceUnreachable(LumenLinkError):
+    """No service answered at the server's address (or not in time)."""
+
+
+def _is_uuid(s: str) -> bool:
+    return bool(_UUID.match(s))
+
+
+def check_server(server: str) -> str:
+    """The base URL without a trailing slash; a usage error saying what to add if it has no http(s) scheme."""
+    if not isinstance(server, str) or not server.strip():
+        raise LumenLinkError("the server URL is empty: give one like http://127.0.0.1:8000", usage=True)
+    server = server.strip()
+    if not re.match(r"^https?://", server, re.IGNORECASE):
+        if "://" in server:
+            raise LumenLinkError(f"the server URL {server!r} is not http(s): give one like http://127.0.0.1:8000",
+                                 usage=True)
+        raise LumenLinkError(f"the server URL {server!r} has no scheme: add http:// (http://{server})", usage=True)
+    return server.rstrip("/")
+
+
+def _message(resp: httpx.Response, what: str) -> tuple[str, dict[str, Any]]:
+    try:
+        data = resp.json()
+    except ValueError:
+        return f"{what}: HTTP {resp.status_code}: {resp.text[:300] or resp.reason_phrase}", {}
+    if not isinstance(data, dict):
+        return f"{what}: HTTP {resp.status_code}: {str(data)[:300]}", {}
+    detail = data.get("detail") or data.get("title") or resp.reason_phrase
+    return f"{what}: {detail} (HTTP {resp.status_code})", data
+
+
+def triples(values: Any, what: str) -> list[list[float]]:
+    """`values` as a list of [x, y, z]; a flat list, or anything else, is a usage error that says the form."""
+    example = f"{what}=[[0.0, 0.0, 1.0], [0.5, 0.0, 1.0]]"
+    if hasattr(values, "tolist"):
+        values = values.tolist()
+    if not isinstance(values, Sequence) or isinstance(values, str | bytes):
+        raise LumenLinkError(f"{what} must be a list of [x, y, z] triples (metres), e.g. {example}", usage=True)
+    if values and all(isinstance(v, int | float) and not isinstance(v, bool) for v in values):
+        hint = (f" (group the {len(values)} numbers in threes)" if len(values) % 3 == 0 else "")
+        raise LumenLinkError(f"{what} must be a list of [x, y, z] triples, e.g. {example}; got a flat list of "
+                             f"{len(values)} numbers{hint}", usage=True)
+    out = []
+    for i, v in enumerate(values):
+        if (not isinstance(v, Sequence) or isinstance(v, str | bytes) or len(v) != 3
+                or not all(isinstance(c, int | float) and not isinstance(c, bool) and math.isfinite(c) for c in v)):
+            raise LumenLinkError(f"{what}[{i}] must be [x, y, z] (three finite numbers), got {v!r}; e.g. {example}",
+                                 usage=True)
+        out.append([float(c) for c in v])
+    return out
+
+
+class Client:
+    """A client of one LumenLink service.
+
+    Parameters
+    ----------
+    server : str, optional
+        Base URL (``http://host:port``); default ``$LUMENLINK_SERVER``, else http://127.0.0.1:8000.
+    token : str, optional
+        Bearer token; default ``$LUMENLINK_TOKEN``.
+    timeout : float
+        Seconds per request (a long simulation runs as a job and is polled, so no request waits on it).
+    transport : httpx.BaseTransport, optional
+        For tests.
+    """
+
+    def __init__(self, server: str | None = None, *, token: str | None = None, timeout: float = 120.0,
+                 transport: httpx.BaseTransport | None = None) -> None:
+        self.server = check_server(server or os.environ.get("LUMENLINK_SERVER") or DEFAULT_SERVER)
+        token = token if token is not None else os.environ.get("LUMENLINK_TOKEN")
+        headers = {"Authorization": f"Bearer {token}"} if token else {}
+        self.http = httpx.Client(base_url=self.server, timeout=timeout, transport=transport, headers=headers)
+        self._ids: dict[str, str] = {}
+
+    def close(self) -> None:
+        self.http.close()
+
+    def __enter__(self) -> Client:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ------------------------------------------------------------ plumbing
+
+    def _request(self, method: str, url: str, **kwargs: Any) -> httpx.Response:
+        try:
+            return self.http.request(method, url, **kwargs)
+        except httpx.TimeoutException as exc:
+            raise ServiceUnreachable(f"the service at {self.server} did not answer {method} {url} in time") from exc
+        except httpx.TransportError as exc:
+            raise ServiceUnreachable(f"cannot reach the service at {self.server} ({exc}); is `lumenlink serve` "
+                                     "running there?") from exc
+
+    def _call(self, method: str, url: str, what: str, ok: tuple[int, ...] = (200, 201), **kwargs: Any) -> Any:
+        resp = self._request(method, url, **kwargs)
+        if resp.status_code not in ok:
+            message, problem = _message(resp, what)
+            raise LumenLinkError(message, status=resp.status_code, problem=problem,
+                                 usage=400 <= resp.status_code < 500 and resp.status_code != 409)
+        if resp.status_code == 204 or not resp.content:
+            return None
+        try:
+            return resp.json()
+        except ValueError as exc:
+            raise LumenLinkError(f"{what}: the service answered HTTP {resp.status_code} without JSON",
+                                 status=resp.status_code) from exc
+
+    def _sid(self, scene: str | dict) -> str:
+        """A scene's id from its name, its id or its record."""
+        if isinstance(scene, dict):
+            return str(scene["id"])
+        if scene in self._ids:
+            return self._ids[scene]
+        return str(self.scene(scene)["id"])
+
+    # ------------------------------------------------------------ scenes and nodes
+
+    def scenes(self) -> list[dict[str, Any]]:
+        """Every scene: ``{id, name, revision}``."""
+        return list(self._call("GET", "/scenes", "listing scenes"))
+
+    def scene(self, name_or_id: str, create: bool = False) -> dict[str, Any]:
+        """One scene's summary (``GET /scenes/{id}``: revision, counts, length unit, effects…), by name or id.
+
+        A name no scene has is a :class:`LumenLinkError` naming the closest scene names, unless `create`
+        (then the scene is made, empty, at revision 0)."""
+        if not isinstance(name_or_id, str) or not name_or_id.strip():
+            raise LumenLinkError("a scene is named by a non-empty name or id", usage=True)
+        if _is_uuid(name_or_id):
+            out = self._call("GET", f"/scenes/{name_or_id}", f"reading scene {name_or_id}")
+        else:
+            listed = self.scenes()
+            found = next((s for s in listed if s.get("name") == name_or_id), None)
+            if found is None:
+                if not create:
+                    names = [str(s.get("name")) for s in listed]
+                    close = difflib.get_close_matches(name_or_id, names, n=5, cutoff=0.5)
+                    hint = (f"; did you mean {', '.join(repr(c) for c in close)}?" if close
+                            else f"; the scenes are {', '.join(repr(n) for n in names[:10])}" if names
+                            else "; the service has no scenes yet")
+                    raise LumenLinkError(f"no scene is called {name_or_id!r}{hint} (create it with create=True, "
+                                         "or --create)", usage=True, problem={"did_you_mean": close})
+                found = self._call("POST", "/scenes", f"creating scene {name_or_id!r}", json={"name": name_or_id})
+            out = self._call("GET", f"/scenes/{found['id']}", f"reading scene {name_or_id!r}")
+            self._ids[name_or_id] = str(found["id"])
+        return dict(out)
+
+    def nodes(self, scene: str | dict, name: str | None = None) -> list[dict[str, Any]]:
+        """The scene's nodes in document order, each with its ``path`` and ``uuid``; `name`: a glob on node names
+        (a pattern with ``/`` matches whole paths)."""
+        params = {"name": name} if name is not None else None
+        sid = self._sid(scene)
+        return list(self._call("GET", f"/scenes/{sid}/nodes", "listing nodes", params=params))
+
+    def node(self, scene: str | dict, path: str) -> dict[str, Any]:
+        """The node at `path`; a 404 :class:`LumenLinkError` whose ``did_you_mean`` lists close paths if none."""
+        sid = self._sid(scene)
+        return dict(self._call("GET", f"/scenes/{sid}/nodes", f"finding node {path!r}", params={"path": path}))
+
+    def materials(self, scene: str | dict) -> list[dict[str, Any]]:
+        return list(self._call("GET", f"/scenes/{self._sid(scene)}/materials", "listing materials"))
+
+    def lights(self, scene: str | dict) -> list[dict[str, Any]]:
+        return list(self._call("GET", f"/scenes/{self._sid(scene)}/lights", "listing lights"))
+
+    def sensors(self, scene: str | dict) -> list[dict[str, Any]]:
+        return list(self._call("GET", f"/scenes/{self._sid(scene)}/sensors", "listing sensors"))
+
+    # ------------------------------------------------------------ assignments
+
+    def assign(self, scene: str | dict, path_or_uuid: str, material: dict[str, Any]) -> dict[str, Any]:
+        """Give a node (by path or UUID) a material (DESIGN.md's bodies, e.g. ``{"type": "mirror",
+        "reflectance": 0.9}``); its descendants without one inherit it. Answers ``{node (the UUID), material}``."""
+        if not isinstance(material, dict):
+            raise LumenLinkError(f"a material is a JSON object like {{\"type\": \"lambertian\", \"reflectance\": "
+                                 f"0.8}}, got {type(material).__name__}", usage=True)
+        sid = self._sid(scene)
+        return dict(self._call("PUT", f"/scenes/{sid}/materials/{quote(path_or_uuid, safe='')}",
+                               f"assigning a material to {path_or_uuid!r}", json=material))
+
+    def add_light(self, scene: str | dict, body: dict[str, Any] | None = None, *, ies: str | Path | None = None,
+                  at: Iterable[float] | None = None, attach: str | None = None, name: str | None = None,
+                  direction: Iterable[float] | None = None) -> dict[str, Any]:
+        """Add a light: a DESIGN.md body, or a photometric file (`ies`: IES LM-63 ``.ies``, or EULUMDAT ``.ldt``)
+        placed `at` (x, y, z), metres, aimed along `direction` (its γ = 0 axis; default straight down). `attach`:
+        a node path or UUID; the light then moves with that node and `at` is in the node's frame. Answers
+        ``{id, body, orphaned}``."""
+        if (body is None) == (ies is None):
+            raise LumenLinkError("give a light body or ies=FILE (with at=(x, y, z)), one of them", usage=True)
+        if ies is not None:
+            path = Path(ies)
+            if at is None:
+                raise LumenLinkError("a light from a photometric file needs at=(x, y, z), metres", usage=True)
+            try:
+                text = path.read_text(encoding="utf-8", errors="replace")
+            except OSError as exc:
+                raise LumenLinkError(f"cannot read the photometric file {path}: {exc}", usage=True) from exc
+            fmt = "ldt" if path.suffix.lower() in (".ldt", ".eul") else "ies"
+            body = {"type": "goniometric", "position": triples([list(at)], "at")[0], "format": fmt, "data": text,
+                    "name": name or path.stem}
+            if direction is not None:
+                body["direction"] = triples([list(direction)], "direction")[0]
+        assert body is not None
+        body = dict(body)
+        if attach is not None:
+            body["attached_to"] = attach
+        if name is not None:
+            body["name"] = name
+        return dict(self._call("POST", f"/scenes/{self._sid(scene)}/lights", "adding a light", json=body))
+
+    def add_sensor(self, scene: str | dict, body: dict[str, Any], *, attach: str | None = None) -> dict[str, Any]:
+        """Add a sensor: ``{"type": "grid", "origin", "u", "v", "nu", "nv"}`` (front side u × v, metres) or
+        ``{"type": "disk", "center", "normal", "radius"}``. Answers ``{id, body, orphaned}``."""
+        if not isinstance(body, dict):
+            raise LumenLinkError("a sensor is a JSON object (type grid or disk)", usage=True)
+        body = dict(body)
+        if attach is not None:
+            body["attached_to"] = attach
+        return dict(self._call("POST", f"/scenes/{self._sid(scene)}/sensors", "adding a sensor", json=body))
+
+    @staticmethod
+    def grid(origin: Sequence[float], u: Sequence[float], v: Sequence[float], nu: int, nv: int,
+             name: str | None = None) -> dict[str, Any]:
+        """A grid sensor's body: the rectangle origin + s·u + t·v, nu × nv cells (metres; front side u × v)."""
+        origin_, u_, v_ = triples([list(origin), list(u), list(v)], "grid")
+        body: dict[str, Any] = {"type": "grid", "origin": origin_, "u": u_, "v": v_, "nu": int(nu), "nv": int(nv)}
+        if name:
+            body["name"] = name
+        return body
+
+    # ------------------------------------------------------------ simulation
+
+    def _sensor_ids(self, sid: str, sensor: str) -> list[dict[str, Any]]:
+        listed = self.sensors(sid)
+        if sensor == "all":
+            if not listed:
+                raise LumenLinkError(f"scene {sid} has no sensors: add one first (add_sensor, lumenlink sensor)",
+                                     usage=True)
+            return listed
+        found = [s for s in listed if s["id"] == sensor.lower() or s["body"].get("name") == sensor]
+        if not found:
+            names = [s["body"].get("name") or s["id"] for s in listed]
+            close = difflib.get_close_matches(sensor, names, n=5, cutoff=0.5)
+            hint = f"; did you mean {', '.join(map(repr, close))}?" if close else \
+                (f"; its sensors are {', '.join(map(repr, names))}" if names else "; it has no sensors")
+            raise LumenLinkError(f"scene {sid} has no sensor {sensor!r}{hint}", usage=True,
+                                 problem={"did_you_mean": close})
+        return found[:1]
+
+    def simulate(self, scene: str | dict, sensor: str = "all", *, target: float | None = None,
+                 max_seconds: float | None = None, max_photons: int | None = None, seed: int = 0,
+                 progress: Callable[[dict[str, Any], dict[str, Any]], None] | None = None,
+                 poll: float = 0.25, **extra: Any) -> dict[str, dict[str, Any]]:
+        """Simulate one sensor (by id or name) or ``"all"``, each as an async job followed to its end.
+
+        `target` is the relative error to stop at (``target_relative_error``), `max_seconds` and `max_photons`
+        the budgets. `progress(sensor, job)` is called at each poll with the sensor's record and the job
+        (``job["progress"]``: photons, worst_relative_error, seconds, seconds_left). Answers ``{sensor id: the
+        sensor's result}`` (``SensorPublic``: lux, stderr, photons, seconds, stop_reason, grid geometry…).
+        Interrupted (Ctrl-C), the running job is cancelled on the service."""
+        sid = self._sid(scene)
+        query: dict[str, Any] = {"seed": seed, **extra}
+        for key, value in (("target_relative_error", target), ("max_seconds", max_seconds),
+                           ("max_photons", max_photons)):
+            if value is not None:
+                query[key] = value
+        out: dict[str, dict[str, Any]] = {}
+        for s in self._sensor_ids(sid, sensor):
+            accepted = self._call("POST", f"/scenes/{sid}/sensors/{s['id']}/simulate", f"simulating sensor {s['id']}",
+                                  ok=(202,), params={"mode": "async"}, json=query)
+            follow: Callable[[dict[str, Any]], None] | None = None
+            if progress is not None:
+                def follow(j: dict[str, Any], s: dict[str, Any] = s) -> None:
+                    progress(s, j)
+            job = self.follow(accepted["url"], progress=follow, poll=poll)
+            if job["status"] != "succeeded":
+                raise LumenLinkError(f"the simulation of sensor {s['id']} {job['status']}: {job.get('error') or ''}",
+                                     problem=job)
+            out[s["id"]] = job["result"]
+        return out
+
+    def follow(self, url: str, progress: Callable[[dict[str, Any]], None] | None = None,
+               poll: float = 0.25) -> dict[str, Any]:
+        """Poll a job (``/jobs/{id}``) until it has finished; answers its last state. Ctrl-C cancels it."""
+        try:
+            while True:
+                job = self._call("GET", url, "following a job")
+                if progress is not None:
+                    progress(job)
+                if job["status"] in FINISHED:
+                    return dict(job)
+                time.sleep(poll)
+        except KeyboardInterrupt:
+            try:
+                self._request("DELETE", url)
+            finally:
+                raise
+
+    def map_png(self, scene: str | dict, sensor_id: str, vmax: float | None = None) -> bytes:
+        """The false-colour PNG of a grid sensor's latest result (the scene as it is now)."""
+        params = {"vmax": vmax} if vmax is not None else None
+        resp = self._request("GET", f"/scenes/{self._sid(scene)}/sensors/{sensor_id}/map.png", params=params)
+        if resp.status_code != 200:
+            message, problem = _message(resp, f"reading the map of sensor {sensor_id}")
+            raise LumenLinkError(message, status=resp.status_code, problem=problem)
+        return resp.content
+
+    def illuminance(self, scene: str | dict, points: Any, normals: Any, *, radius: float | None = None,
+                    target: float | None = None, max_seconds: float | None = None, max_photons: int | None = None,
+                    seed: int = 0, **extra: Any) -> dict[str, Any]:
+        """Illuminance (lx) ± standard error at `points` ([[x, y, z], …], metres) on receivers facing `normals`
+        (one per point). Answers the service's ``{lux, stderr, photons, seconds, effects, revision, …}``."""
+        pts, nrm = triples(points, "points"), triples(normals, "normals")
+        if len(pts) != len(nrm):
+            raise LumenLinkError(f"give one normal per point: {len(pts)} points, {len(nrm)} normals", usage=True)
+        body: dict[str, Any] = {"points": pts, "normals": nrm, "seed": seed, **extra}
+        for key, value in (("radius", radius), ("target_relative_error", target), ("max_seconds", max_seconds),
+                           ("max_photons", max_photons)):
+            if value is not None:
+                body[key] = value
+        return dict(self._call("POST", f"/scenes/{self._sid(scene)}/illuminance", "querying illuminance",
+                               json=body))
+
+
+def sensor_csv(result: dict[str, Any]) -> str:
+    """A sensor result as CSV, one row per cell: its indices, its centre (world metres), lux and standard error.
+
+    Grid: ``i`` (along u, 0..nu-1), ``j`` (along v), the cell centre origin + (i+½)/nu·u + (j+½)/nv·v.
+    Disk: one row (i = j = 0) at the disk's centre where the result names it, else blank coordinates."""
+    lines = ["i,j,x_m,y_m,z_m,lux,stderr_lux"]
+    lux, err = result["lux"], result["stderr"]
+    if result.get("type") == "grid" and result.get("origin") is not None:
+        o, u, v = result["origin"], result["u"], result["v"]
+        nu, nv = int(result["nu"]), int(result["nv"])
+        for j in range(nv):
+            for i in range(nu):
+                s, t = (i + 0.5) / nu, (j + 0.5) / nv
+                c = [o[k] + s * u[k] + t * v[k] for k in range(3)]
+                lines.append(f"{i},{j},{c[0]:.9g},{c[1]:.9g},{c[2]:.9g},{_num(lux[j][i])},{_num(err[j][i])}")
+    else:
+        flat_lux = list(_flatten(lux))
+        flat_err = list(_flatten(err))
+        for k, (a, b) in enumerate(zip(flat_lux, flat_err, strict=False)):
+            lines.append(f"{k},0,,,,{_num(a)},{_num(b)}")
+    return "\n".join(lines) + "\n"
+
+
+def _num(x: Any) -> str:
+    return "" if x is None else f"{float(x):.9g}"
+
+
+def _flatten(x: Any) -> Iterable[Any]:
+    if isinstance(x, list):
+        for y in x:
+            yield from _flatten(y)
+    else:
+        yield x
+
+

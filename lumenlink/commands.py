@@ -1,0 +1,289 @@
+"""``lumenlink nodes | assign | light | sensor | simulate``: the engineer's loop from the command line, built on
+:class:`lumenlink.client.Client`.
+
+Exit codes, as ``lumenlink push``: 0 done; 2 bad usage (a bad option or file, a server URL without its scheme, a
+scene or node path that does not exist, a body the service refuses as invalid: 4xx); 3 the service cannot be
+reached; 1 anything else (the service failed, a job failed, a conflict). Messages and progress go to stderr,
+results to stdout.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+from rich.markup import escape
+from rich.progress import BarColumn, Progress, TaskID, TextColumn, TimeElapsedColumn
+
+from lumenlink.client import Client, LumenLinkError, ServiceUnreachable, sensor_csv
+
+EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_UNREACHABLE = 0, 1, 2, 3
+
+
+def _err() -> Console:
+    return Console(stderr=True, soft_wrap=True, highlight=False)
+
+
+def _run(work: Callable[[Console], int]) -> int:
+    """Run a command; turn every failure into its message on stderr and its exit code."""
+    console = _err()
+    try:
+        return work(console)
+    except ServiceUnreachable as exc:
+        console.print(f"[red]error:[/] {escape(str(exc))}")
+        return EXIT_UNREACHABLE
+    except LumenLinkError as exc:
+        console.print(f"[red]error:[/] {escape(str(exc))}")
+        for e in (exc.problem.get("errors") or [])[:10]:
+            console.print(f"  {escape('.'.join(map(str, e.get('loc', []))))}: {escape(str(e.get('msg')))}")
+        return EXIT_USAGE if exc.usage else EXIT_FAILED
+    except KeyboardInterrupt:
+        console.print("interrupted (a running simulation job was cancelled)")
+        return EXIT_FAILED
+
+
+def vec3(text: str, option: str) -> list[float]:
+    """``X,Y,Z`` as three floats; a usage error that shows the form otherwise."""
+    parts = [p for p in re.split(r"[,\s]+", text.strip()) if p]
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        values = []
+    if len(values) != 3 or not all(abs(v) < float("inf") for v in values):
+        raise LumenLinkError(f"{option} takes X,Y,Z (three numbers, metres), e.g. {option} 0,0,2.5; got {text!r}",
+                             usage=True)
+    return values
+
+
+def _json_arg(text: str | None, file: Path | None, what: str) -> dict[str, Any]:
+    if (text is None) == (file is None):
+        raise LumenLinkError(f"give the {what} as a JSON argument or with --file FILE, one of them", usage=True)
+    if file is not None:
+        try:
+            text = Path(file).read_text(encoding="utf-8")
+        except OSError as exc:
+            raise LumenLinkError(f"cannot read {file}: {exc}", usage=True) from exc
+    assert text is not None
+    try:
+        body = json.loads(text)
+    except ValueError as exc:
+        raise LumenLinkError(f"the {what} is not JSON ({exc}); e.g. '{{\"type\": \"lambertian\", "
+                             f"\"reflectance\": 0.8}}'", usage=True) from exc
+    if not isinstance(body, dict):
+        raise LumenLinkError(f"the {what} must be a JSON object, got {type(body).__name__}", usage=True)
+    return body
+
+
+def _material_text(body: dict[str, Any]) -> str:
+    keys = ("reflectance", "ior", "transmittance", "absorption_per_m", "axis", "retardance_deg")
+    extra = " ".join(f"{k}={json.dumps(body[k])}" for k in keys if k in body and not isinstance(body[k], dict))
+    return f"{body.get('type', '?')} {extra}".strip()
+
+
+def _light_text(light: dict[str, Any]) -> str:
+    body = light["body"]
+    name = f" {body['name']!r}" if body.get("name") else ""
+    return f"{body.get('type')}{name} {light['id'][:8]}"
+
+
+# ---------------------------------------------------------------- nodes
+
+def nodes(scene: str, server: str, create: bool = False, json_out: bool = False) -> int:
+    """Print the scene's tree: path, UUID, material (own, or inherited from an ancestor), lights attached."""
+    def work(console: Console) -> int:
+        with Client(server) as ll:
+            info = ll.scene(scene, create=create)
+            listed = ll.nodes(info)
+            materials = {m["node"]: m["material"] for m in ll.materials(info)}
+            lights: dict[str, list[dict[str, Any]]] = {}
+            for light in ll.lights(info):
+                body = light["body"]
+                anchor = body.get("attached_to") or (body.get("node") if body.get("type") == "area" else None)
+                if anchor:
+                    lights.setdefault(anchor, []).append(light)
+        by_uuid = {n["uuid"]: n for n in listed}
+
+        def effective(u: str) -> tuple[dict[str, Any] | None, str | None]:
+            seen: str | None = u
+            while seen is not None:
+                if seen in materials:
+                    return materials[seen], (None if seen == u else by_uuid[seen]["path"])
+                seen = by_uuid[seen]["parent"] if seen in by_uuid else None
+            return None, None
+
+        rows = []
+        for n in listed:
+            mat, source = effective(n["uuid"])
+            mat_text = "" if mat is None else _material_text(mat) + (f" (from {source})" if source else "")
+            rows.append({**n, "material": mat, "material_from": source,
+                         "lights": [{"id": li["id"], "type": li["body"].get("type"), "name": li["body"].get("name")}
+                                    for li in lights.get(n["uuid"], [])],
+                         "_text": (n["path"], n["uuid"], mat_text,
+                                   ", ".join(_light_text(li) for li in lights.get(n["uuid"], [])))})
+        if json_out:
+            sys.stdout.write(json.dumps([{k: v for k, v in r.items() if k != "_text"} for r in rows], indent=2)
+                             + "\n")
+            return EXIT_OK
+        unit = info.get("length_unit") or "?"
+        print(f"scene {info['name']} ({info['id']}), revision {info['revision']}, {len(listed)} nodes, "
+              f"document unit {unit}")
+        if not rows:
+            print("(no nodes: push a document first, `lumenlink push FILE --scene NAME`)")
+            return EXIT_OK
+        head = ("PATH", "UUID", "MATERIAL", "LIGHTS")
+        width = [max(len(head[k]), *(len(r["_text"][k]) for r in rows)) for k in range(3)]
+        print("  ".join(h.ljust(width[k]) if k < 3 else h for k, h in enumerate(head)).rstrip())
+        for r in rows:
+            print("  ".join(t.ljust(width[k]) if k < 3 else t for k, t in enumerate(r["_text"])).rstrip())
+        return EXIT_OK
+    return _run(work)
+
+
+# ---------------------------------------------------------------- assign, light, sensor
+
+def assign(scene: str, path: str, material: str | None, file: Path | None, server: str,
+           create: bool = False) -> int:
+    """Give the node at PATH (or UUID) a material."""
+    def work(console: Console) -> int:
+        body = _json_arg(material, file, "material")
+        with Client(server) as ll:
+            info = ll.scene(scene, create=create)
+            answer = ll.assign(info, path, body)
+        print(f"{path} ({answer['node']}): {_material_text(answer['material'])}")
+        return EXIT_OK
+    return _run(work)
+
+
+def light(scene: str, server: str, ies: Path | None = None, at: str | None = None, attach: str | None = None,
+          body: str | None = None, name: str | None = None, direction: str | None = None,
+          create: bool = False) -> int:
+    """Add a light from an IES / EULUMDAT file placed at X,Y,Z (metres), or from a JSON body."""
+    def work(console: Console) -> int:
+        if (ies is None) == (body is None):
+            raise LumenLinkError("give --ies FILE --at X,Y,Z, or --body JSON, one of them", usage=True)
+        if ies is not None:
+            if at is None:
+                raise LumenLinkError("--ies needs --at X,Y,Z (metres; in the node's frame with --attach)", usage=True)
+            if not Path(ies).is_file():
+                raise LumenLinkError(f"{ies}: no such file", usage=True)
+            position = vec3(at, "--at")
+            aim = vec3(direction, "--direction") if direction is not None else None
+            with Client(server) as ll:
+                info = ll.scene(scene, create=create)
+                answer = ll.add_light(info, ies=ies, at=position, attach=attach, name=name, direction=aim)
+        else:
+            parsed = _json_arg(body, None, "light body")
+            with Client(server) as ll:
+                info = ll.scene(scene, create=create)
+                answer = ll.add_light(info, parsed, attach=attach, name=name)
+        where = f" attached to {attach} ({answer['body'].get('attached_to')})" if attach else ""
+        print(f"light {answer['id']}: {answer['body'].get('type')}{where}")
+        return EXIT_OK
+    return _run(work)
+
+
+def sensor(scene: str, server: str, grid: tuple[str, str, str, int, int] | None = None, body: str | None = None,
+           attach: str | None = None, name: str | None = None, create: bool = False) -> int:
+    """Add a grid sensor (--grid ORIGIN U V NU NV, vectors X,Y,Z in metres) or any sensor from a JSON body."""
+    def work(console: Console) -> int:
+        if (grid is None) == (body is None):
+            raise LumenLinkError("give --grid ORIGIN U V NU NV (e.g. --grid -1,-1,0 2,0,0 0,2,0 20 20), or --body "
+                                 "JSON, one of them", usage=True)
+        if grid is not None:
+            origin, u, v, nu, nv = grid
+            parsed = Client.grid(vec3(origin, "ORIGIN"), vec3(u, "U"), vec3(v, "V"), nu, nv, name=name)
+        else:
+            parsed = _json_arg(body, None, "sensor body")
+            if name:
+                parsed["name"] = name
+        with Client(server) as ll:
+            info = ll.scene(scene, create=create)
+            answer = ll.add_sensor(info, parsed, attach=attach)
+        b = answer["body"]
+        size = f" {b['nu']} x {b['nv']} cells" if b.get("type") == "grid" else ""
+        print(f"sensor {answer['id']}: {b.get('type')}{size}{' ' + repr(b['name']) if b.get('name') else ''}")
+        return EXIT_OK
+    return _run(work)
+
+
+# ---------------------------------------------------------------- simulate
+
+def _file_stem(sensor: dict[str, Any], taken: set[str]) -> str:
+    """The sensor's name made safe for a file name, else its id; unique within one run."""
+    name = re.sub(r"[^A-Za-z0-9._-]+", "_", str(sensor["body"].get("name") or "")).strip("._")
+    stem = name or sensor["id"]
+    if stem in taken:
+        stem = f"{stem}-{sensor['id'][:8]}"
+    taken.add(stem)
+    return stem
+
+
+def simulate(scene: str, server: str, out: Path, sensor: str = "all", target: float | None = None,
+             max_seconds: float | None = None, max_photons: int | None = None, seed: int = 0) -> int:
+    """Simulate sensors as jobs (a progress bar per sensor); write <sensor>.csv and, for a grid, <sensor>.png."""
+    def work(console: Console) -> int:
+        out_dir = Path(out)
+        if out_dir.exists() and not out_dir.is_dir():
+            raise LumenLinkError(f"--out {out_dir} is a file, not a directory", usage=True)
+        with Client(server) as ll:
+            info = ll.scene(scene)
+            listed = {s["id"]: s for s in ll.sensors(info)}
+            chosen = ll._sensor_ids(info["id"], sensor)
+            out_dir.mkdir(parents=True, exist_ok=True)
+            taken: set[str] = set()
+            progress = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[state]}"),
+                                TimeElapsedColumn(), console=console, transient=True,
+                                disable=not console.is_terminal)
+            for s in chosen:
+                stem = _file_stem(listed.get(s["id"], s), taken)
+                with progress:
+                    task = progress.add_task(f"sensor {stem}", total=None, state="queued")
+                    update = _progress_update(progress, task, target, max_seconds, max_photons)
+                    result = ll.simulate(info, s["id"], target=target, max_seconds=max_seconds,
+                                         max_photons=max_photons, seed=seed,
+                                         progress=update)[s["id"]]
+                csv_path = out_dir / f"{stem}.csv"
+                csv_path.write_text(sensor_csv(result), encoding="utf-8")
+                written = [csv_path]
+                if result.get("type") == "grid":
+                    try:
+                        png = ll.map_png(info, s["id"])
+                    except LumenLinkError as exc:
+                        console.print(f"[yellow]warning:[/] no map for sensor {stem}: {escape(str(exc))}")
+                    else:
+                        (out_dir / f"{stem}.png").write_bytes(png)
+                        written.append(out_dir / f"{stem}.png")
+                print(f"sensor {stem} ({s['id']}): lux min {result['min_lux']:.4g}, mean {result['mean_lux']:.4g}, "
+                      f"max {result['max_lux']:.4g}; {result['photons']:,} photons in {result['seconds']:.2f} s "
+                      f"({result['stop_reason']}), revision {result['revision']} -> "
+                      + ", ".join(str(p) for p in written))
+        return EXIT_OK
+    return _run(work)
+
+
+def _progress_update(progress: Progress, task: TaskID, target: float | None, max_seconds: float | None,
+                     max_photons: int | None) -> Callable[[dict[str, Any], dict[str, Any]], None]:
+    """Moves the bar by whichever budget is given (photons, seconds, then the target error by 1/√N)."""
+    def update(sensor: dict[str, Any], job: dict[str, Any]) -> None:
+        p = job.get("progress") or {}
+        photons, seconds, err = p.get("photons") or 0, p.get("seconds") or 0.0, p.get("worst_relative_error")
+        fractions = []
+        if max_photons:
+            fractions.append(photons / max_photons)
+        if max_seconds:
+            fractions.append(seconds / max_seconds)
+        if target and err:
+            fractions.append(min(1.0, (target / err) ** 2))
+        left = p.get("seconds_left")
+        state = f"{job['status']}: {photons:,} photons" + (f", worst error {err:.1%}" if err else "") + \
+            (f", ~{left:.0f} s left" if left is not None else "")
+        if fractions:
+            progress.update(task, total=1.0, completed=min(1.0, max(fractions)), state=state)
+        else:
+            progress.update(task, state=state)
+    return update
