@@ -93,8 +93,16 @@ def validation_problem(errors: list[dict[str, Any]]) -> JSONResponse:
     if any(e["type"] == "json_invalid" for e in clean):
         first = next(e for e in clean if e["type"] == "json_invalid")
         return problem(400, "Malformed JSON", f"the body is not valid JSON: {first['msg']}", errors=clean)
-    shown = "; ".join(f"{'.'.join(e['loc']) or 'body'}: {e['msg']}" for e in clean[:5])
-    more = f" (and {len(clean) - 5} more)" if len(clean) > 5 else ""
+    # a list of vectors given flat ([x, y, z, x, y, z] for [[x, y, z], [x, y, z]]): one error per number said
+    # nothing of the form; say it once, first
+    flat = {tuple(c["loc"][:-1]) for e, c in zip(errors, clean, strict=True)
+            if c["type"] == "tuple_type" and c["loc"] and c["loc"][-1].isdigit()
+            and isinstance(e.get("input"), int | float) and not isinstance(e.get("input"), bool)}
+    hints = [f"{'.'.join(f)}: give a list of [x, y, z] triples, e.g. [[0, 0, 1], [1, 0, 1]], not a flat list of "
+             "numbers" for f in sorted(flat)]
+    rest = [e for e in clean if not (e["type"] == "tuple_type" and tuple(e["loc"][:-1]) in flat)]
+    shown = "; ".join(hints + [f"{'.'.join(e['loc']) or 'body'}: {e['msg']}" for e in rest][:max(0, 5 - len(hints))])
+    more = f" (and {len(hints) + len(rest) - 5} more)" if len(hints) + len(rest) > 5 else ""
     return problem(422, "Invalid request", shown + more, errors=clean[:100])
 
 

@@ -137,3 +137,15 @@ def test_a_huge_polarizer_axis_is_a_direction_not_a_500(world) -> None:
     assert r.status_code == 200, r.text
     assert c.put(f"/scenes/{sid}/materials/car%2Fbody", json={"type": "polarizer", "axis": [1e308, 1e308, 0]}
                  ).status_code == 200
+
+
+def test_points_given_flat_get_one_message_that_says_the_form(world) -> None:
+    """Six "valid tuple" errors said nothing of the form: the detail says it once, first (the errors stay listed)."""
+    c, sid = world
+    r = c.post(f"/scenes/{sid}/illuminance", json={"points": [0, 0, 1, 1, 0, 1], "normals": [[0, 0, 1], [0, 0, 1]]})
+    assert r.status_code == 422 and r.headers["content-type"].startswith(PROBLEM)
+    assert r.json()["detail"] == ("body.points: give a list of [x, y, z] triples, e.g. [[0, 0, 1], [1, 0, 1]], not a "
+                                  "flat list of numbers")
+    assert len(r.json()["errors"]) == 6
+    r = c.post(f"/scenes/{sid}/illuminance", json={"points": [[0, 0, 1]], "normals": [[0, 0]]})
+    assert r.status_code == 422 and "triples" not in r.json()["detail"] and "normals" in r.json()["detail"]
