@@ -36,13 +36,17 @@ from typing import Any
 import numba
 import numpy as np
 
+from tracer.errors import TracerError
+
 log = logging.getLogger(__name__)
 
 KernelId = tuple[str, ...]
 
 
-class BackendUnavailable(RuntimeError):
-    """The compute backend cannot be reached (the message says which and why); retry later."""
+class BackendUnavailable(TracerError, RuntimeError):
+    """The compute backend cannot be reached (the message says which and why); retry later. A `TracerError`
+    (the package's one root) and a RuntimeError: not bad input, so callers that map ValueError to 422 test
+    for it first."""
 
 
 class Shipment:

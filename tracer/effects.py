@@ -30,6 +30,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
+from tracer.errors import TracerError
 from tracer.optics.surfaces.dispatch import effects_of, material_spec
 
 EFFECTS = ("lambertian", "specular", "fresnel", "absorption", "scattering", "spectral", "dispersion", "coating",
@@ -38,7 +39,7 @@ NEEDS_WAVELENGTH = ("dispersion", "coating", "fluorescence", "mie")
 PHOTON_STATES = ("white", "spectral", "polarized", "polarized-spectral")
 
 
-class EffectError(ValueError):
+class EffectError(TracerError):
     """An unknown effect name."""
 
 

@@ -1,4 +1,6 @@
-"""Errors of the tracer package: one root, :class:`TracerError`, a :class:`ValueError`.
+"""Errors of the tracer package: one root, :class:`TracerError`, a :class:`ValueError`. Every error the tracer
+raises derives from it (materials, lights, spectra, polarization, effects, photometry, queries, and
+`tracer.backends.BackendUnavailable`, which is also a RuntimeError: the compute backend is not there).
 
 Jitted kernels never raise; the Python facade (:mod:`tracer.scene`) validates its input before any
 state changes and raises these, so a failed call leaves the scene as it was.

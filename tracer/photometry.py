@@ -35,12 +35,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from tracer.errors import TracerError
+
 __all__ = ["Photometry", "PhotometryError", "parse_photometry", "parse_ies", "parse_ldt"]
 
 _GAP_DEG = 1e-6  # width of the step from the last measured γ to zero (a step, not a ramp)
 
 
-class PhotometryError(ValueError):
+class PhotometryError(TracerError):
     """A photometry file that cannot be read; the message says where and why."""
 
 

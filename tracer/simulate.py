@@ -58,6 +58,7 @@ import numpy as np
 from tracer.backends import IN_PROCESS, DaskBackend, InProcess, Shipment
 from tracer.backward import QueryArrays, disk_queries
 from tracer.effects import EffectError, derive_effects, photon_state, with_forced
+from tracer.errors import TracerError
 from tracer.estimate import Estimate, cost_of
 from tracer.optics import spectra
 from tracer.optics.lights import connectable, pack_lights
@@ -83,7 +84,7 @@ MAX_SPECTRAL_TALLIES = 4_000_000   # bins × spectral columns a query may record
 _COMPILE_SECONDS: dict[tuple, float] = {}   # first call of each compiled variant in this process
 
 
-class SimulationError(ValueError):
+class SimulationError(TracerError):
     """A query or a scene the transport cannot simulate; the message says why."""
 
 

@@ -192,3 +192,23 @@ def test_transform_inverse_is_exact_on_a_known_matrix() -> None:
     inv = np.linalg.inv(m)
     np.testing.assert_allclose(sa.object_from_world[0], inv[:3], rtol=1e-12, atol=1e-12)
     np.testing.assert_array_equal(sa.world_from_object[0], m[:3])
+
+
+def test_every_error_the_tracer_raises_has_the_one_root():
+    """One error root per package: `except tracer.TracerError` catches whatever the tracer refuses."""
+    import importlib
+    import inspect
+    import pkgutil
+
+    import tracer
+    from tracer.errors import TracerError
+
+    public = []
+    for info in pkgutil.walk_packages(tracer.__path__, "tracer."):
+        module = importlib.import_module(info.name)
+        for name, obj in vars(module).items():
+            if (inspect.isclass(obj) and issubclass(obj, BaseException) and obj.__module__ == info.name
+                    and not name.startswith("_")):
+                public.append(obj)
+    assert len(public) >= 10
+    assert [c.__name__ for c in public if not issubclass(c, TracerError)] == []

@@ -34,6 +34,7 @@ import math
 import numpy as np
 from numba import njit
 
+from tracer.errors import TracerError
 from tracer.optics.frames import onb
 
 S1, S2, S3, E, ON = 0, 1, 2, 3, 6   # columns of a photon's ``pol`` array (E: 3 columns)
@@ -42,7 +43,7 @@ UNPOLARIZED, LINEAR, CIRCULAR = 0, 1, 2   # a light's polarization type (`light_
 _TINY = 1e-24
 
 
-class PolarizationError(ValueError):
+class PolarizationError(TracerError):
     """A light's polarization body the tracer cannot use; the message names the field."""
 
 

@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
+from tracer.errors import TracerError
 from tracer.optics.frames import find_in_cdf
 
 LAMBDA_MIN = 360.0       # nm: first grid sample
@@ -58,7 +59,7 @@ ZBAR_GRID = np.ascontiguousarray(CMF_GRID[:, 2])
 assert GRID_NM.shape == (GRID_N,) and GRID_NM[0] == LAMBDA_MIN and GRID_NM[-1] == LAMBDA_MAX
 
 
-class SpectrumError(ValueError):
+class SpectrumError(TracerError):
     """A spectrum or spectral value that cannot be used; the message names the field."""
 
 

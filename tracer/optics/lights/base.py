@@ -43,6 +43,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from tracer.errors import TracerError
 from tracer.optics.frames import find_in_cdf
 
 N_LPAR = 20
@@ -56,7 +57,7 @@ COMMON_FIELDS = frozenset({"id", "name", "attached_to", "type"})  # kept by the 
 SPECTRAL_FIELDS = frozenset({"spectrum", "flux_w", "polarization"})  # any kind's; `dispatch.pack_lights` reads them
 
 
-class LightError(ValueError):
+class LightError(TracerError):
     """A light body the transport cannot use; the message names the light and the field."""
 
 

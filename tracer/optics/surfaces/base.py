@@ -53,6 +53,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from tracer.errors import TracerError
 from tracer.optics import spectra
 from tracer.traverse import shading_normal
 
@@ -64,7 +65,7 @@ MIE_ROW = 6         # medium row column: first row of the medium's Mie table in 
 ABSORBED, CONTINUES, STACK_FULL = 0, 1, 2
 
 
-class MaterialError(ValueError):
+class MaterialError(TracerError):
     """A material body the transport cannot use; the message names the field."""
 
 
