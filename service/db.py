@@ -5,7 +5,7 @@ Tables (one row per thing, keyed by scene):
 - ``scenes``: id, name (unique), current revision, the document's length unit and source, and
   ``assign_revision``: a counter bumped by every change that keeps the revision (an assignment, an
   identity-only push), so that several service processes on one database can tell, with one SELECT of
-  ``(revision, assign_revision)``, whether what they hold in memory is behind (`service.state`).
+  ``(revision, assign_revision)``, whether what they hold in memory is behind (`service.scenes.Scenes.state`).
 - ``revisions``: one row per accepted push that changed something (the diff summary, seconds).
 - ``nodes``: the current tree, one row per node uuid; a push writes only the rows that changed.
   Transforms are 16 little-endian float64 (exact round trip).

@@ -17,7 +17,7 @@ answer is stale. ``LiveRegistry.lock(scene_id)`` is that lock (re-entrant): hold
 ``tracer.arrays()`` or copying the scene, to never see a scene between a change and its commit.
 
 With several service processes on one database, `get`, `revision` and `lock` first bring the scene up to
-date with what the others committed (one SELECT; `service.state.SceneManager.state`), and a scene changed
+date with what the others committed (one SELECT; `service.scenes.Scenes.state`), and a scene changed
 through another process notifies the listeners here like a change made through this one.
 """
 

@@ -256,18 +256,18 @@ def test_the_losing_push_changes_nothing_and_its_process_follows_the_winner(mana
     a, b = managers
     sid = stored_scene(a, b, car, "lost push")
     doc = lambda x: json.dumps(car_document(car["body"][0], car["wheel"][0], base_revision=1, door_x=x)).encode()  # noqa: E731
-    store = b._store
+    store = b.pushes._store
 
     def a_first(*args, **kwargs):   # B has checked, diffed and applied its push; A commits first
         a.push(sid, doc(11.0))
         return store(*args, **kwargs)
 
-    b._store = a_first
+    b.pushes._store = a_first
     try:
         with pytest.raises(Conflict) as lost:
             b.push(sid, doc(22.0))
     finally:
-        del b._store
+        del b.pushes._store
     assert lost.value.extensions["current_revision"] == 2
     for m in (a, b):   # the database and both memories hold A's push, B's changed nothing
         state = m.state(sid)
@@ -285,20 +285,20 @@ def test_an_assignment_that_races_a_push_is_checked_again_on_the_new_tree(manage
 
     a, b = managers
     sid = stored_scene(a, b, car, "raced assignment")
-    bump = b._bump_assignments
+    bump = b.store._bump
     pushes = []   # what A pushes, once each, between B's checks and B's guarded write
     tries = []
 
-    def a_first(conn, state):
-        tries.append(state.revision)
+    def a_first(conn, scene_id, revision, assign_revision):
+        tries.append(revision)
         if pushes:
             a.push(sid, json.dumps(pushes.pop()).encode())
-        return bump(conn, state)
+        return bump(conn, scene_id, revision, assign_revision)
 
     doc = car_document(car["body"][0], car["wheel"][0], base_revision=1)
     doc["nodes"] = [n for n in doc["nodes"] if n["uuid"] != uid(13)]   # revision 2: wheel 3 is gone
     pushes.append(doc)
-    b._bump_assignments = a_first
+    b.store._bump = a_first
     try:
         # B found wheel 3 in its tree, A removed it before B's write: tried again on revision 2, refused
         with pytest.raises(NotFound, match=uid(13)):
@@ -308,7 +308,7 @@ def test_an_assignment_that_races_a_push_is_checked_again_on_the_new_tree(manage
         assert b.set_material(sid, uid(12), {"type": "black"})["node"] == uid(12)   # tried again: made
         assert tries == [1, 2, 3]
     finally:
-        del b._bump_assignments
+        del b.store._bump
     assert [m["node"] for m in a.list_materials(sid)] == [uid(12)] == [m["node"] for m in b.list_materials(sid)]
     assert a.state(sid).revision == b.state(sid).revision == 3
 

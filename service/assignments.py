@@ -1,0 +1,212 @@
+"""Assignments: materials, lights, sensors and simulation-owned objects, by node uuid, kept across pushes.
+
+Each change validates its body, runs under the scene's lock on the scene as the database holds it now
+(`Scenes.current`), and is written in one transaction guarded by the scene's ``(revision, assign_revision)``
+(`SceneStore`); when another service process changed the scene in between (`Raced`), the scene is reloaded
+and the change tried again on it (`_retried`), 409 after `RACE_TRIES` tries. An assignment whose node a push
+removed stays, orphaned, and comes back with the node.
+"""
+
+from __future__ import annotations
+
+import functools
+import uuid as uuidlib
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from pydantic import TypeAdapter
+
+from service.errors import Conflict, Invalid, NotFound
+from service.live import LiveScene
+from service.scenes import Scenes, SceneState
+from service.schemas import Light, Material, ObjectCreate, Sensor
+from service.store import TABLES, Raced
+from service.tree import Tree, TreeError
+
+material_adapter: TypeAdapter = TypeAdapter(Material)
+light_adapter: TypeAdapter = TypeAdapter(Light)
+sensor_adapter: TypeAdapter = TypeAdapter(Sensor)
+
+RACE_TRIES = 3
+
+
+def _retried(method: Callable[..., Any]) -> Callable[..., Any]:
+    """Run an assignment change again on the reloaded scene when another process changed the scene between
+    this one's check and its guarded write; 409 after `RACE_TRIES` tries."""
+
+    @functools.wraps(method)
+    def run(self: Assignments, scene_id: str, *args: Any, **kwargs: Any) -> Any:
+        for _ in range(RACE_TRIES):
+            try:
+                return method(self, scene_id, *args, **kwargs)
+            except Raced:
+                self.scenes.forget(scene_id)   # memory may be ahead of the database (an object placed): reload it
+        raise Conflict(f"scene {scene_id} kept changing through other service processes during this change "
+                       f"({RACE_TRIES} tries); nothing was changed, try again")
+
+    return run
+
+
+class Assignments:
+    """What users assign in the simulation, on the scenes of `scenes`."""
+
+    def __init__(self, scenes: Scenes) -> None:
+        self.scenes = scenes
+        self.store = scenes.store
+
+    @staticmethod
+    def _check_anchor(state: SceneState, node: str | None, what: str) -> None:
+        if node is not None and not state.has_node(node):
+            raise NotFound(f"{what}: no node {node} in scene {state.id} (revision {state.revision})", node=node)
+
+    # ------------------------------------------------------------ materials
+
+    @_retried
+    def set_material(self, scene_id: str, key: str, body: dict) -> dict[str, Any]:
+        clean = material_adapter.validate_python(body).model_dump(exclude_none=True)
+        with self.scenes.current(scene_id) as state:
+            if not state.has_node(key) and key not in state.objects:
+                raise NotFound(f"no node or object {key} in scene {scene_id}", node=key)
+            self.store.set_material(scene_id, state.version, key, clean)
+            state.materials[key] = clean
+            self.scenes.changed(state)
+        return {"node": key, "material": clean, "orphaned": False}
+
+    @_retried
+    def delete_material(self, scene_id: str, key: str) -> None:
+        with self.scenes.current(scene_id) as state:
+            if key not in state.materials:
+                raise NotFound(f"no material assigned to {key} in scene {scene_id}")
+            self.store.delete_material(scene_id, state.version, key)
+            del state.materials[key]
+            self.scenes.changed(state)
+
+    def list_materials(self, scene_id: str) -> list[dict[str, Any]]:
+        state = self.scenes.state(scene_id)
+        with state.lock:
+            return [{"node": k, "material": v, "orphaned": not state.has_node(k) and k not in state.objects}
+                    for k, v in state.materials.items()]
+
+    # ------------------------------------------------------------ lights, sensors, objects
+
+    @_retried
+    def add_assignment(self, scene_id: str, kind: str, body: dict) -> dict[str, Any]:
+        """Add a light, sensor or sim-owned object (validated body); answers its public form."""
+        body = dict(body)  # a retry (`_retried`) starts again from the body as given
+        with self.scenes.current(scene_id) as state:
+            self._check_anchor(state, state.anchor_of(body), kind)
+            if kind == "light" and body["type"] == "goniometric":
+                _validate_photometry(body["format"], body["data"])
+            if kind == "object" and self.scenes.missing_geometries([body["geometry"]]):
+                raise Invalid(f"geometry {body['geometry']} is not uploaded (PUT /geometries/{{id}} first)",
+                              missing=[body["geometry"]])
+            aid = str(uuidlib.uuid4())
+            material = None
+            if kind == "object":
+                material = body.pop("material", None)
+                try:
+                    self.scenes.place_object(state, aid, body)
+                    state.last_commit = self.scenes.commit(state)
+                except Exception:
+                    self.scenes.forget(scene_id)
+                    raise
+            self.store.add_assignment(scene_id, state.version, kind, aid, body, material)
+            getattr(state, TABLES[kind][1])[aid] = body
+            if material is not None:
+                state.materials[aid] = material
+            self.scenes.changed(state)
+            return {"id": aid, "body": body, "orphaned": False}
+
+    def list_assignments(self, scene_id: str, kind: str) -> list[dict[str, Any]]:
+        state = self.scenes.state(scene_id)
+        with state.lock:
+            out = []
+            for aid, body in getattr(state, TABLES[kind][1]).items():
+                anchor = state.anchor_of(body)
+                out.append({"id": aid, "body": body, "orphaned": anchor is not None and not state.has_node(anchor)})
+            return out
+
+    def get_assignment(self, scene_id: str, kind: str, aid: str) -> dict[str, Any]:
+        for item in self.list_assignments(scene_id, kind):
+            if item["id"] == aid:
+                return item
+        raise NotFound(f"no {kind} {aid} in scene {scene_id}")
+
+    @_retried
+    def delete_assignment(self, scene_id: str, kind: str, aid: str) -> None:
+        with self.scenes.current(scene_id) as state:
+            items = getattr(state, TABLES[kind][1])
+            if aid not in items:
+                raise NotFound(f"no {kind} {aid} in scene {scene_id}")
+            if kind == "object":
+                inst = state.object_instances.pop(aid, None)
+                if inst is not None:
+                    try:
+                        state.tracer.remove_instance(inst)
+                        state.last_commit = self.scenes.commit(state)
+                    except Exception:
+                        self.scenes.forget(scene_id)
+                        raise
+            self.store.delete_assignment(scene_id, state.version, kind, aid)
+            del items[aid]
+            if kind == "object":
+                state.materials.pop(aid, None)
+            self.scenes.changed(state)
+
+    def purge_orphans(self, scene_id: str) -> list[dict[str, str]]:
+        """Delete every orphaned assignment of the scene; answers what was deleted."""
+        with self.scenes.current(scene_id) as state:
+            gone = state.orphans()
+            for o in gone:
+                if o["kind"] == "material":
+                    self.delete_material(scene_id, o["id"])
+                else:
+                    self.delete_assignment(scene_id, o["kind"], o["id"])
+            return gone
+
+
+def _validate_photometry(fmt: str, text: str) -> None:
+    """Parse a goniometric file with the tracer's parser (422 naming the problem if it is wrong)."""
+    try:
+        from tracer.photometry import parse_photometry
+    except ImportError:  # the parser is not built yet: accept, it is parsed again at simulation time
+        return
+    try:
+        parse_photometry(fmt, text)
+    except ValueError as exc:
+        raise Invalid(f"invalid {fmt} photometry file: {exc}") from exc
+
+
+def scene_effects(live: LiveScene, uses_default: bool = True) -> list[str]:
+    """The scene's effect set, by the transport's one rule (`tracer.effects.derive_effects`) over its
+    materials (and the default material where some instance uses it) and its lights. A body stored under older, looser
+    rules that the tracer now refuses is left out here (a summary never fails); a query says what is wrong."""
+    from tracer.effects import derive_effects
+    from tracer.optics.surfaces.dispatch import MaterialError, material_spec
+
+    specs = []
+    for body in list(live.materials.values()) + ([live.default_material] if uses_default else []):
+        try:
+            specs.append(material_spec(body))
+        except MaterialError:
+            continue
+    return derive_effects(specs, live.lights)
+
+
+def validate_body(kind: str, body: Any) -> dict:
+    """Validate a light, sensor or object body; answers it as a clean dict (422 on a bad field)."""
+    adapter = {"light": light_adapter, "sensor": sensor_adapter}.get(kind)
+    model = adapter.validate_python(body) if adapter is not None else ObjectCreate.model_validate(body)
+    out = model.model_dump(exclude_none=True)
+    if kind == "object":
+        out["transform"] = [float(x) for x in out["transform"]]
+        t = np.asarray(out["transform"]).reshape(4, 4)
+        try:
+            Tree.build(["00000000-0000-0000-0000-000000000000"], [None], [""], t.reshape(1, 16), [None], None, "m")
+        except TreeError as exc:
+            raise Invalid(f"object transform: {str(exc).split(': ', 1)[-1]}") from exc
+    for key in ("position", "origin", "center", "direction", "normal", "u", "v", "up"):
+        if key in out:
+            out[key] = list(out[key])
+    return out

@@ -1,0 +1,481 @@
+"""Live scenes: every scene of this process in memory, current with the database, and the views of them.
+
+`Scenes` owns, per scene, a `SceneState`: the current `Tree`, the committed `tracer.Scene`, the instance id of
+every node with geometry and every assignment (materials, lights, sensors, sim-owned objects, keyed by uuid).
+A scene is loaded on first use (tree, identity records, assignments, and a tracer scene whose bottom levels
+come from the BLAS cache under the data directory: none rebuilt if intact).
+
+Several service processes may share one database (and one data directory: the mesh store and the BLAS cache).
+Every use of a scene (`state`) compares ``(revision, assign_revision)`` in the database with the scene in
+memory (one SELECT of one row) and catches up when the database is ahead: a newer revision reloads the scene
+as after a restart; a newer ``assign_revision`` (another process changed an assignment or only identity
+records) reloads those tables in place and moves sim objects' instances. Listeners (`LiveRegistry`) hear of
+it as of any change.
+
+The views (`summary`, `nodes`, `live_scene`: the snapshot a simulation reads) are built here too, under the
+scene's lock. Pushes (`service.push`) and assignments (`service.assignments`) change scenes through this
+class; SQL lives in `service.store`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import logging
+import threading
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from service.config import Settings
+from service.document import NodeBytes
+from service.errors import NotFound, Unavailable
+from service.live import DELETED, LiveRegistry, LiveScene
+from service.meshes import MeshStore
+from service.schemas import LENGTH_UNITS, IdentityIn
+from service.store import SceneStore, _color
+from service.tree import Tree, apply_to_scene, diff_trees
+
+log = logging.getLogger("lumenlink.service")
+
+DEFAULT_MATERIAL: dict[str, Any] = {"type": "lambertian", "reflectance": 0.5}
+
+
+@dataclass
+class SceneState:
+    """One scene in memory (guarded by `lock`)."""
+
+    id: str
+    name: str
+    revision: int
+    length_unit: str | None
+    tree: Tree
+    tracer: Any
+    assign_revision: int = 0  # scenes.assign_revision this memory reflects (see service.db)
+    instances: dict[str, int] = field(default_factory=dict)  # document node uuid -> instance
+    object_instances: dict[str, int] = field(default_factory=dict)  # sim object id -> instance
+    geometries: set[str] = field(default_factory=set)  # geometry ids added to `tracer`
+    materials: dict[str, dict] = field(default_factory=dict)  # node uuid / object id -> material body
+    lights: dict[str, dict] = field(default_factory=dict)  # id -> body as given
+    sensors: dict[str, dict] = field(default_factory=dict)
+    objects: dict[str, dict] = field(default_factory=dict)
+    last_commit: dict[str, Any] = field(default_factory=dict)
+    node_bytes: NodeBytes | None = None  # where each node sits in the body that made `tree` (row i = chunk i)
+    identity: dict[str, IdentityIn] = field(default_factory=dict)  # node uuid -> its identity record, as stored
+    live: LiveScene | None = None
+    lock: threading.RLock = field(default_factory=threading.RLock)
+
+    @property
+    def version(self) -> tuple[int, int]:
+        """``(revision, assign_revision)``: what the database must still hold for a change to be written."""
+        return self.revision, self.assign_revision
+
+    # ------------------------------------------------------------ references to nodes
+
+    def has_node(self, key: str) -> bool:
+        return key in self.tree.index
+
+    def anchor_of(self, body: dict) -> str | None:
+        """The node a light/sensor/object body depends on (attached_to, or an area light's node)."""
+        return body.get("attached_to") or (body.get("node") if body.get("type") == "area" else None)
+
+    def orphans(self, only_nodes: set[str] | None = None) -> list[dict[str, str]]:
+        """Assignments whose node is not in the tree (optionally only those naming `only_nodes`)."""
+        out: list[dict[str, str]] = []
+
+        def missing(node: str | None) -> bool:
+            if node is None:
+                return False
+            if only_nodes is not None:
+                return node in only_nodes
+            return not self.has_node(node) and node not in self.objects
+
+        for key in self.materials:
+            if missing(key) and key not in self.objects:
+                out.append({"kind": "material", "id": key, "node": key})
+        for kind, table in (("light", self.lights), ("sensor", self.sensors), ("object", self.objects)):
+            for aid, body in table.items():
+                node = self.anchor_of(body)
+                if missing(node):
+                    out.append({"kind": kind, "id": aid, "node": node})  # type: ignore[dict-item]
+        return out
+
+
+class Scenes:
+    """All scenes of this process, backed by the database (`SceneStore`) and the mesh store."""
+
+    def __init__(self, settings: Settings, store: SceneStore, meshes: MeshStore,
+                 scene_factory: Callable[[], Any] | None = None) -> None:
+        self.settings = settings
+        self.store = store
+        self.meshes = meshes
+        self._scene_factory = scene_factory
+        self._states: dict[str, SceneState] = {}
+        self._lock = threading.Lock()
+        self._scene_locks: dict[str, threading.RLock] = {}
+        self.live = LiveRegistry(self.live_scene, self.revision, lambda scene_id: self.state(scene_id).lock)
+        self.known_geometries: set[str] = store.geometry_ids()
+
+    def new_tracer_scene(self) -> Any:
+        if self._scene_factory is not None:
+            return self._scene_factory()
+        import tracer  # imported on first use: numba start-up is not paid by /health
+
+        cache = self.settings.blas_dir
+        cache.mkdir(parents=True, exist_ok=True)
+        return tracer.Scene(cache_dir=cache)
+
+    # ------------------------------------------------------------ scenes current with the database
+
+    def revision(self, scene_id: str) -> int:
+        return self.state(scene_id).revision
+
+    def state(self, scene_id: str) -> SceneState:
+        """The in-memory scene, current with the database (NotFound if there is none).
+
+        Loaded on first use; afterwards one SELECT compares the scene's ``(revision, assign_revision)``
+        in the database with memory, and a scene another service process changed is brought up to date
+        first (under the scene's lock): reloaded for a newer revision, its assignments reloaded for a newer
+        ``assign_revision``, dropped (NotFound) if it was deleted.
+        """
+        state = self._states.get(scene_id)
+        if state is not None and self.store.version(scene_id) == state.version:
+            return state
+        lock = self.scene_lock(scene_id)
+        with lock:
+            state = self._states.get(scene_id)
+            if state is None:
+                state = self._load(scene_id, lock)
+                with self._lock:
+                    self._states[scene_id] = state
+                return state
+            version = self.store.version(scene_id)
+            if version == state.version:  # a change by this process, done meanwhile
+                return state
+            if version is None:  # deleted through another process
+                with self._lock:
+                    self._states.pop(scene_id, None)
+                self.live.notify(scene_id, DELETED)
+                raise NotFound(f"no scene {scene_id}")
+            log.info("scene %s changed in the database (revision %d, assignments %d; this process had %d, %d): "
+                     "catching up", scene_id, version[0], version[1], state.revision, state.assign_revision)
+            try:
+                if version[0] == state.revision:
+                    self._reload_assignments(state)
+                else:
+                    state = self._load(scene_id, lock)
+                    with self._lock:
+                        self._states[scene_id] = state
+            except Exception:
+                self.forget(scene_id)
+                raise
+            self.live.notify(scene_id, state.revision)
+            return state
+
+    @contextlib.contextmanager
+    def current(self, scene_id: str) -> Iterator[SceneState]:
+        """The scene's lock held, and the scene brought up to date under it (for a change)."""
+        with self.scene_lock(scene_id):
+            yield self.state(scene_id)
+
+    def scene_lock(self, scene_id: str) -> threading.RLock:
+        with self._lock:
+            return self._scene_locks.setdefault(scene_id, threading.RLock())
+
+    def forget(self, scene_id: str) -> None:
+        """Drop the in-memory scene; the next use reloads it from the database."""
+        with self._lock:
+            self._states.pop(scene_id, None)
+
+    def delete(self, scene_id: str) -> None:
+        """Delete a scene from the database and memory; its results go stale and its jobs are cancelled."""
+        with self.current(scene_id):
+            self.store.delete_scene(scene_id)
+            self.forget(scene_id)
+            self.live.notify(scene_id, DELETED)
+
+    def changed(self, state: SceneState) -> None:
+        """After a stored change that keeps the revision (the store counted it in ``assign_revision``)."""
+        state.assign_revision += 1
+        state.live = None
+        self.live.notify(state.id, state.revision)
+
+    def _load(self, scene_id: str, lock: threading.RLock) -> SceneState:
+        read = self.store.read_scene(scene_id)
+        if read is None:
+            raise NotFound(f"no scene {scene_id}")
+        row, node_rows, stored = read
+        unit = row.length_unit or "m"
+        transforms = (np.frombuffer(b"".join(r.transform for r in node_rows), dtype="<f8").reshape(-1, 16)
+                      if node_rows else np.zeros((0, 16)))
+        tree = Tree.build([r.uuid for r in node_rows], [r.parent for r in node_rows], [r.name for r in node_rows],
+                          transforms, [r.geometry for r in node_rows],
+                          [tuple(r.color) if r.color is not None else None for r in node_rows], unit)
+        state = SceneState(scene_id, row.name, row.revision, row.length_unit, Tree.empty(unit),
+                           self.new_tracer_scene(), assign_revision=row.assign_revision,
+                           materials=stored["materials"], lights=stored["lights"], sensors=stored["sensors"],
+                           objects=stored["objects"], lock=lock, identity=stored["identity"])
+        diff = diff_trees(state.tree, tree)
+        state.tree = tree
+        apply_to_scene(state.tracer, state.instances, tree, diff, lambda g: self.ensure_geometry(state, g))
+        for oid, body in state.objects.items():
+            self.place_object(state, oid, body)
+        state.last_commit = self.commit(state)
+        log.info("loaded scene %s (revision %d, %d nodes): %s", scene_id, state.revision, len(tree),
+                 state.last_commit)
+        return state
+
+    def _reload_assignments(self, state: SceneState) -> None:
+        """Bring the assignments and identity records of `state` (tree unchanged) up to the database's, in place:
+        sim objects gone or new get their instances removed or added (one top-level commit if any did)."""
+        assign_revision, stored = self.store.read_assignments(state.id)
+        moved = False
+        for oid, body in state.objects.items():
+            if stored["objects"].get(oid) != body:
+                inst = state.object_instances.pop(oid, None)
+                if inst is not None:
+                    state.tracer.remove_instance(inst)
+                    moved = True
+        for oid, body in stored["objects"].items():
+            if oid not in state.object_instances:
+                self.place_object(state, oid, body)
+                moved = moved or oid in state.object_instances
+        if moved:
+            state.last_commit = self.commit(state)
+        state.materials, state.lights, state.sensors = stored["materials"], stored["lights"], stored["sensors"]
+        state.objects, state.identity = stored["objects"], stored["identity"]
+        state.assign_revision = assign_revision
+        state.live = None
+
+    # ------------------------------------------------------------ geometry
+
+    def _look_up_geometries(self, ids: Any) -> None:
+        """Add to the known geometries those of `ids` that another service process stored (one SELECT)."""
+        unknown = {g for g in ids if isinstance(g, str) and g not in self.known_geometries}
+        if unknown:
+            self.known_geometries.update(self.store.geometry_ids(unknown))
+
+    def known(self, ids: list[str]) -> set[str]:
+        self._look_up_geometries(ids)
+        return {g for g in ids if g in self.known_geometries}
+
+    def missing_geometries(self, ids: list[str]) -> list[str]:
+        self._look_up_geometries(ids)
+        seen: set[str] = set()
+        out = []
+        for g in ids:
+            if g not in self.known_geometries and g not in seen:
+                seen.add(g)
+                out.append(g)
+        return out
+
+    def put_geometry(self, gid: str, data: bytes) -> dict[str, Any]:
+        """Store an uploaded GLB (idempotent): 400 if it does not hash to `gid`, 422 if it is no valid mesh."""
+        mesh = self.meshes.validate_upload(gid, data)
+        self._look_up_geometries([gid])
+        created = gid not in self.known_geometries or not self.meshes.has(gid)
+        if created:
+            self.meshes.write(gid, data, mesh)
+            self.store.add_geometry(gid, len(mesh.vertices), len(mesh.triangles), mesh.normals is not None, len(data))
+            self.known_geometries.add(gid)
+        return {"id": gid, "vertices": len(mesh.vertices), "triangles": len(mesh.triangles),
+                "normals": mesh.normals is not None, "bytes": len(data), "created": created}
+
+    def geometry_glb(self, gid: str) -> bytes:
+        self._look_up_geometries([gid])
+        if gid not in self.known_geometries:
+            raise NotFound(f"no geometry {gid}")
+        return self.meshes.glb(gid)
+
+    def ensure_geometry(self, state: SceneState, gid: str) -> bool:
+        """Add a stored mesh to the scene's tracer scene (once); whether it was added now."""
+        if gid in state.geometries:
+            return False
+        if not self.meshes.has(gid):
+            # stored by another service process whose data directory this one does not share
+            raise Unavailable(f"geometry {gid} is in the database but not in this process's mesh store "
+                              f"({self.meshes.root}): every service process on one database must share one data "
+                              f"directory (LUMENLINK_DATA_DIR)", geometry=gid)
+        mesh = self.meshes.load(gid)
+        got = state.tracer.add_geometry(mesh.vertices, mesh.triangles, mesh.normals)
+        if got != gid:
+            raise RuntimeError(f"tracer gave geometry id {got} for stored mesh {gid}")
+        state.geometries.add(gid)
+        return True
+
+    @staticmethod
+    def commit(state: SceneState) -> dict[str, Any]:
+        stats = state.tracer.commit()
+        return {"blas_built": int(getattr(stats, "blas_built", 0)),
+                "blas_loaded": int(getattr(stats, "blas_loaded", 0)),
+                "blas_seconds": float(getattr(stats, "blas_seconds", 0.0)),
+                "tlas_seconds": float(getattr(stats, "tlas_seconds", 0.0))}
+
+    # ------------------------------------------------------------ sim-owned objects in the tracer scene
+
+    @staticmethod
+    def _object_transform(state: SceneState, body: dict) -> np.ndarray | None:
+        """world_from_mesh of a sim object, or None while its node is missing (orphaned)."""
+        t = np.asarray(body["transform"], dtype=np.float64).reshape(4, 4)
+        s = LENGTH_UNITS[body.get("mesh_unit", "m")]
+        t = t @ np.diag([s, s, s, 1.0])
+        node = body.get("attached_to")
+        if node is None:
+            return t
+        row = state.tree.index.get(node)
+        if row is None:
+            return None
+        return state.tree.world[row] @ t
+
+    def place_object(self, state: SceneState, oid: str, body: dict) -> None:
+        """Add, move or remove the object's instance so it matches the tree (call before commit)."""
+        t = self._object_transform(state, body)
+        inst = state.object_instances.get(oid)
+        if t is None:
+            if inst is not None:
+                state.tracer.remove_instance(inst)
+                del state.object_instances[oid]
+            return
+        if inst is None:
+            self.ensure_geometry(state, body["geometry"])
+            state.object_instances[oid] = state.tracer.add_instance(body["geometry"], t)
+        else:
+            state.tracer.set_transform(inst, t)
+
+    # ------------------------------------------------------------ views
+
+    def summary(self, scene_id: str) -> dict[str, Any]:
+        from service.assignments import scene_effects
+
+        state = self.state(scene_id)
+        with state.lock:
+            live = self._live_locked(state)
+            n_instances = len(state.instances) + len(state.object_instances)
+            counts: dict[str, int] = {}
+            for u in state.instances:
+                gid = str(state.tree.geometries[state.tree.index[u]])
+                counts[gid] = counts.get(gid, 0) + 1
+            for oid in state.object_instances:
+                gid = state.objects[oid]["geometry"]
+                counts[gid] = counts.get(gid, 0) + 1
+            source = self.store.source(state.id)
+            triangles = self.store.triangles(counts)
+            return {"id": state.id, "name": state.name, "revision": state.revision, "length_unit": state.length_unit,
+                    "nodes": len(state.tree), "objects": n_instances, "triangles": triangles,
+                    "geometries": len(counts), "effects": scene_effects(live, n_instances > len(live.materials)),
+                    "orphaned": state.orphans(),
+                    "materials_assigned": sum(1 for k in state.materials
+                                              if state.has_node(k) or k in state.objects),
+                    "default_material": dict(DEFAULT_MATERIAL),
+                    "default_material_instances": n_instances - len(live.materials),
+                    "lights": len(live.lights), "sensors": len(live.sensors), "sim_objects": len(state.objects),
+                    "last_commit": state.last_commit, "source": source}
+
+    def revisions(self, scene_id: str) -> list[dict[str, Any]]:
+        """One entry per accepted push that changed the tree: its counts and stage seconds, oldest first."""
+        self.state(scene_id)  # 404 for an unknown scene
+        return self.store.revisions(scene_id)
+
+    def nodes(self, scene_id: str) -> list[dict[str, Any]]:
+        """The current tree, one record per node in document order: the pushed fields, the tracer
+        instance, and what the CAD adapter reconciles a new document against — the occurrence
+        ``path`` (`Tree.paths`), ``world`` (root_from_node, 16 numbers row-major, in the document's
+        length unit) and the node's identity record (``product``, ``signature``; null without one)."""
+        state = self.state(scene_id)
+        with state.lock:
+            t = state.tree
+            paths = t.paths()
+            local = t.local.reshape(-1, 16).tolist()
+            if t.world_doc is not None:
+                world_doc = t.world_doc
+            else:  # the world in metres with its translations back in document units
+                world_doc = t.world.copy()
+                world_doc[:, :3, 3] /= t.scale
+            world = world_doc.reshape(-1, 16).tolist()
+            identity = state.identity
+            out = []
+            for i, u in enumerate(t.uuids):
+                rec = identity.get(u)
+                out.append({"uuid": u, "parent": t.parents[i], "name": t.names[i], "transform": local[i],
+                            "geometry": t.geometries[i], "color": _color(t.colors[i]),
+                            "instance": state.instances.get(u), "path": paths[i], "world": world[i],
+                            "product": rec.product if rec is not None else None,
+                            "signature": rec.signature.model_dump(exclude_none=True)
+                            if rec is not None and rec.signature is not None else None})
+            return out
+
+    def live_scene(self, scene_id: str) -> LiveScene:
+        state = self.state(scene_id)
+        with state.lock:
+            return self._live_locked(state)
+
+    def _live_locked(self, state: SceneState) -> LiveScene:
+        if state.live is not None:
+            return state.live
+        tree = state.tree
+        node_world = {u: tree.world[i] for i, u in enumerate(tree.uuids)}
+        # effective material per node: its own, else its parent's (rows visited parents first)
+        effective: dict[str, dict] = {}
+        if state.materials:
+            for i in np.argsort(tree.depth, kind="stable"):
+                u = tree.uuids[i]
+                own = state.materials.get(u)
+                if own is not None:
+                    effective[u] = own
+                else:
+                    p = tree.parents[i]
+                    if p is not None and p in effective:
+                        effective[u] = effective[p]
+        materials: dict[int, dict] = {}
+        for u, inst in state.instances.items():
+            if u in effective:
+                materials[inst] = copy.deepcopy(effective[u])
+        for oid, inst in state.object_instances.items():
+            if oid in state.materials:
+                materials[inst] = copy.deepcopy(state.materials[oid])
+        instance_of_node = dict(state.instances)
+        instance_of_node.update(state.object_instances)
+        lights = [r for r in (_resolve(state, lid, body) for lid, body in state.lights.items()) if r is not None]
+        sensors = [r for r in (_resolve(state, sid, body) for sid, body in state.sensors.items()) if r is not None]
+        state.live = LiveScene(state.id, state.revision, state.tracer, instance_of_node, node_world, materials,
+                               dict(DEFAULT_MATERIAL), lights, sensors,
+                               extras={"length_unit": state.length_unit, "objects": dict(state.objects)})
+        return state.live
+
+
+def _resolve(state: SceneState, aid: str, body: dict) -> dict | None:
+    """A light/sensor body in world metres (None while its node is missing)."""
+    out = {k: copy.deepcopy(v) for k, v in body.items() if k not in ("attached_to", "name")}
+    out["id"] = aid
+    if body.get("type") == "area":
+        node = body["node"]
+        if not state.has_node(node):
+            return None
+        out.pop("node")
+        out["instances"] = [state.instances[u] for u in state.tree.subtree(node) if u in state.instances]
+        return out
+    node = body.get("attached_to")
+    if node is None:
+        return out
+    row = state.tree.index.get(node)
+    if row is None:
+        return None
+    w = state.tree.world[row]
+    lin = w[:3, :3]
+    for key in ("position", "origin", "center"):
+        if key in out:
+            out[key] = (lin @ np.asarray(out[key], dtype=float) + w[:3, 3]).tolist()
+    for key in ("direction", "normal", "up", "c0"):
+        if key in out:
+            d = lin @ np.asarray(out[key], dtype=float)
+            out[key] = (d / np.linalg.norm(d)).tolist()
+    for key in ("u", "v"):
+        if key in out:
+            out[key] = (lin @ np.asarray(out[key], dtype=float)).tolist()
+    pol = out.get("polarization")
+    if isinstance(pol, dict) and pol.get("type") == "linear":   # the field's axis turns with the node
+        a = lin @ np.asarray(pol["axis"], dtype=float)
+        out["polarization"] = {**pol, "axis": (a / np.linalg.norm(a)).tolist()}
+    return out
