@@ -4,8 +4,11 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-dev
 BENCH_STAMP := $(VENV)/.installed-bench
+# the browser assets the service serves itself (three.js, Swagger UI, ReDoc): npm packages pinned by service/web's lockfile
+WEB    := service/web
+WEB_STAMP := $(WEB)/node_modules/.installed
 
-.PHONY: demo serve test lint typecheck bench clean postgres
+.PHONY: demo serve test lint typecheck bench clean postgres chromium web
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -17,11 +20,22 @@ $(BENCH_STAMP): $(STAMP)
 	$(BIN)/python -m pip install --quiet -e '.[dev,bench]'
 	touch $@
 
-demo: $(STAMP)
+demo: $(STAMP) $(WEB_STAMP)
 	$(BIN)/lumenlink demo
 
-serve: $(STAMP)
+serve: $(STAMP) $(WEB_STAMP)
 	$(BIN)/lumenlink serve
+
+# The pages' and the API docs' scripts, from the npm registry, exactly as package-lock.json pins them (integrity
+# hashes); nothing is fetched at run time. Without npm the service still runs, its pages say what is missing.
+$(WEB_STAMP): $(WEB)/package.json $(WEB)/package-lock.json
+	@if command -v npm >/dev/null 2>&1; then \
+		cd $(WEB) && npm ci --ignore-scripts --no-audit --no-fund --loglevel=error && touch node_modules/.installed; \
+	else \
+		echo "web: npm not found: the pages at / and the API docs at /docs have no scripts (install Node.js and npm)"; \
+	fi
+
+web: $(WEB_STAMP)
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
@@ -29,7 +43,7 @@ lint: $(STAMP)
 typecheck: $(STAMP)
 	$(BIN)/mypy
 
-test: $(STAMP) postgres lint typecheck
+test: $(STAMP) $(WEB_STAMP) postgres chromium lint typecheck
 	$(BIN)/python -m pytest -q
 
 # A PostgreSQL server for tests/service/test_replicas.py (it starts its own throw-away cluster in a temp dir):
@@ -49,8 +63,25 @@ postgres:
 		    postgresql; } || echo "postgres: installing postgresql failed: tests/service/test_replicas.py is skipped"; \
 	fi
 
+# Chromium for the browser tests (tests/e2e/test_pages.py drives it with Playwright): Debian's `chromium` package,
+# installed when /usr/bin/chromium is missing and we may install it (root, apt-get); Playwright's own browser
+# download is not used.
+chromium:
+	@if [ -x /usr/bin/chromium ]; then \
+		:; \
+	elif [ "$$(id -u)" != 0 ]; then \
+		echo "chromium: /usr/bin/chromium missing and not root: not installing Debian's chromium package" \
+		     "(apt-get needs root); tests/e2e/test_pages.py is skipped"; \
+	elif ! command -v apt-get >/dev/null 2>&1; then \
+		echo "chromium: /usr/bin/chromium missing and no apt-get to install it with: tests/e2e/test_pages.py is skipped"; \
+	else \
+		echo "chromium: installing Debian's chromium package (for tests/e2e/test_pages.py)"; \
+		{ apt-get update -q && DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends \
+		    chromium; } || echo "chromium: installing chromium failed: tests/e2e/test_pages.py is skipped"; \
+	fi
+
 bench: $(BENCH_STAMP)
 	$(BIN)/lumenlink bench
 
 clean:
-	rm -rf $(VENV) var demo-output .pytest_cache
+	rm -rf $(VENV) var demo-output .pytest_cache $(WEB)/node_modules

@@ -20,7 +20,7 @@ from service.db import open_engine
 from service.errors import install_handlers
 from service.meshes import MeshStore
 from service.middleware import BearerToken, BodyLimit, RequestLog
-from service.routes import assignments, geometries, scenes
+from service.routes import assignments, geometries, pages, scenes
 from service.state import SceneManager
 
 log = logging.getLogger("lumenlink.service")
@@ -37,6 +37,7 @@ def create_app(settings: Settings | None = None, scene_factory: Callable[[], Any
     manager = SceneManager(settings, engine, MeshStore(settings.mesh_dir), scene_factory=scene_factory)
 
     app = FastAPI(title="LumenLink sync service", version=getattr(service, "__version__", "0.1.0"),
+                  docs_url=None, redoc_url=None,   # served by service.routes.pages, with their assets local
                   description="Keeps a light simulation in step with a CAD model: push CAD trees, "
                               "assign materials, lights and sensors by UUID, query illuminance.")
     app.state.settings = settings
@@ -71,6 +72,8 @@ def create_app(settings: Settings | None = None, scene_factory: Callable[[], Any
         from service.routes import simulation
 
         app.include_router(simulation.router, responses=PROBLEM_RESPONSES)
+    # the pages for people, the API docs with their assets, the event streams; before the middleware below
+    pages.install(app, responses=PROBLEM_RESPONSES)
     app.openapi = _openapi_with_problems(app)  # type: ignore[method-assign]  # FastAPI documents this override
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes, in_flight=settings.max_upload_bytes_in_flight)
     if settings.token:

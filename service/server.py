@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import re
@@ -17,10 +18,9 @@ def run(host: str = "127.0.0.1", port: int = 8000, data_dir: Path | str = "./var
     `warm`: compile the light-transport kernels in the background from the start (`tracer.warmup`); `token`:
     the bearer token every request must carry (required beyond loopback); `dask`: the address of a Dask scheduler
     whose workers run the photon batches (`tracer.backends`)."""
-    import uvicorn
-
     from service.app import create_app
     from service.config import Settings
+    from service.events import closing_server
 
     problem = data_dir_problem(Path(data_dir))
     if not token and host not in LOOPBACK:
@@ -38,7 +38,12 @@ def run(host: str = "127.0.0.1", port: int = 8000, data_dir: Path | str = "./var
     settings = Settings(host=host, port=port, data_dir=Path(data_dir), warm_kernels=warm, token=token or None,
                         dask_scheduler=dask or None)
     app = create_app(settings)
-    uvicorn.run(app, host=host, port=port, log_level="info", access_log=False, workers=1)
+    # as uvicorn.run, with the pages' event streams ended when asked to stop (service.events.closing_server)
+    server = closing_server(app, host=host, port=port, log_level="info", access_log=False, workers=1)
+    with contextlib.suppress(KeyboardInterrupt):
+        server.run()
+    if not server.started:
+        raise SystemExit(3)   # uvicorn's STARTUP_FAILURE: the port was taken, say
 
 
 def data_dir_problem(path: Path) -> str | None:

@@ -1,0 +1,275 @@
+// The scene view (GET /scenes/{id}/view): reads GET /scenes/{id}/view/state, draws it (scene3d.js), follows the
+// scene's server-sent events and reads the state again after a push, an assignment or a finished simulation.
+// `window.lumenlink` exposes what the page shows, for people poking in the console and for the browser tests.
+
+import { Viewer, CHANGE_COLOURS } from "./scene3d.js";
+import { Scale, drawLegend, formatLux, turbo } from "./colour.js";
+import { followEvents, getJSON, postJSON } from "./api.js";
+
+const sceneId = document.body.dataset.scene;
+const $ = (id) => document.getElementById(id);
+
+/** What the page shows now (read by the tests; nothing here is an API). */
+const ll = (window.lumenlink = {
+  sceneId, ready: false, revision: null, loads: 0, events: [], connection: "connecting", scale: "linear",
+  state: null, lastPick: null, error: null, jobs: [],
+  counts: () => viewer?.counts(),                  // meshes in the three.js scene: {instances, sensors}
+  screenOf: (p) => viewer?.screenOf(p),            // client coordinates of a world point (m)
+  pixelAt: (x, y) => viewer?.pixelAt(x, y),        // RGBA drawn there
+  matrixOf: (instance) => viewer?.matrixOf(instance),
+  colourOf: (lux) => { const s = new Scale(ll.scale, vmaxOf(ll.state?.sensors ?? [])); return turbo(s.norm(lux)); },
+});
+
+let viewer = null;
+try {
+  viewer = new Viewer($("canvas"));
+} catch (err) {   // no WebGL: say so instead of a blank page
+  fail(`cannot draw in 3D here: ${err.message}`);
+}
+
+// ------------------------------------------------------------------------------------------- state
+
+let loading = null;   // the state read in progress
+let again = false;    // another read was asked for while one ran
+
+/** Read the state and draw it; reads asked for meanwhile are folded into one more read. */
+async function refresh() {
+  if (loading) { again = true; return loading; }
+  loading = (async () => {
+    do {
+      again = false;
+      try {
+        const state = await getJSON(`/scenes/${sceneId}/view/state`);
+        ll.state = state;
+        await draw(state);
+        ll.revision = state.scene.revision;
+        ll.loads += 1;
+        ll.ready = true;
+        ll.error = null;
+        status();
+      } catch (err) {
+        fail(`could not read the scene: ${err.message}`);
+      }
+    } while (again);
+    loading = null;
+  })();
+  return loading;
+}
+
+/** Largest lux of all sensor results: the top of the shared colour scale. */
+function vmaxOf(sensors) {
+  let vmax = 0;
+  for (const s of sensors) for (const row of s.result?.lux ?? []) for (const v of row) vmax = Math.max(vmax, v);
+  return vmax;
+}
+
+async function draw(state) {
+  if (!viewer) return;
+  await viewer.setInstances(state, $("highlight").checked);
+  drawSensors();
+  viewer.setLights(state.lights);
+  listChanges(state.last_push);
+  listJobs(state.jobs);
+}
+
+function drawSensors() {
+  const sensors = ll.state?.sensors ?? [];
+  const scale = new Scale(ll.scale, vmaxOf(sensors));
+  viewer?.setSensors(sensors, scale);
+  drawLegend($("legend"), $("legend-labels"), scale);
+  $("sensors").replaceChildren(...sensors.map((s) => {
+    const li = document.createElement("li");
+    const name = s.name ?? `${s.type} sensor ${s.id.slice(0, 8)}`;
+    li.textContent = s.result
+      ? `${name}: ${formatLux(s.result.min_lux)} – ${formatLux(s.result.max_lux)} (${s.result.photons.toLocaleString()} photons)`
+      : `${name}: not simulated at this revision `;
+    if (s.type === "grid") {
+      const button = document.createElement("button");
+      button.textContent = "simulate";
+      button.title = "trace photons for this sensor (a job of at most 10 s)";
+      button.onclick = () => simulate(s.id);
+      li.append(" ", button);
+    }
+    return li;
+  }));
+}
+
+function status(extra = "") {
+  const s = ll.state?.scene;
+  $("status").className = "muted";
+  $("status").textContent = s ? `revision ${s.revision} · ${ll.state.instances.length} parts · ${ll.connection}${extra}` : "";
+}
+
+function fail(text) {
+  ll.error = text;
+  $("status").className = "error";
+  $("status").textContent = text;
+}
+
+// ------------------------------------------------------------------------------------------- side panel
+
+function listChanges(push) {
+  const items = [];
+  if (push) {
+    for (const kind of ["added", "moved", "geometry_changed", "removed", "renamed"]) {
+      const n = push.counts?.[kind] ?? 0;
+      if (!n) continue;
+      const li = document.createElement("li");
+      if (CHANGE_COLOURS[kind]) {
+        const sw = document.createElement("span");
+        sw.className = "swatch";
+        sw.style.background = CHANGE_COLOURS[kind];
+        li.append(sw, " ");
+      }
+      li.append(`${kind.replace("_", " ")}: ${n}`);
+      items.push(li);
+    }
+  }
+  const head = document.createElement("li");
+  head.className = "muted";
+  head.textContent = push ? `revision ${push.revision}${items.length ? "" : ": nothing changed"}` : "none through this service process yet";
+  $("changes").replaceChildren(head, ...items);
+}
+
+/** Jobs of this scene, by id (updated from `job` events between reads of the state). */
+const jobs = new Map();
+
+function listJobs(list) {
+  if (list) { jobs.clear(); for (const j of list) jobs.set(j.id, j); }
+  const items = [...jobs.values()].map((j) => {
+    const li = document.createElement("li");
+    const p = j.progress ?? {};
+    const what = j.kind === "sensor" ? `sensor ${(j.sensor ?? "").slice(0, 8)}` : `${j.points ?? "?"} points`;
+    const err = p.worst_relative_error != null ? `, worst error ${(100 * p.worst_relative_error).toFixed(1)} %` : "";
+    const left = p.seconds_left != null && j.status === "running" ? `, ~${p.seconds_left.toFixed(1)} s left` : "";
+    li.textContent = `${what}: ${j.status}, ${(p.photons ?? 0).toLocaleString()} photons${err}${left}`;
+    const total = (p.seconds ?? 0) + (p.seconds_left ?? 0);
+    const done = j.status === "succeeded" ? 1 : total > 0 ? (p.seconds ?? 0) / total : 0;
+    const bar = document.createElement("div");
+    bar.className = "bar";
+    bar.innerHTML = `<div style="width:${Math.round(100 * done)}%"></div>`;
+    li.append(bar);
+    return li;
+  });
+  $("jobs").replaceChildren(...(items.length ? items : [Object.assign(document.createElement("li"), { className: "muted", textContent: "none" })]));
+  ll.jobs = [...jobs.values()];
+}
+
+async function simulate(sensorId) {
+  try {
+    await postJSON(`/scenes/${sceneId}/sensors/${sensorId}/simulate?mode=async`, { max_seconds: 10 });
+  } catch (err) {
+    fail(`simulation refused: ${err.message}`);
+  }
+}
+
+// ------------------------------------------------------------------------------------------- picking
+
+function materialText(m) {
+  if (!m) return "—";
+  const extra = Object.entries(m).filter(([k]) => k !== "type").map(([k, v]) => `${k} ${v}`).join(", ");
+  return extra ? `${m.type} (${extra})` : m.type;
+}
+
+/** Name chain of a node (root first), from the state's node list. */
+function nameChain(uuid) {
+  const nodes = new Map(ll.state.nodes.map((n) => [n.uuid, n]));
+  const names = [];
+  for (let n = nodes.get(uuid); n; n = nodes.get(n.parent)) names.unshift(n.name);
+  return names.join(" › ");
+}
+
+function showPick(hit) {
+  const panel = $("pick");
+  if (!hit) { panel.className = "muted"; panel.textContent = "nothing there"; ll.lastPick = null; return; }
+  const info = { point: hit.point };
+  const rows = [["point", hit.point.map((x) => x.toFixed(3)).join(", ") + " m"]];
+  if (hit.surface) {
+    const rec = hit.surface.rec;
+    const node = rec.node ? ll.state.nodes.find((n) => n.uuid === rec.node) : null;
+    const object = rec.object ? ll.state.objects.find((o) => o.id === rec.object) : null;
+    info.node = node ? { uuid: node.uuid, path: node.path, chain: nameChain(node.uuid) } : null;
+    info.object = object ? { id: object.id, name: object.name } : null;
+    info.material = rec.material;
+    if (node) rows.push(["node", node.path], ["names", info.node.chain], ["uuid", node.uuid]);
+    if (object) rows.push(["object", `${object.name ?? "(unnamed)"} (owned by the simulation)`]);
+    rows.push(["material", materialText(rec.material)]);
+  }
+  if (hit.sensor) {
+    const { sensor: s, i, j } = hit.sensor;
+    info.sensor = { id: s.id, name: s.name, i, j };
+    rows.push(["sensor", `${s.name ?? s.id.slice(0, 8)}, cell (${i}, ${j})`]);
+    if (s.result) {
+      info.lux = s.result.lux[j][i];
+      info.stderr = s.result.stderr[j][i];
+      rows.push(["lux", `${formatLux(info.lux)} ± ${formatLux(info.stderr)}`]);
+    } else {
+      rows.push(["lux", "not simulated at this revision"]);
+    }
+  }
+  ll.lastPick = info;
+  const dl = document.createElement("dl");
+  for (const [k, v] of rows) dl.append(Object.assign(document.createElement("dt"), { textContent: k }),
+    Object.assign(document.createElement("dd"), { textContent: v }));
+  panel.className = "";
+  panel.replaceChildren(dl);
+  if (hit.surface && !hit.sensor) panel.append(measureButton(hit.surface));
+}
+
+/** Lux ± error at a picked surface point: a short illuminance query (2 s at most) on the side facing the viewer. */
+function measureButton(surface) {
+  const button = document.createElement("button");
+  button.textContent = "measure lux here (≤ 2 s)";
+  button.onclick = async () => {
+    button.disabled = true;
+    button.textContent = "measuring…";
+    const n = surface.normal;
+    const eps = 1e-4 * Math.max(viewer.size, 1);
+    const radius = Math.min(0.25, Math.max(0.005, 0.02 * viewer.size));
+    try {
+      const a = await postJSON(`/scenes/${sceneId}/illuminance`, {
+        points: [surface.point.map((x, k) => x + eps * n[k])], normals: [n], radius, max_seconds: 2,
+      });
+      button.replaceWith(Object.assign(document.createElement("p"), {
+        textContent: `${formatLux(a.lux[0])} ± ${formatLux(a.stderr[0])} on a disk of ${radius.toFixed(3)} m (${a.photons.toLocaleString()} photons, ${a.estimator})`,
+      }));
+      if (ll.lastPick) Object.assign(ll.lastPick, { lux: a.lux[0], stderr: a.stderr[0] });
+    } catch (err) {
+      button.replaceWith(Object.assign(document.createElement("p"), { className: "error", textContent: err.message }));
+    }
+  };
+  return button;
+}
+
+// ------------------------------------------------------------------------------------------- wiring
+
+if (viewer) {
+  // a click (not a drag of the camera) picks
+  let down = null;
+  const canvas = viewer.renderer.domElement;
+  canvas.addEventListener("pointerdown", (e) => { down = [e.clientX, e.clientY]; });
+  canvas.addEventListener("pointerup", (e) => {
+    if (down && Math.hypot(e.clientX - down[0], e.clientY - down[1]) < 4) showPick(viewer.pick(e.clientX, e.clientY));
+    down = null;
+  });
+}
+for (const radio of document.querySelectorAll('input[name="scale"]')) {
+  radio.addEventListener("change", () => { ll.scale = radio.value; drawSensors(); });
+}
+$("highlight").addEventListener("change", () => ll.state && viewer?.setInstances(ll.state, $("highlight").checked));
+
+let timer = null;
+const soon = () => { clearTimeout(timer); timer = setTimeout(refresh, 100); };   // events come in bursts
+const seen = (name, data) => { ll.events.push({ name, data, at: Date.now() }); if (ll.events.length > 200) ll.events.shift(); };
+
+followEvents(sceneId, {
+  hello: (d) => { seen("hello", d); soon(); },
+  scene: (d) => { seen("scene", d); soon(); },
+  push: (d) => { seen("push", d); soon(); },
+  result: (d) => { seen("result", d); soon(); },
+  resync: (d) => { seen("resync", d); soon(); },
+  job: (d) => { seen("job", d); jobs.set(d.id, d); listJobs(); },
+  deleted: (d) => { seen("deleted", d); fail("this scene was deleted"); },
+}, (state) => { ll.connection = state; status(); });
+
+refresh();
