@@ -186,12 +186,31 @@ def simulate(
 
 
 @app.command()
+def compare(
+    scene: SceneOpt,
+    out: Annotated[Path, typer.Option(help="Directory for <sensor>_<from>_to_<to>.csv and .png.")],
+    sensor: Annotated[str, typer.Option(help="Sensor id or name, or `all`.")] = "all",
+    from_key: Annotated[str | None, typer.Option("--from", help="The earlier result: a scene revision R, or R.k (the "
+                                                                "k-th state at R; an assignment keeps the "
+                                                                "revision). Default: the second newest kept.")] = None,
+    to_key: Annotated[str | None, typer.Option("--to", help="The later result (R or R.k). Default: the newest "
+                                                            "kept.")] = None,
+    server: Server = "http://127.0.0.1:8000",
+) -> None:
+    """Compare two kept results of each sensor: the change per cell (CSV) and its map (PNG)."""
+    raise typer.Exit(_call("lumenlink.commands", "compare", 22, scene=scene, server=server, out=out, sensor=sensor,
+                           from_key=from_key, to_key=to_key) or 0)
+
+
+@app.command()
 def demo(
     out_dir: Annotated[Path, typer.Option(help="Where the maps and the STEP files go.")] = Path("demo-output"),
     photons: Annotated[int, typer.Option(help="Photon budget per query.")] = 2_000_000,
+    serve: Annotated[bool, typer.Option("--serve", help="Keep the service running afterwards (until Ctrl-C) and "
+                                                        "print the address of the model's page.")] = False,
 ) -> None:
     """The main job end to end: CAD model, push, lights, illuminance, edit, push again."""
-    code = _call("lumenlink.demo", "run", 7, out_dir=out_dir, photons=photons)
+    code = _call("lumenlink.demo", "run", 7, out_dir=out_dir, photons=photons, serve=serve)
     raise typer.Exit(code or 0)
 
 

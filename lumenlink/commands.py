@@ -1,5 +1,5 @@
-"""``lumenlink nodes | assign | light | sensor | simulate``: the engineer's loop from the command line, built on
-:class:`lumenlink.client.Client`.
+"""``lumenlink nodes | assign | light | sensor | simulate | compare``: the engineer's loop from the command line,
+built on :class:`lumenlink.client.Client`.
 
 Exit codes, as ``lumenlink push``: 0 done; 2 bad usage (a bad option or file, a server URL without its scheme, a
 scene or node path that does not exist, a body the service refuses as invalid: 4xx); 3 the service cannot be
@@ -264,6 +264,40 @@ def simulate(scene: str, server: str, out: Path, sensor: str = "all", target: fl
                       + ", ".join(str(p) for p in written))
         return EXIT_OK
     return _run(work)
+
+
+# ---------------------------------------------------------------- compare
+
+def compare(scene: str, server: str, out: Path, sensor: str = "all", from_key: str | None = None,
+            to_key: str | None = None) -> int:
+    """Compare two kept results of each sensor: write <sensor>_<from>_to_<to>.csv and .png, print what changed."""
+    def work(console: Console) -> int:
+        out_dir = Path(out)
+        if out_dir.exists() and not out_dir.is_dir():
+            raise LumenLinkError(f"--out {out_dir} is a file, not a directory", usage=True)
+        with Client(server) as ll:
+            info = ll.scene(scene)
+            names = {s["id"]: s["body"].get("name") or s["id"] for s in ll.sensors(info)}
+            answers = ll.compare(info, sensor, from_key, to_key, out=out_dir)
+        for sensor_id, d in answers.items():
+            s = d["summary"]
+            line = (f"sensor {names.get(sensor_id, sensor_id)} ({sensor_id}): {d['from']} -> {d['to']}: mean "
+                    f"{s['mean_before_lux']:.4g} -> {s['mean_after_lux']:.4g} lx; {s['significant']}/{s['cells']} "
+                    f"cells changed beyond {d['significance_sigmas']:g} sigma ({s['increased']} brighter, "
+                    f"{s['decreased']} darker)")
+            if s.get("max_increase_lux"):
+                line += f"; largest rise +{s['max_increase_lux']:.4g} lx at ({_xyz(s['max_increase_at'])}) m"
+            if s.get("max_decrease_lux"):
+                line += f"; largest fall -{s['max_decrease_lux']:.4g} lx at ({_xyz(s['max_decrease_at'])}) m"
+            print(line + " -> " + ", ".join(d["files"]))
+            for w in d.get("warnings") or []:
+                console.print(f"[yellow]warning:[/] {escape(w)}")
+        return EXIT_OK
+    return _run(work)
+
+
+def _xyz(p: list[float]) -> str:
+    return ", ".join(f"{c:.3g}" for c in p)
 
 
 def _progress_update(progress: Progress, task: TaskID, target: float | None, max_seconds: float | None,

@@ -48,6 +48,9 @@ class Settings(BaseSettings):
     dask_timeout: float = Field(default=10.0, gt=0, le=600, description=(
         "Seconds to wait for the Dask scheduler (to connect, or for a stalled round to move) before a query "
         "is answered 503."))
+    keep_results: int = Field(default=20, ge=1, le=1000, description=(
+        "Results kept per sensor (`service.results`: one per scene revision and assignment state, the oldest "
+        "dropped first), for `GET /scenes/{id}/sensors/{sid}/results`, their maps and differences."))
     warm_kernels: bool = Field(default=False, description="Compile the query kernels in a child process from the "
                                                           "start (`tracer.warmup`; `lumenlink serve` turns it on).")
 

@@ -15,6 +15,9 @@ Tables (one row per thing, keyed by scene):
 - ``geometries``: uploaded meshes (the arrays live in content-addressed files under the data dir).
 - ``materials``, ``lights``, ``sensors``, ``sim_objects``: assignments by uuid; they refer to a
   node uuid by value (no foreign key), so they outlive the node and are orphaned, not deleted.
+- ``sensor_results``: the last results of each sensor (``service.results``), one per scene revision and
+  state (``edit``: 0, 1, … for successive assignment states at one revision), lux and standard error as
+  little-endian float64 bytes; they outlive the sensor, not the scene.
 
 `open_engine` creates the engine and brings the schema to the latest migration
 (``alembic upgrade head``, run programmatically from the packaged ``service/migrations``).
@@ -26,6 +29,7 @@ from pathlib import Path
 
 from sqlalchemy import (
     JSON,
+    BigInteger,
     Boolean,
     Column,
     DateTime,
@@ -124,6 +128,24 @@ sim_objects = Table(
     Column("scene_id", String(36), ForeignKey("scenes.id", ondelete="CASCADE"), nullable=False, index=True),
     Column("body", JSON, nullable=False),
     Column("created_at", DateTime(timezone=True), nullable=False, server_default=func.now()),
+)
+
+sensor_results = Table(
+    "sensor_results", metadata,
+    Column("scene_id", String(36), ForeignKey("scenes.id", ondelete="CASCADE"), primary_key=True),
+    Column("sensor_id", String(36), primary_key=True),
+    Column("revision", Integer, primary_key=True),
+    Column("edit", Integer, primary_key=True),
+    Column("state", String(64), nullable=False),     # digest of what the result depends on besides geometry
+    Column("created_at", DateTime(timezone=True), nullable=False),
+    Column("photons", BigInteger, nullable=False),
+    Column("seconds", Float, nullable=False),
+    Column("min_lux", Float, nullable=False),
+    Column("mean_lux", Float, nullable=False),
+    Column("max_lux", Float, nullable=False),
+    Column("meta", JSON, nullable=False),            # type, shape, frame, estimator, stop reason, effects
+    Column("lux", LargeBinary, nullable=False),
+    Column("stderr", LargeBinary, nullable=False),
 )
 
 MIGRATIONS = Path(__file__).resolve().parent / "migrations"

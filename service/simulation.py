@@ -242,6 +242,7 @@ class SimulationHub:
         self._generation: dict[str, int] = {}
         self._cache: dict[str, _Cached] = {}
         self._grids: dict[tuple[str, str], tuple[int, dict[str, Any]]] = {}
+        self.results: Any = None   # service.results.ResultStore: sensor results kept past an edit (hub_for sets it)
         self._slots = threading.BoundedSemaphore(limits.max_concurrent_queries)
         live.subscribe(self.invalidate)
 
@@ -386,6 +387,8 @@ class SimulationHub:
         with self._lock:
             if self._generation.get(scene_id, 0) == prepared.generation and sensor["type"] == "grid":
                 self._grids[(scene_id, str(sensor["id"]))] = (prepared.generation, payload)
+        if self.results is not None and self.is_current(scene_id, prepared.generation):
+            self.results.keep(prepared.live, sensor, payload)
         return payload
 
     def grid_result(self, scene_id: str, sensor_id: str) -> dict[str, Any] | None:
@@ -468,6 +471,11 @@ def hub_for(app: Any) -> SimulationHub:
             live = app.state.live
             hub = SimulationHub(live, Limits.from_settings(settings), scene_lock=live.lock,
                                 dask_scheduler=settings.dask_scheduler, dask_timeout=settings.dask_timeout)
+            engine = getattr(app.state, "engine", None)
+            if engine is not None:
+                from service.results import ResultStore
+
+                hub.results = ResultStore(engine, getattr(settings, "keep_results", 20))
             app.state.simulation_hub = hub
     return hub
 

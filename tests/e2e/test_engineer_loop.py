@@ -14,6 +14,7 @@ import sys
 from contextlib import redirect_stdout
 from pathlib import Path
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -36,13 +37,18 @@ def service(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def cars(service, tmp_path_factory):
+def sidecar(tmp_path_factory) -> Path:
+    return tmp_path_factory.mktemp("ids") / "ids.json"
+
+
+@pytest.fixture(scope="module")
+def cars(service, sidecar):
     """The sample car pushed twice, as scene `car` (the README example's) and `cli-car` (the commands')."""
     import cad_adapter
     from cad_adapter.client import Pusher
     from cad_adapter.samples import car_assembly
 
-    doc = cad_adapter.read_document(car_assembly(), sidecar=tmp_path_factory.mktemp("ids") / "ids.json")
+    doc = cad_adapter.read_document(car_assembly(), sidecar=sidecar)
     tess = cad_adapter.tessellate(doc, linear=2.0, angular=0.8)
     with Pusher(service) as p:
         for name in ("car", "cli-car"):
@@ -70,8 +76,15 @@ def test_the_readme_client_example_runs(service, cars, monkeypatch) -> None:
     assert len(ns["lux"]) == 6 and all(len(row) == 8 for row in ns["lux"])
     assert max(max(row) for row in ns["lux"]) > 0.0
     printed = out.getvalue().splitlines()
-    assert printed[-2].startswith("succeeded ") and printed[-1].endswith("lx under the light")
-    assert float(printed[-1].split()[0]) > 0.0
+    assert printed[-3].startswith("succeeded ") and printed[-2].endswith("lx under the light")
+    assert float(printed[-2].split()[0]) > 0.0
+    # the edit (a paler body) keeps the revision: the two results are its states 0 and 1
+    rev = ns["result"][ns["floor"]["id"]]["revision"]
+    assert [k["key"] for k in ns["kept"]] == [f"{rev}.1", f"{rev}.0"]
+    change = ns["change"]
+    assert (change["from"], change["to"]) == (f"{rev}.0", f"{rev}.1") and change["summary"]["cells"] == 48
+    assert re.fullmatch(rf"{rev}\.0 -> {rev}\.1: \d+ of 48 cells changed beyond 2σ", printed[-1])
+    np.testing.assert_allclose(change["difference"], np.subtract(change["lux_to"], change["lux_from"]), atol=1e-9)
     with Client(service) as ll:
         mats = {m["node"]: m["material"]["type"] for m in ll.materials("car")}
     assert mats == {cars["car/headlamp/lens"]: "dielectric", cars["car/body"]: "lambertian"}
@@ -131,6 +144,51 @@ def test_the_commands_find_assign_light_sense_and_simulate(service, cars, tmp_pa
         again = ll.simulate("cli-car", "floor", max_photons=50_000)
     lux = next(iter(again.values()))["lux"]
     assert [float(c["lux"]) for c in cells] == pytest.approx([v for row in lux for v in row], rel=1e-6)
+
+
+def test_edit_then_compare(service, cars, sidecar, tmp_path) -> None:
+    """The walkthrough's end: the model edited (the doors opened) and pushed again, simulated, compared."""
+    import cad_adapter
+    from cad_adapter.client import Pusher
+    from cad_adapter.samples import car_assembly
+
+    with Client(service) as ll:
+        before = ll.results("cli-car", "floor")
+    rev = before[0]["revision"]
+    doc = cad_adapter.read_document(car_assembly(door_angle_deg=60.0), sidecar=sidecar)
+    with Pusher(service) as p:
+        p.push(doc, cad_adapter.tessellate(doc, linear=2.0, angular=0.8), scene="cli-car")
+    r = cli(service, "simulate", "--scene", "cli-car", "--sensor", "floor", "--out", str(tmp_path / "after"),
+            "--max-photons", "50000")
+    assert r.exit_code == 0, r.output
+    assert f"revision {rev + 1} ->" in r.stdout
+    out = tmp_path / "compare"
+    r = cli(service, "compare", "--scene", "cli-car", "--sensor", "floor", "--from", str(rev), "--to", str(rev + 1),
+            "--out", str(out))
+    assert r.exit_code == 0, r.output
+    stem = f"floor_{before[0]['key']}_to_{rev + 1}.0"
+    assert sorted(p.name for p in out.iterdir()) == [f"{stem}.csv", f"{stem}.png"]
+    assert (out / f"{stem}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert re.search(rf"sensor floor \([0-9a-f-]{{36}}\): {re.escape(before[0]['key'])} -> {rev + 1}\.0: mean .* lx; "
+                     r"\d+/48 cells changed beyond 2 sigma", r.stdout), r.stdout
+    rows = list(csv.DictReader((out / f"{stem}.csv").open()))
+    assert len(rows) == 48 and list(rows[0]) == ["i", "j", "x_m", "y_m", "z_m", "lux_from", "lux_to",
+                                                 "difference_lux", "stderr_lux"]
+    with Client(service) as ll:
+        old, new = ll.result("cli-car", "floor", rev), ll.result("cli-car", "floor", rev + 1)
+        by_default = ll.compare("cli-car", "floor")       # the two newest kept: the same pair
+    assert [float(c["lux_from"]) for c in rows] == [v for row in old["lux"] for v in row]
+    assert [float(c["lux_to"]) for c in rows] == [v for row in new["lux"] for v in row]
+    assert [float(c["difference_lux"]) for c in rows] == pytest.approx(
+        [b - a for a, b in zip([v for row in old["lux"] for v in row], [v for row in new["lux"] for v in row],
+                               strict=True)], abs=1e-9)
+    (diff,) = by_default.values()
+    assert (diff["from"], diff["to"]) == (before[0]["key"], f"{rev + 1}.0")
+    # bad usage: a result nobody kept, a key that is no key
+    r = cli(service, "compare", "--scene", "cli-car", "--sensor", "floor", "--from", "99", "--out", str(out))
+    assert r.exit_code == 2 and "no kept result '99'" in r.stderr and f"kept: {rev + 1}.0" in r.stderr, r.output
+    r = cli(service, "compare", "--scene", "cli-car", "--sensor", "floor", "--from", "r1", "--out", str(out))
+    assert r.exit_code == 2 and "from" in r.stderr, r.output
 
 
 def test_bad_usage_says_what_to_do(service, cars, tmp_path) -> None:

@@ -1,0 +1,253 @@
+"""Sensor results that outlive an edit (issue 22): the last results of each sensor, kept in the database.
+
+Every sensor simulation that still describes the scene when it ends is kept (`ResultStore.keep`, called by
+`service.simulation.SimulationHub.run_grid`): per scene, sensor and **key**. A key is ``R`` or ``R.k``:
+
+- ``R`` is the scene revision the result was computed at (what the answer's ``revision`` says);
+- ``k`` (``edit``) counts the states the scene went through at that revision: an assignment (a material, a light,
+  a sensor changed) keeps the revision, so the first state simulated at revision R is ``R.0``, the next different
+  one ``R.1``… Simulating the same state again (more photons, another seed) replaces its result.
+
+Asking for ``R`` means the latest state kept at revision R. At most ``keep`` results (``LUMENLINK_KEEP_RESULTS``)
+are kept per sensor; the oldest go first. Results outlive the sensor (its deletion leaves them readable) but not
+the scene. Only what a map, a CSV or a difference needs is kept: lux and standard error per cell (exact float64),
+the grid's frame, photons, seconds, estimator, stop reason and effects.
+
+Differences (`difference`) are ``to − from`` per cell with the combined standard error √(σ_from² + σ_to²); cells
+are compared by index (a sensor attached to a node that moved compares the same cells on the part).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import re
+from datetime import UTC, datetime
+from typing import Any
+
+import numpy as np
+from sqlalchemy import Engine, and_, delete, func, insert, select
+from sqlalchemy.exc import SQLAlchemyError
+
+from service import db
+from service.errors import Invalid, NotFound
+from service.live import LiveScene
+from service.maps import SIGNIFICANCE_SIGMAS, cell_centres, summarize_change
+
+log = logging.getLogger("lumenlink.service")
+
+#: ``R`` or ``R.k``: a scene revision, optionally one state at it
+KEY_PATTERN = r"^[0-9]{1,9}(\.[0-9]{1,9})?$"
+_KEY = re.compile(KEY_PATTERN)
+#: what the JSON of a kept result carries besides the per-cell values
+_META = ("type", "nu", "nv", "origin", "u", "v", "center", "normal", "radius", "estimator", "stop_reason",
+         "effects", "seed")
+
+
+def state_digest(live: LiveScene, sensor: dict[str, Any]) -> str:
+    """A digest of what a sensor's result depends on besides geometry: materials, lights and the sensor."""
+    payload = json.dumps([sorted((int(k), v) for k, v in live.materials.items()), live.default_material,
+                          live.lights, sensor], sort_keys=True, default=str)
+    return hashlib.sha256(payload.encode()).hexdigest()
+
+
+def parse_key(key: str) -> tuple[int, int | None]:
+    """``"R"`` → (R, None), ``"R.k"`` → (R, k); a 422 naming the form otherwise."""
+    if not _KEY.match(key):
+        raise Invalid(f"a result is named by its scene revision R or R.k (the k-th state at revision R), got {key!r}")
+    rev, _, edit = key.partition(".")
+    return int(rev), (int(edit) if edit else None)
+
+
+def key_of(revision: int, edit: int) -> str:
+    return f"{revision}.{edit}"
+
+
+def _bytes(a: Any) -> bytes:
+    return np.ascontiguousarray(np.asarray(a, dtype="<f8")).tobytes()
+
+
+class ResultStore:
+    """The kept results of one database (see the module docstring).
+
+    Parameters
+    ----------
+    engine : Engine
+        The service's database (``app.state.engine``).
+    keep : int
+        Results kept per sensor (``Settings.keep_results``).
+    """
+
+    def __init__(self, engine: Engine, keep: int) -> None:
+        self.engine = engine
+        self.keep_count = int(keep)
+
+    # -- writing ------------------------------------------------------------------------------
+
+    def keep(self, live: LiveScene, sensor: dict[str, Any], payload: dict[str, Any]) -> str | None:
+        """Keep one sensor result (``service.simulation.SimulationHub.run_grid``'s payload); answers its key.
+
+        A failure to store is logged and answers None: the result itself is still good, only its keeping failed.
+        """
+        try:
+            return self._keep(live, sensor, payload)
+        except SQLAlchemyError:
+            log.exception("could not keep the result of sensor %s of scene %s", sensor.get("id"), live.scene_id)
+            return None
+
+    def _keep(self, live: LiveScene, sensor: dict[str, Any], payload: dict[str, Any]) -> str:
+        t = db.sensor_results
+        scene_id, sensor_id, revision = live.scene_id, str(sensor["id"]), int(payload["revision"])
+        state = state_digest(live, sensor)
+        meta = {k: payload[k] for k in _META if payload.get(k) is not None}
+        if sensor.get("type") == "disk":
+            meta.update(center=list(map(float, sensor["center"])), normal=list(map(float, sensor["normal"])),
+                        radius=float(sensor["radius"]))
+        row = dict(scene_id=scene_id, sensor_id=sensor_id, revision=revision, state=state,
+                   created_at=datetime.now(UTC), photons=int(payload["photons"]), seconds=float(payload["seconds"]),
+                   min_lux=float(payload["min_lux"]), mean_lux=float(payload["mean_lux"]),
+                   max_lux=float(payload["max_lux"]), meta=meta, lux=_bytes(payload["lux"]),
+                   stderr=_bytes(payload["stderr"]))
+        mine = and_(t.c.scene_id == scene_id, t.c.sensor_id == sensor_id)
+        with self.engine.begin() as conn:
+            latest = conn.execute(select(t.c.edit, t.c.state).where(mine, t.c.revision == revision)
+                                  .order_by(t.c.edit.desc()).limit(1)).first()
+            if latest is not None and latest.state == state:   # the same state again: replace its result
+                edit = int(latest.edit)
+                conn.execute(delete(t).where(mine, t.c.revision == revision, t.c.edit == edit))
+            else:
+                edit = 0 if latest is None else int(latest.edit) + 1
+            conn.execute(insert(t).values(edit=edit, **row))
+            kept = conn.execute(select(t.c.revision, t.c.edit).where(mine)
+                                .order_by(t.c.created_at.desc(), t.c.revision.desc(), t.c.edit.desc())).all()
+            for old in kept[self.keep_count:]:
+                conn.execute(delete(t).where(mine, t.c.revision == old.revision, t.c.edit == old.edit))
+        return key_of(revision, edit)
+
+    # -- reading ------------------------------------------------------------------------------
+
+    def list(self, scene_id: str, sensor_id: str) -> list[dict[str, Any]]:
+        """The sensor's kept results, newest first, without their cells."""
+        t = db.sensor_results
+        cols = [t.c.revision, t.c.edit, t.c.created_at, t.c.photons, t.c.seconds, t.c.min_lux, t.c.mean_lux,
+                t.c.max_lux, t.c.meta]
+        with self.engine.connect() as conn:
+            rows = conn.execute(select(*cols).where(t.c.scene_id == scene_id, t.c.sensor_id == sensor_id)
+                                .order_by(t.c.created_at.desc(), t.c.revision.desc(), t.c.edit.desc())).all()
+        return [_summary(r) for r in rows]
+
+    def count(self, scene_id: str, sensor_id: str) -> int:
+        t = db.sensor_results
+        with self.engine.connect() as conn:
+            return int(conn.execute(select(func.count()).select_from(t)
+                                    .where(t.c.scene_id == scene_id, t.c.sensor_id == sensor_id)).scalar_one())
+
+    def get(self, scene_id: str, sensor_id: str, key: str) -> dict[str, Any]:
+        """One kept result with its cells (lux, stderr: nv rows of nu cells for a grid); `NotFound` naming the
+        kept keys if there is none."""
+        revision, edit = parse_key(key)
+        t = db.sensor_results
+        where = [t.c.scene_id == scene_id, t.c.sensor_id == sensor_id, t.c.revision == revision]
+        if edit is not None:
+            where.append(t.c.edit == edit)
+        with self.engine.connect() as conn:
+            row = conn.execute(select(t).where(*where).order_by(t.c.edit.desc()).limit(1)).first()
+        if row is None:
+            kept = [r["key"] for r in self.list(scene_id, sensor_id)]
+            raise NotFound(f"sensor {sensor_id} has no kept result {key!r}; "
+                           + (f"kept: {', '.join(kept)}" if kept else "none is kept: simulate it first"),
+                           kept=kept)
+        out = _summary(row)
+        lux = np.frombuffer(row.lux, dtype="<f8")
+        err = np.frombuffer(row.stderr, dtype="<f8")
+        meta = row.meta
+        if meta.get("type") == "grid":
+            shape = (int(meta["nv"]), int(meta["nu"]))
+            lux, err = lux.reshape(shape), err.reshape(shape)
+        out.update(lux=lux.tolist(), stderr=err.tolist())
+        return out
+
+
+def _summary(r: Any) -> dict[str, Any]:
+    meta = dict(r.meta)
+    created = r.created_at if r.created_at.tzinfo else r.created_at.replace(tzinfo=UTC)  # SQLite drops the zone
+    return {"key": key_of(r.revision, r.edit), "revision": int(r.revision), "edit": int(r.edit),
+            "created_at": created.isoformat(), "photons": int(r.photons), "seconds": float(r.seconds),
+            "min_lux": float(r.min_lux), "mean_lux": float(r.mean_lux), "max_lux": float(r.max_lux), **meta}
+
+
+def centres(result: dict[str, Any]) -> np.ndarray:
+    """Cell centres (world metres) of a kept result: (nv, nu, 3) for a grid, (1, 1, 3) for a disk."""
+    if result.get("type") == "grid":
+        return cell_centres(result["origin"], result["u"], result["v"], int(result["nu"]), int(result["nv"]))
+    return np.asarray(result.get("center") or [np.nan] * 3, float).reshape(1, 1, 3)
+
+
+def _cells(result: dict[str, Any], name: str) -> np.ndarray:
+    return np.asarray(result[name], float).reshape(centres(result).shape[:2])
+
+
+def result_csv(result: dict[str, Any]) -> str:
+    """One row per cell: ``i,j,x_m,y_m,z_m,lux,stderr_lux`` (the cell centre in world metres; as the CLI's); the
+    values exact (shortest round-tripping float)."""
+    c, lux, err = centres(result), _cells(result, "lux"), _cells(result, "stderr")
+    lines = ["i,j,x_m,y_m,z_m,lux,stderr_lux"]
+    for j in range(lux.shape[0]):
+        for i in range(lux.shape[1]):
+            x, y, z = (("" if not np.isfinite(v) else f"{v:.9g}") for v in c[j, i])
+            lines.append(f"{i},{j},{x},{y},{z},{float(lux[j, i])!r},{float(err[j, i])!r}")
+    return "\n".join(lines) + "\n"
+
+
+def difference(before: dict[str, Any], after: dict[str, Any]) -> dict[str, Any]:
+    """``after − before`` per cell with the combined standard error, and where it changed beyond noise.
+
+    Refuses (422) two results whose cells cannot be paired (another type or grid size)."""
+    shape = (before.get("type"), before.get("nu"), before.get("nv"))
+    if shape != (after.get("type"), after.get("nu"), after.get("nv")):
+        def size(r: dict[str, Any]) -> str:
+            return f"a {r['nu']} x {r['nv']} grid" if r.get("type") == "grid" else f"a {r.get('type')} sensor"
+        raise Invalid(f"results {before['key']} and {after['key']} cannot be compared cell by cell: the sensor was "
+                      f"{size(before)} at {before['key']} and {size(after)} at {after['key']}")
+    lux_b, lux_a = _cells(before, "lux"), _cells(after, "lux")
+    se_b, se_a = _cells(before, "stderr"), _cells(after, "stderr")
+    delta, sigma = lux_a - lux_b, np.hypot(se_b, se_a)
+    warnings = []
+    frame = ("origin", "u", "v", "center", "normal", "radius")
+    if any(before.get(k) != after.get(k) for k in frame):
+        warnings.append(f"the sensor moved between {before['key']} and {after['key']}: cells are compared by index, "
+                        f"placed as at {after['key']}")
+    out: dict[str, Any] = {
+        "from": before["key"], "to": after["key"], "type": after.get("type"),
+        "difference": delta.tolist(), "stderr": sigma.tolist(), "lux_from": lux_b.tolist(), "lux_to": lux_a.tolist(),
+        "significance_sigmas": SIGNIFICANCE_SIGMAS, "warnings": warnings,
+        **{k: after[k] for k in ("nu", "nv", "origin", "u", "v", "center", "normal", "radius") if k in after},
+    }
+    if after.get("type") == "grid":
+        s = summarize_change(lux_b, lux_a, after["origin"], after["u"], after["v"], stderr_before=se_b,
+                             stderr_after=se_a)
+        out["summary"] = {**s.__dict__, "max_increase_at": list(s.max_increase_at),
+                          "max_decrease_at": list(s.max_decrease_at)}
+    else:
+        significant = np.abs(delta) > SIGNIFICANCE_SIGMAS * sigma
+        out["summary"] = {"cells": int(delta.size), "significant": int(significant.sum()),
+                          "increased": int((significant & (delta > 0)).sum()),
+                          "decreased": int((significant & (delta < 0)).sum()),
+                          "mean_before_lux": float(lux_b.mean()), "mean_after_lux": float(lux_a.mean())}
+    return out
+
+
+def difference_csv(diff: dict[str, Any]) -> str:
+    """One row per cell: ``i,j,x_m,y_m,z_m,lux_from,lux_to,difference_lux,stderr_lux``."""
+    c = centres(diff)
+    nv, nu = int(c.shape[0]), int(c.shape[1])
+    d, se = (np.asarray(diff[k], float).reshape(nv, nu) for k in ("difference", "stderr"))
+    b, a = (np.asarray(diff[k], float).reshape(nv, nu) for k in ("lux_from", "lux_to"))
+    lines = ["i,j,x_m,y_m,z_m,lux_from,lux_to,difference_lux,stderr_lux"]
+    for j in range(nv):
+        for i in range(nu):
+            x, y, z = (("" if not np.isfinite(v) else f"{v:.9g}") for v in c[j, i])
+            values = ",".join(repr(float(m[j, i])) for m in (b, a, d, se))
+            lines.append(f"{i},{j},{x},{y},{z},{values}")
+    return "\n".join(lines) + "\n"
