@@ -23,7 +23,7 @@ import shutil
 import socket
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -169,6 +169,7 @@ class DemoReport:
     change: Any = None
     compile_seconds: float = 0.0
     seconds: float = 0.0
+    view_url: str | None = None
 
 
 def free_port() -> int:
@@ -199,6 +200,9 @@ def running_service(data_dir: Path) -> Iterator[str]:
     try:
         yield f"http://127.0.0.1:{port}"
     finally:
+        events = getattr(app.state, "events", None)
+        if events is not None:   # a browser's event stream would hold uvicorn's shutdown up
+            events.close()
         server.should_exit = True
         thread.join(timeout=15.0)
 
@@ -220,7 +224,7 @@ def _fmt_lux(value: float, stderr: float) -> str:
 
 
 def run_demo(out_dir: Path, photons: int = 2_000_000, *, narrator: Narrator | None = None,
-             keep_data: bool = False) -> DemoReport:
+             keep_data: bool = False, serve: Callable[[str], None] | None = None) -> DemoReport:
     """Run the demo; returns the facts it printed. Raises `MissingPart` if a part is not built yet.
 
     Parameters
@@ -234,6 +238,9 @@ def run_demo(out_dir: Path, photons: int = 2_000_000, *, narrator: Narrator | No
         Where the log goes (default: a rich console on stdout).
     keep_data : bool
         Keep the service's data directory (``out_dir/var``) after the run.
+    serve : callable(view_url), optional
+        After the demo, with the service still running: called with the address of the scene's page (its 3D view);
+        the service stops when it returns (`run` waits for Ctrl-C there).
     """
     if photons < 1000:
         raise ValueError(f"photons must be at least 1000, got {photons}")
@@ -242,7 +249,7 @@ def run_demo(out_dir: Path, photons: int = 2_000_000, *, narrator: Narrator | No
     clock.install()
     report = DemoReport(out_dir=Path(out_dir))
     try:
-        _run(report, n, int(photons), keep_data, clock)
+        _run(report, n, int(photons), keep_data, clock, serve)
     finally:
         clock.uninstall()
         report.compile_seconds = clock.seconds
@@ -309,7 +316,8 @@ def _assignments(http: Any, scene_id: str) -> dict[str, Any]:
     return out
 
 
-def _run(report: DemoReport, n: Narrator, photons: int, keep_data: bool, clock: CompileClock) -> None:
+def _run(report: DemoReport, n: Narrator, photons: int, keep_data: bool, clock: CompileClock,
+         serve: Callable[[str], None] | None = None) -> None:
     import httpx
 
     out = report.out_dir
@@ -445,16 +453,28 @@ def _run(report: DemoReport, n: Narrator, photons: int, keep_data: bool, clock: 
         report.maps["after"] = _save_map(http, scene_id, sensor, out / "floor_after.png")
         report.points_after = _points(http, scene_id, photons, n, before=report.points_before)
         report.maps["difference"] = _save_difference(report, out / "floor_difference.png", n)
+        report.view_url = f"{base}/scenes/{scene_id}/view"
+        if serve is not None:
+            _outputs(report, step, n, base)
+            n.step("7. Serving: the model in 3D with the floor grid in false colour, live after each push")
+            n.say(f"open {report.view_url} in a browser (all scenes: {base}/, API docs: {base}/docs)")
+            serve(report.view_url)
 
     if not keep_data:
         shutil.rmtree(data_dir, ignore_errors=True)
+    if serve is None:
+        _outputs(report, step, n, None)
 
-    # 6 ------------------------------------------------------------------------------------ where things are
+
+def _outputs(report: DemoReport, step: Path, n: Narrator, base: str | None) -> None:
+    """6. Where the demo's files are (and, while it serves, its pages)."""
     n.step("6. Outputs")
     for key in ("before", "after", "difference"):
         n.say(f"{key:>10}: {report.maps[key]}")
     n.say(f"{'STEP':>10}: {step} (the edited model; node UUIDs are carried in the file)")
-    n.say("API docs: run `lumenlink serve` (or `make serve`), then open http://127.0.0.1:8000/docs")
+    if base is None:
+        n.say("API docs and the model in 3D: run `lumenlink demo --serve` (the demo then keeps serving), or "
+              "`lumenlink serve` (`make serve`) and open http://127.0.0.1:8000/ and http://127.0.0.1:8000/docs")
 
 
 def _simulate(http: Any, scene_id: str, sensor: str, photons: int, n: Narrator) -> dict[str, Any]:
@@ -536,11 +556,22 @@ def _say_push(result: Any, doc: Any, n: Narrator, compile_seconds: float = 0.0) 
     return facts
 
 
-def run(out_dir: Path = Path("demo-output"), photons: int = 2_000_000) -> int:
-    """Entry point of `lumenlink demo`: run the demo, print the facts; 0 on success, 2 if a part is missing."""
+def wait_for_ctrl_c(view_url: str) -> None:
+    """Serve until Ctrl-C (the demo's service runs in a thread of this process)."""
+    print(f"Serving {view_url} — press Ctrl-C to stop.", flush=True)
+    try:
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        print("\nstopping the service", flush=True)
+
+
+def run(out_dir: Path = Path("demo-output"), photons: int = 2_000_000, serve: bool = False) -> int:
+    """Entry point of `lumenlink demo`: run the demo, print the facts; 0 on success, 2 if a part is missing.
+    `serve`: keep the service running afterwards (until Ctrl-C) and print the address of the model's page."""
     n = Narrator()
     try:
-        report = run_demo(Path(out_dir), photons, narrator=n)
+        report = run_demo(Path(out_dir), photons, narrator=n, serve=wait_for_ctrl_c if serve else None)
     except MissingPart as exc:
         n.warn(f"The demo stops here: {exc}.")
         n.warn("Nothing after this point was computed; no result above was made up.")

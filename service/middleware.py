@@ -130,16 +130,19 @@ class BodyLimit:
 
 class BearerToken:
     """Refuse (401, problem+json, ``WWW-Authenticate: Bearer``) every request without ``Authorization: Bearer
-    <token>``, except the health probe and the API's documentation (`OPEN_PATHS`): they hold no data."""
+    <token>``, except the health probe, the API's documentation (`OPEN_PATHS`) and the static scripts and styles the
+    docs and pages load (`OPEN_PREFIX`, files of npm packages and of ``service/web/src``): they hold no data."""
 
     OPEN_PATHS = ("/health", "/docs", "/docs/oauth2-redirect", "/redoc", "/openapi.json")
+    OPEN_PREFIX = "/static/"
 
     def __init__(self, app: Any, token: str) -> None:
         self.app = app
         self.expected = f"Bearer {token}".encode()
 
     async def __call__(self, scope: Scope, receive: Any, send: Any) -> None:
-        if scope["type"] != "http" or scope.get("path") in self.OPEN_PATHS:
+        path = scope.get("path", "")
+        if scope["type"] != "http" or path in self.OPEN_PATHS or path.startswith(self.OPEN_PREFIX):
             await self.app(scope, receive, send)
             return
         given = next((v for k, v in scope.get("headers", []) if k == b"authorization"), b"")

@@ -9,7 +9,12 @@ builds exactly one, every assignment survives both pushes, and the three PNGs ar
 from __future__ import annotations
 
 import io
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
 
+import httpx
 import matplotlib.image as mpimg
 import numpy as np
 import pytest
@@ -23,8 +28,37 @@ def demo(tmp_path_factory):
     out = tmp_path_factory.mktemp("demo")
     buffer = io.StringIO()
     narrator = Narrator(Console(file=buffer, width=200, highlight=False, soft_wrap=True))
-    report = run_demo(out, photons=20_000, narrator=narrator)
+    report = run_demo(out, photons=20_000, narrator=narrator, serve=lambda url: SERVED.update(_look_at(url)))
     return report, buffer.getvalue()
+
+
+SERVED: dict[str, Any] = {}
+CHROMIUM = Path("/usr/bin/chromium")
+
+
+def _look_at(view_url: str) -> dict[str, Any]:
+    """What `lumenlink demo --serve` serves while it waits: the page, its state and, where Chromium is installed,
+    what a browser draws of it (tests/e2e/test_pages.py tests the page itself)."""
+    seen: dict[str, Any] = {"url": view_url, "page": httpx.get(view_url).status_code,
+                            "state": httpx.get(view_url + "/state").json()}
+    if CHROMIUM.exists():
+        from playwright.sync_api import sync_playwright
+
+        artifacts = Path(os.environ.get("LUMENLINK_ARTIFACTS") or Path(tempfile.gettempdir()) / "lumenlink-artifacts")
+        artifacts.mkdir(parents=True, exist_ok=True)
+        with sync_playwright() as p:
+            browser = p.chromium.launch(executable_path=str(CHROMIUM), args=[
+                "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                "--disable-background-networking", "--disable-component-update", "--disable-sync"])
+            page = browser.new_page(viewport={"width": 1100, "height": 700})
+            errors: list[str] = []
+            page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+            page.goto(view_url)
+            page.wait_for_function("window.lumenlink && window.lumenlink.ready", timeout=60_000)
+            seen["browser"] = {"counts": page.evaluate("window.lumenlink.counts()"), "errors": errors}
+            page.screenshot(path=str(artifacts / "demo-view.png"))
+            browser.close()
+    return seen
 
 
 def test_first_push_uploads_each_distinct_geometry_once(demo) -> None:
@@ -90,7 +124,7 @@ def test_maps_are_non_empty_pngs(demo) -> None:
         image = mpimg.imread(io.BytesIO(data), format="png")
         assert image.shape[0] > 300 and image.shape[1] > 500
         assert str(path) in log
-    assert "http://127.0.0.1:8000/docs" in log
+    assert report.view_url.split("/scenes/")[0] + "/docs" in log   # the demo served (--serve): its live docs
 
 
 def test_log_says_how_long_it_took(demo) -> None:
@@ -116,3 +150,21 @@ def test_a_missing_part_stops_the_demo_with_its_name_and_no_output(tmp_path, mon
 def test_photon_budget_is_checked(tmp_path) -> None:
     with pytest.raises(ValueError, match="at least 1000"):
         run_demo(tmp_path, photons=10)
+
+
+def test_serve_keeps_the_service_up_with_the_model_page(demo) -> None:
+    report, log = demo
+    assert SERVED["url"] == report.view_url and report.view_url.endswith("/view")
+    assert f"open {report.view_url} in a browser" in log
+    assert SERVED["page"] == 200
+    state = SERVED["state"]
+    names = {n["name"] for n in state["nodes"]}
+    assert {"car", "lens", "door_left", "wheel_fl"} <= names
+    assert any(r["object"] for r in state["instances"])   # the floor, owned by the simulation
+    [grid] = state["sensors"]
+    lux = np.asarray(grid["result"]["lux"])   # the floor grid in false colour: its result at the last revision
+    assert grid["result"]["revision"] == 3 and lux.shape == (GRID_NV, GRID_NU) and lux.max() > 0
+    assert state["last_push"]["revision"] == 3 and len(state["last_push"]["geometry_changed"]) == 1
+    if "browser" in SERVED:
+        assert SERVED["browser"]["counts"] == {"instances": len(state["instances"]), "sensors": 1}
+        assert SERVED["browser"]["errors"] == []

@@ -257,3 +257,14 @@ def test_shutdown_ends_open_event_streams(tmp_path: Path) -> None:
     assert stopped < 10, f"the service took {stopped:.1f} s to stop with a stream open (15 s means SIGKILL)"
     assert not any(line.startswith("error") for line in lines_read), lines_read
     assert "Application shutdown complete" in (tmp_path / "service.log").read_text()
+
+
+def test_with_a_token_the_docs_and_their_assets_stay_open_and_the_pages_do_not(tmp_path: Path) -> None:
+    token = "a-token-of-at-least-16-characters"
+    with make_client(tmp_path, token=token) as client:
+        for path in ("/docs", "/redoc", "/static/swagger-ui/swagger-ui-bundle.js", "/static/redoc/redoc.standalone.js",
+                     "/static/app/main.js"):
+            assert client.get(path).status_code == 200, path   # no data in them; a browser sends no token
+        for path in ("/", f"/scenes/{UNKNOWN}/view/state", "/scenes"):
+            assert client.get(path).status_code == 401, path   # the scenes' names and contents are data
+        assert client.get("/", headers={"Authorization": f"Bearer {token}"}).status_code == 200

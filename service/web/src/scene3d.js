@@ -124,7 +124,11 @@ export class Viewer {
 
   /** Frame the whole model (once, on the first load: later updates keep the user's camera). */
   fit() {
-    const box = new THREE.Box3().setFromObject(this.model);
+    // the CAD model and the sensors; a simulation-owned floor (often far larger) only when there is nothing else
+    const box = new THREE.Box3();
+    for (const mesh of this.meshes.values()) if (mesh.userData.rec.node) box.expandByObject(mesh);
+    for (const plane of this.sensorGroup.children) box.expandByObject(plane);
+    if (box.isEmpty()) box.setFromObject(this.model);
     if (box.isEmpty()) return;
     const centre = box.getCenter(new THREE.Vector3());
     this.size = Math.max(box.getSize(new THREE.Vector3()).length(), 1e-3);
