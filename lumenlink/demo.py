@@ -557,13 +557,21 @@ def _say_push(result: Any, doc: Any, n: Narrator, compile_seconds: float = 0.0) 
 
 
 def wait_for_ctrl_c(view_url: str) -> None:
-    """Serve until Ctrl-C (the demo's service runs in a thread of this process)."""
+    """Serve until Ctrl-C or SIGTERM (the demo's service runs in a thread of this process)."""
+    import signal
+
+    def stop(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
+
     print(f"Serving {view_url} — press Ctrl-C to stop.", flush=True)
+    previous = signal.signal(signal.SIGTERM, stop)
     try:
         while True:
             time.sleep(3600)
     except KeyboardInterrupt:
         print("\nstopping the service", flush=True)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def run(out_dir: Path = Path("demo-output"), photons: int = 2_000_000, serve: bool = False) -> int:
