@@ -179,6 +179,10 @@ def result_payload(result: Any, revision: int) -> dict[str, Any]:
         "backend": getattr(result, "backend", None),
         **({"error_budget": {name: _finite_list(v) for name, v in result.error_budget.items()}}
            if getattr(result, "error_budget", None) else {}),
+        **({"physics_left_out": {name: {**e, "difference": _finite_list(e["difference"]),
+                                        "stderr": _finite_list(e["stderr"])}
+                                 for name, e in result.physics_left_out.items()}}
+           if getattr(result, "physics_left_out", None) else {}),
         **_spectral_payload(result),
         **_stokes_payload(result),
     }
@@ -313,16 +317,18 @@ class SimulationHub:
             return Prepared(live, simulation, generation)
 
     @staticmethod
-    def check_query(prepared: Prepared, estimator: str, force_effects: tuple[str, ...]) -> None:
+    def check_query(prepared: Prepared, estimator: str, force_effects: tuple[str, ...],
+                    physics_left_out: tuple[str, ...] = ()) -> None:
         """Refuse (422) what the transport would refuse, before a job is queued: an async request gets
         its error at once, not as a failed job."""
         try:
             from tracer.effects import EFFECTS, with_forced
         except ImportError:  # an older transport: it checks for itself when the query runs
             return
-        unknown = sorted(set(force_effects) - set(EFFECTS))
-        if unknown:
-            raise Invalid(f"unknown effect(s) {unknown} in force_effects; known: {list(EFFECTS)}")
+        for field, names in (("force_effects", force_effects), ("physics_left_out", physics_left_out)):
+            unknown = sorted(set(names) - set(EFFECTS))
+            if unknown:
+                raise Invalid(f"unknown effect(s) {unknown} in {field}; known: {list(EFFECTS)}")
         applies = getattr(prepared.simulation, "backward_applies", None)
         if estimator == "backward" and applies is not None:
             ok, why = applies(with_forced(prepared.simulation.effects, force_effects))
@@ -339,26 +345,27 @@ class SimulationHub:
     def run_points(prepared: Prepared, points: np.ndarray, normals: np.ndarray, radius: float | None,
                    budget: Budget, seed: int, estimator: str, force_effects: tuple[str, ...],
                    progress: Callable | None = None, cancel: Callable | None = None,
-                   observe: tuple[str, ...] = (), reference: tuple | None = None) -> dict[str, Any]:
+                   observe: tuple[str, ...] = (), reference: tuple | None = None,
+                   physics_left_out: tuple[str, ...] = ()) -> dict[str, Any]:
         """Illuminance at points; the JSON answer of ``POST /scenes/{id}/illuminance``."""
         with _refusals():
             result = prepared.simulation.illuminance(
                 points, normals, radius=radius, target_relative_error=budget.target_relative_error,
                 max_seconds=budget.max_seconds, max_photons=budget.max_photons, seed=seed, estimator=estimator,
                 force_effects=force_effects, progress=progress, cancel=cancel, observe=observe,
-                reference=reference)
+                reference=reference, **({"physics_left_out": physics_left_out} if physics_left_out else {}))
         return result_payload(result, prepared.live.revision)
 
     def run_grid(self, prepared: Prepared, sensor: dict, budget: Budget, seed: int, estimator: str,
                  force_effects: tuple[str, ...], progress: Callable | None = None,
                  cancel: Callable | None = None, observe: tuple[str, ...] = (),
-                 reference: tuple | None = None) -> dict[str, Any]:
+                 reference: tuple | None = None, physics_left_out: tuple[str, ...] = ()) -> dict[str, Any]:
         """Simulate one sensor; keeps a grid's result for ``map.png`` while the scene is unchanged."""
         scene_id = prepared.live.scene_id
         common = dict(target_relative_error=budget.target_relative_error, max_seconds=budget.max_seconds,
                       max_photons=budget.max_photons, seed=seed, estimator=estimator,
                       force_effects=force_effects, progress=progress, cancel=cancel, observe=observe,
-                      reference=reference)
+                      reference=reference, **({"physics_left_out": physics_left_out} if physics_left_out else {}))
         if sensor["type"] == "grid":
             nu, nv = int(sensor["nu"]), int(sensor["nv"])
             if nu * nv > self.limits.max_points:

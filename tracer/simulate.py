@@ -57,7 +57,7 @@ import numpy as np
 
 from tracer.backends import IN_PROCESS, DaskBackend, InProcess, Shipment
 from tracer.backward import QueryArrays, disk_queries
-from tracer.effects import EffectError, derive_effects, photon_state, with_forced
+from tracer.effects import EFFECTS, EffectError, derive_effects, photon_state, with_forced
 from tracer.errors import TracerError
 from tracer.estimate import Estimate, cost_of
 from tracer.optics import spectra
@@ -110,6 +110,9 @@ class IlluminanceResult:
     enough (`tracer.tessellation_error`); None elsewhere.
     backend : dict — where the batches ran (`tracer.backends`): {"name": "in-process", "threads": n} or
     {"name": "dask", "address": …, "workers": n, "threads": n}.
+    physics_left_out : dict or None — where the query asked (`Simulation.left_out`): per effect,
+    ``{"difference": (k,) lx, "stderr": (k,) lx, "photons", "seconds", "estimator", "ran"}``, the lux with that
+    effect forced on minus `lux`.
     Where the query observes Stokes (`tracer.optics.polarization`): stokes, stokes_stderr (k, 4) — lx, S0 = lux,
     in each receiver's frame (x axis: its `reference` in its plane, taken across each photon's direction);
     dop (k,) — degree of polarization √(S1² + S2² + S3²) / S0 (NaN where nothing arrived).
@@ -136,6 +139,7 @@ class IlluminanceResult:
     cost: dict | None = None
     error_budget: dict | None = None
     backend: dict | None = None
+    physics_left_out: dict | None = None
 
 
 @dataclass
@@ -313,7 +317,7 @@ class Simulation:
 
     def illuminance(self, points, normals, radius=None, target_relative_error=None, max_seconds=None,
                     max_photons=None, seed=0, estimator="auto", force_effects=(), progress=None,
-                    cancel=None, observe=(), reference=None) -> IlluminanceResult:
+                    cancel=None, observe=(), reference=None, physics_left_out=()) -> IlluminanceResult:
         """Illuminance (lx) on the front side of a disk receiver at each point.
 
         Parameters
@@ -334,7 +338,10 @@ class Simulation:
         reference : (3,) float, optional
             The x axis of the receivers' polarization frames (world), taken onto each receiver's plane; default
             world x, or world y where x is within 25° of the receiver's normal.
+        physics_left_out : effect names (`tracer.effects.EFFECTS`) whose share of the answer to measure: the result's
+            `physics_left_out` (`left_out`).
         """
+        left_out = _left_out_names(physics_left_out)
         pts = _vectors(points, "points")
         k = len(pts)
         if k == 0:
@@ -349,16 +356,23 @@ class Simulation:
             raise SimulationError(f"radius must be a positive finite number of metres, got {radius!r}")
         r = float(r)
         centers = place_receivers(self._arrays, pts, nrm, r)
-        return self._run(False, centers, nrm, r, None, target_relative_error, max_seconds, max_photons, seed,
-                         estimator, force_effects, progress, cancel, observe, reference)
+        res = self._run(False, centers, nrm, r, None, target_relative_error, max_seconds, max_photons, seed,
+                        estimator, force_effects, progress, cancel, observe, reference)
+        if left_out:
+            res.physics_left_out = self.left_out(left_out, res, lambda force, s, est: self._run(
+                False, centers, nrm, r, None, target_relative_error, max_seconds, max_photons, s, est, force, None,
+                cancel, ()), force_effects, observe, seed, estimator)
+        return res
 
     def grid(self, origin, u, v, nu, nv, target_relative_error=None, max_seconds=None, max_photons=None, seed=0,
-             estimator="auto", force_effects=(), progress=None, cancel=None, observe=(), reference=None) -> GridResult:
+             estimator="auto", force_effects=(), progress=None, cancel=None, observe=(), reference=None,
+             physics_left_out=()) -> GridResult:
         """Cell-average illuminance (lx) over a grid sensor origin + s u + t v, front side u × v.
 
         Returns a `GridResult` whose `lux` and `stderr` are (nv, nu) arrays (observed spectra and
         chromaticities (nv, nu, …)). Other parameters as for `illuminance`.
         """
+        left_out = _left_out_names(physics_left_out)
         o, uu, vv = _vec3(origin, "origin"), _vec3(u, "u"), _vec3(v, "v")
         for name, val in (("nu", nu), ("nv", nv)):
             if isinstance(val, bool) or not isinstance(val, int | np.integer) or not 1 <= val <= 4096:
@@ -384,6 +398,49 @@ class Simulation:
                          cells(res.stokes), cells(res.stokes_stderr), cells(res.dop), res.cost, backend=res.backend)
         if res.error_budget is not None:
             out.error_budget = {name: cells(v) for name, v in res.error_budget.items()}
+        if left_out:
+            found = self.left_out(left_out, res, lambda force, s, est: self._run(
+                True, o, nrm, 0.0, (uu, vv, int(nu), int(nv)), target_relative_error, max_seconds, max_photons, s,
+                est, force, None, cancel, ()), force_effects, observe, seed, estimator)
+            out.physics_left_out = {name: {**e, "difference": cells(e["difference"]), "stderr": cells(e["stderr"])}
+                                    for name, e in found.items()}
+        return out
+
+    # ------------------------------------------------------------------------------------------ physics left out
+
+    def left_out(self, names: tuple[str, ...], res: IlluminanceResult, rerun, force_effects, observe, seed: int,
+                 estimator: str) -> dict:
+        """What each effect in `names` would change (DESIGN.md, "Accuracy is a quantity"): per effect ``{"difference":
+        lux with it forced on − res.lux, "stderr": √(σ_run² + σ_pilot²), "photons", "seconds", "estimator" of the
+        pilot, "ran"}``.
+
+        The pilot (`rerun(force_effects, seed, estimator)`) is the same query with the effect forced on, under the
+        query's own stop rules (its target error, photon and time budget: the difference's error is then about √2
+        times the run's own, and the answer takes up to 1 + len(names) times as long) and an independent seed
+        (`_pilot_seed`: the two estimates are independent, so their variances add). An effect that leaves the photon
+        state the same (`tracer.effects.photon_state`) changes nothing that runs: it is already on, or a branch on data
+        that acts wherever the scene's materials call for it (Fresnel wherever there is a dielectric); its difference
+        is exactly 0 ± 0 and no pilot runs (``"ran": false``). What a pilot can change today is therefore the light's
+        state: polarization (polarized Fresnel instead of the s/p average) and a wavelength per photon (spectral and
+        the effects that need it). A cancelled run runs no pilot (``{}``).
+        """
+        if res.stop_reason == "cancelled":
+            return {}
+        spectrum, stokes = _observe(observe)
+        asked = (*(force_effects or ()), *(("spectral",) if spectrum else ()), *(("polarization",) if stokes else ()))
+        base = with_forced(self.effects, asked)
+        pilot_estimator = "forward" if estimator == "forward" else "auto"
+        out = {}
+        for k, name in enumerate(names):
+            if photon_state(with_forced(base, name)) == photon_state(base):
+                zero = np.zeros_like(res.lux)
+                out[name] = {"difference": zero, "stderr": zero.copy(), "photons": 0, "seconds": 0.0,
+                             "estimator": None, "ran": False}
+                continue
+            pilot = rerun((*asked, name), _pilot_seed(seed, k), pilot_estimator)
+            out[name] = {"difference": pilot.lux - res.lux, "stderr": np.hypot(pilot.stderr, res.stderr),
+                         "photons": int(pilot.photons), "seconds": float(pilot.seconds),
+                         "estimator": pilot.estimator, "ran": True}
         return out
 
     # ------------------------------------------------------------------------------------------ engine
@@ -573,6 +630,25 @@ class Simulation:
         cdict = {"rejected": int(counters[0]), "truncated": int(counters[1])}
         return IlluminanceResult(est.mean, est.stderr, batches * per_batch, time.perf_counter() - t0, effects,
                                  "backward", stop, batches, cdict["rejected"], cdict, compile_s)
+
+
+def _left_out_names(names) -> tuple[str, ...]:
+    """A query's `physics_left_out`, checked: a list of distinct `tracer.effects.EFFECTS`; `SimulationError` else."""
+    if names is None:
+        return ()
+    if isinstance(names, str) or not isinstance(names, list | tuple):
+        raise SimulationError(f"physics_left_out must be a list of effects {list(EFFECTS)}, got {names!r}")
+    unknown = [e for e in names if e not in EFFECTS]
+    if unknown:
+        raise SimulationError(f"physics_left_out: unknown effect(s) {unknown}; known: {list(EFFECTS)}")
+    if len(set(names)) != len(names):
+        raise SimulationError(f"physics_left_out lists each effect once, got {list(names)}")
+    return tuple(names)
+
+
+def _pilot_seed(seed: int, k: int) -> int:
+    """The seed of the k-th pilot of a query with `seed`: a stream of its own (`tracer.rng` seeds by (seed, batch))."""
+    return (int(seed) + (k + 1) * 0x9E3779B97F4A7C15) % 2 ** 63
 
 
 def _observe(observe) -> tuple[bool, bool]:

@@ -74,12 +74,21 @@ class _Budget(BaseModel):
         default=None, description="With observe stokes: the x axis of each receiver's polarization frame (world), "
                                   "taken onto its plane; default world x, or world y where x is within 25° of "
                                   "the receiver's normal.")
+    physics_left_out: Annotated[list[Annotated[str, Field(pattern=EFFECT_NAME)]], Field(max_length=16)] = Field(
+        default_factory=list, description="Effects (the names `force_effects` takes) whose share of the answer to "
+                                          "measure: for each, the query runs again with the effect forced on, under "
+                                          "the same stop rules and budget and an independent seed, and the answer's "
+                                          "`physics_left_out` gives that lux minus the answer's (lx per point, with "
+                                          "its standard error, lx). Each effect that changes the photons' state "
+                                          "(polarization, spectral and the effects needing a wavelength) adds up to "
+                                          "one more run's time; one already on, or acting wherever the scene's "
+                                          "materials call for it, changes nothing: 0 ± 0 lx, no run.")
 
-    @field_validator("observe")
+    @field_validator("observe", "physics_left_out")
     @classmethod
-    def _once_each(cls, v: list[str]) -> list[str]:
+    def _once_each(cls, v: list[str], info: Any) -> list[str]:
         if len(set(v)) != len(v):
-            raise ValueError(f"observe lists each observable once, got {v}")
+            raise ValueError(f"{info.field_name} lists each name once, got {v}")
         return v
 
     def observed_effects(self) -> tuple[str, ...]:
@@ -120,6 +129,20 @@ class ErrorBudget(BaseModel):
 
     tessellation: list[Any] = Field(description="How far each value may move when the curved mirror and glass "
                                                 "surfaces are tessellated finely enough (a bound), lx.")
+
+
+class PhysicsLeftOut(BaseModel):
+    """What one effect that is off would change (`tracer.simulate.Simulation.left_out`): the lux of a run with it
+    forced on minus the answer's lux."""
+
+    difference: list[Any] = Field(description="Lux with the effect on minus the answer's lux, per point (nv rows of "
+                                              "nu cells for a grid), lx.")
+    stderr: list[Any] = Field(description="Standard error of each difference, √(σ_run² + σ_pilot²), lx.")
+    photons: int = Field(description="Photons (or paths) the run with the effect on traced; 0 where none ran.")
+    seconds: float = Field(description="Seconds that run took, s.")
+    estimator: str | None = Field(None, description="The estimator of that run.")
+    ran: bool = Field(description="False where the effect changes nothing that runs (already on, or acting wherever "
+                                  "the scene calls for it): the difference is then exactly 0.")
 
 
 class IlluminanceQuery(_Budget):
@@ -174,6 +197,8 @@ class IlluminancePublic(BaseModel):
     backend: Backend | None = Field(None, description="Where the photon batches ran.")
     error_budget: ErrorBudget | None = Field(None, description="Where the scene has curved mirror or glass meshes: "
                                                                "the tessellation's share of the error, lx.")
+    physics_left_out: dict[str, PhysicsLeftOut] | None = Field(
+        None, description="Where the query asked: per effect, what turning it on would change, lx.")
     stokes: list[Any] | None = Field(
         None, description="With observe stokes: [S0, S1, S2, S3] per point, lx (S0 = lux), in the receiver's frame.")
     stokes_stderr: list[Any] | None = Field(None, description="Standard error of each Stokes component, lx.")
@@ -204,6 +229,7 @@ class SensorPublic(BaseModel):
     cost: Cost | None = None
     backend: Backend | None = None
     error_budget: ErrorBudget | None = None
+    physics_left_out: dict[str, PhysicsLeftOut] | None = None
     stokes: list[Any] | None = None
     stokes_stderr: list[Any] | None = None
     dop: list[Any] | None = None
@@ -340,12 +366,12 @@ def _points_query(scene_id: str, query: IlluminanceQuery, request: Request) -> t
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     prepared = hub.prepare(scene_id)
     effects = tuple(query.force_effects)
-    hub.check_query(prepared, query.estimator, query.observed_effects())
+    hub.check_query(prepared, query.estimator, query.observed_effects(), tuple(query.physics_left_out))
 
     def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
         payload = hub.run_points(prepared, points, normals, query.radius, budget, query.seed, query.estimator,
                                  effects, progress=progress, cancel=cancel, observe=tuple(query.observe),
-                                 reference=query.reference)
+                                 reference=query.reference, physics_left_out=tuple(query.physics_left_out))
         _targeted(payload, query.cost_targets)
         payload["current"] = hub.is_current(scene_id, prepared.generation)
         return payload
@@ -372,12 +398,12 @@ def _sensor_query(scene_id: str, sensor_id: str, query: SensorSimulate, request:
     sensor = find_sensor(prepared.live, sensor_id)  # the same sensor in the snapshot the query runs on
     map_url = str(request.url_for("sensor_map", scene_id=scene_id, sensor_id=sensor_id).path)
     effects = tuple(query.force_effects)
-    hub.check_query(prepared, query.estimator, query.observed_effects())
+    hub.check_query(prepared, query.estimator, query.observed_effects(), tuple(query.physics_left_out))
 
     def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
         payload = hub.run_grid(prepared, sensor, budget, query.seed, query.estimator, effects,
                                progress=progress, cancel=cancel, observe=tuple(query.observe),
-                               reference=query.reference)
+                               reference=query.reference, physics_left_out=tuple(query.physics_left_out))
         _targeted(payload, query.cost_targets)
         if payload["type"] == "grid":
             payload["map_url"] = map_url
