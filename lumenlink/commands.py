@@ -91,6 +91,12 @@ def _light_text(light: dict[str, Any]) -> str:
     return f"{body.get('type')}{name} {light['id'][:8]}"
 
 
+def _warn(console: Console, answer: dict[str, Any]) -> None:
+    """The service's warnings (e.g. a position far outside the model: millimetres meant?) on stderr."""
+    for w in answer.get("warnings") or []:
+        console.print(f"[yellow]warning:[/] {escape(str(w))}")
+
+
 # ---------------------------------------------------------------- nodes
 
 def nodes(scene: str, server: str, create: bool = False, json_out: bool = False) -> int:
@@ -183,6 +189,7 @@ def light(scene: str, server: str, ies: Path | None = None, at: str | None = Non
                 answer = ll.add_light(info, parsed, attach=attach, name=name)
         where = f" attached to {attach} ({answer['body'].get('attached_to')})" if attach else ""
         print(f"light {answer['id']}: {answer['body'].get('type')}{where}")
+        _warn(console, answer)
         return EXIT_OK
     return _run(work)
 
@@ -207,6 +214,7 @@ def sensor(scene: str, server: str, grid: tuple[str, str, str, int, int] | None 
         b = answer["body"]
         size = f" {b['nu']} x {b['nv']} cells" if b.get("type") == "grid" else ""
         print(f"sensor {answer['id']}: {b.get('type')}{size}{' ' + repr(b['name']) if b.get('name') else ''}")
+        _warn(console, answer)
         return EXIT_OK
     return _run(work)
 
@@ -258,6 +266,7 @@ def simulate(scene: str, server: str, out: Path, sensor: str = "all", target: fl
                     else:
                         (out_dir / f"{stem}.png").write_bytes(png)
                         written.append(out_dir / f"{stem}.png")
+                _warn(console, result)
                 print(f"sensor {stem} ({s['id']}): lux min {result['min_lux']:.4g}, mean {result['mean_lux']:.4g}, "
                       f"max {result['max_lux']:.4g}; {result['photons']:,} photons in {result['seconds']:.2f} s "
                       f"({result['stop_reason']}), revision {result['revision']} -> "

@@ -9,14 +9,34 @@ purges one; ``DELETE /scenes/{id}/orphans`` purges every orphan of the scene.
 
 from typing import Any
 
-from fastapi import APIRouter, Response
+from fastapi import APIRouter, Request, Response
+from pydantic import Field
 
-from service import paths
+from service import paths, units
+from service.errors import ServiceError
 from service.routes.deps import ItemId, Manager, NodeRef, SceneId
 from service.schemas import AssignmentPublic, Light, Material, MaterialPublic, ObjectCreate, OrphanPublic, Sensor
 from service.state import validate_body
 
 router = APIRouter(tags=["assignments"])
+
+
+class AssignmentAdded(AssignmentPublic):
+    """A light, sensor or object just added, with what looks wrong about it."""
+
+    warnings: list[str] = Field(default_factory=list, description=(
+        "A light or sensor far outside the model (more than 100 diagonals of its box): positions are world metres, "
+        "whatever the document's length unit (the message names it). Added all the same."))
+
+
+def _far(request: Request, scene_id: str, kind: str, item_id: str) -> list[str]:
+    """Warnings for a light or sensor just added that lies far outside the model (`service.units`)."""
+    try:
+        live = request.app.state.live.get(scene_id)
+    except ServiceError:   # a scene the simulation cannot read yet: nothing to measure against
+        return []
+    where = units.light_positions if kind == "light" else units.sensor_positions
+    return units.far_warnings(live, where(live, [item_id]))
 
 
 def _node_key(manager: Manager, scene_id: str, ref: str) -> str:
@@ -63,10 +83,14 @@ def purge_orphans(scene_id: SceneId, manager: Manager) -> list[dict[str, str]]:
 
 
 def _routes(kind: str, plural: str, schema: Any) -> None:
-    @router.post(f"/scenes/{{scene_id}}/{plural}", status_code=201, response_model=AssignmentPublic,
+    @router.post(f"/scenes/{{scene_id}}/{plural}", status_code=201, response_model=AssignmentAdded,
                  name=f"add_{kind}")
-    def add(scene_id: SceneId, body: schema, manager: Manager) -> dict[str, Any]:  # type: ignore[valid-type]
-        return manager.add_assignment(scene_id, kind, _resolve_anchors(manager, scene_id, validate_body(kind, body)))
+    def add(scene_id: SceneId, body: schema, manager: Manager,  # type: ignore[valid-type]
+            request: Request) -> dict[str, Any]:
+        added = manager.add_assignment(scene_id, kind, _resolve_anchors(manager, scene_id, validate_body(kind, body)))
+        if kind in ("light", "sensor") and not added.get("orphaned"):
+            added = {**added, "warnings": _far(request, scene_id, kind, str(added["id"]))}
+        return added
 
     @router.get(f"/scenes/{{scene_id}}/{plural}", response_model=list[AssignmentPublic], name=f"list_{plural}")
     def list_(scene_id: SceneId, manager: Manager) -> list[dict[str, Any]]:

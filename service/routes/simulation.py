@@ -22,6 +22,7 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, ConfigDict, Field, Strict, field_validator, model_validator
 
+from service import units
 from service.errors import NotFound, TooLarge
 from service.jobs import JobNotFound, QueueFull
 from service.maps import colour_map_png, illuminance_map_png
@@ -151,7 +152,10 @@ class IlluminanceQuery(_Budget):
     points: Annotated[list[Vec3], Field(min_length=1)]
     normals: Annotated[list[Vec3], Field(min_length=1)]
     radius: Annotated[float, Field(gt=0.0)] | None = Field(
-        default=None, description="Radius of each disk receiver, m (default: the transport's small default).")
+        default=None, description="Radius of each disk receiver, m: each value is the mean illuminance over that "
+                                  "disk. Default 0.05 m (`tracer.simulate.DEFAULT_RADIUS`; the answer's `radius` "
+                                  "says which was used): ask a smaller one near a small lamp, where the light "
+                                  "changes within 5 cm.")
 
     @model_validator(mode="after")
     def _check(self) -> IlluminanceQuery:
@@ -195,6 +199,11 @@ class IlluminancePublic(BaseModel):
         None, description="With observe spectrum: CIE 1931 (x, y) of the light arriving; null where none arrived.")
     cost: Cost | None = Field(None, description="What tighter errors would cost (seconds and photons per target).")
     backend: Backend | None = Field(None, description="Where the photon batches ran.")
+    radius: float | None = Field(None, description="Radius of the disk receivers the values are means over, m "
+                                                   "(the query's, else the default 0.05 m).")
+    warnings: list[str] | None = Field(None, description="Points or lights far outside the model (more than 100 "
+                                                         "diagonals of its box): positions are world metres, "
+                                                         "whatever the document's length unit.")
     error_budget: ErrorBudget | None = Field(None, description="Where the scene has curved mirror or glass meshes: "
                                                                "the tessellation's share of the error, lx.")
     physics_left_out: dict[str, PhysicsLeftOut] | None = Field(
@@ -242,6 +251,7 @@ class SensorPublic(BaseModel):
     u: list[float] | None = None
     v: list[float] | None = None
     map_url: str | None = None
+    warnings: list[str] | None = Field(None, description="The sensor or lights far outside the model (world metres).")
 
 
 class JobAccepted(BaseModel):
@@ -365,6 +375,9 @@ def _points_query(scene_id: str, query: IlluminanceQuery, request: Request) -> t
     normals = np.asarray(query.normals, dtype=np.float64)
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     prepared = hub.prepare(scene_id)
+    radius = query.radius if query.radius is not None else units.DEFAULT_RADIUS_M
+    warnings = units.far_warnings(prepared.live, [(f"points[{k}]", p) for k, p in enumerate(query.points)]
+                                  + units.light_positions(prepared.live))
     effects = tuple(query.force_effects)
     hub.check_query(prepared, query.estimator, query.observed_effects(), tuple(query.physics_left_out))
 
@@ -373,6 +386,7 @@ def _points_query(scene_id: str, query: IlluminanceQuery, request: Request) -> t
                                  effects, progress=progress, cancel=cancel, observe=tuple(query.observe),
                                  reference=query.reference, physics_left_out=tuple(query.physics_left_out))
         _targeted(payload, query.cost_targets)
+        payload.update(radius=radius, **({"warnings": warnings} if warnings else {}))
         payload["current"] = hub.is_current(scene_id, prepared.generation)
         return payload
 
@@ -397,6 +411,8 @@ def _sensor_query(scene_id: str, sensor_id: str, query: SensorSimulate, request:
     prepared = hub.prepare(scene_id)
     sensor = find_sensor(prepared.live, sensor_id)  # the same sensor in the snapshot the query runs on
     map_url = str(request.url_for("sensor_map", scene_id=scene_id, sensor_id=sensor_id).path)
+    warnings = units.far_warnings(prepared.live, units.sensor_positions(prepared.live, [sensor_id])
+                                  + units.light_positions(prepared.live))
     effects = tuple(query.force_effects)
     hub.check_query(prepared, query.estimator, query.observed_effects(), tuple(query.physics_left_out))
 
@@ -407,6 +423,8 @@ def _sensor_query(scene_id: str, sensor_id: str, query: SensorSimulate, request:
         _targeted(payload, query.cost_targets)
         if payload["type"] == "grid":
             payload["map_url"] = map_url
+        if warnings:
+            payload["warnings"] = warnings
         return payload
 
     return "sensor", scene_id, prepared, work, budget, {"generation": prepared.generation, "sensor": sensor_id}

@@ -220,6 +220,10 @@ def test_bad_usage_says_what_to_do(service, cars, tmp_path) -> None:
     assert r.exit_code == 2 and "reflectance" in r.stderr, r.output
     r = cli(service, "simulate", "--scene", "cli-car", "--out", str(tmp_path / "m"), "--sensor", "flor")
     assert r.exit_code == 2 and "did you mean 'floor'" in r.stderr, r.output
+    # a light placed in millimetres (the car is drawn in mm, the world is metres): added, with a warning saying so
+    r = cli(service, "light", "--scene", "cli-car", "--ies", str(IES), "--at", "6000,0,3000")
+    assert r.exit_code == 0 and "warning: light" in r.stderr and "document unit is mm" in r.stderr, r.output
+    assert "it is [6, 0, 3] m" in r.stderr, r.stderr
     # nothing answers: exit 3
     r = cli(service, "nodes", "--scene", "cli-car", "--server", f"http://127.0.0.1:{free_port()}")
     assert r.exit_code == 3 and "cannot reach the service" in r.stderr, r.output
