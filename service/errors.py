@@ -8,15 +8,19 @@ useful, extension members (e.g. ``missing``, ``current_revision``, ``errors``).
 
 from __future__ import annotations
 
+import difflib
 import logging
 import math
+import types
+import typing
 import uuid
+from collections.abc import Callable
 from typing import Any
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 log = logging.getLogger("lumenlink.service")
@@ -84,12 +88,81 @@ def problem(status: int, title: str, detail: str, **extensions: Any) -> JSONResp
     return JSONResponse(body, status_code=status, media_type=PROBLEM_JSON)
 
 
-def validation_problem(errors: list[dict[str, Any]]) -> JSONResponse:
-    """Pydantic errors as a 422 (400 when the body is not JSON at all), naming each bad field."""
+def fields_at(annotation: Any, loc: list[str]) -> list[str]:
+    """The field names the model at `loc` (a body's error location after ``body``) allows, walking `annotation`
+    through models, lists and (discriminated) unions, whose members the location names by tag; [] if unknown."""
+    t = annotation
+    rest = list(loc)
+    for _ in range(64):
+        origin = typing.get_origin(t)
+        if origin is typing.Annotated:
+            t = typing.get_args(t)[0]
+        elif origin in (typing.Union, types.UnionType):
+            members = [a for a in typing.get_args(t) if a is not type(None)]
+            if len(members) == 1:
+                t = members[0]
+                continue
+            tag = rest[0] if rest else None
+            chosen = next((m for m in members if tag is not None and _tagged(m, tag)), None)
+            if chosen is None:
+                return []
+            t = chosen
+            rest = rest[1:]
+        elif origin in (list, tuple, set):
+            if not rest or not rest[0].isdigit():
+                return []
+            t = typing.get_args(t)[0] if typing.get_args(t) else Any
+            rest = rest[1:]
+        elif isinstance(t, type) and issubclass(t, BaseModel):
+            if not rest:
+                return [f.alias or name for name, f in t.model_fields.items()]
+            field = t.model_fields.get(rest[0]) or next(
+                (f for f in t.model_fields.values() if f.alias == rest[0]), None)
+            if field is None:
+                return []
+            t = field.annotation
+            rest = rest[1:]
+        else:
+            return []
+    return []
+
+
+def _tagged(model: Any, tag: str) -> bool:
+    """Whether a union member is the one pydantic names `tag` in an error location (its ``type`` literal or name)."""
+    if not (isinstance(model, type) and issubclass(model, BaseModel)):
+        return getattr(model, "__name__", None) == tag
+    field = model.model_fields.get("type")
+    values = typing.get_args(field.annotation) if field is not None else ()
+    return tag in values or model.__name__ == tag
+
+
+def validation_problem(errors: list[dict[str, Any]],
+                       allowed: Callable[[list[str]], list[str]] | None = None) -> JSONResponse:
+    """Pydantic errors as a 422 (400 when the body is not JSON at all), naming each bad field; a field the body may
+    not have gets the closest allowed name (``allowed(loc)``: the names allowed beside it; and any missing ones),
+    said in the detail and listed in ``did_you_mean``."""
     clean = [
         {"loc": [str(p) for p in e.get("loc", ())], "msg": str(e.get("msg", "")), "type": str(e.get("type", ""))}
         for e in errors
     ]
+    suggestions: list[str] = []
+    for e in clean:
+        if e["type"] != "extra_forbidden" or not e["loc"]:
+            continue
+        parent, name = e["loc"][:-1], e["loc"][-1]
+        names = {m["loc"][-1] for m in clean if m["type"] == "missing" and m["loc"][:-1] == parent and m["loc"]}
+        if allowed is not None:
+            names.update(allowed(list(parent)))
+        close = difflib.get_close_matches(name, sorted(names - {name}), n=1, cutoff=0.6)
+        if close:
+            e["msg"] = f"{name!r} is not a field here; did you mean {close[0]!r}?"
+            e["did_you_mean"] = close[0]
+            suggestions.append(close[0])
+        elif names:
+            e["msg"] = f"{name!r} is not a field here; allowed: {', '.join(sorted(names))}"
+    # the missing field a typo stands for is the same mistake: said once, by the suggestion
+    same = [bool(suggestions) and e["type"] == "missing" and bool(e["loc"]) and e["loc"][-1] in suggestions
+            for e in clean]
     if any(e["type"] == "json_invalid" for e in clean):
         first = next(e for e in clean if e["type"] == "json_invalid")
         return problem(400, "Malformed JSON", f"the body is not valid JSON: {first['msg']}", errors=clean)
@@ -100,10 +173,13 @@ def validation_problem(errors: list[dict[str, Any]]) -> JSONResponse:
             and isinstance(e.get("input"), int | float) and not isinstance(e.get("input"), bool)}
     hints = [f"{'.'.join(f)}: give a list of [x, y, z] triples, e.g. [[0, 0, 1], [1, 0, 1]], not a flat list of "
              "numbers" for f in sorted(flat)]
-    rest = [e for e in clean if not (e["type"] == "tuple_type" and tuple(e["loc"][:-1]) in flat)]
+    rest = [e for e, dup in zip(clean, same, strict=True)
+            if not dup and not (e["type"] == "tuple_type" and tuple(e["loc"][:-1]) in flat)]
     shown = "; ".join(hints + [f"{'.'.join(e['loc']) or 'body'}: {e['msg']}" for e in rest][:max(0, 5 - len(hints))])
     more = f" (and {len(hints) + len(rest) - 5} more)" if len(hints) + len(rest) > 5 else ""
-    return problem(422, "Invalid request", shown + more, errors=clean[:100])
+    extra = {"did_you_mean": suggestions} if suggestions else {}
+    return problem(422, "Invalid request", shown + more,
+                   errors=[e for e, dup in zip(clean, same, strict=True) if not dup][:100], **extra)
 
 
 def install_handlers(app: FastAPI) -> None:
@@ -116,8 +192,16 @@ def install_handlers(app: FastAPI) -> None:
         return response
 
     @app.exception_handler(RequestValidationError)
-    async def _validation(_: Request, exc: RequestValidationError) -> JSONResponse:
-        return validation_problem(list(exc.errors()))
+    async def _validation(request: Request, exc: RequestValidationError) -> JSONResponse:
+        body_field = getattr(request.scope.get("route"), "body_field", None)
+        annotation = getattr(getattr(body_field, "field_info", None), "annotation", None)
+
+        def allowed(loc: list[str]) -> list[str]:
+            if annotation is None or not loc or loc[0] != "body":
+                return []
+            return fields_at(annotation, loc[1:])
+
+        return validation_problem(list(exc.errors()), allowed)
 
     @app.exception_handler(ValidationError)
     async def _pydantic(_: Request, exc: ValidationError) -> JSONResponse:
