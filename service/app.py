@@ -54,7 +54,7 @@ def create_app(settings: Settings | None = None, scene_factory: Callable[[], Any
 
         app.state.kernels = start_background()
 
-    @app.get("/health", tags=["service"])
+    @app.get("/health", tags=["service"], responses=PROBLEM_RESPONSES)
     def health() -> dict[str, Any]:
         """Liveness: the process answers and its database is reachable; `kernels` says whether the
         light-transport kernels are compiled yet (`warming`, `ready` with seconds per stage, or `failed`)."""
@@ -89,10 +89,10 @@ def create_app(settings: Settings | None = None, scene_factory: Callable[[], Any
 class Problem(BaseModel):
     """An error (RFC 9457 problem details), as every error of this service is answered."""
 
-    type: str = "about:blank"
-    title: str
-    status: int
-    detail: str
+    type: str = Field("about:blank", description="A URI naming the kind of problem; `about:blank`: the status says.")
+    title: str = Field(description="The status's reason phrase (e.g. `Unprocessable Content`).")
+    status: int = Field(description="The HTTP status code.")
+    detail: str = Field(description="What went wrong with this request, for people.")
     errors: list[dict[str, Any]] | None = Field(None, description="422: each invalid field (loc, msg, type).")
     limit: int | None = Field(None, description="413: the limit exceeded.")
     current_revision: int | None = Field(None, description="409: the scene's revision now.")
@@ -130,7 +130,26 @@ def _openapi_with_problems(app: FastAPI) -> Any:
                         response["content"] = {"application/problem+json": {"schema": PROBLEM_REF}}
         for name in ("HTTPValidationError", "ValidationError"):
             components.pop(name, None)   # FastAPI's own error models: never sent by this service
+        for path in schema.get("paths", {}).values():
+            for operation in path.values():
+                for media in operation.get("requestBody", {}).get("content", {}).values():
+                    if "examples" not in media and (examples := _body_examples(media.get("schema", {}), components)):
+                        media["examples"] = examples
         return schema
 
     return openapi
+
+
+def _body_examples(schema: dict[str, Any], components: dict[str, Any]) -> dict[str, Any]:
+    """A request body's examples as /docs offers them (a named list to pick from): those of its model, or of each
+    model a union body may be (a light: point, spot, …), from the models' ``json_schema_extra``."""
+    out: dict[str, Any] = {}
+    for branch in schema.get("oneOf") or schema.get("anyOf") or [schema]:
+        name = branch.get("$ref", "").rsplit("/", 1)[-1]
+        model = components.get(name, branch) if name else branch
+        for k, value in enumerate(model.get("examples") or []):
+            title = name or model.get("title") or "example"
+            out[title if k == 0 else f"{title} {k + 1}"] = {"summary": title if k == 0 else f"{title} ({k + 1})",
+                                                           "value": value}
+    return out
 

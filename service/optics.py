@@ -22,9 +22,33 @@ from tracer.optics import spectra
 from tracer.optics.surfaces.base import MaterialError
 from tracer.optics.surfaces.dispatch import KINDS, material_spec
 
+#: examples shown by /docs, per kind (tests/service/test_openapi_docs.py assigns each to a node): BK7 is Schott's
+#: Sellmeier fit, aluminium's [n, k] at 550 nm
+MATERIAL_EXAMPLES: dict[str, list[dict[str, Any]]] = {
+    "black": [{"type": "black"}],
+    "lambertian": [{"type": "lambertian", "reflectance": 0.5},
+                   {"type": "lambertian", "reflectance": {"nm": [400.0, 550.0, 700.0], "values": [0.2, 0.5, 0.7]}}],
+    "mirror": [{"type": "mirror", "metal": [0.96, 6.69]}, {"type": "mirror", "reflectance": 0.9}],
+    "mix": [{"type": "mix", "diffuse": 0.6, "specular": 0.3}],
+    "dielectric": [{"type": "dielectric", "ior": {"sellmeier": {"b": [1.03961212, 0.231792344, 1.01046945],
+                                                                "c_um2": [0.00600069867, 0.0200179144, 103.560653]}},
+                    "absorption_per_m": 0.1},
+                   {"type": "dielectric", "ior": 1.49, "coating": {"layers": [{"ior": 1.38, "thickness_nm": 99.6}]}}],
+    "diffuser": [{"type": "diffuser", "transmittance": 0.6, "reflectance": 0.3}],
+    "polarizer": [{"type": "polarizer", "axis": [1.0, 0.0, 0.0], "transmittance": 0.85, "extinction_ratio": 1000.0}],
+    "retarder": [{"type": "retarder", "fast_axis": [1.0, 0.0, 0.0], "retardance_deg": 90.0}],
+}
+
+
+def _examples(schema: dict[str, Any], cls: type) -> None:
+    """A material kind's examples in its JSON schema (``json_schema_extra``); other wire models have none."""
+    kind = cls.model_fields["type"].annotation.__args__[0] if "type" in cls.model_fields else None  # type: ignore
+    if kind in MATERIAL_EXAMPLES:
+        schema["examples"] = MATERIAL_EXAMPLES[kind]
+
 
 class _MaterialWire(BaseModel):
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, json_schema_extra=_examples)
 
 
 # ------------------------------------------------------------------------ values that may vary with λ
@@ -37,27 +61,29 @@ class SpectralTable(_MaterialWire):
     """A value sampled over wavelength: linear between the samples, the end values held beyond them."""
 
     nm: Annotated[list[Wavelength], Field(min_length=2, max_length=10_000, description="increasing, nm")]
-    values: Samples
+    values: Samples = Field(description="the value at each wavelength, in the field's own unit (a fraction for a "
+                                        "reflectance, 1/m for a coefficient)")
 
 
 class SellmeierTerms(_MaterialWire):
-    b: Annotated[list[Annotated[float, Strict()]], Field(min_length=1, max_length=6)]
+    b: Annotated[list[Annotated[float, Strict()]], Field(min_length=1, max_length=6, description=(
+        "the oscillator strengths B, dimensionless (BK7: 1.03961212, 0.231792344, 1.01046945)"))]
     c_um2: Annotated[list[Annotated[float, Strict()]], Field(min_length=1, max_length=6, description="µm²")]
 
 
 class Sellmeier(_MaterialWire):
     """n² = 1 + Σ b λ² / (λ² − c), λ in µm."""
 
-    sellmeier: SellmeierTerms
+    sellmeier: SellmeierTerms = Field(description="the Sellmeier terms: B (dimensionless) and C (µm²), one per pole")
 
 
 class IndexTable(_MaterialWire):
     nm: Annotated[list[Wavelength], Field(min_length=2, max_length=10_000, description="increasing, nm")]
-    n: Samples
+    n: Samples = Field(description="the refractive index at each wavelength, dimensionless")
 
 
 class IorTable(_MaterialWire):
-    table: IndexTable
+    table: IndexTable = Field(description="the refractive index sampled over wavelength (nm)")
 
 
 class CoatingLayer(_MaterialWire):
@@ -68,25 +94,27 @@ class CoatingLayer(_MaterialWire):
 class CoatingWire(_MaterialWire):
     """Thin films on the surface, outermost first (`tracer.optics.coating`)."""
 
-    layers: Annotated[list[CoatingLayer], Field(min_length=1, max_length=200)]
+    layers: Annotated[list[CoatingLayer], Field(min_length=1, max_length=200, description=(
+        "the films, outermost first: each its index (dimensionless) and thickness (nm)"))]
 
 
 class Monochromatic(_MaterialWire):
-    type: Literal["monochromatic"]
+    type: Literal["monochromatic"] = Field(description="one wavelength")
     nm: Wavelength
 
 
 class Blackbody(_MaterialWire):
-    type: Literal["blackbody"]
+    type: Literal["blackbody"] = Field(description="Planck's law at a temperature")
     kelvin: Annotated[float, Field(ge=100.0, le=1e5, description="K")]
 
 
 class SpectrumTable(_MaterialWire):
     """Relative spectral power, linear between the samples, zero outside them."""
 
-    type: Literal["table"]
+    type: Literal["table"] = Field(description="a sampled spectrum")
     nm: Annotated[list[Wavelength], Field(min_length=2, max_length=10_000, description="increasing, nm")]
-    values: Annotated[list[Annotated[float, Field(ge=0.0)]], Field(min_length=2, max_length=10_000)]
+    values: Annotated[list[Annotated[float, Field(ge=0.0)]], Field(min_length=2, max_length=10_000, description=(
+        "relative spectral power at each wavelength (any scale: the light's own magnitude sets it)"))]
 
 
 Spectrum = Annotated[Monochromatic | Blackbody | SpectrumTable, Field(discriminator="type")]
@@ -98,7 +126,7 @@ class FluorescenceWire(_MaterialWire):
     absorption_per_m: Annotated[float, Strict(), Field(ge=0.0, le=1e9)] | SpectralTable = Field(
         description="fluorescent absorption coefficient σf, 1/m (or a table over λ)")
     quantum_yield: Annotated[float, Strict(), Field(ge=0.0, le=1.0, description="photons out per photon in")]
-    emission: Spectrum
+    emission: Spectrum = Field(description="the spectrum of the re-emitted light (relative power over nm)")
 
 
 Metal = Annotated[tuple[Annotated[float, Strict(), Field(gt=0.0, le=20.0)],
@@ -138,10 +166,12 @@ def _field_type(name: str, meta: Mapping, required: bool) -> Any:
 
 def _model(kind) -> type[BaseModel]:
     """The pydantic model of one kind's wire body, from its spec's fields."""
-    fields: dict[str, Any] = {"type": (Literal[kind.NAME], ...)}
+    fields: dict[str, Any] = {"type": (Literal[kind.NAME], Field(description=f"the material kind: `{kind.NAME}`"))}
     for f in dataclasses.fields(kind.Spec):
         default = ... if f.default is dataclasses.MISSING else f.default
-        fields[f.name] = (_field_type(f.name, f.metadata, default is ...), default)
+        # the spec's meaning (with its unit) on the field itself, where /docs shows it, not only inside a union
+        fields[f.name] = (_field_type(f.name, f.metadata, default is ...),
+                          Field(default, description=f.metadata.get("doc") or None))
 
     def _check(self):
         # the tracer's own validation: cross-field rules (`Spec.check`), increasing wavelengths, Sellmeier poles

@@ -50,6 +50,44 @@ class Wire(BaseModel):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
+# ---------------------------------------------------------------- examples shown by /docs and /redoc
+
+# One plausible scene behind every example: a room whose floor is a 4 m × 4 m mesh at z = 0 (node `room/floor`,
+# its corner at (-2, -2, 0)), a ceiling panel (`room/ceiling_panel`) and a car headlamp lens (`car/lens`).
+# tests/service/test_openapi_docs.py sends each example to a service holding that scene.
+EXAMPLE_FLOOR_GEOMETRY = "f4a4f688dfc96096e3ccecf720e75bc783e5bf6d2afab5296004b62c64ad0fef"  # the 4 m floor's GLB
+_IDENTITY = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]
+DOCUMENT_EXAMPLE: dict[str, Any] = {
+    "base_revision": 0, "length_unit": "m",
+    "source": {"name": "room.FCStd", "tessellation": {"linear_deflection_m": 0.001, "angular_deflection_deg": 15.0}},
+    "nodes": [
+        {"uuid": "6f1c9a52-3b7e-4d08-9e2a-51c4b7d3e001", "name": "room", "transform": _IDENTITY},
+        {"uuid": "6f1c9a52-3b7e-4d08-9e2a-51c4b7d3e002", "parent": "6f1c9a52-3b7e-4d08-9e2a-51c4b7d3e001",
+         "name": "floor", "transform": [1.0, 0.0, 0.0, -2.0, 0.0, 1.0, 0.0, -2.0, 0.0, 0.0, 1.0, 0.0,
+                                        0.0, 0.0, 0.0, 1.0],
+         "geometry": EXAMPLE_FLOOR_GEOMETRY, "color": [0.6, 0.6, 0.6]}]}
+POINT_LIGHT_EXAMPLE: dict[str, Any] = {"type": "point", "name": "bulb", "position": [0.0, 0.0, 2.0],
+                                       "intensity_cd": 100.0}
+SPOT_LIGHT_EXAMPLE: dict[str, Any] = {"type": "spot", "name": "downlight", "position": [1.0, 0.0, 2.5],
+                                      "direction": [0.0, 0.0, -1.0], "cone_deg": 30.0, "falloff_deg": 25.0,
+                                      "flux_lm": 800.0, "spectrum": {"type": "blackbody", "kelvin": 3000.0}}
+COLLIMATED_LIGHT_EXAMPLE: dict[str, Any] = {
+    "type": "collimated", "name": "sun", "origin": [0.0, 0.0, 3.0], "direction": [0.3, 0.2, -1.0], "width": 4.0,
+    "height": 4.0, "up": [0.0, 1.0, 0.0], "illuminance_lx": 100000.0,
+    "spectrum": {"type": "blackbody", "kelvin": 5778.0}}
+AREA_LIGHT_EXAMPLE: dict[str, Any] = {"type": "area", "name": "ceiling panel", "node": "room/ceiling_panel",
+                                      "exitance_lm_m2": 2000.0}
+#: a small type-C downlight (IES LM-63-2002): 1000 lm, intensities in cd per 1000 lm, rotationally symmetric
+IES_EXAMPLE = ("IESNA:LM-63-2002\n[TEST]LumenLink example\n[MANUFAC]LumenLink\n[LUMINAIRE]recessed downlight\n"
+               "TILT=NONE\n1 1000 1 5 1 1 2 0.2 0.2 0\n1.0 1.0 12\n0 22.5 45 67.5 90\n0\n400 350 220 60 0\n")
+GONIOMETRIC_LIGHT_EXAMPLE: dict[str, Any] = {"type": "goniometric", "name": "downlight", "position": [0.0, 0.0, 2.8],
+                                             "format": "ies", "data": IES_EXAMPLE}
+GRID_SENSOR_EXAMPLE: dict[str, Any] = {"type": "grid", "name": "floor grid", "origin": [-2.0, -2.0, 0.01],
+                                       "u": [4.0, 0.0, 0.0], "v": [0.0, 4.0, 0.0], "nu": 20, "nv": 20}
+DISK_SENSOR_EXAMPLE: dict[str, Any] = {"type": "disk", "name": "desk", "center": [0.5, 0.5, 0.75],
+                                       "normal": [0.0, 0.0, 1.0], "radius": 0.05}
+
+
 def _nonzero(name: str, v: Vec3 | None) -> None:
     if v is not None and math.hypot(*v) == 0.0:
         raise ValueError(f"{name} must be a non-zero vector")
@@ -60,44 +98,55 @@ def _nonzero(name: str, v: Vec3 | None) -> None:
 class SceneCreate(Wire):
     """Body of ``POST /scenes``."""
 
-    name: Annotated[str, StringConstraints(min_length=1, max_length=200, strip_whitespace=True)]
+    name: Annotated[str, StringConstraints(min_length=1, max_length=200, strip_whitespace=True)] = Field(
+        description="The scene's name, unique in this service (1–200 characters, outer spaces dropped).")
+
+    model_config = ConfigDict(json_schema_extra={"examples": [{"name": "headlamp-test-bench"}]})
 
 
 class OrphanPublic(Wire):
     """An assignment whose node a push removed: kept, and live again if the UUID comes back."""
 
-    kind: Literal["material", "light", "sensor", "object"]
-    id: str  # the node uuid for a material, else the light/sensor/object id
-    node: str  # the missing node
+    kind: Literal["material", "light", "sensor", "object"] = Field(description="What the assignment is.")
+    id: str = Field(description="The node UUID for a material, else the light's, sensor's or object's id.")
+    node: str = Field(description="The UUID of the node the push removed.")
 
 
 class ScenePublic(Wire):
     """What ``GET /scenes/{id}`` answers (DESIGN.md), plus a few counts."""
 
-    id: str
-    name: str
-    revision: int
-    length_unit: str | None
-    nodes: int
-    objects: int  # instances in the tracer scene (document parts and sim-owned objects)
-    triangles: int
-    geometries: int
-    effects: list[str]
-    orphaned: list[OrphanPublic]
-    materials_assigned: int  # explicit assignments (live ones)
-    default_material: dict[str, Any]
-    default_material_instances: int  # instances that fall back to the default material
-    lights: int
-    sensors: int
-    sim_objects: int
-    last_commit: dict[str, Any]  # what the last tracer commit in this process built or loaded
-    source: dict[str, Any] | None = None  # the last push's source: document name, tessellation settings
+    id: str = Field(description="The scene's id (a UUID).")
+    name: str = Field(description="The scene's name.")
+    revision: int = Field(description="The scene revision: 0 when empty, +1 per push that changed the tree.")
+    length_unit: str | None = Field(description="The last pushed document's length unit (m, cm, mm, um, in, ft); "
+                                                "null before the first push.")
+    nodes: int = Field(description="Nodes in the current tree.")
+    objects: int = Field(description="Instances in the tracer scene (document parts and simulation-owned objects).")
+    triangles: int = Field(description="Triangles over all instances.")
+    geometries: int = Field(description="Distinct meshes the instances use.")
+    effects: list[str] = Field(description="The physical effects the scene calls for (e.g. `refraction`, "
+                                           "`spectral`), the tracer's names.")
+    orphaned: list[OrphanPublic] = Field(description="Assignments whose node a push removed.")
+    materials_assigned: int = Field(description="Explicit material assignments that are live.")
+    default_material: dict[str, Any] = Field(description="The material of instances that have none (a material "
+                                                         "body, e.g. Lambertian with reflectance 0.5, a fraction).")
+    default_material_instances: int = Field(description="Instances that fall back to the default material.")
+    lights: int = Field(description="Live lights.")
+    sensors: int = Field(description="Live sensors.")
+    sim_objects: int = Field(description="Simulation-owned objects (`POST …/objects`).")
+    last_commit: dict[str, Any] = Field(description="What the last tracer commit in this process built or loaded "
+                                                    "(counts, and its seconds, s).")
+    source: dict[str, Any] | None = Field(None, description="The last push's source: the document's name and the "
+                                                            "tessellation settings (deflections in m, angles in "
+                                                            "degrees, as the adapter sent them).")
 
 
 class SceneListItem(Wire):
-    id: str
-    name: str
-    revision: int
+    """One scene: its id, name and revision."""
+
+    id: str = Field(description="The scene's id (a UUID).")
+    name: str = Field(description="The scene's name.")
+    revision: int = Field(description="The scene revision (0 when empty).")
 
 
 # ---------------------------------------------------------------- the pushed document
@@ -106,21 +155,28 @@ class Source(Wire):
     """Where a push came from: the document's name and the tessellation settings (bounded: it is stored with
     every revision)."""
 
-    name: Annotated[str, StringConstraints(max_length=1000)] | None = None
+    name: Annotated[str, StringConstraints(max_length=1000)] | None = Field(
+        None, description="The CAD document's name or file.")
     tessellation: Annotated[dict[Annotated[str, StringConstraints(max_length=100)],
                                  float | bool | Annotated[str, StringConstraints(max_length=100_000)] | None],
-                            Field(max_length=64)] | None = None
+                            Field(max_length=64)] | None = Field(
+        None, description="The tessellation settings the adapter used, as it names them (e.g. linear_deflection_m "
+                          "in m, angular_deflection_deg in degrees); stored, not interpreted.")
 
 
 class NodeIn(Wire):
     """One node of a pushed tree: parent link, local transform (row-major 4×4, document units)."""
 
-    uuid: Uuid
-    parent: Uuid | None = None
-    name: Annotated[str, StringConstraints(max_length=500)] = ""
-    transform: Matrix16
-    geometry: GeometryId | None = None
-    color: tuple[Fraction, Fraction, Fraction] | None = None
+    uuid: Uuid = Field(description="The node's stable id: assignments refer to it across pushes.")
+    parent: Uuid | None = Field(None, description="The parent node's UUID; null for a root.")
+    name: Annotated[str, StringConstraints(max_length=500)] = Field(
+        "", description="The node's name in the CAD tree (its path is made of names).")
+    transform: Matrix16 = Field(description="parent_from_node, a row-major 4×4 matrix (16 numbers); its "
+                                            "translation in the document's length unit.")
+    geometry: GeometryId | None = Field(None, description="The SHA-256 (64 hex digits) of the node's mesh, uploaded "
+                                                          "with `PUT /geometries/{gid}`; null for an assembly.")
+    color: tuple[Fraction, Fraction, Fraction] | None = Field(
+        None, description="The CAD colour, linear RGB fractions 0–1 (display only; materials set the optics).")
 
 
 NonNegNum = Annotated[float, Strict(), Field(ge=0.0)]  # a finite JSON number >= 0 (no boolean, no string)
@@ -135,12 +191,17 @@ class Signature(Wire):
     ``None`` where they are not well defined) are in the part's own frame, document units.
     """
 
-    volume: NonNegNum
-    area: NonNegNum
-    moments: Annotated[list[NonNegNum], Field(min_length=3, max_length=3)]
-    centroid: Annotated[list[Num], Field(min_length=3, max_length=3)]
-    axes: Annotated[list[Num], Field(min_length=9, max_length=9)] | None = None
-    topology: Annotated[list[Count], Field(min_length=3, max_length=3)] | None = None  # faces, edges, vertices
+    volume: NonNegNum = Field(description="Volume, document units³.")
+    area: NonNegNum = Field(description="Surface area, document units².")
+    moments: Annotated[list[NonNegNum], Field(min_length=3, max_length=3)] = Field(
+        description="Principal moments of inertia about the centroid (unit density), ascending, document units⁵.")
+    centroid: Annotated[list[Num], Field(min_length=3, max_length=3)] = Field(
+        description="Centroid [x, y, z] in the part's own frame, document units.")
+    axes: Annotated[list[Num], Field(min_length=9, max_length=9)] | None = Field(
+        None, description="The principal axes as three rows of unit vectors (dimensionless); null where not well "
+                          "defined.")
+    topology: Annotated[list[Count], Field(min_length=3, max_length=3)] | None = Field(
+        None, description="Counts of faces, edges and vertices of the B-rep.")
 
     @model_validator(mode="after")
     def _sorted(self) -> Signature:
@@ -153,27 +214,28 @@ class Signature(Wire):
 class IdentityIn(Wire):
     """What the adapter matches a node by, besides its tree: the product it instantiates and its shape signature."""
 
-    product: Annotated[str, StringConstraints(max_length=500)] | None = None
-    signature: Signature | None = None
+    product: Annotated[str, StringConstraints(max_length=500)] | None = Field(
+        None, description="The product (part definition) the node instantiates.")
+    signature: Signature | None = Field(None, description="The part's shape signature.")
 
 
 class AmbiguousNode(Wire):
     """A node the adapter could not match with certainty: the candidates it hesitated between, and why."""
 
-    uuid: Uuid
-    path: str
-    candidates: list[Uuid]
-    reason: str
+    uuid: Uuid = Field(description="The UUID the adapter gave the node.")
+    path: str = Field(description="The node's path in the document.")
+    candidates: list[Uuid] = Field(description="The scene's nodes it could have been.")
+    reason: str = Field(description="Why the match was uncertain.")
 
 
 class Reconciliation(Wire):
     """The adapter's report of how it matched the document against the scene; the service only
     validates it and echoes it in the push answer."""
 
-    matched: dict[str, Count] = Field(default_factory=dict)  # rule name -> nodes matched by it
-    ambiguous: list[AmbiguousNode] = Field(default_factory=list)
-    seconds: NonNegNum | None = None
-    source: str | None = None
+    matched: dict[str, Count] = Field(default_factory=dict, description="Rule name → nodes matched by it.")
+    ambiguous: list[AmbiguousNode] = Field(default_factory=list, description="Nodes matched with doubt.")
+    seconds: NonNegNum | None = Field(None, description="Seconds the matching took, s.")
+    source: str | None = Field(None, description="The adapter that matched (name and version).")
 
 
 class DocumentPush(Wire):
@@ -192,12 +254,16 @@ class DocumentPush(Wire):
     the body's last member (`service.document` reuses the node bytes of the previous push).
     """
 
-    base_revision: Annotated[int, Strict(), Field(ge=0)] | None = None   # strict: not true, "2" or 3.0
-    length_unit: LengthUnit = "m"
-    source: Source | None = None
-    identity: dict[Uuid, IdentityIn] | None = None
-    reconciliation: Reconciliation | None = None
-    nodes: list[NodeIn]
+    base_revision: Annotated[int, Strict(), Field(ge=0)] | None = Field(   # strict: not true, "2" or 3.0
+        None, description="The revision the tree is based on (stale: 409); null pushes unconditionally.")
+    length_unit: LengthUnit = Field("m", description="The unit of the nodes' translations (m, cm, mm, um, in, ft).")
+    source: Source | None = Field(None, description="Where the push came from (stored with the revision).")
+    identity: dict[Uuid, IdentityIn] | None = Field(
+        None, description="Node UUID → its identity record (product, shape signature); the whole set.")
+    reconciliation: Reconciliation | None = Field(None, description="The adapter's matching report, echoed.")
+    nodes: list[NodeIn] = Field(description="The whole tree, parents before children; the body's last member.")
+
+    model_config = ConfigDict(json_schema_extra={"examples": [DOCUMENT_EXAMPLE]})
 
 
 class StageSeconds(Wire):
@@ -220,28 +286,28 @@ class PushPublic(Wire):
     does not hold yet) and ``missing_geometries`` (ids not uploaded yet: no error in a dry run).
     """
 
-    scene: str
-    revision: int
-    base_revision: int | None
-    added: list[str]
-    removed: list[str]
-    moved: list[str]
-    geometry_changed: list[str]
-    renamed: list[str]
-    reparented: list[str]
-    recolored: list[str]
-    unchanged: int
-    blas_built: int
-    blas_reused: int
-    blas_loaded: int
-    instances: int
-    seconds: dict[str, float]
-    orphaned: list[OrphanPublic]
-    restored: list[OrphanPublic]
-    reconciliation: Reconciliation | None = None  # the push's, echoed
-    dry_run: bool = False
-    blas_to_build: list[str] | None = None  # dry runs only
-    missing_geometries: list[str] | None = None  # dry runs only
+    scene: str = Field(description="The scene's id.")
+    revision: int = Field(description="The scene revision after the push.")
+    base_revision: int | None = Field(description="The push's base_revision, echoed.")
+    added: list[str] = Field(description="UUIDs of the nodes added.")
+    removed: list[str] = Field(description="UUIDs of the nodes removed.")
+    moved: list[str] = Field(description="UUIDs of the nodes whose transform changed.")
+    geometry_changed: list[str] = Field(description="UUIDs of the nodes whose mesh changed.")
+    renamed: list[str] = Field(description="UUIDs of the nodes renamed.")
+    reparented: list[str] = Field(description="UUIDs of the nodes given another parent.")
+    recolored: list[str] = Field(description="UUIDs of the nodes whose colour changed.")
+    unchanged: int = Field(description="Nodes the push left as they were.")
+    blas_built: int = Field(description="Meshes whose acceleration structure (BLAS) was built.")
+    blas_reused: int = Field(description="Meshes whose BLAS was already in memory.")
+    blas_loaded: int = Field(description="Meshes whose BLAS was loaded from disk.")
+    instances: int = Field(description="Instances in the tracer scene after the push.")
+    seconds: dict[str, float] = Field(description="Seconds per stage (validate, diff, blas, tlas, store, total), s.")
+    orphaned: list[OrphanPublic] = Field(description="Assignments the push orphaned.")
+    restored: list[OrphanPublic] = Field(description="Orphaned assignments the push made live again.")
+    reconciliation: Reconciliation | None = Field(None, description="The push's reconciliation, echoed.")
+    dry_run: bool = Field(False, description="True for `?dry_run=true`: nothing was changed.")
+    blas_to_build: list[str] | None = Field(None, description="Dry runs: geometry ids whose BLAS would be built.")
+    missing_geometries: list[str] | None = Field(None, description="Dry runs: geometry ids not uploaded yet.")
 
 
 # ---------------------------------------------------------------- geometries
@@ -249,20 +315,29 @@ class PushPublic(Wire):
 class MissingQuery(Wire):
     """Body of ``POST /geometries/missing``."""
 
-    ids: Annotated[list[GeometryId], Field(max_length=1_000_000)]
+    ids: Annotated[list[GeometryId], Field(max_length=1_000_000)] = Field(
+        description="Geometry ids (SHA-256 of each GLB, 64 hex digits) the client holds.")
+
+    model_config = ConfigDict(json_schema_extra={"examples": [{"ids": [
+        "9f2c4e1b7a3d5c8e0f6a2b4d1c3e5f7a9b0d2e4f6a8c1e3b5d7f9a0c2e4b6d8f",
+        "0b1c2d3e4f5a6b7c8d9e0f1a2b3c4d5e6f7a8b9c0d1e2f3a4b5c6d7e8f9a0b1c"]}]})
 
 
 class MissingPublic(Wire):
-    missing: list[str]
+    """The geometries still to upload."""
+
+    missing: list[str] = Field(description="Of the ids asked, those not stored (in the order asked, no repeats).")
 
 
 class GeometryPublic(Wire):
-    id: str
-    vertices: int
-    triangles: int
-    normals: bool
-    bytes: int
-    created: bool  # False when the mesh was already stored (idempotent upload)
+    """A stored mesh."""
+
+    id: str = Field(description="The SHA-256 of the GLB, 64 hex digits.")
+    vertices: int = Field(description="Vertices of the mesh.")
+    triangles: int = Field(description="Triangles of the mesh.")
+    normals: bool = Field(description="Whether the GLB carries vertex normals.")
+    bytes: int = Field(description="Size of the GLB, bytes.")
+    created: bool = Field(description="False when the mesh was already stored (an idempotent upload).")
 
 
 # ---------------------------------------------------------------- materials (DESIGN.md bodies)
@@ -278,21 +353,23 @@ class MaterialAssignment(Wire):
 
 
 class MaterialPublic(Wire):
-    node: str
-    material: dict[str, Any]
-    orphaned: bool
+    """A material assignment."""
+
+    node: str = Field(description="The node's (or sim-owned object's) UUID.")
+    material: dict[str, Any] = Field(description="The material body as given (see the material kinds).")
+    orphaned: bool = Field(description="True while a push has removed the node.")
 
 
 # ---------------------------------------------------------------- lights (DESIGN.md bodies)
 
 class LinearPolarization(Wire):
-    type: Literal["linear"]
+    type: Literal["linear"] = Field(description="Linearly polarized.")
     axis: Vec3 = Field(description="the field's direction (in the light's frame: world, or its node's with "
                                    "attached_to), taken across each ray")
 
 
 class CircularPolarization(Wire):
-    type: Literal["circular"]
+    type: Literal["circular"] = Field(description="Circularly polarized.")
     handedness: Literal["right", "left"] = Field(description="right: S3 = +S0 (IEEE: clockwise seen from the source)")
 
 
@@ -318,15 +395,18 @@ class _Spectral(Wire):
 
 
 class _Attachable(_Spectral):
-    name: Annotated[str, StringConstraints(max_length=200)] | None = None
-    attached_to: NodeRef | None = None  # then positions/directions are in that node's frame, metres
+    name: Annotated[str, StringConstraints(max_length=200)] | None = Field(None, description="A name for people.")
+    attached_to: NodeRef | None = Field(None, description=(   # then positions/directions are in that node's frame
+        "A node (UUID or path): positions and directions are then in that node's frame, in metres, and follow it "
+        "when a push moves it; default world."))
 
 
 class _Intensity(_Attachable):
-    intensity_cd: Photometric | None = None
-    flux_lm: Photometric | None = None
-    flux_w: Annotated[float, Field(ge=0.0, le=1e13, description=(
-        "radiant flux, W (instead of a photometric quantity; lm = W × the spectrum's efficacy)"))] | None = None
+    intensity_cd: Photometric | None = Field(None, description="Luminous intensity, cd (isotropic: in every "
+                                                               "direction of its cone).")
+    flux_lm: Photometric | None = Field(None, description="Luminous flux, lm (instead of intensity_cd).")
+    flux_w: Annotated[float, Field(ge=0.0, le=1e13)] | None = Field(None, description=(
+        "Radiant flux, W (instead of a photometric quantity; lm = W × the spectrum's efficacy)."))
 
     @model_validator(mode="after")
     def _one_of(self) -> _Intensity:
@@ -336,16 +416,21 @@ class _Intensity(_Attachable):
 
 
 class PointLight(_Intensity):
-    type: Literal["point"]
-    position: Vec3
+    type: Literal["point"] = Field(description="An isotropic point source.")
+    position: Vec3 = Field(description="[x, y, z], m (world, or the attached node's frame).")
+
+    model_config = ConfigDict(json_schema_extra={"examples": [POINT_LIGHT_EXAMPLE]})
 
 
 class SpotLight(_Intensity):
-    type: Literal["spot"]
-    position: Vec3
-    direction: Vec3
-    cone_deg: Annotated[float, Field(gt=0.0, le=180.0)]
-    falloff_deg: Annotated[float, Field(ge=0.0, le=180.0)] = 0.0
+    type: Literal["spot"] = Field(description="A point source emitting into a cone.")
+    position: Vec3 = Field(description="[x, y, z], m (world, or the attached node's frame).")
+    direction: Vec3 = Field(description="The cone's axis (any length, not zero; dimensionless).")
+    cone_deg: Annotated[float, Field(gt=0.0, le=180.0)] = Field(description="Half-angle of the cone, degrees.")
+    falloff_deg: Annotated[float, Field(ge=0.0, le=180.0)] = Field(
+        0.0, description="Half-angle, degrees, beyond which the intensity falls to 0 at cone_deg (0: a hard edge).")
+
+    model_config = ConfigDict(json_schema_extra={"examples": [SPOT_LIGHT_EXAMPLE]})
 
     @model_validator(mode="after")
     def _check(self) -> SpotLight:
@@ -359,14 +444,16 @@ class CollimatedLight(_Attachable):
     """A parallel beam from an aperture centred on `origin`: a disk (`radius`) or a rectangle
     (`width` × `height`, its height along `up` projected off the direction)."""
 
-    type: Literal["collimated"]
-    origin: Vec3
-    direction: Vec3
-    radius: Positive | None = None
-    width: Positive | None = None
-    height: Positive | None = None
-    up: Vec3 | None = None
-    illuminance_lx: Photometric
+    type: Literal["collimated"] = Field(description="A parallel beam.")
+    origin: Vec3 = Field(description="Centre of the aperture [x, y, z], m.")
+    direction: Vec3 = Field(description="Direction of travel (any length, not zero; dimensionless).")
+    radius: Positive | None = Field(None, description="Radius of a disk aperture, m.")
+    width: Positive | None = Field(None, description="Width of a rectangular aperture, m.")
+    height: Positive | None = Field(None, description="Height of a rectangular aperture (along `up`), m.")
+    up: Vec3 | None = Field(None, description="Orients a rectangle's height (dimensionless; not along direction).")
+    illuminance_lx: Photometric = Field(description="Illuminance on a plane across the beam, lx.")
+
+    model_config = ConfigDict(json_schema_extra={"examples": [COLLIMATED_LIGHT_EXAMPLE]})
 
     @model_validator(mode="after")
     def _check(self) -> CollimatedLight:
@@ -387,22 +474,27 @@ class CollimatedLight(_Attachable):
 
 
 class AreaLight(_Spectral):
-    type: Literal["area"]
-    name: Annotated[str, StringConstraints(max_length=200)] | None = None
-    node: NodeRef  # the node whose surfaces (with its descendants') emit
-    exitance_lm_m2: Photometric
+    type: Literal["area"] = Field(description="A node's surfaces emitting (Lambertian).")
+    name: Annotated[str, StringConstraints(max_length=200)] | None = Field(None, description="A name for people.")
+    node: NodeRef = Field(description="The node (UUID or path) whose surfaces, with its descendants', emit.")
+    exitance_lm_m2: Photometric = Field(description="Luminous exitance of the surfaces, lm/m².")
+
+    model_config = ConfigDict(json_schema_extra={"examples": [AREA_LIGHT_EXAMPLE]})
 
 
 class GoniometricLight(_Attachable):
     """A type-C photometric file; `direction` is its γ = 0 axis (default straight down, −z) and `c0`
     its C = 0 half-plane (default +x); both turn with the node the light is attached to."""
 
-    type: Literal["goniometric"]
-    position: Vec3
-    format: Literal["ies", "ldt"]
-    data: Annotated[str, StringConstraints(min_length=1, max_length=10_000_000)]
-    direction: Vec3 | None = None
-    c0: Vec3 | None = None
+    type: Literal["goniometric"] = Field(description="A luminaire from its photometric file.")
+    position: Vec3 = Field(description="The photometric centre [x, y, z], m.")
+    format: Literal["ies", "ldt"] = Field(description="`ies` (IES LM-63) or `ldt` (EULUMDAT).")
+    data: Annotated[str, StringConstraints(min_length=1, max_length=10_000_000)] = Field(
+        description="The file's text (intensities in cd, or cd/klm scaled by its lumens).")
+    direction: Vec3 | None = Field(None, description="The γ = 0 axis (dimensionless); default −z, straight down.")
+    c0: Vec3 | None = Field(None, description="The C = 0 half-plane's direction (dimensionless); default +x.")
+
+    model_config = ConfigDict(json_schema_extra={"examples": [GONIOMETRIC_LIGHT_EXAMPLE]})
 
     @model_validator(mode="after")
     def _check(self) -> GoniometricLight:
@@ -420,7 +512,7 @@ Light = Annotated[PointLight | SpotLight | CollimatedLight | AreaLight | Goniome
 
 
 class LightCreate(Wire):
-    light: Light
+    light: Light = Field(description="A light body.")
 
 
 # ---------------------------------------------------------------- sensors
@@ -428,12 +520,14 @@ class LightCreate(Wire):
 class GridSensor(_Attachable):
     """A rectangle ``origin + s·u + t·v`` (s, t in [0, 1]) split into nu × nv cells; front side u × v."""
 
-    type: Literal["grid"]
-    origin: Vec3
-    u: Vec3
-    v: Vec3
-    nu: Annotated[int, Field(ge=1, le=4096)]
-    nv: Annotated[int, Field(ge=1, le=4096)]
+    type: Literal["grid"] = Field(description="A rectangle of cells, each answering its mean illuminance.")
+    origin: Vec3 = Field(description="A corner of the rectangle [x, y, z], m.")
+    u: Vec3 = Field(description="The edge along which the nu cells lie, m (its length is the width).")
+    v: Vec3 = Field(description="The edge along which the nv cells lie, m; u × v is the side facing the light.")
+    nu: Annotated[int, Field(ge=1, le=4096)] = Field(description="Cells along u.")
+    nv: Annotated[int, Field(ge=1, le=4096)] = Field(description="Cells along v.")
+
+    model_config = ConfigDict(json_schema_extra={"examples": [GRID_SENSOR_EXAMPLE]})
 
     @model_validator(mode="after")
     def _check(self) -> GridSensor:
@@ -448,10 +542,12 @@ class GridSensor(_Attachable):
 
 
 class DiskSensor(_Attachable):
-    type: Literal["disk"]
-    center: Vec3
-    normal: Vec3
-    radius: Positive
+    type: Literal["disk"] = Field(description="One disk answering its mean illuminance.")
+    center: Vec3 = Field(description="The disk's centre [x, y, z], m.")
+    normal: Vec3 = Field(description="The side that receives (any length, not zero; dimensionless).")
+    radius: Positive = Field(description="The disk's radius, m.")
+
+    model_config = ConfigDict(json_schema_extra={"examples": [DISK_SENSOR_EXAMPLE]})
 
     @model_validator(mode="after")
     def _check(self) -> DiskSensor:
@@ -463,7 +559,7 @@ Sensor = Annotated[GridSensor | DiskSensor, Field(discriminator="type")]
 
 
 class SensorCreate(Wire):
-    sensor: Sensor
+    sensor: Sensor = Field(description="A sensor body.")
 
 
 # ---------------------------------------------------------------- simulation-owned objects
@@ -475,12 +571,19 @@ class ObjectCreate(Wire):
     ``attached_to`` names a node; the mesh vertices are in ``mesh_unit``.
     """
 
-    geometry: GeometryId
-    transform: Matrix16 = Field(default_factory=lambda: [1.0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1])
-    mesh_unit: LengthUnit = "m"
-    name: Annotated[str, StringConstraints(max_length=200)] | None = None
-    attached_to: NodeRef | None = None
-    material: Material | None = None
+    geometry: GeometryId = Field(description="A stored mesh's id (SHA-256 of its GLB, 64 hex digits).")
+    transform: Matrix16 = Field(default_factory=lambda: [1.0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1],
+                                description="world_from_object (or node_from_object), row-major 4×4; its "
+                                            "translation in m. Default identity.")
+    mesh_unit: LengthUnit = Field("m", description="The unit of the mesh's vertices (m, cm, mm, um, in, ft).")
+    name: Annotated[str, StringConstraints(max_length=200)] | None = Field(None, description="A name for people.")
+    attached_to: NodeRef | None = Field(None, description="A node (UUID or path) the object moves with.")
+    material: Material | None = Field(None, description="Its material; default the scene's default material.")
+
+    model_config = ConfigDict(json_schema_extra={"examples": [{
+        "geometry": EXAMPLE_FLOOR_GEOMETRY, "name": "test plate", "mesh_unit": "m",
+        "transform": [0.25, 0.0, 0.0, -0.5, 0.0, 0.25, 0.0, -0.5, 0.0, 0.0, 0.25, 0.75, 0.0, 0.0, 0.0, 1.0],
+        "material": {"type": "lambertian", "reflectance": 0.8}}]})
 
 
 class AssignmentPublic(BaseModel):
@@ -488,6 +591,6 @@ class AssignmentPublic(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    id: str
-    body: dict[str, Any]
-    orphaned: bool
+    id: str = Field(description="The light's, sensor's or object's id.")
+    body: dict[str, Any] = Field(description="Its body as given (attached_to and node stored as UUIDs).")
+    orphaned: bool = Field(description="True while a push has removed the node it refers to.")

@@ -44,29 +44,31 @@ class ResultSummary(BaseModel):
     revision: int = Field(description="Scene revision the result describes.")
     edit: int = Field(description="Which state at that revision (0 first; an assignment makes the next).")
     created_at: str = Field(description="When it was computed (ISO 8601, UTC).")
-    photons: int
+    photons: int = Field(description="Photons (forward) or paths (backward) traced.")
     seconds: float = Field(description="Seconds the simulation took, s.")
-    min_lux: float
-    mean_lux: float
-    max_lux: float
-    type: Literal["grid", "disk"] | None = None
-    estimator: str | None = None
-    stop_reason: str | None = None
-    effects: list[str] | None = None
-    nu: int | None = None
-    nv: int | None = None
+    min_lux: float = Field(description="The smallest value, lx.")
+    mean_lux: float = Field(description="The mean value, lx.")
+    max_lux: float = Field(description="The largest value, lx.")
+    type: Literal["grid", "disk"] | None = Field(None, description="The sensor's kind.")
+    estimator: str | None = Field(None, description="The estimator that ran: `forward` or `backward`.")
+    stop_reason: str | None = Field(None, description="Which rule stopped the run.")
+    effects: list[str] | None = Field(None, description="The effect set the simulation ran with.")
+    nu: int | None = Field(None, description="Grid: cells along u.")
+    nv: int | None = Field(None, description="Grid: cells along v.")
     origin: list[float] | None = Field(None, description="Grid: corner of the rectangle, world metres.")
     u: list[float] | None = Field(None, description="Grid: edge along which i counts, m.")
     v: list[float] | None = Field(None, description="Grid: edge along which j counts, m.")
     center: list[float] | None = Field(None, description="Disk: its centre, world metres.")
-    normal: list[float] | None = None
+    normal: list[float] | None = Field(None, description="Disk: the side it receives on, a unit vector.")
     radius: float | None = Field(None, description="Disk: its radius, m.")
-    url: str | None = None
+    url: str | None = Field(None, description="This result's URL.")
 
 
 class ResultList(BaseModel):
-    scene_id: str
-    sensor: str
+    """The kept results of one sensor."""
+
+    scene_id: str = Field(description="The scene's id.")
+    sensor: str = Field(description="The sensor's id.")
     keep: int = Field(description="How many results this service keeps per sensor (LUMENLINK_KEEP_RESULTS).")
     results: list[ResultSummary] = Field(description="Newest first.")
 
@@ -81,27 +83,27 @@ class ResultPublic(ResultSummary):
 class DifferencePublic(BaseModel):
     """``to − from`` per cell."""
 
-    sensor: str
+    sensor: str = Field(description="The sensor's id.")
     from_: str = Field(alias="from", description="Key of the earlier result.")
     to: str = Field(description="Key of the later result.")
-    type: str | None = None
+    type: str | None = Field(None, description="The sensor's kind: `grid` or `disk`.")
     difference: list[Any] = Field(description="lux(to) − lux(from) per cell, lx.")
     stderr: list[Any] = Field(description="Combined standard error √(σ_from² + σ_to²) per cell, lx.")
-    lux_from: list[Any]
-    lux_to: list[Any]
+    lux_from: list[Any] = Field(description="Illuminance of the earlier result per cell, lx.")
+    lux_to: list[Any] = Field(description="Illuminance of the later result per cell, lx.")
     significance_sigmas: float = Field(description="A cell changed beyond noise where |difference| exceeds this many "
                                                    "standard errors.")
     summary: dict[str, Any] = Field(description="Cells, significant changes (increased, decreased), the largest rise "
                                                 "and fall with where (world metres), the mean before and after, lx.")
     warnings: list[str] = Field(description="E.g. the sensor moved between the two: cells are paired by index.")
-    nu: int | None = None
-    nv: int | None = None
-    origin: list[float] | None = None
-    u: list[float] | None = None
-    v: list[float] | None = None
-    center: list[float] | None = None
-    normal: list[float] | None = None
-    radius: float | None = None
+    nu: int | None = Field(None, description="Grid: cells along u.")
+    nv: int | None = Field(None, description="Grid: cells along v.")
+    origin: list[float] | None = Field(None, description="Grid (the later result's): corner, world metres.")
+    u: list[float] | None = Field(None, description="Grid: edge along which the nu cells lie, m.")
+    v: list[float] | None = Field(None, description="Grid: edge along which the nv cells lie, m.")
+    center: list[float] | None = Field(None, description="Disk: its centre, world metres.")
+    normal: list[float] | None = Field(None, description="Disk: the side it receives on, a unit vector.")
+    radius: float | None = Field(None, description="Disk: its radius, m.")
 
 
 def _store(request: Request) -> tuple[SimulationHub, ResultStore]:

@@ -109,7 +109,7 @@ class Cost(BaseModel):
     ∝ 1/√photons): for the worst lit point and the median one (`tracer.estimate.cost_of`)."""
 
     targets: list[float] = Field(description="Relative errors (fractions), in the order of each line's lists.")
-    photons_per_second: float = Field(description="This run's tracing speed (compilation excluded).")
+    photons_per_second: float = Field(description="This run's tracing speed, photons/s (compilation excluded).")
     worst: CostLine | None = Field(description="At the lit point with the largest relative error; null if none is lit.")
     median: CostLine | None = Field(description="At the median lit point.")
     dark_points: int = Field(description="Points no light reached: no target means anything there.")
@@ -149,13 +149,21 @@ class PhysicsLeftOut(BaseModel):
 class IlluminanceQuery(_Budget):
     """Body of ``POST /scenes/{id}/illuminance``: receivers at points, facing their normals (metres)."""
 
-    points: Annotated[list[Vec3], Field(min_length=1)]
-    normals: Annotated[list[Vec3], Field(min_length=1)]
+    points: Annotated[list[Vec3], Field(min_length=1)] = Field(
+        description="Receiver centres [x, y, z], world metres.")
+    normals: Annotated[list[Vec3], Field(min_length=1)] = Field(
+        description="The side each receiver faces: a unit vector per point (dimensionless, length within 1e-3 of 1).")
     radius: Annotated[float, Field(gt=0.0)] | None = Field(
         default=None, description="Radius of each disk receiver, m: each value is the mean illuminance over that "
                                   "disk. Default 0.05 m (`tracer.simulate.DEFAULT_RADIUS`; the answer's `radius` "
                                   "says which was used): ask a smaller one near a small lamp, where the light "
                                   "changes within 5 cm.")
+
+    model_config = ConfigDict(json_schema_extra={"examples": [
+        {"points": [[0.0, 0.0, 0.75], [1.0, 1.0, 0.75]], "normals": [[0.0, 0.0, 1.0], [0.0, 0.0, 1.0]],
+         "target_relative_error": 0.02, "max_seconds": 30.0, "seed": 1},
+        {"points": [[0.5, 0.5, 0.75]], "normals": [[0.0, 0.0, 1.0]], "radius": 0.01, "max_photons": 2_000_000,
+         "observe": ["spectrum"], "cost_targets": [0.01, 0.005]}]})
 
     @model_validator(mode="after")
     def _check(self) -> IlluminanceQuery:
@@ -175,6 +183,10 @@ class IlluminanceQuery(_Budget):
 class SensorSimulate(_Budget):
     """Body of ``POST /scenes/{id}/sensors/{sid}/simulate`` (all optional)."""
 
+    model_config = ConfigDict(json_schema_extra={"examples": [
+        {"target_relative_error": 0.05, "max_seconds": 60.0, "seed": 7},
+        {"max_photons": 5_000_000, "estimator": "forward", "cost_targets": [0.02, 0.01]}]})
+
 
 class IlluminancePublic(BaseModel):
     """Answer of an illuminance query (lux ± stderr, one value per point)."""
@@ -183,11 +195,11 @@ class IlluminancePublic(BaseModel):
 
     lux: list[float] = Field(description="Illuminance on each receiver's front side, lx.")
     stderr: list[float] = Field(description="Standard error of each value, lx.")
-    photons: int
-    seconds: float
+    photons: int = Field(description="Photons (forward) or paths (backward) traced.")
+    seconds: float = Field(description="Wall time of the query, s.")
     effects: list[str] = Field(description="The effect set of the scene (and of any forced effects).")
     revision: int = Field(description="Scene revision the answer describes.")
-    estimator: str
+    estimator: str = Field(description="The estimator that ran: `forward` or `backward`.")
     stop_reason: str = Field(description="Which rule stopped the run (target reached, photons, seconds, cancel).")
     compile_seconds: float = Field(0.0, description="Seconds of `seconds` this answer spent compiling (or loading "
                                               "from numba's cache) a kernel first used in this process, s.")
@@ -220,37 +232,41 @@ class SensorPublic(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    sensor: str
-    type: Literal["grid", "disk"]
-    lux: list[Any]
-    stderr: list[Any]
-    photons: int
-    seconds: float
-    effects: list[str]
-    revision: int
-    estimator: str
-    stop_reason: str
-    compile_seconds: float = 0.0
-    nm: list[float] | None = None
-    spectral_irradiance: list[Any] | None = None
-    spectral_stderr: list[Any] | None = None
-    cie_xy: list[Any] | None = None
-    cost: Cost | None = None
-    backend: Backend | None = None
-    error_budget: ErrorBudget | None = None
-    physics_left_out: dict[str, PhysicsLeftOut] | None = None
-    stokes: list[Any] | None = None
-    stokes_stderr: list[Any] | None = None
-    dop: list[Any] | None = None
-    min_lux: float
-    mean_lux: float
-    max_lux: float
-    nu: int | None = None
-    nv: int | None = None
-    origin: list[float] | None = None
-    u: list[float] | None = None
-    v: list[float] | None = None
-    map_url: str | None = None
+    sensor: str = Field(description="The sensor's id.")
+    type: Literal["grid", "disk"] = Field(description="The sensor's kind.")
+    lux: list[Any] = Field(description="Illuminance, lx: nv rows of nu cells for a grid, one value for a disk.")
+    stderr: list[Any] = Field(description="Standard error of each value, lx.")
+    photons: int = Field(description="Photons (forward) or paths (backward) traced.")
+    seconds: float = Field(description="Wall time of the simulation, s.")
+    effects: list[str] = Field(description="The effect set of the scene (and of any forced effects).")
+    revision: int = Field(description="Scene revision the answer describes.")
+    estimator: str = Field(description="The estimator that ran: `forward` or `backward`.")
+    stop_reason: str = Field(description="Which rule stopped the run (target reached, photons, seconds, cancel).")
+    compile_seconds: float = Field(0.0, description="Seconds of `seconds` spent compiling a kernel first used, s.")
+    nm: list[float] | None = Field(None, description="With observe spectrum: centres of the 5 nm bands, nm.")
+    spectral_irradiance: list[Any] | None = Field(None, description="With observe spectrum: W/m²/nm per band, "
+                                                                    "per cell.")
+    spectral_stderr: list[Any] | None = Field(None, description="Standard error of each band, W/m²/nm.")
+    cie_xy: list[Any] | None = Field(None, description="With observe spectrum: CIE 1931 (x, y) per cell "
+                                                       "(dimensionless); null where no light arrived.")
+    cost: Cost | None = Field(None, description="What tighter errors would cost (seconds and photons per target).")
+    backend: Backend | None = Field(None, description="Where the photon batches ran.")
+    error_budget: ErrorBudget | None = Field(None, description="The tessellation's share of the error, lx.")
+    physics_left_out: dict[str, PhysicsLeftOut] | None = Field(
+        None, description="Where the query asked: per effect, what turning it on would change, lx.")
+    stokes: list[Any] | None = Field(None, description="With observe stokes: [S0, S1, S2, S3] per cell, lx.")
+    stokes_stderr: list[Any] | None = Field(None, description="Standard error of each Stokes component, lx.")
+    dop: list[Any] | None = Field(None, description="With observe stokes: degree of polarization per cell, "
+                                                    "a fraction; null where none arrived.")
+    min_lux: float = Field(description="The smallest value, lx.")
+    mean_lux: float = Field(description="The mean value, lx.")
+    max_lux: float = Field(description="The largest value, lx.")
+    nu: int | None = Field(None, description="Grid: cells along u.")
+    nv: int | None = Field(None, description="Grid: cells along v.")
+    origin: list[float] | None = Field(None, description="Grid: corner of the rectangle, world metres.")
+    u: list[float] | None = Field(None, description="Grid: edge along which the nu cells lie, world metres.")
+    v: list[float] | None = Field(None, description="Grid: edge along which the nv cells lie, world metres.")
+    map_url: str | None = Field(None, description="Grid: the false-colour PNG of this result.")
     warnings: list[str] | None = Field(None, description="The sensor or lights far outside the model (world metres).")
 
 
@@ -259,12 +275,12 @@ class JobAccepted(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    id: str
-    kind: str
-    status: str
-    scene_id: str
-    revision: int
-    url: str
+    id: str = Field(description="The job's id.")
+    kind: str = Field(description="`illuminance` or `sensor`.")
+    status: str = Field(description="`queued` at first.")
+    scene_id: str = Field(description="The scene's id.")
+    revision: int = Field(description="Scene revision the job computes.")
+    url: str = Field(description="Where to follow it: `GET` it (also the Location header).")
 
 
 class JobProgress(BaseModel):
@@ -284,24 +300,24 @@ class JobPublic(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    id: str
-    kind: Literal["illuminance", "sensor"]
-    status: Literal["queued", "running", "succeeded", "failed", "cancelled"]
-    scene_id: str
+    id: str = Field(description="The job's id.")
+    kind: Literal["illuminance", "sensor"] = Field(description="A point query or a sensor simulation.")
+    status: Literal["queued", "running", "succeeded", "failed", "cancelled"] = Field(description="Where it is.")
+    scene_id: str = Field(description="The scene's id.")
     revision: int = Field(description="Scene revision the job computes.")
     current: bool = Field(description="False once the scene changed after the job started (push or assignment).")
-    cancel_requested: bool
-    created_at: float
-    started_at: float | None
-    finished_at: float | None
-    progress: JobProgress
+    cancel_requested: bool = Field(description="True once `DELETE /jobs/{id}` asked it to stop.")
+    created_at: float = Field(description="When it was queued, Unix time, s.")
+    started_at: float | None = Field(description="When it started, Unix time, s; null while queued.")
+    finished_at: float | None = Field(description="When it ended, Unix time, s; null until then.")
+    progress: JobProgress = Field(description="How far it got.")
     result: dict[str, Any] | None = Field(
         description="The answer of the sync call (IlluminancePublic or SensorPublic); a cancelled job keeps its "
                     "partial answer.")
-    error: str | None
-    url: str
-    points: int | None = None
-    sensor: str | None = None
+    error: str | None = Field(description="Why it failed; null otherwise.")
+    url: str = Field(description="This job's URL.")
+    points: int | None = Field(None, description="Illuminance jobs: how many points.")
+    sensor: str | None = Field(None, description="Sensor jobs: the sensor's id.")
 
 
 def _hub(request: Request) -> SimulationHub:

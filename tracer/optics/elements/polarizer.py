@@ -41,7 +41,7 @@ class Spec:
     transmittance: float = field(default=1.0, metadata=bounds(
         0.0, 1.0, lo_open=True, doc="k1: transmittance for light polarized along the axis, fraction"))
     extinction_ratio: float | None = field(default=None, metadata=bounds(
-        1.0, 1e15, doc="k1 / k2 (absent: an ideal polarizer, k2 = 0)"))
+        1.0, 1e15, doc="k1 / k2, a ratio (absent: an ideal polarizer, k2 = 0)"))
 
 
 def row(spec: Spec) -> np.ndarray:

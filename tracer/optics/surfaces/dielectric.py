@@ -66,12 +66,14 @@ class Spec:
     """Refractive index, and the absorption, scattering and Henyey–Greenstein asymmetry of the inside."""
 
     ior: Any = field(metadata=bounds(0.0, 10.0, lo_open=True, value="ior", column=0,
-                                     doc="refractive index n: a number, {sellmeier: {b, c_um2}} or {table: {nm, n}}"))
+                                     doc="refractive index n (dimensionless): a number, {sellmeier: {b, c_um2}} or "
+                                         "{table: {nm, n}}"))
     absorption_per_m: Any = field(default=0.0, metadata=bounds(0.0, 1e9, value="spectral", mcolumn=0,
                                                                doc="absorption coefficient σa, 1/m (or a table)"))
     scattering_per_m: float = field(default=0.0, metadata=bounds(0.0, 1e9, doc="scattering coefficient σs, 1/m"))
     g: float = field(default=0.0, metadata=bounds(-1.0, 1.0, lo_open=True, hi_open=True,
-                                                  doc="Henyey–Greenstein asymmetry g"))
+                                                  doc="Henyey–Greenstein asymmetry g, dimensionless "
+                                                      "(−1 backward, 0 isotropic, 1 forward)"))
     coating: Coating | None = field(default=None, metadata=optional(parse_coating, "thin films, outermost first"))
     fluorescence: Fluorescence | None = field(default=None, metadata=optional(
         parse_fluorescence, "absorption and isotropic re-emission inside"))
