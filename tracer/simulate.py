@@ -6,7 +6,16 @@ validated once. Its queries:
 - `illuminance(points, normals, radius=...)`: the illuminance (lx) on the front side of a small disk
   receiver (radius `radius`, default `DEFAULT_RADIUS`) at each point, averaged over the disk;
 - `grid(origin, u, v, nu, nv)`: the illuminance averaged over each cell of a rectangle
-  origin + s u + t v (front side u × v), as an (nv, nu) map.
+  origin + s u + t v (front side u × v), as an (nv, nu) map;
+- `surface(instances)`: the illuminance on the model itself, per triangle of each instance listed: the
+  luminous flux arriving on the triangle's front side (the side its geometric normal points to, object-space
+  e1 × e2 mapped to world: the outside of a CAD solid; light arriving from behind is not counted) divided by
+  its world area (the instance's transform applied), averaged over the triangle. Forward only: the kernel
+  adds each photon's weight where it hits a tallied triangle, before the surface scatters it
+  (`tracer.transport.SensorArrays.surf`), which observes and changes nothing: every path and every other
+  tally of the same query is bit-identical with and without it. Its error stop looks at every triangle
+  (one that received nothing so far counts as converged), so a target error on a fine mesh is reached late:
+  give it a photon or time budget.
 
 Both estimators estimate exactly these patch averages, so they agree within their error bars:
 
@@ -145,6 +154,32 @@ class IlluminanceResult:
 @dataclass
 class GridResult(IlluminanceResult):
     """Illuminance of a grid sensor: `lux` and `stderr` have shape (nv, nu); row j is v-cell j."""
+
+
+@dataclass
+class SurfaceResult:
+    """Illuminance on the triangles of instances (`Simulation.surface`).
+
+    instances : list[int] — the instances asked for, in order; lux, stderr, area : list of (m_i,) float64 per
+    instance, in the order of its geometry's triangles — lx on each triangle's front side, its standard error
+    (batch means), the triangle's world area (m²; a degenerate triangle reads 0 ± 0). The other fields as for
+    `IlluminanceResult` (estimator is always "forward").
+    """
+
+    instances: list[int]
+    lux: list[np.ndarray]
+    stderr: list[np.ndarray]
+    area: list[np.ndarray]
+    photons: int
+    seconds: float
+    effects: list[str]
+    estimator: str
+    stop_reason: str
+    batches: int = 0
+    rejected: int = 0
+    counters: dict = field(default_factory=dict)
+    compile_seconds: float = 0.0
+    backend: dict | None = None
 
 
 def sensor_offset(p: np.ndarray) -> float:
@@ -406,6 +441,55 @@ class Simulation:
                                     for name, e in found.items()}
         return out
 
+    def surface(self, instances, target_relative_error=None, max_seconds=None, max_photons=None, seed=0,
+                force_effects=(), progress=None, cancel=None) -> SurfaceResult:
+        """Per-triangle illuminance (lx) on the front side of each instance in `instances` (see the module
+        docstring), with its standard error; budget options as for `illuminance`. Forward only."""
+        if isinstance(instances, str | bytes) or not hasattr(instances, "__iter__"):
+            raise SimulationError(f"instances must be a list of instance ids, got {instances!r}")
+        ids: list[int] = []
+        for i in instances:
+            if isinstance(i, bool) or not isinstance(i, int | np.integer):
+                raise SimulationError(f"instances: ids must be ints, got {i!r}")
+            if int(i) in ids:
+                raise SimulationError(f"instances: {int(i)} is listed twice")
+            ids.append(int(i))
+        if not ids:
+            raise SimulationError("instances: at least one instance is needed")
+        known = {int(i) for i in self.scene.instances()}
+        n_inst = max(known) + 1 if known else 0
+        surf = np.full(max(n_inst, max(ids) + 1), -1, np.int64)
+        areas = []
+        base = 0
+        for i in ids:
+            if i not in known:
+                raise SimulationError(f"instances: {i} is not an instance of the scene")
+            if i in self._sensor_ids:
+                raise SimulationError(f"instances: {i} is a sensor, it has no surface to tally")
+            verts, tris, _ = self.scene.geometry_arrays(self.scene.instance_geometry(i))
+            m = np.asarray(self.scene.instance_transform(i), np.float64)[:3, :3]
+            w = np.asarray(verts, np.float64) @ m.T
+            t = np.asarray(tris, np.int64)
+            a = 0.5 * np.linalg.norm(np.cross(w[t[:, 1]] - w[t[:, 0]], w[t[:, 2]] - w[t[:, 0]]), axis=1)
+            surf[i] = base
+            base += len(a)
+            areas.append(a)
+        if base > MAX_SPECTRAL_TALLIES:
+            raise SimulationError(f"the instances hold {base} triangles: at most {MAX_SPECTRAL_TALLIES} are tallied")
+        res = self._run(False, np.empty((0, 3)), np.empty((0, 3)), 0.0, None, target_relative_error, max_seconds,
+                        max_photons, seed, "forward", force_effects, progress, cancel, (),
+                        surface=(surf, np.concatenate(areas)))
+        lux, err, out_a = [], [], []
+        at = 0
+        for a in areas:
+            lux.append(res.lux[at:at + len(a)])
+            err.append(res.stderr[at:at + len(a)])
+            out_a.append(a)
+            at += len(a)
+        return SurfaceResult(ids, lux, err, out_a, res.photons, res.seconds, res.effects, res.estimator,
+                             res.stop_reason, res.batches, res.rejected, res.counters, res.compile_seconds,
+                             res.backend)
+
     # ------------------------------------------------------------------------------------------ physics left out
 
     def left_out(self, names: tuple[str, ...], res: IlluminanceResult, rerun, force_effects, observe, seed: int,
@@ -446,7 +530,9 @@ class Simulation:
     # ------------------------------------------------------------------------------------------ engine
 
     def _run(self, is_grid, centers, normals, radius, grid, target, max_seconds, max_photons, seed, estimator,
-             force_effects, progress, cancel, observe, reference=None) -> IlluminanceResult:
+             force_effects, progress, cancel, observe, reference=None, surface=None) -> IlluminanceResult:
+        """One query. `surface` = (surf, areas) adds the surface tally (`SensorArrays.surf`, bins after the
+        receivers', their lux and stderr after the receivers' in the result; forward only)."""
         budget = _budget(target, max_seconds, max_photons)
         observe_spectrum, observe_stokes = _observe(observe)
         if observe_spectrum:
@@ -463,17 +549,19 @@ class Simulation:
         except EffectError as exc:
             raise SimulationError(f"{exc} (in force_effects)") from None
         which = self._choose(estimator, effects, is_grid)
+        if surface is not None and which != "forward":
+            raise SimulationError("the surface tally is forward only")
         if which == "backward":
             effects = ["lambertian"]
         t0 = time.perf_counter()
         if which == "forward":
             res = self._forward(is_grid, centers, normals, radius, grid, budget, int(seed), effects, progress,
-                                cancel, t0, observe_spectrum, refs if observe_stokes else None)
+                                cancel, t0, observe_spectrum, refs if observe_stokes else None, surface)
         else:
             res = self._backward(is_grid, centers, normals, radius, grid, budget, int(seed), effects, progress,
                                  cancel, t0)
         res.cost = cost_of(res.lux, res.stderr, res.photons, res.seconds - res.compile_seconds)
-        if self._curved:
+        if self._curved and surface is None:
             if is_grid:
                 cell_centres, cell = grid_cells(centers, *grid)
                 budget_lux = lux_budget(res.lux, cell_centres, self._curved, cell=cell)
@@ -537,8 +625,9 @@ class Simulation:
                 return est, batches, "max_seconds", counters
 
     def _forward(self, is_grid, centers, normals, radius, grid, budget, seed, effects, progress, cancel, t0,
-                 observe_spectrum, refs):
+                 observe_spectrum, refs, surface=None):
         receivers = Scene()
+        ids: list[int] = []
         if is_grid:
             uu, vv, nu, nv = grid
             ids = [receivers.add_rect_sensor(centers, uu, vv)]
@@ -550,7 +639,7 @@ class Simulation:
             area = np.full(n_bins, math.pi * radius * radius)
         receivers.commit()
         ra = receivers.arrays()
-        bin0 = np.full(max(ids) + 1, -1, np.int64)
+        bin0 = np.full(max(ids) + 1 if ids else 0, -1, np.int64)
         snu = np.ones(len(bin0), np.int64)
         snv = np.ones(len(bin0), np.int64)
         if is_grid:
@@ -562,7 +651,16 @@ class Simulation:
         if refs is not None:
             ref[ids] = refs[:len(ids)]
         observe_stokes = refs is not None
-        sens = SensorArrays(bin0, snu, snv, np.array([int(observe_spectrum), int(observe_stokes)], np.int64), ref)
+        n_stop = n_bins   # the error stop: the receivers, or the triangles where there are none
+        surf = np.empty(0, np.int64)
+        if surface is not None:
+            surf_map, surf_area = surface
+            surf = np.where(surf_map >= 0, surf_map + n_bins, -1).astype(np.int64)
+            n_bins += len(surf_area)
+            area = np.concatenate([area, surf_area])
+            n_stop = n_stop or n_bins
+        sens = SensorArrays(bin0, snu, snv, np.array([int(observe_spectrum), int(observe_stokes)], np.int64), ref,
+                            surf)
         n_cols = tally_columns(observe_spectrum, observe_stokes)
         if n_bins * n_cols > MAX_SPECTRAL_TALLIES:
             what = " and ".join(o for o, on in (("the spectrum", observe_spectrum), ("Stokes", observe_stokes)) if on)
@@ -577,14 +675,15 @@ class Simulation:
         scene, query = self._snapshot(state), Shipment((ra, sens, n_bins, seed))
         compile_s = self._warm(kernel_id, scene, query)
 
-        per_area = np.tile(1.0 / area, n_cols)
+        with np.errstate(divide="ignore"):
+            per_area = np.tile(np.where(area > 0, 1.0 / area, 0.0), n_cols)   # a degenerate triangle: 0 ± 0
 
         def run_round(b0, nb):
             flux, cnt = self.backend.run(kernel_id, scene, query, b0, nb, per_batch)
             return flux * per_area[None, :], cnt
 
         est, batches, stop, counters = self._loop(run_round, n_bins * n_cols, per_batch, budget, progress, cancel, t0,
-                                                  n_bins)
+                                                  n_stop)
         cdict = {name: int(c) for name, c in zip(COUNTERS, counters, strict=True)}
         mean, err = est.mean.reshape(n_cols, n_bins), est.stderr.reshape(n_cols, n_bins)
         res = IlluminanceResult(mean[0], err[0], batches * per_batch, time.perf_counter() - t0, effects,

@@ -4,8 +4,10 @@ This is the paper's scheme (section 4): a photon leaves a source; the top level 
 instances and their bottom levels the closest hit (`tracer.traverse.intersect_closest`); on the way
 the current medium absorbs (continuous weight exp(−σa t)) or scatters it (free-flight sampling,
 Henyey–Greenstein); every sensor the segment crosses records the photon's weight if it arrives on
-its front side (`sensor_crossings_with_stack`; sensors change nothing); at the surface the material reflects,
-refracts or absorbs it and sets the medium it continues in (a stack of the solids it is inside).
+its front side (`sensor_crossings_with_stack`; sensors change nothing); at the surface the surface tally
+records the weight arriving on the front side of the triangle hit where the query asks for it
+(`SensorArrays.surf`; it changes nothing either), then the material reflects, refracts or absorbs it and sets
+the medium it continues in (a stack of the solids it is inside).
 
 Estimation. A photon's weight is luminous flux (lm): Φ_total / N × f at emission (see
 `tracer.optics.lights`). Surfaces act analogously (a photon is reflected with probability ρ, keeping its
@@ -73,6 +75,14 @@ class SensorArrays(NamedTuple):
     bin0 + min(⌊v nv⌋, nv−1) nu + min(⌊u nu⌋, nu−1). observe (2,) int64: [spectrum, stokes], 1 where the
     receivers also record it (`tally_columns`). ref (n_inst, 3) float64: each receiver's polarization reference
     axis (world, in its plane; read where it records Stokes).
+
+    surf (n_scene_inst,) int64, indexed by the *scene's* instance ids (not the receivers'): the surface tally
+    (`Simulation.surface`). surf[inst] ≥ 0 is the first bin of that instance's triangles: a photon that hits
+    triangle `prim` of `inst` on its front side (the side its geometric normal points to, the outside of a CAD
+    solid: d · n_g < 0) adds its weight (lm, the luminous value of a photon that carries a wavelength) to
+    column 0 of bin surf[inst] + prim before the surface scatters it; −1 tallies nothing there, and so does an
+    instance id past its end. It observes and changes nothing (no random draw, no weight, no path). Empty (the
+    default) costs one comparison per surface hit.
     """
 
     bin0: np.ndarray
@@ -80,6 +90,7 @@ class SensorArrays(NamedTuple):
     nv: np.ndarray
     observe: np.ndarray
     ref: np.ndarray
+    surf: np.ndarray = np.empty(0, np.int64)
 
 
 def tally_columns(observe_spectrum: bool, observe_stokes: bool = False) -> int:
@@ -181,6 +192,13 @@ def trace_photons(sa, ra, M, L, S, n_bins, seed, batch, photons, w0, tally, coun
                 px = ox + t * dx
                 py = oy + t * dy
                 pz = oz + t * dz
+                # the surface tally (`SensorArrays.surf`): the weight arriving on the front side, before it scatters
+                if inst < S.surf.shape[0] and S.surf[inst] >= 0 and dx * ngx + dy * ngy + dz * ngz < 0.0:
+                    sw = w
+                    if lam > 0.0:
+                        sw = w * luminous(lam)
+                    if math.isfinite(sw):
+                        tally[S.surf[inst] + prim] += sw
                 status, dx, dy, dz, f, depth, dim = scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz,
                                                             med, depth, key, dim, lam, pol)
                 if status == ABSORBED:
