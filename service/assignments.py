@@ -96,6 +96,10 @@ class Assignments:
         body = dict(body)  # a retry (`_retried`) starts again from the body as given
         with self.scenes.current(scene_id) as state:
             self._check_anchor(state, state.anchor_of(body), kind)
+            if kind == "sensor" and body["type"] == "surface" and not any(
+                    u in state.instances for u in state.tree.subtree(body["node"])):
+                raise Invalid(f"surface sensor: node {body['node']} and its descendants have no geometry: nothing to "
+                              f"tally", node=body["node"])
             if kind == "light" and body["type"] == "goniometric":
                 _validate_photometry(body["format"], body["data"])
             if kind == "object" and self.scenes.missing_geometries([body["geometry"]]):

@@ -79,7 +79,7 @@ class SceneState:
 
     def anchor_of(self, body: dict) -> str | None:
         """The node a light/sensor/object body depends on (attached_to, or an area light's node)."""
-        return body.get("attached_to") or (body.get("node") if body.get("type") == "area" else None)
+        return body.get("attached_to") or (body.get("node") if body.get("type") in ("area", "surface") else None)
 
     def orphans(self, only_nodes: set[str] | None = None) -> list[dict[str, str]]:
         """Assignments whose node is not in the tree (optionally only those naming `only_nodes`)."""
@@ -446,14 +446,16 @@ class Scenes:
 
 
 def _resolve(state: SceneState, aid: str, body: dict) -> dict | None:
-    """A light/sensor body in world metres (None while its node is missing)."""
+    """A light/sensor body in world metres (None while its node is missing); an area light and a surface sensor
+    carry "instances": the instance ids of their node's subtree."""
     out = {k: copy.deepcopy(v) for k, v in body.items() if k not in ("attached_to", "name")}
     out["id"] = aid
-    if body.get("type") == "area":
+    if body.get("type") in ("area", "surface"):   # a surface sensor keeps its node (the answer names it)
         node = body["node"]
         if not state.has_node(node):
             return None
-        out.pop("node")
+        if body.get("type") == "area":
+            out.pop("node")
         out["instances"] = [state.instances[u] for u in state.tree.subtree(node) if u in state.instances]
         return out
     node = body.get("attached_to")

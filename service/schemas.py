@@ -555,7 +555,21 @@ class DiskSensor(_Attachable):
         return self
 
 
-Sensor = Annotated[GridSensor | DiskSensor, Field(discriminator="type")]
+class SurfaceSensor(Wire):
+    """The model's own surfaces as a sensor: the illuminance on each triangle of a node's geometry and its
+    descendants' (`tracer.simulate.Simulation.surface`), on the triangles' front side (the outside of a CAD
+    solid). It observes and changes nothing: the light goes on as if it were not there."""
+
+    type: Literal["surface"] = Field(description="A node's surfaces, answering the illuminance on each triangle.")
+    name: Annotated[str, StringConstraints(max_length=200)] | None = Field(None, description="A name for people.")
+    node: NodeRef = Field(description="The node (UUID or path) whose surfaces, with its descendants', are tallied; "
+                                      "it or a descendant must have geometry.")
+
+    model_config = ConfigDict(json_schema_extra={"examples": [{"type": "surface", "node": "car/body",
+                                                                "name": "body illuminance"}]})
+
+
+Sensor = Annotated[GridSensor | DiskSensor | SurfaceSensor, Field(discriminator="type")]
 
 
 class SensorCreate(Wire):

@@ -11,7 +11,8 @@ requests:
   that alters what a query sees (a push, or an assignment, which keeps the revision number); the
   hub then bumps the scene's *generation* and drops what it holds for that scene. Results carry
   the revision they were computed at and the hub tells whether they are still current.
-- the latest result of each grid sensor (for ``map.png``), at the generation it was computed at;
+- the latest result of each grid sensor (for ``map.png``) and of each surface sensor (for the view), at the
+  generation it was computed at;
 - the `JobRunner` of async queries.
 
 Bounds come from the service settings (``max_points``, ``max_photons``, ``max_seconds``): every
@@ -35,6 +36,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -387,19 +389,68 @@ class SimulationHub:
                                                          radius=float(sensor["radius"]), **common)
             payload = result_payload(result, prepared.live.revision)
             payload.update(sensor=str(sensor["id"]), type="disk")
+        elif sensor["type"] == "surface":
+            payload = self._run_surface(prepared, sensor, budget, seed, estimator, force_effects, progress, cancel,
+                                        observe, reference, physics_left_out)
         else:
             raise Invalid(f"sensor {sensor.get('id')!r} has type {sensor.get('type')!r}, which cannot be simulated")
         lux = np.asarray(payload["lux"], float)
-        payload.update(min_lux=float(lux.min()), mean_lux=float(lux.mean()), max_lux=float(lux.max()))
+        if sensor["type"] == "surface":   # the mean over the surface: total flux / total area
+            area = np.concatenate([np.asarray(i.pop("area"), float) for i in payload["instances"]])
+            mean = float(lux @ area / area.sum()) if area.sum() > 0 else 0.0
+            payload.update(min_lux=float(lux.min()), mean_lux=mean, max_lux=float(lux.max()))
+        else:
+            payload.update(min_lux=float(lux.min()), mean_lux=float(lux.mean()), max_lux=float(lux.max()))
         with self._lock:
-            if self._generation.get(scene_id, 0) == prepared.generation and sensor["type"] == "grid":
+            if self._generation.get(scene_id, 0) == prepared.generation and sensor["type"] in ("grid", "surface"):
                 self._grids[(scene_id, str(sensor["id"]))] = (prepared.generation, payload)
         if self.results is not None and self.is_current(scene_id, prepared.generation):
             self.results.keep(prepared.live, sensor, payload)
         return payload
 
+    def _run_surface(self, prepared: Prepared, sensor: dict, budget: Budget, seed: int, estimator: str,
+                     force_effects: tuple[str, ...], progress: Callable | None, cancel: Callable | None,
+                     observe: tuple[str, ...], reference: tuple | None,
+                     physics_left_out: tuple[str, ...]) -> dict[str, Any]:
+        """A surface sensor (`tracer.simulate.Simulation.surface`): the illuminance on each triangle of its node's
+        instances. ``lux``/``stderr`` are every triangle's, instance after instance in ``instances`` order (each
+        instance's triangles in its geometry's order); ``instances`` gives each one's node, path, instance id,
+        geometry and its own ``lux``/``stderr``. Forward only, without observe, reference or physics_left_out."""
+        sid = sensor.get("id")
+        for field, given in (("observe", observe), ("reference", reference), ("physics_left_out", physics_left_out)):
+            if given:
+                raise Invalid(f"sensor {sid!r} is a surface sensor: {field} is not available for it")
+        if estimator == "backward":
+            raise Invalid(f"sensor {sid!r} is a surface sensor: the backward estimator cannot answer it; use "
+                          f"'forward' or 'auto'")
+        live = prepared.live
+        instances = [int(i) for i in sensor.get("instances", [])]
+        if not instances:
+            raise Invalid(f"sensor {sid!r}: node {sensor.get('node')} and its descendants have no geometry in "
+                          f"revision {live.revision}: nothing to tally", node=sensor.get("node"))
+        triangles = sum(len(live.tracer.geometry_arrays(live.tracer.instance_geometry(i))[1]) for i in instances)
+        if triangles > self.limits.max_points:
+            raise TooLarge(f"sensor {sid!r} covers {triangles} triangles; this service answers at most "
+                           f"{self.limits.max_points} points per query", limit=self.limits.max_points)
+        with _refusals():
+            result = prepared.simulation.surface(
+                instances, target_relative_error=budget.target_relative_error, max_seconds=budget.max_seconds,
+                max_photons=budget.max_photons, seed=seed, force_effects=force_effects, progress=progress,
+                cancel=cancel)
+        node_of = {inst: key for key, inst in live.instance_of_node.items()}
+        flat = SimpleNamespace(**{name: getattr(result, name) for name in (
+            "photons", "seconds", "effects", "estimator", "stop_reason", "compile_seconds", "backend")})
+        flat.lux, flat.stderr = np.concatenate(result.lux), np.concatenate(result.stderr)
+        payload = result_payload(flat, live.revision)
+        payload.update(sensor=str(sid), type="surface", node=sensor.get("node"), instances=[
+            {"instance": inst, "node": node_of.get(inst), "path": None,   # the route names the paths
+             "geometry": live.tracer.instance_geometry(inst), "lux": _finite_list(lux), "stderr": _finite_list(err),
+             "area": _finite_list(area)}
+            for inst, lux, err, area in zip(result.instances, result.lux, result.stderr, result.area, strict=True)])
+        return payload
+
     def grid_result(self, scene_id: str, sensor_id: str) -> dict[str, Any] | None:
-        """The latest result of a grid sensor while the scene is unchanged since, else None."""
+        """The latest result of a grid (or surface) sensor while the scene is unchanged since, else None."""
         with self._lock:
             entry = self._grids.get((scene_id, sensor_id))
             if entry is None or entry[0] != self._generation.get(scene_id, 0):

@@ -47,8 +47,9 @@ def _node_key(manager: Manager, scene_id: str, ref: str) -> str:
 
 
 def _resolve_anchors(manager: Manager, scene_id: str, body: dict[str, Any]) -> dict[str, Any]:
-    """The body with a path in `attached_to` (or an area light's `node`) replaced by that node's uuid."""
-    keys = ["attached_to"] + (["node"] if body.get("type") == "area" else [])
+    """The body with a path in `attached_to` (or an area light's or a surface sensor's `node`) replaced by that
+    node's uuid."""
+    keys = ["attached_to"] + (["node"] if body.get("type") in ("area", "surface") else [])
     refs = {k: body[k] for k in keys if isinstance(body.get(k), str)}
     if paths.needs_nodes(*refs.values()):
         nodes = manager.nodes(scene_id)

@@ -2,9 +2,10 @@
 
 - ``GET /``: the scenes, each a link to its view;
 - ``GET /scenes/{id}/view``: the model in 3D (three.js): instances placed by their world transforms, grid sensors as
-  false-colour planes from their latest results (legend, linear/log), lights as markers, the last push's changes
-  highlighted, job progress, live updates; a click names the node, its material and, on a sensor cell, lux ± error
-  (``service/web/src/*.js``);
+  false-colour planes from their latest results (legend, linear/log), the model's own surfaces coloured per triangle
+  by a surface sensor's latest result (same scale), lights as markers, the last push's changes highlighted, job
+  progress, live updates; a click names the node, its material and, on a sensor cell or a coloured triangle,
+  lux ± error (``service/web/src/*.js``);
 - ``GET /scenes/{id}/view/state``: everything that page draws, in one JSON answer;
 - ``GET /scenes/{id}/events``: server-sent events when the scene changes, a job moves or a result lands
   (`service.events`);
@@ -125,7 +126,8 @@ def view(scene_id: SceneId, request: Request) -> HTMLResponse:
     "name, path, color); `lights` (bodies in world metres, with id and name; a goniometric light's file text "
     "left out); "
     "`sensors` (bodies in world metres with id, name and `result`: the latest grid result at the current scene "
-    "state — `lux` and `stderr` as nv rows of nu cells, lx — or null); `last_push` (the changes of the last push "
+    "state — `lux` and `stderr` as nv rows of nu cells, lx; for a surface sensor `instances` instead: instance, "
+    "node, path, geometry, `lux` and `stderr` per triangle, lx — or null); `last_push` (the changes of the last push "
     "through this process: UUID lists `added`, `moved`, `geometry_changed`, `removed`, `renamed`, capped at "
     "10,000 each, and their exact `counts`; null if none); `jobs` (running and recent jobs of the scene, without "
     "results).")}})
@@ -160,9 +162,11 @@ def view_state(scene_id: SceneId, request: Request) -> dict[str, Any]:
         sensors = []
         for sensor in live.sensors:
             sid = str(sensor.get("id"))
-            result = hub.grid_result(scene_id, sid) if sensor.get("type") == "grid" else None
+            result = hub.grid_result(scene_id, sid) if sensor.get("type") in ("grid", "surface") else None
+            # a surface's result: per instance (`instances`: node, path, geometry, lux and stderr per triangle)
+            keys = ("lux", "stderr") if sensor.get("type") == "grid" else ("instances",)
             sensors.append({**sensor, "name": names["sensor"].get(sid), "result": None if result is None else {
-                k: result.get(k) for k in ("lux", "stderr", "revision", "photons", "seconds", "estimator",
+                k: result.get(k) for k in (*keys, "revision", "photons", "seconds", "estimator",
                                            "stop_reason", "min_lux", "mean_lux", "max_lux")}})
         scene = {"id": scene_id, "name": manager.summary(scene_id)["name"], "revision": live.revision,
                  "length_unit": live.extras.get("length_unit")}

@@ -1,7 +1,9 @@
 """Simulation routes: illuminance at points, grid sensor simulation and maps, async jobs.
 
 - ``POST /scenes/{id}/illuminance`` — lux ± standard error at points (``?mode=async`` → 202 + job);
-- ``POST /scenes/{id}/sensors/{sid}/simulate`` — simulate a grid (or disk) sensor (``?mode=async`` too);
+- ``POST /scenes/{id}/sensors/{sid}/simulate`` — simulate a grid, disk or surface sensor (``?mode=async`` too); a
+  surface sensor answers per instance of its node's subtree (``instances``: node, path, lux and stderr per
+  triangle, `service.simulation.SimulationHub._run_surface`);
 - ``GET /scenes/{id}/sensors/{sid}/map.png`` — the false-colour map of the sensor's latest result;
 - ``GET /jobs/{jid}``, ``DELETE /jobs/{jid}`` — progress and result of a job; cancel it.
 
@@ -227,14 +229,28 @@ class IlluminancePublic(BaseModel):
         None, description="With observe stokes: degree of polarization √(S1²+S2²+S3²)/S0; null where none arrived.")
 
 
+class SurfaceInstance(BaseModel):
+    """One instance of a surface sensor's node subtree and the illuminance on each of its triangles."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    instance: int = Field(description="The tracer's instance id.")
+    node: str | None = Field(description="The node (UUID) the instance belongs to; a simulation-owned object's id.")
+    path: str | None = Field(None, description="The node's path; null for a simulation-owned object.")
+    geometry: str = Field(description="The geometry (id) whose triangles are listed, in its order.")
+    lux: list[float] = Field(description="Illuminance on each triangle's front side, lx (area average).")
+    stderr: list[float] = Field(description="Standard error of each value, lx.")
+
+
 class SensorPublic(BaseModel):
     """Answer of a sensor simulation: for a grid, ``lux``/``stderr`` are nv rows of nu cells."""
 
     model_config = ConfigDict(extra="forbid")
 
     sensor: str = Field(description="The sensor's id.")
-    type: Literal["grid", "disk"] = Field(description="The sensor's kind.")
-    lux: list[Any] = Field(description="Illuminance, lx: nv rows of nu cells for a grid, one value for a disk.")
+    type: Literal["grid", "disk", "surface"] = Field(description="The sensor's kind.")
+    lux: list[Any] = Field(description="Illuminance, lx: nv rows of nu cells for a grid, one value for a disk, every "
+                                       "triangle for a surface (instance after instance, as in `instances`).")
     stderr: list[Any] = Field(description="Standard error of each value, lx.")
     photons: int = Field(description="Photons (forward) or paths (backward) traced.")
     seconds: float = Field(description="Wall time of the simulation, s.")
@@ -268,6 +284,11 @@ class SensorPublic(BaseModel):
     v: list[float] | None = Field(None, description="Grid: edge along which the nv cells lie, world metres.")
     map_url: str | None = Field(None, description="Grid: the false-colour PNG of this result.")
     warnings: list[str] | None = Field(None, description="The sensor or lights far outside the model (world metres).")
+    node: str | None = Field(None, description="Surface: the sensor's node (UUID).")
+    instances: list[SurfaceInstance] | None = Field(None, description=(
+        "Surface: each instance of the node's subtree, its triangles' illuminance on their front side (the outside "
+        "of a CAD solid). `min_lux`/`max_lux` are over all triangles, `mean_lux` is area-weighted (the sensor's "
+        "total flux over its total area)."))
 
 
 class JobAccepted(BaseModel):
@@ -432,10 +453,15 @@ def _sensor_query(scene_id: str, sensor_id: str, query: SensorSimulate, request:
     effects = tuple(query.force_effects)
     hub.check_query(prepared, query.estimator, query.observed_effects(), tuple(query.physics_left_out))
 
+    paths = ({n["uuid"]: n["path"] for n in request.app.state.manager.nodes(scene_id)}
+             if sensor.get("type") == "surface" else {})
+
     def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
         payload = hub.run_grid(prepared, sensor, budget, query.seed, query.estimator, effects,
                                progress=progress, cancel=cancel, observe=tuple(query.observe),
                                reference=query.reference, physics_left_out=tuple(query.physics_left_out))
+        for part in payload.get("instances", ()):
+            part["path"] = paths.get(part["node"])
         _targeted(payload, query.cost_targets)
         if payload["type"] == "grid":
             payload["map_url"] = map_url

@@ -7,6 +7,7 @@ real `lumenlink serve` process.
   false colour of its result once a simulation lands, a push moves the part without a reload (server-sent events)
   and highlights it, a job shows up with its final state, a click on a sensor cell reports the floor's node path,
   its material and the cell's lux ± error, the linear/log switch recolours the plane.
+- a surface sensor on the box colours its triangles; a click on one reports that triangle's lux ± error.
 
 Screenshots go to ``$LUMENLINK_ARTIFACTS/pages`` (default ``<tmp>/lumenlink-artifacts/pages``), never into the repo.
 Skipped, saying why, only where Chromium or Playwright is not installed (`make test` installs both: the Makefile's
@@ -232,4 +233,34 @@ def test_the_view_draws_the_model_follows_results_and_pushes_and_reports_a_click
     # the push made the result stale: the plane is grey again until the next simulation
     assert page.evaluate("window.lumenlink.state.sensors[0].result") is None
     page.screenshot(path=str(artifacts / "view-after-push.png"))
+    assert watched.errors == []
+
+
+def test_a_surface_sensor_colours_the_model_and_a_click_reports_its_triangle(
+        service: dict[str, Any], watched: Watched, artifacts: Path) -> None:
+    """The box's own surfaces in false colour per triangle: the clicked triangle's lux ± error is the answer's."""
+    page, http, scene = watched.page, service["http"], service["scene"]
+    made = http.post(f"/scenes/{scene}/sensors", json={"type": "surface", "name": "box surfaces", "node": "room/box"})
+    assert made.status_code == 201, made.text
+    result = http.post(f"/scenes/{scene}/sensors/{made.json()['id']}/simulate",
+                       json={"max_photons": 200_000, "seed": 5}, timeout=WAIT_MS / 1000)
+    assert result.status_code == 200, result.text
+    [part] = result.json()["instances"]
+    assert part["node"] == BOX and part["path"] == "room/box" and len(part["lux"]) == 12
+    page.goto(f"{service['base']}/scenes/{scene}/view")
+    _wait(page, "window.lumenlink.ready && window.lumenlink.state.sensors.some(s => s.type === 'surface' && s.result)")
+    box = next(r for r in page.evaluate("window.lumenlink.state.instances") if r["node"] == BOX)
+    m = np.asarray(box["matrix"], float).reshape(4, 4)
+    top = 2   # triangle [4, 5, 6] of the box: its top face (z = 0.4 m), front side up, lit by the bulb above
+    centroid = m[:3, :3] @ np.array([0.4 / 3, 0.4 / 3, 0.4]) + m[:3, 3]
+    at = page.evaluate("p => window.lumenlink.screenOf(p)", centroid.tolist())
+    expected = [round(255 * c) for c in page.evaluate(f"window.lumenlink.colourOf({part['lux'][top]})")]
+    drawn = page.evaluate("([x, y]) => window.lumenlink.pixelAt(x, y)", [at["x"], at["y"]])
+    assert drawn[:3] == pytest.approx(expected, abs=10), (drawn, expected)
+    page.screenshot(path=str(artifacts / "view-surface.png"))
+    page.mouse.click(at["x"], at["y"])
+    pick = _wait(page, "window.lumenlink.lastPick")
+    assert pick["node"]["path"] == "room/box" and pick["triangle"] == top
+    assert pick["lux"] == part["lux"][top] and pick["stderr"] == part["stderr"][top] and pick["lux"] > 0
+    assert "triangle 2" in page.locator("#pick").inner_text()
     assert watched.errors == []

@@ -56,10 +56,13 @@ async function refresh() {
   return loading;
 }
 
-/** Largest lux of all sensor results: the top of the shared colour scale. */
+/** Largest lux of all sensor results (grid cells and surface triangles): the top of the shared colour scale. */
 function vmaxOf(sensors) {
   let vmax = 0;
-  for (const s of sensors) for (const row of s.result?.lux ?? []) for (const v of row) vmax = Math.max(vmax, v);
+  for (const s of sensors) {
+    for (const row of s.result?.lux ?? []) for (const v of row) vmax = Math.max(vmax, v);
+    for (const part of s.result?.instances ?? []) for (const v of part.lux) vmax = Math.max(vmax, v);
+  }
   return vmax;
 }
 
@@ -76,6 +79,7 @@ function drawSensors() {
   const sensors = ll.state?.sensors ?? [];
   const scale = new Scale(ll.scale, vmaxOf(sensors));
   viewer?.setSensors(sensors, scale);
+  viewer?.setSurfaces(sensors, scale);
   drawLegend($("legend"), $("legend-labels"), scale);
   $("sensors").replaceChildren(...sensors.map((s) => {
     const li = document.createElement("li");
@@ -83,7 +87,7 @@ function drawSensors() {
     li.textContent = s.result
       ? `${name}: ${formatLux(s.result.min_lux)} – ${formatLux(s.result.max_lux)} (${s.result.photons.toLocaleString()} photons)`
       : `${name}: not simulated at this revision `;
-    if (s.type === "grid") {
+    if (s.type === "grid" || s.type === "surface") {
       const button = document.createElement("button");
       button.textContent = "simulate";
       button.title = "trace photons for this sensor (a job of at most 10 s)";
@@ -194,6 +198,14 @@ function showPick(hit) {
     if (node) rows.push(["node", node.path], ["names", info.node.chain], ["uuid", node.uuid]);
     if (object) rows.push(["object", `${object.name ?? "(unnamed)"} (owned by the simulation)`]);
     rows.push(["material", materialText(rec.material)]);
+    const tally = hit.surface.tally;   // the model's surface coloured by a surface sensor: that triangle's lux
+    if (tally && !hit.sensor) {
+      const k = hit.surface.triangle;
+      Object.assign(info, { triangle: k, lux: tally.lux[k], stderr: tally.stderr[k],
+        surfaceSensor: { id: tally.sensor.id, name: tally.sensor.name } });
+      rows.push(["lux", `${formatLux(info.lux)} ± ${formatLux(info.stderr)} (triangle ${k}, ` +
+        `${tally.sensor.name ?? tally.sensor.id.slice(0, 8)})`]);
+    }
   }
   if (hit.sensor) {
     const { sensor: s, i, j } = hit.sensor;

@@ -1,11 +1,13 @@
-// The 3D view: three.js scene of the model's instances, its grid sensors as false-colour planes, its lights as
-// markers; highlights of the last push's changes; picking (which node, which sensor cell) under the mouse.
+// The 3D view: three.js scene of the model's instances, its grid sensors as false-colour planes, the model's own
+// surfaces in false colour where a surface sensor has a result (per triangle: vertex colours on a non-indexed copy
+// of the instance's geometry), its lights as markers; highlights of the last push's changes; picking (which node,
+// which triangle, which sensor cell) under the mouse.
 // World frame and units are the service's: metres, z up.
 
 import * as THREE from "three";
 import { GLTFLoader } from "three/addons/loaders/GLTFLoader.js";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
-import { gridTexels } from "./colour.js";
+import { gridTexels, turbo } from "./colour.js";
 import { geometryBytes } from "./api.js";
 
 /** Colours of the last push's change kinds (also shown as the legend of the "Last push" section). */
@@ -106,6 +108,7 @@ export class Viewer {
         this.meshes.set(rec.instance, mesh);
         this.model.add(mesh);
       } else {
+        if (mesh.userData.tally) mesh.geometry.dispose();   // a coloured copy (setSurfaces) goes
         mesh.geometry = geometry;
         mesh.material.dispose();
         mesh.material = materialFor(rec.material, node?.color);
@@ -156,6 +159,48 @@ export class Viewer {
     this.render();
   }
 
+  /**
+   * Colour the meshes of every surface sensor's result per triangle on `scale` (the grids' scale and legend): a
+   * non-indexed copy of the instance's geometry whose three vertices of triangle k carry the colour of lux[k]
+   * (triangle k of the geometry as uploaded: the service's order), unlit like the grid planes. Meshes no result
+   * covers any more get their own geometry and material back.
+   */
+  setSurfaces(sensors, scale) {
+    const wanted = new Map();   // instance id -> { sensor, lux, stderr }
+    for (const s of sensors) {
+      if (s.type !== "surface" || !s.result?.instances) continue;
+      for (const part of s.result.instances) wanted.set(part.instance, { sensor: s, lux: part.lux, stderr: part.stderr });
+    }
+    for (const [id, mesh] of this.meshes) {
+      const tally = wanted.get(id);
+      if (mesh.userData.tally) {   // back to the plain mesh first
+        mesh.geometry.dispose();
+        mesh.material.dispose();
+        mesh.geometry = mesh.userData.plain.geometry;
+        mesh.material = mesh.userData.plain.material;
+        delete mesh.userData.tally;
+        delete mesh.userData.plain;
+      }
+      if (!tally) continue;
+      const flat = mesh.geometry.index ? mesh.geometry.toNonIndexed() : mesh.geometry.clone();
+      const n = flat.attributes.position.count / 3;
+      if (n !== tally.lux.length) { flat.dispose(); continue; }   // another revision's mesh: leave it plain
+      const colours = new Float32Array(9 * n);
+      const c = new THREE.Color();
+      for (let k = 0; k < n; k++) {
+        const [r, g, b] = turbo(scale.norm(tally.lux[k]));
+        c.setRGB(r, g, b, THREE.SRGBColorSpace);   // the legend's sRGB colour, drawn as such
+        for (let j = 0; j < 3; j++) colours.set([c.r, c.g, c.b], 9 * k + 3 * j);
+      }
+      flat.setAttribute("color", new THREE.BufferAttribute(colours, 3));
+      mesh.userData.plain = { geometry: mesh.geometry, material: mesh.material };
+      mesh.userData.tally = tally;
+      mesh.geometry = flat;
+      mesh.material = new THREE.MeshBasicMaterial({ vertexColors: true, side: THREE.DoubleSide });
+    }
+    this.render();
+  }
+
   /** Lights as small yellow spheres, with an arrow along a spot's or collimated light's direction. */
   setLights(lights) {
     this.lightGroup.clear();
@@ -193,7 +238,8 @@ export class Viewer {
     if (surface) {
       const normal = surface.face.normal.clone().transformDirection(surface.object.matrixWorld);
       if (normal.dot(ray.ray.direction) > 0) normal.negate();   // the side facing the viewer
-      out.surface = { rec: surface.object.userData.rec, point: surface.point.toArray(), normal: normal.toArray() };
+      out.surface = { rec: surface.object.userData.rec, point: surface.point.toArray(), normal: normal.toArray(),
+        triangle: surface.faceIndex, tally: surface.object.userData.tally ?? null };
     }
     if (sensor && sensor.object.userData.sensor.type === "grid") {
       const s = sensor.object.userData.sensor;

@@ -1,0 +1,92 @@
+"""Surface sensors through the REST API (issue 23): a node's own surfaces answer the illuminance on each triangle,
+with its standard error, against the closed form of a point source; what cannot be tallied is a clear 4xx."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from service_helpers import glb, grid_mesh, make_client, node, translation, uid
+
+I_CD, H = 50.0, 1.5
+UNKNOWN = "00000000-0000-4000-8000-00000000dead"
+
+
+@pytest.fixture
+def client(tmp_path: Path) -> Any:
+    with make_client(tmp_path) as c:
+        yield c
+
+
+def _scene(client: Any) -> tuple[str, np.ndarray, np.ndarray]:
+    sid = client.post("/scenes", json={"name": "floor"}).json()["id"]
+    v, f = grid_mesh(n=3, size=2.0)
+    gid, data = glb(v, f)
+    assert client.put(f"/geometries/{gid}", content=data, headers={"content-type": "model/gltf-binary"}
+                      ).status_code in (200, 201)
+    doc = {"base_revision": 0, "length_unit": "m",
+           "nodes": [node(uid(0), None, "room"), node(uid(1), uid(0), "floor", translation(-1.0, -1.0, 0), gid),
+                     node(uid(2), uid(0), "tile", translation(1.0, -1.0, 0), gid), node(uid(3), uid(0), "empty")]}
+    assert client.put(f"/scenes/{sid}/document", json=doc).status_code == 200
+    assert client.post(f"/scenes/{sid}/lights", json={"type": "point", "position": [0.0, 0.0, H],
+                                                      "intensity_cd": I_CD}).status_code == 201
+    return sid, v, f
+
+
+def _closed_form(tri: np.ndarray, n: int = 24) -> float:
+    """I h / (h² + d²)^{3/2} averaged over a triangle (centroids of n² congruent sub-triangles)."""
+    s = np.array([((i + k / 3) / n, (j + k / 3) / n) for i in range(n) for j in range(n - i) for k in (1, 2)
+                  if k == 1 or i + j < n - 1])
+    p = tri[0] + s[:, :1] * (tri[1] - tri[0]) + s[:, 1:] * (tri[2] - tri[0])
+    return float(np.mean(I_CD * H / (H * H + (p[:, :2] ** 2).sum(axis=1)) ** 1.5))
+
+
+def test_surface_sensor_answers_lux_per_triangle(client: Any) -> None:
+    sid, v, f = _scene(client)
+    made = client.post(f"/scenes/{sid}/sensors", json={"type": "surface", "node": "room", "name": "all"})
+    assert made.status_code == 201, made.text
+    body = made.json()["body"]
+    assert body["node"] == uid(0)   # the path is stored as the node's uuid
+    r = client.post(f"/scenes/{sid}/sensors/{made.json()['id']}/simulate", json={"max_photons": 1_000_000, "seed": 5})
+    assert r.status_code == 200, r.text
+    out = r.json()
+    assert out["type"] == "surface" and out["node"] == uid(0) and out["estimator"] == "forward"
+    assert [(i["node"], i["path"]) for i in out["instances"]] == [(uid(1), "room/floor"), (uid(2), "room/tile")]
+    zs = []
+    for part, shift in zip(out["instances"], (-1.0, 1.0), strict=True):
+        lux, err = np.array(part["lux"]), np.array(part["stderr"])
+        assert lux.shape == err.shape == (len(f),)
+        ref = np.array([_closed_form(v[t] + [shift, -1.0, 0.0]) for t in f])
+        zs.append((lux - ref) / err)
+    z = np.concatenate(zs)
+    assert np.all(np.abs(z) < 4.0), z
+    flat = np.concatenate([p["lux"] for p in out["instances"]])
+    assert out["lux"] == flat.tolist() and len(out["stderr"]) == len(flat)
+    assert out["min_lux"] == flat.min() and out["max_lux"] == flat.max()
+    assert out["mean_lux"] == pytest.approx(flat.mean())   # equal triangles: the area weights are equal
+    # the view draws it: the sensor's result with its instances
+    [sensor] = client.get(f"/scenes/{sid}/view/state").json()["sensors"]
+    assert sensor["type"] == "surface" and sensor["result"]["instances"][0]["lux"] == out["instances"][0]["lux"]
+
+
+def test_surface_sensor_refusals(client: Any) -> None:
+    sid, _, _ = _scene(client)
+    r = client.post(f"/scenes/{sid}/sensors", json={"type": "surface", "node": UNKNOWN})
+    assert r.status_code == 404 and UNKNOWN in r.text
+    r = client.post(f"/scenes/{sid}/sensors", json={"type": "surface", "node": "room/nowhere"})
+    assert r.status_code == 404 and "nowhere" in r.text
+    r = client.post(f"/scenes/{sid}/sensors", json={"type": "surface", "node": "room/empty"})
+    assert r.status_code == 422 and "no geometry" in r.text
+    r = client.post(f"/scenes/{sid}/sensors", json={"type": "surface"})
+    assert r.status_code == 422 and "node" in r.text
+    r = client.post(f"/scenes/{sid}/sensors", json={"type": "surface", "node": "room/floor", "origin": [0, 0, 0]})
+    assert r.status_code == 422
+    sensor = client.post(f"/scenes/{sid}/sensors", json={"type": "surface", "node": "room/floor"}).json()["id"]
+    for query, what in (({"estimator": "backward"}, "backward"), ({"observe": ["spectrum"]}, "observe"),
+                        ({"physics_left_out": ["polarization"]}, "physics_left_out")):
+        r = client.post(f"/scenes/{sid}/sensors/{sensor}/simulate", json={"max_photons": 1000, **query})
+        assert r.status_code == 422 and what in r.text, r.text
+    r = client.get(f"/scenes/{sid}/sensors/{sensor}/map.png")
+    assert r.status_code == 404 and "grid" in r.text
