@@ -166,6 +166,7 @@ class DemoReport:
     points_after: dict[str, Any] = field(default_factory=dict)
     grid_before: dict[str, Any] = field(default_factory=dict)
     grid_after: dict[str, Any] = field(default_factory=dict)
+    surface_after: dict[str, Any] = field(default_factory=dict)
     change: Any = None
     compile_seconds: float = 0.0
     seconds: float = 0.0
@@ -397,10 +398,13 @@ def _run(report: DemoReport, n: Narrator, photons: int, keep_data: bool, clock: 
         for key, body in lights.items():
             _check(http.post(f"/scenes/{scene_id}/lights", json=body), f"adding the {key} light")
         sensor = _check(http.post(f"/scenes/{scene_id}/sensors", json=GRID), "adding the floor sensor")["id"]
+        surface = _check(http.post(f"/scenes/{scene_id}/sensors",
+                                   json={"type": "surface", "node": uuid_of["car"], "name": "the car in lux"}),
+                         "adding the car's surface sensor")["id"]
         n.say("lights: a 5000 cd spot inside the left headlamp, attached to its node, shining through the lens; "
               "a 532 lm downlight from a real IES file, 3 m up")
-        n.say(f"sensor: {GRID_NU}×{GRID_NV} cells on the floor, {GRID['u'][0]:g} m × {GRID['v'][1]:g} m in front "
-              "of the car")
+        n.say(f"sensors: {GRID_NU}×{GRID_NV} cells on the floor, {GRID['u'][0]:g} m × {GRID['v'][1]:g} m in front "
+              "of the car; the car's own surfaces, triangle by triangle (a surface sensor on its node)")
         report.assignments_before = _assignments(http, scene_id)
 
         # 3 ---------------------------------------------------------------------------- first query
@@ -442,7 +446,7 @@ def _run(report: DemoReport, n: Narrator, photons: int, keep_data: bool, clock: 
         counts = {kind: sum(1 for k in kept if k.startswith(kind)) for kind in ("material", "light", "sensor",
                                                                                 "object")}
         n.say(f"assignments after both pushes: {counts['material']} materials, {counts['light']} lights, "
-              f"{counts['sensor']} sensor, {counts['object']} floor object — "
+              f"{counts['sensor']} sensors, {counts['object']} floor object — "
               + ("all kept, none orphaned" if not lost else f"LOST: {lost}"))
         if lost:
             raise RuntimeError(f"assignments did not survive the pushes: {lost}")
@@ -453,10 +457,11 @@ def _run(report: DemoReport, n: Narrator, photons: int, keep_data: bool, clock: 
         report.maps["after"] = _save_map(http, scene_id, sensor, out / "floor_after.png")
         report.points_after = _points(http, scene_id, photons, n, before=report.points_before)
         report.maps["difference"] = _save_difference(report, out / "floor_difference.png", n)
+        report.surface_after = _simulate_surface(http, scene_id, surface, photons, n)
         report.view_url = f"{base}/scenes/{scene_id}/view"
         if serve is not None:
             _outputs(report, step, n, base)
-            n.step("7. Serving: the model in 3D with the floor grid in false colour, live after each push")
+            n.step("7. Serving: the model in 3D, the car and the floor grid in false colour, live after each push")
             n.say(f"open {report.view_url} in a browser (all scenes: {base}/, API docs: {base}/docs)")
             serve(report.view_url)
 
@@ -487,6 +492,18 @@ def _simulate(http: Any, scene_id: str, sensor: str, photons: int, n: Narrator) 
           f"error {100 * rel:.1f} % (lit cells); {a['photons']:,} photons in {a['seconds']:.1f} s "
           f"(stopped by {a['stop_reason']}), {a['estimator']} estimator, effects {{{', '.join(a['effects'])}}}, "
           f"revision {a['revision']}")
+    return a
+
+
+def _simulate_surface(http: Any, scene_id: str, sensor: str, photons: int, n: Narrator) -> dict[str, Any]:
+    """The car's own surfaces in lux (what its page colours the model by)."""
+    a = _check(http.post(f"/scenes/{scene_id}/sensors/{sensor}/simulate",
+                         json={"max_photons": photons, "max_seconds": POINTS_SECONDS, "seed": 1}),
+               "simulating the car's surface sensor")
+    triangles = sum(len(i["lux"]) for i in a["instances"])
+    n.say(f"the car's surfaces: {triangles:,} triangles on {len(a['instances'])} parts, {a['min_lux']:.1f}–"
+          f"{a['max_lux']:.1f} lx (area-weighted mean {a['mean_lux']:.1f} lx); {a['photons']:,} photons in "
+          f"{a['seconds']:.1f} s")
     return a
 
 

@@ -565,8 +565,8 @@ class SurfaceSensor(Wire):
     node: NodeRef = Field(description="The node (UUID or path) whose surfaces, with its descendants', are tallied; "
                                       "it or a descendant must have geometry.")
 
-    model_config = ConfigDict(json_schema_extra={"examples": [{"type": "surface", "node": "car/body",
-                                                                "name": "body illuminance"}]})
+    model_config = ConfigDict(json_schema_extra={"examples": [{"type": "surface", "node": "room/floor",
+                                                                "name": "the floor in lux"}]})
 
 
 Sensor = Annotated[GridSensor | DiskSensor | SurfaceSensor, Field(discriminator="type")]

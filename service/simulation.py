@@ -396,7 +396,7 @@ class SimulationHub:
             raise Invalid(f"sensor {sensor.get('id')!r} has type {sensor.get('type')!r}, which cannot be simulated")
         lux = np.asarray(payload["lux"], float)
         if sensor["type"] == "surface":   # the mean over the surface: total flux / total area
-            area = np.concatenate([np.asarray(i.pop("area"), float) for i in payload["instances"]])
+            area = np.concatenate([np.asarray(i["area"], float) for i in payload["instances"]])
             mean = float(lux @ area / area.sum()) if area.sum() > 0 else 0.0
             payload.update(min_lux=float(lux.min()), mean_lux=mean, max_lux=float(lux.max()))
         else:

@@ -240,6 +240,7 @@ class SurfaceInstance(BaseModel):
     geometry: str = Field(description="The geometry (id) whose triangles are listed, in its order.")
     lux: list[float] = Field(description="Illuminance on each triangle's front side, lx (area average).")
     stderr: list[float] = Field(description="Standard error of each value, lx.")
+    area: list[float] = Field(description="World area of each triangle, m² (lux × area: the flux it receives, lm).")
 
 
 class SensorPublic(BaseModel):

@@ -161,7 +161,11 @@ def test_serve_keeps_the_service_up_with_the_model_page(demo) -> None:
     names = {n["name"] for n in state["nodes"]}
     assert {"car", "lens", "door_left", "wheel_fl"} <= names
     assert any(r["object"] for r in state["instances"])   # the floor, owned by the simulation
-    [grid] = state["sensors"]
+    [grid] = [s for s in state["sensors"] if s["type"] == "grid"]
+    [surface] = [s for s in state["sensors"] if s["type"] == "surface"]   # the car's own surfaces, per triangle
+    parts = surface["result"]["instances"]
+    assert surface["result"]["revision"] == 3 and len(parts) >= 8   # body, doors, wheels, lamp...
+    assert max(max(p["lux"]) for p in parts) > 0 and all(len(p["lux"]) == len(p["stderr"]) for p in parts)
     lux = np.asarray(grid["result"]["lux"])   # the floor grid in false colour: its result at the last revision
     assert grid["result"]["revision"] == 3 and lux.shape == (GRID_NV, GRID_NU) and lux.max() > 0
     assert state["last_push"]["revision"] == 3 and len(state["last_push"]["geometry_changed"]) == 1

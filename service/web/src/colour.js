@@ -15,7 +15,8 @@ export const DECADES = 3;
 
 /**
  * The colour scale: `mode` "linear" (0 .. vmax) or "log" (vmax / 10^DECADES .. vmax), in lux.
- * `vmax` is the largest value of all the scene's sensor results (1 lx when there is none yet).
+ * `vmax` is the top of the scene's well-measured sensor results (`vmaxOf` in main.js; 1 lx when there is none
+ * yet): brighter values saturate at the top colour, and the legend's top label says "≥".
  */
 export class Scale {
   constructor(mode = "linear", vmax = 1) {
@@ -57,7 +58,7 @@ export function drawLegend(canvas, labels, scale) {
   }
   labels.replaceChildren(...[0, 0.5, 1].map((t) => {
     const span = document.createElement("span");
-    span.textContent = formatLux(scale.at(t));
+    span.textContent = (t === 1 ? "≥ " : "") + formatLux(scale.at(t));
     return span;
   }));
 }

@@ -56,14 +56,31 @@ async function refresh() {
   return loading;
 }
 
-/** Largest lux of all sensor results (grid cells and surface triangles): the top of the shared colour scale. */
+/** The top of the shared colour scale: the lux that 99 % of the lit, well-measured AREA stays below, over all
+ *  sensor results (grid cells, weighted by their area, and surface triangles, by theirs; well measured: standard
+ *  error at most half the value). The plain maximum would let a few small, very bright triangles (the inside of a
+ *  headlamp: 10^8 lx at millimetres from its lamp) paint the rest of the model black. Brighter values saturate;
+ *  the legend's top label says "≥". Falls back to the maximum where nothing is well measured. */
 function vmaxOf(sensors) {
+  const good = [];
   let vmax = 0;
+  const take = (v, e, a) => { vmax = Math.max(vmax, v); if (v > 0 && a > 0 && e <= 0.5 * v) good.push([v, a]); };
   for (const s of sensors) {
-    for (const row of s.result?.lux ?? []) for (const v of row) vmax = Math.max(vmax, v);
-    for (const part of s.result?.instances ?? []) for (const v of part.lux) vmax = Math.max(vmax, v);
+    const lux = s.result?.lux ?? [], err = s.result?.stderr ?? [];
+    const cell = s.u && s.v ? Math.hypot(s.u[1] * s.v[2] - s.u[2] * s.v[1], s.u[2] * s.v[0] - s.u[0] * s.v[2],
+                                         s.u[0] * s.v[1] - s.u[1] * s.v[0]) / ((s.nu || 1) * (s.nv || 1)) : 1;
+    lux.forEach((row, j) => row.forEach((v, i) => take(v, err[j]?.[i] ?? Infinity, cell)));
+    for (const part of s.result?.instances ?? []) part.lux.forEach((v, i) => take(v, part.stderr[i], part.area[i]));
   }
-  return vmax;
+  if (!good.length) return vmax;
+  good.sort((x, y) => x[0] - y[0]);
+  const total = good.reduce((sum, [, a]) => sum + a, 0);
+  let below = 0;
+  for (const [v, a] of good) {
+    below += a;
+    if (below >= 0.99 * total) return v;
+  }
+  return good[good.length - 1][0];
 }
 
 async function draw(state) {
