@@ -12,7 +12,7 @@ path (a path keeps its own dimension counter).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, uint64
+from numba import njit
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -24,9 +24,14 @@ _S11 = np.uint64(11)
 _INV53 = 1.0 / 9007199254740992.0  # 2**-53
 
 
-@njit(uint64(uint64), cache=True, inline="always")
+@njit(cache=True, inline="always")
 def mix64(z):
-    """SplitMix64 finaliser: a bijective 64-bit mixer (uint64 → uint64)."""
+    """SplitMix64 finaliser: a bijective 64-bit mixer (uint64 → uint64).
+
+    Compiled lazily, not with an explicit ``uint64(uint64)`` signature: numba-cuda refuses to compile for the GPU
+    a CPU dispatcher whose signatures were fixed in advance ("its compilation is disabled"), and the same source
+    serves both targets (tracer/gpu). Every caller passes a uint64; the cast keeps it so for any other."""
+    z = np.uint64(z)
     z = (z ^ (z >> _S30)) * _M1
     z = (z ^ (z >> _S27)) * _M2
     return z ^ (z >> _S31)
