@@ -16,6 +16,12 @@ validated once. Its queries:
   tally of the same query is bit-identical with and without it. Its error stop looks at every triangle
   (one that received nothing so far counts as converged), so a target error on a fine mesh is reached late:
   give it a photon or time budget.
+- `far_field(nc, ngamma, direction, c0)`: the luminous intensity (cd) of the whole scene as a lamp, on a type-C
+  grid (γ from `direction`, C from `c0`, as a goniometric light's; `tracer.photometry`): every photon that leaves
+  the scene (its ray meets nothing) is binned by its direction, I = flux in the bin / the bin's solid angle. A far
+  field: the scene is taken as a point, small against the viewing distance (a photometric distance of five or more
+  times the luminaire's largest dimension, the usual rule): where the lamp is seen from nearer, its size matters and
+  this answer does not hold. Forward only; it observes and changes nothing (`tracer.transport.SensorArrays.far`).
 
 Both estimators estimate exactly these patch averages, so they agree within their error bars:
 
@@ -154,6 +160,54 @@ class IlluminanceResult:
 @dataclass
 class GridResult(IlluminanceResult):
     """Illuminance of a grid sensor: `lux` and `stderr` have shape (nv, nu); row j is v-cell j."""
+
+
+@dataclass
+class FarFieldResult:
+    """Luminous intensity of the scene as a lamp (`Simulation.far_field`).
+
+    candela, stderr : (nγ, nc) float64, cd — row j is γ_j = j Δγ (Δγ = 180°/(nγ−1)), column i is C_i = i ΔC
+    (ΔC = 360°/nc); each the flux leaving the scene in the bin's directions (γ in [γ_j − Δγ/2, γ_j + Δγ/2] within
+    [0°, 180°], C in [C_i − ΔC/2, C_i + ΔC/2)) divided by the bin's solid angle, and its standard error (batch
+    means). The polar caps (rows 0 and nγ−1) are one bin each: every column holds the cap's value.
+    c_deg (nc,), gamma_deg (nγ,) : the sample angles, degrees. solid_angle (nγ, nc) : sr of each bin (a cap's
+    whole solid angle in each of its columns). flux_lm, flux_stderr : the total flux leaving the scene, lm, and its
+    standard error. direction, c0 : (3,) the frame's γ = 0 axis and C = 0 axis (unit; c0 taken across direction).
+    The other fields as for `IlluminanceResult` (estimator is always "forward").
+    """
+
+    candela: np.ndarray
+    stderr: np.ndarray
+    c_deg: np.ndarray
+    gamma_deg: np.ndarray
+    solid_angle: np.ndarray
+    flux_lm: float
+    flux_stderr: float
+    direction: np.ndarray
+    c0: np.ndarray
+    photons: int
+    seconds: float
+    effects: list[str]
+    estimator: str
+    stop_reason: str
+    batches: int = 0
+    rejected: int = 0
+    counters: dict = field(default_factory=dict)
+    compile_seconds: float = 0.0
+    backend: dict | None = None
+
+
+def far_field_bins(nc: int, ngamma: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The C-γ grid of a far field (`FarFieldResult`): c_deg (nc,), gamma_deg (nγ,), solid angle (nγ, nc) sr."""
+    c_deg = np.arange(nc) * (360.0 / nc)
+    gamma_deg = np.arange(ngamma) * (180.0 / (ngamma - 1))
+    half = 90.0 / (ngamma - 1)
+    lo = np.radians(np.clip(gamma_deg - half, 0.0, 180.0))
+    hi = np.radians(np.clip(gamma_deg + half, 0.0, 180.0))
+    band = np.cos(lo) - np.cos(hi)
+    omega = np.tile((band * (2.0 * math.pi / nc))[:, None], (1, nc))
+    omega[0, :] = omega[-1, :] = 2.0 * math.pi * band[0]
+    return c_deg, gamma_deg, omega
 
 
 @dataclass
@@ -490,6 +544,45 @@ class Simulation:
                              res.stop_reason, res.batches, res.rejected, res.counters, res.compile_seconds,
                              res.backend)
 
+    def far_field(self, nc, ngamma, direction=(0.0, 0.0, -1.0), c0=(1.0, 0.0, 0.0), target_relative_error=None,
+                  max_seconds=None, max_photons=None, seed=0, force_effects=(), progress=None,
+                  cancel=None) -> FarFieldResult:
+        """Luminous intensity (cd) of the whole scene seen from far away, on a type-C grid of `nc` C samples
+        (ΔC = 360°/nc) and `ngamma` γ samples (Δγ = 180°/(ngamma−1)): `FarFieldResult`, with the total flux leaving
+        the scene. γ is measured from `direction` (default −z, the nadir), C from `c0` (default +x; only its part
+        across `direction` counts), C = 90° along c0 × direction, as for a goniometric light. The scene is taken as
+        a point: valid where it is small against the viewing distance (see the module docstring). Budget options
+        as for `illuminance`; the error stop looks at every bin (an empty one counts as converged). Forward only."""
+        for name, val, lo, hi in (("nc", nc, 1, 3600), ("ngamma", ngamma, 2, 1801)):
+            if isinstance(val, bool) or not isinstance(val, int | np.integer) or not lo <= val <= hi:
+                raise SimulationError(f"{name} must be an integer in [{lo}, {hi}], got {val!r}")
+        nc, ngamma = int(nc), int(ngamma)
+        if nc * ngamma > MAX_SPECTRAL_TALLIES:
+            raise SimulationError(f"nc × ngamma = {nc * ngamma} bins: at most {MAX_SPECTRAL_TALLIES}")
+        axis = _vec3(direction, "direction")
+        t = _vec3(c0, "c0")
+        if not np.linalg.norm(axis) > 0:
+            raise SimulationError("direction must not be the zero vector")
+        axis = axis / np.linalg.norm(axis)
+        t = t - axis * float(t @ axis)
+        if not np.linalg.norm(t) > 1e-9 * max(1.0, float(np.linalg.norm(c0))):
+            raise SimulationError(f"c0 {list(map(float, c0))} must not be parallel to direction "
+                                  f"{list(map(float, direction))}")
+        t = t / np.linalg.norm(t)
+        b = np.cross(t, axis)   # C = 90°: c0 × direction (+y for the defaults)
+        c_deg, gamma_deg, omega = far_field_bins(nc, ngamma)
+        res = self._run(False, np.empty((0, 3)), np.empty((0, 3)), 0.0, None, target_relative_error, max_seconds,
+                        max_photons, seed, "forward", force_effects, progress, cancel, (),
+                        far=((nc, ngamma, *axis, *t, *b), omega.ravel()))
+        cd = res.lux[:-1].reshape(ngamma, nc).copy()
+        err = res.stderr[:-1].reshape(ngamma, nc).copy()
+        for j in (0, ngamma - 1):   # a polar cap is one bin, tallied in its C = 0 column
+            cd[j, :] = cd[j, 0]
+            err[j, :] = err[j, 0]
+        return FarFieldResult(cd, err, c_deg, gamma_deg, omega, float(res.lux[-1]), float(res.stderr[-1]), axis, t,
+                              res.photons, res.seconds, res.effects, res.estimator, res.stop_reason, res.batches,
+                              res.rejected, res.counters, res.compile_seconds, res.backend)
+
     # ------------------------------------------------------------------------------------------ physics left out
 
     def left_out(self, names: tuple[str, ...], res: IlluminanceResult, rerun, force_effects, observe, seed: int,
@@ -530,9 +623,10 @@ class Simulation:
     # ------------------------------------------------------------------------------------------ engine
 
     def _run(self, is_grid, centers, normals, radius, grid, target, max_seconds, max_photons, seed, estimator,
-             force_effects, progress, cancel, observe, reference=None, surface=None) -> IlluminanceResult:
+             force_effects, progress, cancel, observe, reference=None, surface=None, far=None) -> IlluminanceResult:
         """One query. `surface` = (surf, areas) adds the surface tally (`SensorArrays.surf`, bins after the
-        receivers', their lux and stderr after the receivers' in the result; forward only)."""
+        receivers', their lux and stderr after the receivers' in the result; forward only). `far` = (params, solid
+        angles) adds the far-field tally (`SensorArrays.far`) after those: cd, then the total flux leaving (lm)."""
         budget = _budget(target, max_seconds, max_photons)
         observe_spectrum, observe_stokes = _observe(observe)
         if observe_spectrum:
@@ -549,19 +643,19 @@ class Simulation:
         except EffectError as exc:
             raise SimulationError(f"{exc} (in force_effects)") from None
         which = self._choose(estimator, effects, is_grid)
-        if surface is not None and which != "forward":
-            raise SimulationError("the surface tally is forward only")
+        if (surface is not None or far is not None) and which != "forward":
+            raise SimulationError("the surface and far-field tallies are forward only")
         if which == "backward":
             effects = ["lambertian"]
         t0 = time.perf_counter()
         if which == "forward":
             res = self._forward(is_grid, centers, normals, radius, grid, budget, int(seed), effects, progress,
-                                cancel, t0, observe_spectrum, refs if observe_stokes else None, surface)
+                                cancel, t0, observe_spectrum, refs if observe_stokes else None, surface, far)
         else:
             res = self._backward(is_grid, centers, normals, radius, grid, budget, int(seed), effects, progress,
                                  cancel, t0)
         res.cost = cost_of(res.lux, res.stderr, res.photons, res.seconds - res.compile_seconds)
-        if self._curved and surface is None:
+        if self._curved and surface is None and far is None:
             if is_grid:
                 cell_centres, cell = grid_cells(centers, *grid)
                 budget_lux = lux_budget(res.lux, cell_centres, self._curved, cell=cell)
@@ -625,7 +719,7 @@ class Simulation:
                 return est, batches, "max_seconds", counters
 
     def _forward(self, is_grid, centers, normals, radius, grid, budget, seed, effects, progress, cancel, t0,
-                 observe_spectrum, refs, surface=None):
+                 observe_spectrum, refs, surface=None, far=None):
         receivers = Scene()
         ids: list[int] = []
         if is_grid:
@@ -659,8 +753,15 @@ class Simulation:
             n_bins += len(surf_area)
             area = np.concatenate([area, surf_area])
             n_stop = n_stop or n_bins
+        far_row = np.empty(0, np.float64)
+        if far is not None:
+            far_params, far_omega = far
+            far_row = np.array([n_bins, *far_params], np.float64)
+            n_bins += len(far_omega) + 1
+            area = np.concatenate([area, far_omega, [1.0]])   # cd; the last bin, the total leaving, in lm
+            n_stop = n_stop or n_bins - 1
         sens = SensorArrays(bin0, snu, snv, np.array([int(observe_spectrum), int(observe_stokes)], np.int64), ref,
-                            surf)
+                            surf, far_row)
         n_cols = tally_columns(observe_spectrum, observe_stokes)
         if n_bins * n_cols > MAX_SPECTRAL_TALLIES:
             what = " and ".join(o for o, on in (("the spectrum", observe_spectrum), ("Stokes", observe_stokes)) if on)

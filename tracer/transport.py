@@ -7,7 +7,8 @@ Henyey–Greenstein); every sensor the segment crosses records the photon's weig
 its front side (`sensor_crossings_with_stack`; sensors change nothing); at the surface the surface tally
 records the weight arriving on the front side of the triangle hit where the query asks for it
 (`SensorArrays.surf`; it changes nothing either), then the material reflects, refracts or absorbs it and sets
-the medium it continues in (a stack of the solids it is inside).
+the medium it continues in (a stack of the solids it is inside). A photon whose ray meets nothing leaves the
+scene: the far-field tally records its weight by direction where the query asks for it (`SensorArrays.far`).
 
 Estimation. A photon's weight is luminous flux (lm): Φ_total / N × f at emission (see
 `tracer.optics.lights`). Surfaces act analogously (a photon is reflected with probability ρ, keeping its
@@ -83,6 +84,14 @@ class SensorArrays(NamedTuple):
     column 0 of bin surf[inst] + prim before the surface scatters it; −1 tallies nothing there, and so does an
     instance id past its end. It observes and changes nothing (no random draw, no weight, no path). Empty (the
     default) costs one comparison per surface hit.
+
+    far (FAR_PARAMS,) float64 or empty: the far-field tally (`Simulation.far_field`). A photon that leaves the scene
+    (its ray meets nothing) adds its weight (lm) to the bin of its direction on a C-γ grid, and to a last bin that
+    holds the total flux leaving: [first bin, nc, nγ, the γ = 0 axis (3), the C = 0 axis (3), the C = 90° axis (3)]
+    (unit, orthonormal). γ sample j = j Δγ (Δγ = 180°/(nγ−1)) owns the directions with γ in [γ_j − Δγ/2, γ_j + Δγ/2]
+    ∩ [0°, 180°], C sample i = i ΔC (ΔC = 360°/nc) those with C in [C_i − ΔC/2, C_i + ΔC/2) (mod 360°); a polar cap
+    (j = 0 or nγ−1) is one bin, its C = 0 one. Bin: first + j nc + i; the total: first + nγ nc. Observes and changes
+    nothing either; empty (the default) costs one comparison per photon that leaves.
     """
 
     bin0: np.ndarray
@@ -91,6 +100,10 @@ class SensorArrays(NamedTuple):
     observe: np.ndarray
     ref: np.ndarray
     surf: np.ndarray = np.empty(0, np.int64)
+    far: np.ndarray = np.empty(0, np.float64)
+
+
+FAR_PARAMS = 12   # len(SensorArrays.far) where the far field is tallied
 
 
 def tally_columns(observe_spectrum: bool, observe_stokes: bool = False) -> int:
@@ -188,6 +201,8 @@ def trace_photons(sa, ra, M, L, S, n_bins, seed, batch, photons, w0, tally, coun
                 w = w * f
             else:
                 if inst < 0:
+                    if S.far.shape[0] != 0:   # the far-field tally: the photon leaves the scene along d
+                        record_far(tally, S.far, w * luminous(lam) if lam > 0.0 else w, dx, dy, dz)
                     break
                 px = ox + t * dx
                 py = oy + t * dy
@@ -226,6 +241,32 @@ def trace_photons(sa, ra, M, L, S, n_bins, seed, batch, photons, w0, tally, coun
                     break
                 dim += 1
                 w = w / q
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def record_far(tally, far, lm, dx, dy, dz):
+    """Add `lm` lm leaving the scene along d to its far-field bin and to the total (`SensorArrays.far`)."""
+    if not math.isfinite(lm):
+        return
+    nd = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if not nd > 0.0:
+        return
+    nc = int(far[1])
+    ng = int(far[2])
+    cg = (dx * far[3] + dy * far[4] + dz * far[5]) / nd
+    gam = math.degrees(math.acos(min(1.0, max(-1.0, cg))))
+    j = min(max(int(gam * (ng - 1) / 180.0 + 0.5), 0), ng - 1)
+    i = 0
+    if 0 < j < ng - 1:
+        c = math.degrees(math.atan2(dx * far[9] + dy * far[10] + dz * far[11], dx * far[6] + dy * far[7] + dz * far[8]))
+        if c < 0.0:
+            c += 360.0
+        i = int(c * nc / 360.0 + 0.5)
+        if i >= nc:
+            i -= nc
+    b0 = int(far[0])
+    tally[b0 + j * nc + i] += lm
+    tally[b0 + ng * nc] += lm
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
