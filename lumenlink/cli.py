@@ -46,9 +46,14 @@ def serve(
     dask: Annotated[str | None, typer.Option(
         envvar="LUMENLINK_DASK_SCHEDULER", help="Run the photon batches on the Dask cluster whose scheduler is at "
                                                 "this address (tcp://host:8786); the answers are the same.")] = None,
+    device: Annotated[str, typer.Option(
+        envvar="LUMENLINK_DEVICE", help="auto, cpu or cuda: auto takes a CUDA GPU where numba-cuda finds one, "
+                                        "cuda without one stops here (exit 2). Photon batches still run on the CPU "
+                                        "until the CUDA photon kernel lands; answers say where (`device`).")] = "auto",
 ) -> None:
     """Start the REST service (uvicorn)."""
-    _call("service.server", "run", 5, host=host, port=port, data_dir=data_dir, warm=warm, token=token, dask=dask)
+    _call("service.server", "run", 5, host=host, port=port, data_dir=data_dir, warm=warm, token=token, dask=dask,
+          device=device)
 
 
 @app.command()

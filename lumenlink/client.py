@@ -376,6 +376,27 @@ class Client:
             raise LumenLinkError(message, status=resp.status_code, problem=problem)
         return resp.content
 
+    def export(self, scene: str | dict, sensor: str, format: str = "ies", *,
+               out: str | Path | None = None) -> str:
+        """A far-field sensor's (by id or name) latest result as photometric file text: `format` ``"ies"`` (IES
+        LM-63-2002) or ``"ldt"`` (EULUMDAT); written to `out` too where given. The service answers 404 while the
+        sensor has no result (simulate it first) and 422 for a sensor of another kind."""
+        if format not in ("ies", "ldt"):
+            raise LumenLinkError(f"the export format is 'ies' (IES LM-63) or 'ldt' (EULUMDAT), got {format!r}",
+                                 usage=True)
+        sid = self._sid(scene)
+        s = self._sensor_ids(sid, sensor)[0]
+        text = self._bytes(f"/scenes/{sid}/sensors/{s['id']}/export", f"exporting sensor {sensor}",
+                           {"format": format}).decode("utf-8")
+        if out is not None:
+            path = Path(out)
+            try:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                path.write_text(text, encoding="utf-8", newline="")
+            except OSError as exc:
+                raise LumenLinkError(f"cannot write {path}: {exc}", usage=True) from exc
+        return text
+
     # ------------------------------------------------------------ kept results and comparisons
 
     def results(self, scene: str | dict, sensor: str) -> list[dict[str, Any]]:
@@ -475,7 +496,14 @@ def sensor_csv(result: dict[str, Any]) -> str:
     """A sensor result as CSV, one row per cell: its indices, its centre (world metres), lux and standard error.
 
     Grid: ``i`` (along u, 0..nu-1), ``j`` (along v), the cell centre origin + (i+½)/nu·u + (j+½)/nv·v.
-    Disk: one row (i = j = 0) at the disk's centre where the result names it, else blank coordinates."""
+    Disk: one row (i = j = 0) at the disk's centre where the result names it, else blank coordinates.
+    Far field: ``i,j,c_deg,gamma_deg,cd,stderr_cd``, one row per bin (i along C, j along γ)."""
+    if result.get("type") == "far_field":
+        rows = ["i,j,c_deg,gamma_deg,cd,stderr_cd"]
+        for j, g in enumerate(result["gamma_deg"]):
+            for i, c in enumerate(result["c_deg"]):
+                rows.append(f"{i},{j},{c:.9g},{g:.9g},{_num(result['candela'][j][i])},{_num(result['stderr'][j][i])}")
+        return "\n".join(rows) + "\n"
     lines = ["i,j,x_m,y_m,z_m,lux,stderr_lux"]
     lux, err = result["lux"], result["stderr"]
     if result.get("type") == "grid" and result.get("origin") is not None:

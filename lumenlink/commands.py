@@ -1,5 +1,5 @@
-"""``lumenlink nodes | assign | light | sensor | simulate | compare``: the engineer's loop from the command line,
-built on :class:`lumenlink.client.Client`.
+"""``lumenlink nodes | assign | light | sensor | simulate | export | compare``: the engineer's loop from the command
+line, built on :class:`lumenlink.client.Client`.
 
 Exit codes, as ``lumenlink push``: 0 done; 2 bad usage (a bad option or file, a server URL without its scheme, a
 scene or node path that does not exist, a body the service refuses as invalid: 4xx); 3 the service cannot be
@@ -267,10 +267,38 @@ def simulate(scene: str, server: str, out: Path, sensor: str = "all", target: fl
                         (out_dir / f"{stem}.png").write_bytes(png)
                         written.append(out_dir / f"{stem}.png")
                 _warn(console, result)
+                if result.get("type") == "far_field":
+                    ies = out_dir / f"{stem}.ies"
+                    ll.export(info, s["id"], "ies", out=ies)
+                    written.append(ies)
+                    print(f"sensor {stem} ({s['id']}): far field, {result['flux_lm']:.6g} +- "
+                          f"{result['flux_stderr']:.2g} lm leaving, max {result['max_cd']:.6g} cd; "
+                          f"{result['photons']:,} photons in {result['seconds']:.2f} s ({result['stop_reason']}), "
+                          f"revision {result['revision']} -> " + ", ".join(str(p) for p in written))
+                    continue
                 print(f"sensor {stem} ({s['id']}): lux min {result['min_lux']:.4g}, mean {result['mean_lux']:.4g}, "
                       f"max {result['max_lux']:.4g}; {result['photons']:,} photons in {result['seconds']:.2f} s "
                       f"({result['stop_reason']}), revision {result['revision']} -> "
                       + ", ".join(str(p) for p in written))
+        return EXIT_OK
+    return _run(work)
+
+
+# ---------------------------------------------------------------- export
+
+def export(scene: str, server: str, sensor: str, format: str, out: Path) -> int:
+    """Write a far-field sensor's latest result as an IES (LM-63-2002) or EULUMDAT file."""
+    def work(console: Console) -> int:
+        if format not in ("ies", "ldt"):
+            raise LumenLinkError(f"--format is ies (IES LM-63) or ldt (EULUMDAT), got {format!r}", usage=True)
+        if Path(out).is_dir():
+            raise LumenLinkError(f"--out {out} is a directory: give the file to write, e.g. {Path(out) / 'lamp'}."
+                                 f"{format}", usage=True)
+        with Client(server) as ll:
+            info = ll.scene(scene)
+            text = ll.export(info, sensor, format, out=out)
+        lines = text.count("\n")
+        print(f"sensor {sensor}: {'IES LM-63-2002' if format == 'ies' else 'EULUMDAT'} ({lines} lines) -> {out}")
         return EXIT_OK
     return _run(work)
 

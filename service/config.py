@@ -8,6 +8,7 @@ The data directory holds the SQLite file (``lumenlink.sqlite3``), the uploaded m
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Literal
 
 from pydantic import Field, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
@@ -53,6 +54,10 @@ class Settings(BaseSettings):
         "dropped first), for `GET /scenes/{id}/sensors/{sid}/results`, their maps and differences."))
     warm_kernels: bool = Field(default=False, description="Compile the query kernels in a child process from the "
                                                           "start (`tracer.warmup`; `lumenlink serve` turns it on).")
+    device: Literal["auto", "cpu", "cuda"] = Field(default="auto", description=(
+        "Where to compute (`tracer.gpu.device`): auto takes CUDA where numba-cuda finds a GPU, else the CPU (the "
+        "reason logged once); cuda without a GPU stops `lumenlink serve` at start. Photon batches still run on the "
+        "CPU until the CUDA photon kernel lands; every answer's `device` says where they ran."))
 
     @model_validator(mode="after")
     def _uploads_fit(self) -> Settings:

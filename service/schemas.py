@@ -569,7 +569,47 @@ class SurfaceSensor(Wire):
                                                                 "name": "the floor in lux"}]})
 
 
-Sensor = Annotated[GridSensor | DiskSensor | SurfaceSensor, Field(discriminator="type")]
+class FarFieldSensor(Wire):
+    """The scene as a lamp seen from far away (`tracer.simulate.Simulation.far_field`): the luminous intensity (cd) of
+    all the light leaving the scene, binned by direction on a type-C grid (γ from `direction`, C from `c0`, as a
+    goniometric light's), and the total flux leaving. The scene is taken as a point: valid where it is small against
+    the viewing distance. It observes and changes nothing. Its latest result exports as an IES or EULUMDAT file
+    (`GET /scenes/{id}/sensors/{sid}/export`)."""
+
+    type: Literal["far_field"] = Field(description="A far-field intensity distribution, cd on a C-γ grid.")
+    name: Annotated[str, StringConstraints(max_length=200)] | None = Field(None, description="A name for people.")
+    nc: Annotated[int, Field(ge=1, le=3600)] = Field(
+        description="C samples (dimensionless count): C_i = i·360°/nc, each owning ±180°/nc around it; 1 for an "
+                    "axially symmetric distribution.")
+    ngamma: Annotated[int, Field(ge=2, le=1801)] = Field(
+        description="γ samples (dimensionless count): γ_j = j·180°/(ngamma−1) from 0° to 180°, each owning ±half a "
+                    "step (the two polar caps are one bin each).")
+    direction: Vec3 | None = Field(None, description="The γ = 0 axis (dimensionless, any length); default −z, "
+                                                     "straight down.")
+    c0: Vec3 | None = Field(None, description="The C = 0 half-plane's direction (dimensionless; its part across "
+                                              "`direction` counts); default +x. C = 90° lies along c0 × direction.")
+    attached_to: NodeRef | None = Field(None, description=(
+        "A node (UUID or path): `direction` and `c0` are then in that node's frame and turn with it when a push "
+        "moves it; default world."))
+
+    model_config = ConfigDict(json_schema_extra={"examples": [{"type": "far_field", "name": "downlight far field",
+                                                                "nc": 24, "ngamma": 37, "direction": [0.0, 0.0, -1.0],
+                                                                "c0": [1.0, 0.0, 0.0]}]})
+
+    @model_validator(mode="after")
+    def _check(self) -> FarFieldSensor:
+        _nonzero("direction", self.direction)
+        _nonzero("c0", self.c0)
+        if self.c0 is not None:   # a default c0 along the direction turns to +y, as for a goniometric light
+            ax, ay, az = self.direction if self.direction is not None else (0.0, 0.0, -1.0)
+            bx, by, bz = self.c0
+            cross = math.hypot(ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx)
+            if cross <= 1e-9 * math.hypot(ax, ay, az) * math.hypot(bx, by, bz):
+                raise ValueError("c0 must not be parallel to direction")
+        return self
+
+
+Sensor = Annotated[GridSensor | DiskSensor | SurfaceSensor | FarFieldSensor, Field(discriminator="type")]
 
 
 class SensorCreate(Wire):

@@ -13,11 +13,11 @@ LOOPBACK = ("127.0.0.1", "::1", "localhost")
 
 
 def run(host: str = "127.0.0.1", port: int = 8000, data_dir: Path | str = "./var", warm: bool = True,
-        token: str | None = None, dask: str | None = None) -> None:
+        token: str | None = None, dask: str | None = None, device: str = "auto") -> None:
     """Start uvicorn on `host`:`port` with the data (SQLite file, meshes, BLAS cache) under `data_dir`;
     `warm`: compile the light-transport kernels in the background from the start (`tracer.warmup`); `token`:
     the bearer token every request must carry (required beyond loopback); `dask`: the address of a Dask scheduler
-    whose workers run the photon batches (`tracer.backends`)."""
+    whose workers run the photon batches (`tracer.backends`); `device`: auto, cpu or cuda (`tracer.gpu.device`)."""
     from service.app import create_app
     from service.config import Settings
     from service.events import closing_server
@@ -30,13 +30,22 @@ def run(host: str = "127.0.0.1", port: int = 8000, data_dir: Path | str = "./var
         problem = "the token must have at least 16 characters"
     elif dask and not re.fullmatch(r"[a-z0-9+]+://\S+", dask):
         problem = f"--dask takes a scheduler address such as tcp://127.0.0.1:8786, got {dask!r}"
+    elif device not in ("auto", "cpu", "cuda"):
+        problem = f"--device takes auto, cpu or cuda, got {device!r}"
+    elif device == "cuda":
+        from tracer.gpu.device import DeviceUnavailable, choose
+
+        try:
+            choose(device)
+        except DeviceUnavailable as exc:
+            problem = str(exc)
     if problem:
         print(f"lumenlink serve: {problem}", file=sys.stderr)
         raise SystemExit(2)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     logging.getLogger("alembic").setLevel(logging.WARNING)  # migrations: only say something when it matters
     settings = Settings(host=host, port=port, data_dir=Path(data_dir), warm_kernels=warm, token=token or None,
-                        dask_scheduler=dask or None)
+                        dask_scheduler=dask or None, device=device)  # type: ignore[arg-type]  # checked above
     app = create_app(settings)
     # as uvicorn.run, with the pages' event streams ended when asked to stop (service.events.closing_server)
     server = closing_server(app, host=host, port=port, log_level="info", access_log=False, workers=1)

@@ -13,6 +13,8 @@ requests:
   the revision they were computed at and the hub tells whether they are still current.
 - the latest result of each grid sensor (for ``map.png``) and of each surface sensor (for the view), at the
   generation it was computed at;
+- the latest result of each far-field sensor (for ``export``: IES or EULUMDAT), whatever changed since (the file
+  names the revision it describes); in memory: a restart forgets it;
 - the `JobRunner` of async queries.
 
 Bounds come from the service settings (``max_points``, ``max_photons``, ``max_seconds``): every
@@ -248,6 +250,7 @@ class SimulationHub:
         self._generation: dict[str, int] = {}
         self._cache: dict[str, _Cached] = {}
         self._grids: dict[tuple[str, str], tuple[int, dict[str, Any]]] = {}
+        self._far: dict[tuple[str, str], dict[str, Any]] = {}   # latest far-field result per (scene, sensor)
         self.results: Any = None   # service.results.ResultStore: sensor results kept past an edit (hub_for sets it)
         self._slots = threading.BoundedSemaphore(limits.max_concurrent_queries)
         live.subscribe(self.invalidate)
@@ -263,6 +266,9 @@ class SimulationHub:
             for key in [k for k in self._grids if k[0] == scene_id]:
                 del self._grids[key]
         if revision == DELETED:
+            with self._lock:
+                for key in [k for k in self._far if k[0] == scene_id]:
+                    del self._far[key]
             self.jobs.cancel_scene(scene_id)
 
     def generation(self, scene_id: str) -> int:
@@ -392,6 +398,13 @@ class SimulationHub:
         elif sensor["type"] == "surface":
             payload = self._run_surface(prepared, sensor, budget, seed, estimator, force_effects, progress, cancel,
                                         observe, reference, physics_left_out)
+        elif sensor["type"] == "far_field":
+            payload = self._run_far_field(prepared, sensor, budget, seed, estimator, force_effects, progress, cancel,
+                                          observe, reference, physics_left_out)
+            with self._lock:
+                if not cancel or not cancel():
+                    self._far[(scene_id, str(sensor["id"]))] = payload
+            return payload
         else:
             raise Invalid(f"sensor {sensor.get('id')!r} has type {sensor.get('type')!r}, which cannot be simulated")
         lux = np.asarray(payload["lux"], float)
@@ -448,6 +461,46 @@ class SimulationHub:
              "area": _finite_list(area)}
             for inst, lux, err, area in zip(result.instances, result.lux, result.stderr, result.area, strict=True)])
         return payload
+
+    def _run_far_field(self, prepared: Prepared, sensor: dict, budget: Budget, seed: int, estimator: str,
+                       force_effects: tuple[str, ...], progress: Callable | None, cancel: Callable | None,
+                       observe: tuple[str, ...], reference: tuple | None,
+                       physics_left_out: tuple[str, ...]) -> dict[str, Any]:
+        """A far-field sensor (`tracer.simulate.Simulation.far_field`): ``candela`` and ``stderr`` (cd) as nγ rows of
+        nc values, ``c_deg``, ``gamma_deg``, ``flux_lm`` ± ``flux_stderr`` leaving the scene, and the frame. Forward
+        only, without observe, reference or physics_left_out; not kept past an edit as lux results are."""
+        sid = sensor.get("id")
+        for field, given in (("observe", observe), ("reference", reference), ("physics_left_out", physics_left_out)):
+            if given:
+                raise Invalid(f"sensor {sid!r} is a far-field sensor: {field} is not available for it")
+        if estimator == "backward":
+            raise Invalid(f"sensor {sid!r} is a far-field sensor: the backward estimator cannot answer it; use "
+                          f"'forward' or 'auto'")
+        nc, ng = int(sensor["nc"]), int(sensor["ngamma"])
+        if nc * ng > self.limits.max_points:
+            raise TooLarge(f"sensor {sid!r} has {nc} x {ng} = {nc * ng} bins; this service answers at most "
+                           f"{self.limits.max_points} points per query", limit=self.limits.max_points)
+        frame = {k: np.asarray(sensor[k], float) for k in ("direction", "c0") if sensor.get(k) is not None}
+        with _refusals():
+            result = prepared.simulation.far_field(
+                nc, ng, **frame, target_relative_error=budget.target_relative_error, max_seconds=budget.max_seconds,
+                max_photons=budget.max_photons, seed=seed, force_effects=force_effects, progress=progress,
+                cancel=cancel)
+        flat = SimpleNamespace(**{name: getattr(result, name) for name in (
+            "photons", "seconds", "effects", "estimator", "stop_reason", "compile_seconds", "backend")})
+        flat.lux, flat.stderr = result.candela, result.stderr
+        payload = result_payload(flat, prepared.live.revision)
+        payload["candela"] = payload.pop("lux")
+        payload.update(sensor=str(sid), type="far_field", nc=nc, ngamma=ng, c_deg=_finite_list(result.c_deg),
+                       gamma_deg=_finite_list(result.gamma_deg), flux_lm=float(result.flux_lm),
+                       flux_stderr=float(result.flux_stderr), direction=_finite_list(result.direction),
+                       c0=_finite_list(result.c0), max_cd=float(np.max(result.candela)))
+        return payload
+
+    def far_result(self, scene_id: str, sensor_id: str) -> dict[str, Any] | None:
+        """The latest result of a far-field sensor (whatever changed since; it names its revision), else None."""
+        with self._lock:
+            return self._far.get((scene_id, sensor_id))
 
     def grid_result(self, scene_id: str, sensor_id: str) -> dict[str, Any] | None:
         """The latest result of a grid (or surface) sensor while the scene is unchanged since, else None."""

@@ -544,13 +544,14 @@ class Simulation:
                              res.stop_reason, res.batches, res.rejected, res.counters, res.compile_seconds,
                              res.backend)
 
-    def far_field(self, nc, ngamma, direction=(0.0, 0.0, -1.0), c0=(1.0, 0.0, 0.0), target_relative_error=None,
+    def far_field(self, nc, ngamma, direction=(0.0, 0.0, -1.0), c0=None, target_relative_error=None,
                   max_seconds=None, max_photons=None, seed=0, force_effects=(), progress=None,
                   cancel=None) -> FarFieldResult:
         """Luminous intensity (cd) of the whole scene seen from far away, on a type-C grid of `nc` C samples
         (ΔC = 360°/nc) and `ngamma` γ samples (Δγ = 180°/(ngamma−1)): `FarFieldResult`, with the total flux leaving
-        the scene. γ is measured from `direction` (default −z, the nadir), C from `c0` (default +x; only its part
-        across `direction` counts), C = 90° along c0 × direction, as for a goniometric light. The scene is taken as
+        the scene. γ is measured from `direction` (default −z, the nadir), C from `c0` (default +x, +y where
+        `direction` lies along x; only its part across `direction` counts), C = 90° along c0 × direction, as for a
+        goniometric light. The scene is taken as
         a point: valid where it is small against the viewing distance (see the module docstring). Budget options
         as for `illuminance`; the error stop looks at every bin (an empty one counts as converged). Forward only."""
         for name, val, lo, hi in (("nc", nc, 1, 3600), ("ngamma", ngamma, 2, 1801)):
@@ -560,12 +561,15 @@ class Simulation:
         if nc * ngamma > MAX_SPECTRAL_TALLIES:
             raise SimulationError(f"nc × ngamma = {nc * ngamma} bins: at most {MAX_SPECTRAL_TALLIES}")
         axis = _vec3(direction, "direction")
-        t = _vec3(c0, "c0")
+        given = c0 is not None
+        t = _vec3(c0 if given else (1.0, 0.0, 0.0), "c0")
         if not np.linalg.norm(axis) > 0:
             raise SimulationError("direction must not be the zero vector")
         axis = axis / np.linalg.norm(axis)
         t = t - axis * float(t @ axis)
-        if not np.linalg.norm(t) > 1e-9 * max(1.0, float(np.linalg.norm(c0))):
+        if not given and not np.linalg.norm(t) > 1e-9:
+            t = np.array([0.0, 1.0, 0.0]) - axis * axis[1]
+        if not np.linalg.norm(t) > 1e-9 * max(1.0, float(np.linalg.norm(c0 if given else t))):
             raise SimulationError(f"c0 {list(map(float, c0))} must not be parallel to direction "
                                   f"{list(map(float, direction))}")
         t = t / np.linalg.norm(t)

@@ -5,6 +5,8 @@
   surface sensor answers per instance of its node's subtree (``instances``: node, path, lux and stderr per
   triangle, `service.simulation.SimulationHub._run_surface`);
 - ``GET /scenes/{id}/sensors/{sid}/map.png`` — the false-colour map of the sensor's latest result;
+- ``GET /scenes/{id}/sensors/{sid}/export?format=ies|ldt`` — a far-field sensor's latest result as an IES LM-63-2002
+  or EULUMDAT file (`tracer.photometry_export`);
 - ``GET /jobs/{jid}``, ``DELETE /jobs/{jid}`` — progress and result of a job; cancel it.
 
 Every answer names the scene revision it was computed at; a push or an assignment makes earlier
@@ -16,6 +18,7 @@ the event loop, and the hub bounds how many run at once.
 from __future__ import annotations
 
 import math
+import re
 from typing import Annotated, Any, Literal
 
 import numpy as np
@@ -25,7 +28,7 @@ from fastapi.responses import JSONResponse
 from pydantic import BaseModel, ConfigDict, Field, Strict, field_validator, model_validator
 
 from service import units
-from service.errors import NotFound, TooLarge
+from service.errors import Invalid, NotFound, TooLarge
 from service.jobs import JobNotFound, QueueFull
 from service.maps import colour_map_png, illuminance_map_png
 from service.routes.deps import ItemId, JobId, SceneId
@@ -244,15 +247,17 @@ class SurfaceInstance(BaseModel):
 
 
 class SensorPublic(BaseModel):
-    """Answer of a sensor simulation: for a grid, ``lux``/``stderr`` are nv rows of nu cells."""
+    """Answer of a sensor simulation: for a grid, ``lux``/``stderr`` are nv rows of nu cells; for a far field
+    ``candela``/``stderr`` are nγ rows of nc values (no lux)."""
 
     model_config = ConfigDict(extra="forbid")
 
     sensor: str = Field(description="The sensor's id.")
-    type: Literal["grid", "disk", "surface"] = Field(description="The sensor's kind.")
-    lux: list[Any] = Field(description="Illuminance, lx: nv rows of nu cells for a grid, one value for a disk, every "
-                                       "triangle for a surface (instance after instance, as in `instances`).")
-    stderr: list[Any] = Field(description="Standard error of each value, lx.")
+    type: Literal["grid", "disk", "surface", "far_field"] = Field(description="The sensor's kind.")
+    lux: list[Any] | None = Field(None, description=(
+        "Illuminance, lx: nv rows of nu cells for a grid, one value for a disk, every triangle for a surface "
+        "(instance after instance, as in `instances`); absent for a far field (see `candela`)."))
+    stderr: list[Any] = Field(description="Standard error of each value, lx (cd for a far field).")
     photons: int = Field(description="Photons (forward) or paths (backward) traced.")
     seconds: float = Field(description="Wall time of the simulation, s.")
     effects: list[str] = Field(description="The effect set of the scene (and of any forced effects).")
@@ -275,9 +280,9 @@ class SensorPublic(BaseModel):
     stokes_stderr: list[Any] | None = Field(None, description="Standard error of each Stokes component, lx.")
     dop: list[Any] | None = Field(None, description="With observe stokes: degree of polarization per cell, "
                                                     "a fraction; null where none arrived.")
-    min_lux: float = Field(description="The smallest value, lx.")
-    mean_lux: float = Field(description="The mean value, lx.")
-    max_lux: float = Field(description="The largest value, lx.")
+    min_lux: float | None = Field(None, description="The smallest value, lx (absent for a far field).")
+    mean_lux: float | None = Field(None, description="The mean value, lx (absent for a far field).")
+    max_lux: float | None = Field(None, description="The largest value, lx (absent for a far field).")
     nu: int | None = Field(None, description="Grid: cells along u.")
     nv: int | None = Field(None, description="Grid: cells along v.")
     origin: list[float] | None = Field(None, description="Grid: corner of the rectangle, world metres.")
@@ -290,6 +295,18 @@ class SensorPublic(BaseModel):
         "Surface: each instance of the node's subtree, its triangles' illuminance on their front side (the outside "
         "of a CAD solid). `min_lux`/`max_lux` are over all triangles, `mean_lux` is area-weighted (the sensor's "
         "total flux over its total area)."))
+    candela: list[list[float]] | None = Field(None, description=(
+        "Far field: luminous intensity, cd, nγ rows (γ_j, `gamma_deg`) of nc values (C_i, `c_deg`): the flux leaving "
+        "the scene in each bin's directions over the bin's solid angle; `stderr` holds its standard errors."))
+    c_deg: list[float] | None = Field(None, description="Far field: the C angles C_i = i·360°/nc, degrees.")
+    gamma_deg: list[float] | None = Field(None, description="Far field: the γ angles γ_j = j·180°/(nγ−1), degrees.")
+    flux_lm: float | None = Field(None, description="Far field: the total luminous flux leaving the scene, lm.")
+    flux_stderr: float | None = Field(None, description="Far field: standard error of `flux_lm`, lm.")
+    max_cd: float | None = Field(None, description="Far field: the largest intensity, cd.")
+    nc: int | None = Field(None, description="Far field: C samples.")
+    ngamma: int | None = Field(None, description="Far field: γ samples.")
+    direction: list[float] | None = Field(None, description="Far field: the γ = 0 axis (unit, world).")
+    c0: list[float] | None = Field(None, description="Far field: the C = 0 axis (unit, world, across `direction`).")
 
 
 class JobAccepted(BaseModel):
@@ -386,7 +403,8 @@ async def _answer(request: Request, mode: str, setup: Any, *args: Any) -> Any:
 def _targeted(payload: dict[str, Any], targets: list[float] | None) -> None:
     """The answer's `cost` for the query's own targets (the tracer's holds the default ones)."""
     if targets:
-        payload["cost"] = cost_of(payload["lux"], payload["stderr"], payload["photons"],
+        values = payload["lux"] if "lux" in payload else payload["candela"]
+        payload["cost"] = cost_of(values, payload["stderr"], payload["photons"],
                                   payload["seconds"] - payload["compile_seconds"], targets)
 
 
@@ -507,6 +525,40 @@ def sensor_map(scene_id: SceneId, sensor_id: ItemId, request: Request,
                               vmax=vmax)
     return Response(content=png, media_type="image/png",
                     headers={"X-Scene-Revision": str(result["revision"]), "Cache-Control": "no-store"})
+
+
+@router.get("/scenes/{scene_id}/sensors/{sensor_id}/export", name="sensor_export", response_class=Response,
+            responses={200: {"content": {"text/plain": {}}, "description": "The IES or EULUMDAT file."}, 404: {}})
+def sensor_export(scene_id: SceneId, sensor_id: ItemId, request: Request,
+                  format: Annotated[Literal["ies", "ldt"], Query(
+                      description="`ies`: IES LM-63-2002; `ldt`: EULUMDAT.")] = "ies") -> Response:
+    """A far-field sensor's latest result as a photometric file: IES LM-63-2002 (absolute photometry, the flux
+    leaving the scene in `[_ABSOLUTELUMENS]`) or EULUMDAT (cd/klm of that flux, LORL 100 %), the type-C table as
+    simulated (no symmetry assumed). 404 while the sensor has no result, 422 for a sensor of another kind."""
+    from tracer.photometry_export import write_photometry
+
+    hub = _hub(request)
+    live = hub.live.get(scene_id)
+    sensor = find_sensor(live, sensor_id)
+    if sensor.get("type") != "far_field":
+        raise Invalid(f"sensor {sensor_id!r} is a {sensor.get('type')} sensor; only a far_field sensor exports as "
+                      f"IES or EULUMDAT")
+    result = hub.far_result(scene_id, sensor_id)
+    if result is None:
+        raise NotFound(f"sensor {sensor_id!r} has no result yet: POST /scenes/{scene_id}/sensors/{sensor_id}/simulate "
+                       f"first", revision=live.revision)
+    name = _sensor_name(request, scene_id, sensor_id)
+    notes = (f"scene {scene_id} revision {result['revision']}, {result['photons']} photons, flux "
+             f"{result['flux_lm']:.6g} +- {result['flux_stderr']:.2g} lm")
+    try:
+        text = write_photometry(format, result["candela"], result["c_deg"], result["gamma_deg"], result["flux_lm"],
+                                name=name, notes=notes)
+    except ValueError as exc:   # nothing left the scene: no distribution to write
+        raise Invalid(f"sensor {sensor_id!r}: {exc}") from exc
+    stem = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._") or sensor_id
+    return Response(content=text, media_type="text/plain; charset=utf-8",
+                    headers={"X-Scene-Revision": str(result["revision"]), "Cache-Control": "no-store",
+                             "Content-Disposition": f'attachment; filename="{stem}.{format}"'})
 
 
 def _sensor_name(request: Request, scene_id: str, sensor_id: str) -> str:
