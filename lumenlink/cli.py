@@ -191,6 +191,19 @@ def simulate(
 
 
 @app.command()
+def export(
+    scene: SceneOpt,
+    sensor: Annotated[str, typer.Option(help="The far-field sensor's id or name.")],
+    out: Annotated[Path, typer.Option(help="The file to write.")],
+    format: Annotated[str, typer.Option(help="`ies` (IES LM-63-2002) or `ldt` (EULUMDAT).")] = "ies",
+    server: Server = "http://127.0.0.1:8000",
+) -> None:
+    """Write a far-field sensor's latest result (cd on a C-gamma grid) as an IES or EULUMDAT file."""
+    raise typer.Exit(_call("lumenlink.commands", "export", 22, scene=scene, server=server, sensor=sensor,
+                           format=format, out=out) or 0)
+
+
+@app.command()
 def compare(
     scene: SceneOpt,
     out: Annotated[Path, typer.Option(help="Directory for <sensor>_<from>_to_<to>.csv and .png.")],
