@@ -181,6 +181,7 @@ def result_payload(result: Any, revision: int) -> dict[str, Any]:
         "compile_seconds": float(getattr(result, "compile_seconds", 0.0)),
         "cost": getattr(result, "cost", None),
         "backend": getattr(result, "backend", None),
+        "device": _device(getattr(result, "backend", None)),
         **({"error_budget": {name: _finite_list(v) for name, v in result.error_budget.items()}}
            if getattr(result, "error_budget", None) else {}),
         **({"physics_left_out": {name: {**e, "difference": _finite_list(e["difference"]),
@@ -190,6 +191,15 @@ def result_payload(result: Any, revision: int) -> dict[str, Any]:
         **_spectral_payload(result),
         **_stokes_payload(result),
     }
+
+
+def _device(backend: dict | None) -> str | None:
+    """Where the photon batches ran (`tracer.backends.device_of`): "cpu:2 threads", ... on N dask workers."""
+    if backend is None:
+        return None
+    from tracer.backends import device_of
+
+    return device_of(backend)
 
 
 def _spectral_payload(result: Any) -> dict[str, Any]:

@@ -313,6 +313,18 @@ class _LostData(RuntimeError):
     """A task's input went away with a worker (internal: the round is sent again)."""
 
 
+def device_of(described: dict[str, Any] | None) -> str | None:
+    """The answer's ``device`` (DESIGN.md "On a GPU") from a backend's `describe()`: where the photon batches
+    ran, ``"cpu:2 threads"``, or ``"cpu:4 threads on 2 dask workers"``. Every photon kernel runs on CPUs today
+    (`tracer.gpu` has the ray queries on CUDA, not yet the photon transport)."""
+    if not described:
+        return None
+    where = f"cpu:{int(described.get('threads', 0))} threads"
+    if described.get("name") == "dask":
+        where += f" on {int(described.get('workers', 0))} dask workers"
+    return where
+
+
 def backend_for(address: str | None) -> InProcess | DaskBackend:
     """The in-process backend, or a Dask one for a scheduler address (``LUMENLINK_DASK_SCHEDULER``)."""
     return IN_PROCESS if not address else DaskBackend(address)

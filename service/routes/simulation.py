@@ -216,6 +216,9 @@ class IlluminancePublic(BaseModel):
         None, description="With observe spectrum: CIE 1931 (x, y) of the light arriving; null where none arrived.")
     cost: Cost | None = Field(None, description="What tighter errors would cost (seconds and photons per target).")
     backend: Backend | None = Field(None, description="Where the photon batches ran.")
+    device: str | None = Field(None, description="The processor the photon batches ran on: `cpu:<threads> threads` "
+                                                 "(… `on <n> dask workers`); `cuda:0 <card>` once the CUDA photon "
+                                                 "kernel lands (today every photon kernel runs on CPUs).")
     radius: float | None = Field(None, description="Radius of the disk receivers the values are means over, m "
                                                    "(the query's, else the default 0.05 m).")
     warnings: list[str] | None = Field(None, description="Points or lights far outside the model (more than 100 "
@@ -273,6 +276,9 @@ class SensorPublic(BaseModel):
                                                        "(dimensionless); null where no light arrived.")
     cost: Cost | None = Field(None, description="What tighter errors would cost (seconds and photons per target).")
     backend: Backend | None = Field(None, description="Where the photon batches ran.")
+    device: str | None = Field(None, description="The processor the photon batches ran on: `cpu:<threads> threads` "
+                                                 "(… `on <n> dask workers`); `cuda:0 <card>` once the CUDA photon "
+                                                 "kernel lands (today every photon kernel runs on CPUs).")
     error_budget: ErrorBudget | None = Field(None, description="The tessellation's share of the error, lx.")
     physics_left_out: dict[str, PhysicsLeftOut] | None = Field(
         None, description="Where the query asked: per effect, what turning it on would change, lx.")

@@ -61,6 +61,7 @@ def test_a_service_on_a_dask_cluster_answers_what_an_in_process_service_answers(
                           json={"max_photons": 320_000, "seed": 2}, timeout=300)
         assert grid.status_code == 200, grid.text
     assert there["backend"] == {"name": "dask", "address": cluster.address, "workers": 2, "threads": 2}
+    assert there["device"] == "cpu:2 threads on 2 dask workers" and here["device"].startswith("cpu:")
     assert (there["lux"], there["stderr"], there["photons"]) == (here["lux"], here["stderr"], here["photons"])
     assert grid.json()["backend"]["name"] == "dask" and grid.json()["mean_lux"] > 0
 

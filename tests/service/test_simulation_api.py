@@ -95,10 +95,11 @@ def test_point_source_over_black_floor_follows_inverse_square_cosine_law(world) 
     assert r.status_code == 200, r.text
     a = r.json()
     assert set(a) == {"lux", "stderr", "photons", "seconds", "effects", "revision", "estimator", "stop_reason",
-                      "compile_seconds", "cost", "backend", "radius"}
+                      "compile_seconds", "cost", "backend", "device", "radius"}
     assert a["radius"] == 0.005   # the receiver the values are means over, as asked
     assert 0.0 <= a["compile_seconds"] <= a["seconds"]
     assert a["backend"]["name"] == "in-process" and a["backend"]["threads"] >= 1
+    assert a["device"] == f"cpu:{a['backend']['threads']} threads"
     for (x, y, _), e, s in zip(pts, a["lux"], a["stderr"], strict=True):
         ref = disk_average_lux(x, y, 0.005)
         assert 0 < s <= 0.011 * e or a["stop_reason"] != "target_relative_error"
