@@ -14,6 +14,8 @@ import importlib.util
 import logging
 from dataclasses import dataclass
 
+from tracer.errors import TracerError
+
 log = logging.getLogger("lumenlink.device")
 
 CHOICES = ("auto", "cpu", "cuda")
@@ -21,8 +23,9 @@ CHOICES = ("auto", "cpu", "cuda")
 PHOTONS_ON_CPU = "photon batches still run on the CPU until the CUDA photon kernel lands (issue 27)"
 
 
-class DeviceUnavailable(RuntimeError):
-    """``cuda`` was asked for where no GPU can be used; the message says why."""
+class DeviceUnavailable(TracerError, RuntimeError):
+    """``cuda`` was asked for where no GPU can be used; the message says why (a `TracerError`: the package's one
+    root, and a RuntimeError like `tracer.backends.BackendUnavailable`: the hardware is not there, not bad input)."""
 
 
 @dataclass(frozen=True)
