@@ -71,11 +71,14 @@ class Budget:
         Wall-clock budget, s.
     max_photons : int or None
         Photon (or path) budget.
+    target_scope : "worst", "lit" or "mean"
+        Which relative error the target holds (`tracer.simulate.TARGET_SCOPES`).
     """
 
     target_relative_error: float | None = None
     max_seconds: float | None = None
     max_photons: int | None = None
+    target_scope: str = "worst"
 
 
 def estimate_seconds_left(photons: int, worst_relative_error: float, seconds: float, budget: Budget) -> float | None:

@@ -133,7 +133,7 @@ class Limits:
 
 
 def resolve_budget(limits: Limits, target_relative_error: float | None, max_seconds: float | None,
-                   max_photons: int | None) -> Budget:
+                   max_photons: int | None, target_scope: str = "worst") -> Budget:
     """The budget a query runs under: what the request asked, checked against the limits.
 
     A request beyond a limit is refused (422) rather than silently cut, so the caller knows the
@@ -148,7 +148,8 @@ def resolve_budget(limits: Limits, target_relative_error: float | None, max_seco
                       limit=limits.max_seconds)
     seconds = max_seconds if max_seconds is not None else min(DEFAULT_MAX_SECONDS, limits.max_seconds)
     photons = max_photons if max_photons is not None else limits.max_photons
-    return Budget(target_relative_error=target_relative_error, max_seconds=seconds, max_photons=photons)
+    return Budget(target_relative_error=target_relative_error, max_seconds=seconds, max_photons=photons,
+                  target_scope=target_scope)
 
 
 def find_sensor(live: LiveScene, sensor_id: str) -> dict:
@@ -369,7 +370,8 @@ class SimulationHub:
         with _refusals():
             result = prepared.simulation.illuminance(
                 points, normals, radius=radius, target_relative_error=budget.target_relative_error,
-                max_seconds=budget.max_seconds, max_photons=budget.max_photons, seed=seed, estimator=estimator,
+                target_scope=budget.target_scope, max_seconds=budget.max_seconds, max_photons=budget.max_photons,
+                seed=seed, estimator=estimator,
                 force_effects=force_effects, progress=progress, cancel=cancel, observe=observe,
                 reference=reference, **({"physics_left_out": physics_left_out} if physics_left_out else {}))
         return result_payload(result, prepared.live.revision)
@@ -380,7 +382,8 @@ class SimulationHub:
                  reference: tuple | None = None, physics_left_out: tuple[str, ...] = ()) -> dict[str, Any]:
         """Simulate one sensor; keeps a grid's result for ``map.png`` while the scene is unchanged."""
         scene_id = prepared.live.scene_id
-        common = dict(target_relative_error=budget.target_relative_error, max_seconds=budget.max_seconds,
+        common = dict(target_relative_error=budget.target_relative_error, target_scope=budget.target_scope,
+                      max_seconds=budget.max_seconds,
                       max_photons=budget.max_photons, seed=seed, estimator=estimator,
                       force_effects=force_effects, progress=progress, cancel=cancel, observe=observe,
                       reference=reference, **({"physics_left_out": physics_left_out} if physics_left_out else {}))
@@ -443,6 +446,9 @@ class SimulationHub:
         for field, given in (("observe", observe), ("reference", reference), ("physics_left_out", physics_left_out)):
             if given:
                 raise Invalid(f"sensor {sid!r} is a surface sensor: {field} is not available for it")
+        if budget.target_scope != "worst":
+            raise Invalid(f"sensor {sid!r} is a surface sensor: its target holds every triangle (target_scope "
+                          f"'worst'); give it a photon or time budget instead")
         if estimator == "backward":
             raise Invalid(f"sensor {sid!r} is a surface sensor: the backward estimator cannot answer it; use "
                           f"'forward' or 'auto'")
@@ -483,6 +489,9 @@ class SimulationHub:
         for field, given in (("observe", observe), ("reference", reference), ("physics_left_out", physics_left_out)):
             if given:
                 raise Invalid(f"sensor {sid!r} is a far-field sensor: {field} is not available for it")
+        if budget.target_scope != "worst":
+            raise Invalid(f"sensor {sid!r} is a far-field sensor: its target holds every bin (target_scope "
+                          f"'worst'); give it a photon or time budget instead")
         if estimator == "backward":
             raise Invalid(f"sensor {sid!r} is a far-field sensor: the backward estimator cannot answer it; use "
                           f"'forward' or 'auto'")

@@ -304,9 +304,14 @@ class _Budget:
     target: float | None
     max_seconds: float | None
     max_photons: int | None
+    scope: str = "worst"
 
 
-def _budget(target_relative_error, max_seconds, max_photons) -> _Budget:
+TARGET_SCOPES = ("worst", "lit", "mean")
+LIT_FRACTION = 0.01   # "lit" values: at least this fraction of the brightest one
+
+
+def _budget(target_relative_error, max_seconds, max_photons, scope="worst") -> _Budget:
     if target_relative_error is not None:
         if isinstance(target_relative_error, bool) or not (0 < float(target_relative_error) < 1):
             raise SimulationError(f"target_relative_error must be in (0, 1), got {target_relative_error!r}")
@@ -319,9 +324,26 @@ def _budget(target_relative_error, max_seconds, max_photons) -> _Budget:
         if isinstance(max_photons, bool) or int(max_photons) != max_photons or int(max_photons) < 1:
             raise SimulationError(f"max_photons must be a positive integer, got {max_photons!r}")
         max_photons = int(max_photons)
+    if scope not in TARGET_SCOPES:
+        raise SimulationError(f"target_scope must be one of {list(TARGET_SCOPES)}, got {scope!r}")
     if target_relative_error is None and max_seconds is None and max_photons is None:
         max_seconds = DEFAULT_MAX_SECONDS
-    return _Budget(target_relative_error, max_seconds, max_photons)
+    return _Budget(target_relative_error, max_seconds, max_photons, scope)
+
+
+def _stop_error(est: Estimate, mean_est: Estimate, n_stop: int | None, scope: str) -> float:
+    """The relative error a target is held to (`target_scope`): "worst", the largest over the values;
+    "lit", the largest over the values at least `LIT_FRACTION` of the brightest (cells in shadow, which
+    a handful of stray photons reach, cannot hold a grid to its target); "mean", that of the mean of
+    the values (its batch means, `mean_est`)."""
+    if scope == "mean":
+        return float(mean_est.relative_error()[0])
+    rel = est.relative_error()[:n_stop]
+    if scope == "lit" and rel.size:
+        mean = est.mean[:n_stop]
+        top = float(np.max(mean))
+        rel = rel[mean >= LIT_FRACTION * top] if top > 0 else rel[:0]
+    return float(np.max(rel)) if rel.size else 0.0
 
 
 class Simulation:
@@ -406,7 +428,8 @@ class Simulation:
 
     def illuminance(self, points, normals, radius=None, target_relative_error=None, max_seconds=None,
                     max_photons=None, seed=0, estimator="auto", force_effects=(), progress=None,
-                    cancel=None, observe=(), reference=None, physics_left_out=()) -> IlluminanceResult:
+                    cancel=None, observe=(), reference=None, physics_left_out=(),
+                    target_scope="worst") -> IlluminanceResult:
         """Illuminance (lx) on the front side of a disk receiver at each point.
 
         Parameters
@@ -416,6 +439,8 @@ class Simulation:
         radius : float, optional
             Receiver radius, m (default `DEFAULT_RADIUS`).
         target_relative_error, max_seconds, max_photons : stop rules (see the module docstring).
+        target_scope : which relative error the target holds: "worst" (every value's), "lit" (every value at
+            least `LIT_FRACTION` of the brightest) or "mean" (the mean of the values').
         seed : int ≥ 0.
         estimator : "auto", "forward" or "backward".
         force_effects : effect names to compile in although the scene does not need them.
@@ -446,16 +471,16 @@ class Simulation:
         r = float(r)
         centers = place_receivers(self._arrays, pts, nrm, r)
         res = self._run(False, centers, nrm, r, None, target_relative_error, max_seconds, max_photons, seed,
-                        estimator, force_effects, progress, cancel, observe, reference)
+                        estimator, force_effects, progress, cancel, observe, reference, target_scope=target_scope)
         if left_out:
             res.physics_left_out = self.left_out(left_out, res, lambda force, s, est: self._run(
                 False, centers, nrm, r, None, target_relative_error, max_seconds, max_photons, s, est, force, None,
-                cancel, ()), force_effects, observe, seed, estimator)
+                cancel, (), target_scope=target_scope), force_effects, observe, seed, estimator)
         return res
 
     def grid(self, origin, u, v, nu, nv, target_relative_error=None, max_seconds=None, max_photons=None, seed=0,
              estimator="auto", force_effects=(), progress=None, cancel=None, observe=(), reference=None,
-             physics_left_out=()) -> GridResult:
+             physics_left_out=(), target_scope="worst") -> GridResult:
         """Cell-average illuminance (lx) over a grid sensor origin + s u + t v, front side u × v.
 
         Returns a `GridResult` whose `lux` and `stderr` are (nv, nu) arrays (observed spectra and
@@ -475,7 +500,8 @@ class Simulation:
         half_diagonal = 0.5 * float(np.linalg.norm(uu + vv))
         o = o + (place_receivers(self._arrays, centre[None, :], nrm[None, :], half_diagonal)[0] - centre) @ nrm * nrm
         res = self._run(True, o, nrm, 0.0, (uu, vv, int(nu), int(nv)), target_relative_error, max_seconds,
-                        max_photons, seed, estimator, force_effects, progress, cancel, observe, reference)
+                        max_photons, seed, estimator, force_effects, progress, cancel, observe, reference,
+                        target_scope=target_scope)
         shape = (int(nv), int(nu))
 
         def cells(a):
@@ -490,7 +516,7 @@ class Simulation:
         if left_out:
             found = self.left_out(left_out, res, lambda force, s, est: self._run(
                 True, o, nrm, 0.0, (uu, vv, int(nu), int(nv)), target_relative_error, max_seconds, max_photons, s,
-                est, force, None, cancel, ()), force_effects, observe, seed, estimator)
+                est, force, None, cancel, (), target_scope=target_scope), force_effects, observe, seed, estimator)
             out.physics_left_out = {name: {**e, "difference": cells(e["difference"]), "stderr": cells(e["stderr"])}
                                     for name, e in found.items()}
         return out
@@ -627,11 +653,12 @@ class Simulation:
     # ------------------------------------------------------------------------------------------ engine
 
     def _run(self, is_grid, centers, normals, radius, grid, target, max_seconds, max_photons, seed, estimator,
-             force_effects, progress, cancel, observe, reference=None, surface=None, far=None) -> IlluminanceResult:
+             force_effects, progress, cancel, observe, reference=None, surface=None, far=None,
+             target_scope="worst") -> IlluminanceResult:
         """One query. `surface` = (surf, areas) adds the surface tally (`SensorArrays.surf`, bins after the
         receivers', their lux and stderr after the receivers' in the result; forward only). `far` = (params, solid
         angles) adds the far-field tally (`SensorArrays.far`) after those: cd, then the total flux leaving (lm)."""
-        budget = _budget(target, max_seconds, max_photons)
+        budget = _budget(target, max_seconds, max_photons, target_scope)
         observe_spectrum, observe_stokes = _observe(observe)
         if observe_spectrum:
             force_effects = (*(force_effects or ()), "spectral")
@@ -697,6 +724,7 @@ class Simulation:
         """Rounds of batches until a stop rule holds; returns (Estimate, batches, stop_reason, counters).
         The error stop looks at the first `n_stop` bins (all by default): the illuminances, not the spectra."""
         est = Estimate.empty(n_bins)
+        mean_est = Estimate.empty(1)   # the batch means of the values' mean (target_scope "mean")
         batches = 0
         counters = None
         while True:
@@ -706,11 +734,12 @@ class Simulation:
             nb = max(nb, 2 - batches)   # an error bar needs two batches, whatever the budget
             values, cnt = run_round(batches, nb)
             est.add(values)
+            if budget.scope == "mean":
+                mean_est.add(values[:, :n_stop].mean(axis=1, keepdims=True))
             counters = cnt.sum(axis=0) if counters is None else counters + cnt.sum(axis=0)
             batches += nb
             elapsed = time.perf_counter() - t0
-            rel = est.relative_error()[:n_stop]
-            worst = float(np.max(rel)) if rel.size else 0.0
+            worst = _stop_error(est, mean_est, n_stop, budget.scope)
             if progress is not None:
                 progress(batches * per_batch, worst, elapsed)
             if cancel is not None and cancel():

@@ -56,6 +56,11 @@ class _Budget(BaseModel):
 
     target_relative_error: Annotated[float, Field(gt=0.0, le=1.0)] | None = Field(
         default=None, description="Stop once every value's standard error is below this fraction of it.")
+    target_scope: Literal["worst", "lit", "mean"] = Field(
+        default="worst", description="Which values `target_relative_error` holds: `worst`, every value; `lit`, every "
+                                     "value at least 1 % of the brightest (cells in shadow, which a few stray photons "
+                                     "reach, cannot hold a map to its target); `mean`, the mean of the values. The "
+                                     "answer's `cost` says what tighter errors would take either way.")
     max_seconds: Annotated[float, Field(gt=0.0)] | None = Field(
         default=None, description="Time budget, s (at most the service's max_seconds).")
     max_photons: Annotated[int, Field(gt=0)] | None = Field(
@@ -432,7 +437,8 @@ def _points_query(scene_id: str, query: IlluminanceQuery, request: Request) -> t
     if len(query.points) > hub.limits.max_points:
         raise TooLarge(f"{len(query.points)} points asked; this service answers at most {hub.limits.max_points} "
                        f"per query", limit=hub.limits.max_points)
-    budget = resolve_budget(hub.limits, query.target_relative_error, query.max_seconds, query.max_photons)
+    budget = resolve_budget(hub.limits, query.target_relative_error, query.max_seconds, query.max_photons,
+                            query.target_scope)
     points = np.asarray(query.points, dtype=np.float64)
     normals = np.asarray(query.normals, dtype=np.float64)
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
@@ -465,7 +471,8 @@ async def simulate_sensor(scene_id: SceneId, sensor_id: ItemId, request: Request
 
 def _sensor_query(scene_id: str, sensor_id: str, query: SensorSimulate, request: Request) -> tuple:
     hub = _hub(request)
-    budget = resolve_budget(hub.limits, query.target_relative_error, query.max_seconds, query.max_photons)
+    budget = resolve_budget(hub.limits, query.target_relative_error, query.max_seconds, query.max_photons,
+                            query.target_scope)
     sensor = find_sensor(hub.live.get(scene_id), sensor_id)
     if sensor.get("type") == "grid" and int(sensor["nu"]) * int(sensor["nv"]) > hub.limits.max_points:
         raise TooLarge(f"sensor {sensor_id!r} has {int(sensor['nu']) * int(sensor['nv'])} cells; this service "
