@@ -81,7 +81,8 @@ class Budget:
     target_scope: str = "worst"
 
 
-def estimate_seconds_left(photons: int, worst_relative_error: float, seconds: float, budget: Budget) -> float | None:
+def estimate_seconds_left(photons: int, worst_relative_error: float, seconds: float, budget: Budget,
+                          rate: float | None = None) -> float | None:
     """Seconds until the first stopping rule is expected to fire, or None if nothing can tell yet.
 
     The standard error of a Monte Carlo mean falls as 1/√N, so reaching ``target`` from the current
@@ -99,6 +100,9 @@ def estimate_seconds_left(photons: int, worst_relative_error: float, seconds: fl
         Time spent so far, s.
     budget : Budget
         The job's stopping rules.
+    rate : float, optional
+        Photons per second of tracing; default photons / seconds (which counts any compiling in `seconds` as
+        slow tracing: `JobRunner` passes the rate since the first progress report instead).
 
     Returns
     -------
@@ -108,8 +112,9 @@ def estimate_seconds_left(photons: int, worst_relative_error: float, seconds: fl
     candidates: list[float] = []
     if budget.max_seconds is not None:
         candidates.append(max(budget.max_seconds - seconds, 0.0))
-    rate = photons / seconds if photons > 0 and seconds > 0 else None
-    if rate is not None:
+    if rate is None:
+        rate = photons / seconds if photons > 0 and seconds > 0 else None
+    if rate is not None and rate > 0:
         if budget.max_photons is not None:
             candidates.append(max(budget.max_photons - photons, 0) / rate)
         target = budget.target_relative_error
@@ -300,8 +305,17 @@ class JobRunner:
             self._run(job)
 
     def _run(self, job: Job) -> None:
+        first: list[tuple[int, float]] = []   # (photons, seconds) at the first report: compiling lies before it
+
         def progress(photons: int, worst_relative_error: float, seconds: float) -> None:
-            left = estimate_seconds_left(int(photons), float(worst_relative_error), float(seconds), job.budget)
+            # the tracing rate since the first report, so that the seconds a first query spends compiling
+            # (a minute on a fresh install) do not read as slow tracing and make seconds_left drift down
+            if not first:
+                first.append((int(photons), float(seconds)))
+            p0, s0 = first[0]
+            rate = (photons - p0) / (seconds - s0) if photons > p0 and seconds > s0 else None
+            left = estimate_seconds_left(int(photons), float(worst_relative_error), float(seconds), job.budget,
+                                         rate)
             with self._lock:
                 job.photons = int(photons)
                 job.worst_relative_error = float(worst_relative_error)
