@@ -83,67 +83,79 @@ def orphan_report(answer: dict, previous: list[dict] | None) -> list[str]:
     return out
 
 
-def push_once(file: Path, scene: str, server: str, linear: float | None, angular: float | None, relative: bool,
-              cache: TessellationCache, console: Console, json_out: bool = False,
-              transport: Any = None, dry_run: bool = False) -> int:
-    """Read, identify against the scene, tessellate and push one file; report on ``console`` (stderr) and stdout.
-
-    ``dry_run``: print the reconciliation and the diff the push would make; change nothing (no upload,
-    no sidecar, no scene)."""
+def push_file(file: Path, scene: str, server: str, linear: float | None = None, angular: float | None = None,
+              relative: bool = False, *, cache: TessellationCache | None = None, transport: Any = None,
+              dry_run: bool = False, on_read: Any = None, tessellation_progress: Any = None,
+              upload_progress: Any = None) -> tuple[Any, Any, Any, float, list[dict] | None]:
+    """Read a STEP file, recognise its nodes in the scene called `scene` (`identify` against what the scene holds),
+    tessellate what changed and push it: what ``lumenlink push`` does, without printing (`lumenlink.Client.push`
+    calls it too). ``on_read(doc)`` is called once the file is read and identified; the progress callables as
+    `tessellate`'s and `Pusher`'s. Returns (PushResult, Document, Tessellation, read seconds, the scene's nodes
+    before the push or None). Raises the adapter's errors (`CadImportError`, `TessellationError`, `PushError`...).
+    ``dry_run``: diff only; no upload, no sidecar, no scene."""
     from .client import Pusher
     from .identity import identify
     from .step_reader import read_step
     from .tessellate import tessellate
 
-    try:
-        with Pusher(server, transport=transport) as pusher:
-            tree = pusher.scene_tree(scene)
-    except PushError as exc:  # ServiceUnavailable included
-        return _service_failure(exc, console)
+    with Pusher(server, transport=transport) as pusher:
+        tree = pusher.scene_tree(scene)
     previous = tree.nodes if tree is not None else None
-    try:
-        t0 = time.perf_counter()
-        with console.status(f"reading {file.name}", spinner="dots") if console.is_terminal else _null():
-            doc = read_step(file)
-            settings = Settings.default(doc.length_unit, linear, angular, relative)
-            same_settings = tree is not None and tree.tessellation is not None and all(
-                tree.tessellation.get(k) == v for k, v in settings.as_dict().items())
-            identify(doc, write=not dry_run, previous=previous, previous_unit=tree.length_unit if tree else None,
-                     reuse_geometry=same_settings)
-        read_seconds = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    doc = read_step(file)
+    settings = Settings.default(doc.length_unit, linear, angular, relative)
+    same_settings = tree is not None and tree.tessellation is not None and all(
+        tree.tessellation.get(k) == v for k, v in settings.as_dict().items())
+    identify(doc, write=not dry_run, previous=previous, previous_unit=tree.length_unit if tree else None,
+             reuse_geometry=same_settings)
+    read_seconds = time.perf_counter() - t0
+    if on_read is not None:
+        on_read(doc)
+    tess = tessellate(doc, settings, cache=cache, progress=tessellation_progress)
+    with Pusher(server, transport=transport, upload_progress=upload_progress) as pusher:
+        result = pusher.push(doc, tess, scene, base_revision=tree.revision if tree else None, dry_run=dry_run)
+    return result, doc, tess, read_seconds, previous
+
+
+def push_once(file: Path, scene: str, server: str, linear: float | None, angular: float | None, relative: bool,
+              cache: TessellationCache, console: Console, json_out: bool = False,
+              transport: Any = None, dry_run: bool = False) -> int:
+    """`push_file`, reported on ``console`` (stderr) and stdout; returns the exit code."""
+
+    def on_read(doc: Any) -> None:
         for w in doc.warnings:
             console.print(f"[yellow]warning:[/] {w}")
         console.print(f"{file.name}: {len(doc.nodes)} nodes, {len(doc.parts)} distinct parts, unit {doc.length_unit}")
         for line in identity_report(doc):
             console.print(line)
-        with _progress(console) as bar:
-            task = bar.add_task("tessellating", total=len(doc.parts))
-            tess = tessellate(doc, settings, cache=cache,
-                              progress=lambda done, total, name: bar.update(task, completed=done))
-        for w in tess.warnings:
-            console.print(f"[yellow]warning:[/] {w}")
-        for key, why in tess.failed.items():
-            nodes = [n.path for n in doc.nodes if n.part == key]
-            console.print(f"[red]tessellation failed[/] for part {doc.parts[key].name!r} ({why}); pushed without "
-                          f"geometry: {', '.join(nodes[:5])}{' ...' if len(nodes) > 5 else ''}")
+        bar.start()
+        bar.update(task, total=len(doc.parts))
+
+    bar = _progress(console)
+    task = bar.add_task("tessellating / uploading", total=None)
+    try:
+        try:
+            result, doc, tess, read_seconds, previous = push_file(
+                file, scene, server, linear, angular, relative, cache=cache, transport=transport, dry_run=dry_run,
+                on_read=on_read, tessellation_progress=lambda done, total, name: bar.update(task, completed=done),
+                upload_progress=lambda done, total, gid: bar.update(task, description="uploading meshes",
+                                                                    completed=done, total=total))
+        finally:
+            bar.stop()
     except (CadImportError, TessellationError) as exc:
         console.print(f"[red]error:[/] {exc}")
         return EXIT_INPUT
+    except PushError as exc:  # ServiceUnavailable and RevisionConflict included
+        return _service_failure(exc, console)
     except CadAdapterError as exc:
         console.print(f"[red]error:[/] {exc}")
         return EXIT_FAILED
-    try:
-        with _progress(console) as bar:
-            task = bar.add_task("uploading meshes", total=None)
-
-            def up(done: int, total: int, gid: str) -> None:
-                bar.update(task, completed=done, total=total)
-
-            with Pusher(server, transport=transport, upload_progress=up) as pusher:
-                result = pusher.push(doc, tess, scene, base_revision=tree.revision if tree else None,
-                                     dry_run=dry_run)
-    except CadAdapterError as exc:
-        return _service_failure(exc, console)
+    for w in tess.warnings:
+        console.print(f"[yellow]warning:[/] {w}")
+    for key, why in tess.failed.items():
+        nodes = [n.path for n in doc.nodes if n.part == key]
+        console.print(f"[red]tessellation failed[/] for part {doc.parts[key].name!r} ({why}); pushed without "
+                      f"geometry: {', '.join(nodes[:5])}{' ...' if len(nodes) > 5 else ''}")
     for line in orphan_report(result.answer, previous):
         console.print(line)
     if json_out:

@@ -216,6 +216,41 @@ class Client:
             self._ids[name_or_id] = str(found["id"])
         return dict(out)
 
+    def push(self, file: str | Path, scene: str, *, linear: float | None = None, angular: float | None = None,
+             relative: bool = False, dry_run: bool = False) -> dict[str, Any]:
+        """Push a STEP file to the scene named `scene` (made if no scene has that name), as ``lumenlink push``
+        does: its nodes are recognised in what the scene holds (a "Save As" or a re-export keeps every UUID),
+        the parts are tessellated (``linear`` deflection in the document's unit, default 0.1 mm; ``angular``,
+        rad, default 0.5; ``relative``: ``linear`` is a fraction of each part's size) and only the meshes the
+        service lacks are uploaded. Answers the service's answer to the push: the diff by UUID (``added``,
+        ``moved``, ``geometry_changed``…), what was rebuilt, the seconds of each stage. ``dry_run``: the diff only.
+        The bearer token is ``$LUMENLINK_TOKEN``'s, as for ``lumenlink push``. Raises `LumenLinkError` (``usage``
+        for an unreadable or non-STEP file; status 409 when the scene changed meanwhile: push again) or
+        `ServiceUnreachable`."""
+        from cad_adapter.cli import default_cache_dir, push_file
+        from cad_adapter.errors import (
+            CadAdapterError,
+            CadImportError,
+            RevisionConflict,
+            ServiceUnavailable,
+            TessellationError,
+        )
+        from cad_adapter.tessellate import TessellationCache
+
+        try:
+            result = push_file(Path(file), scene, self.server, linear, angular, relative, dry_run=dry_run,
+                               cache=TessellationCache(default_cache_dir()))[0]
+        except ServiceUnavailable as exc:
+            raise ServiceUnreachable(str(exc)) from exc
+        except RevisionConflict as exc:
+            raise LumenLinkError(str(exc), status=409) from exc
+        except (CadImportError, TessellationError) as exc:
+            raise LumenLinkError(f"{file}: {exc}", usage=True) from exc
+        except CadAdapterError as exc:
+            raise LumenLinkError(str(exc)) from exc
+        self._ids.pop(scene, None)   # a scene the push made is looked up again by name
+        return dict(result.answer)
+
     def nodes(self, scene: str | dict, name: str | None = None) -> list[dict[str, Any]]:
         """The scene's nodes in document order, each with its ``path`` and ``uuid``; `name`: a glob on node names
         (a pattern with ``/`` matches whole paths)."""
