@@ -143,6 +143,7 @@ class Job:
     worst_relative_error: float | None = None
     seconds: float = 0.0
     seconds_left: float | None = None
+    compile_seconds: float | None = None
     result: dict[str, Any] | None = None
     error: str | None = None
     cancel_event: threading.Event = field(default_factory=threading.Event)
@@ -165,6 +166,7 @@ class Job:
                 "worst_relative_error": worst if worst is not None and math.isfinite(worst) else None,
                 "seconds": self.seconds,
                 "seconds_left": self.seconds_left,
+                "compile_seconds": self.compile_seconds,
             },
             "result": self.result,
             "error": self.error,
@@ -308,6 +310,11 @@ class JobRunner:
         first: list[tuple[int, float]] = []   # (photons, seconds) at the first report: compiling lies before it
 
         def progress(photons: int, worst_relative_error: float, seconds: float) -> None:
+            if photons == 0:   # the report before the first round: the seconds spent compiling (or loading)
+                with self._lock:
+                    job.compile_seconds = float(seconds)
+                    job.seconds = float(seconds)
+                return
             # the tracing rate since the first report, so that the seconds a first query spends compiling
             # (a minute on a fresh install) do not read as slow tracing and make seconds_left drift down
             if not first:

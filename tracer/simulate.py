@@ -444,7 +444,8 @@ class Simulation:
         seed : int ≥ 0.
         estimator : "auto", "forward" or "backward".
         force_effects : effect names to compile in although the scene does not need them.
-        progress : callable(photons, worst_relative_error, seconds), called between rounds.
+        progress : callable(photons, worst_relative_error, seconds), called once before the first round (0
+            photons: `seconds` is what compiling or loading the kernel took) and between rounds.
         cancel : callable() -> bool, polled between rounds.
         observe : ("spectrum",) to add the spectral irradiance and the chromaticity (`IlluminanceResult`);
             photons then carry a wavelength (effect `spectral`), and the forward estimator answers. "stokes" adds
@@ -723,6 +724,8 @@ class Simulation:
     def _loop(self, run_round, n_bins, per_batch, budget, progress, cancel, t0, n_stop=None):
         """Rounds of batches until a stop rule holds; returns (Estimate, batches, stop_reason, counters).
         The error stop looks at the first `n_stop` bins (all by default): the illuminances, not the spectra."""
+        if progress is not None:   # before the first round: no photons yet, the seconds spent getting ready
+            progress(0, math.inf, time.perf_counter() - t0)   # (compiling or loading the kernel, packing)
         est = Estimate.empty(n_bins)
         mean_est = Estimate.empty(1)   # the batch means of the values' mean (target_scope "mean")
         batches = 0

@@ -342,7 +342,10 @@ class JobProgress(BaseModel):
     worst_relative_error: float | None = Field(description="Largest stderr/value over the points so far.")
     seconds: float = Field(description="Time spent so far, s.")
     seconds_left: float | None = Field(
-        description="Estimated time to the first stopping rule (target error by the 1/√N law, photons, seconds).")
+        description="Estimated time to the first stopping rule (target error by the 1/√N law, photons, seconds), "
+                    "s, from the tracing rate since the first round: compiling does not make it drift.")
+    compile_seconds: float | None = Field(None, description="Seconds the job spent compiling (or loading) its "
+                                                            "kernel before the first round, s; null until known.")
 
 
 class JobPublic(BaseModel):

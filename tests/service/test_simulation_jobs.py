@@ -195,11 +195,13 @@ def test_seconds_left_holds_still_when_the_first_round_waited_for_the_compiler()
     ~600 s toward the truth as the compile time was spread over more photons)."""
     reports = [(n, 0.08 * (100_000 / n) ** 0.5, 30.0 + n / 100_000) for n in (100_000, 200_000, 400_000, 800_000)]
     go, seen = threading.Event(), threading.Event()
-    ends = []
+    ends, compiled = [], []
     runner = JobRunner()
 
     def work(progress, cancel):
         go.wait(10)
+        progress(0, math.inf, 29.5)   # before the first round: what compiling took
+        compiled.append(runner.get(job.id)["progress"]["compile_seconds"])
         for n, err, seconds in reports:
             progress(n, err, seconds)
             ends.append(runner.get(job.id)["progress"]["seconds_left"] + seconds)
@@ -211,6 +213,7 @@ def test_seconds_left_holds_still_when_the_first_round_waited_for_the_compiler()
     assert seen.wait(10)
     true_end = 30.0 + 100_000 * (0.08 / 0.005) ** 2 / 100_000   # 30 s compiling + 256 s tracing
     assert ends[0] is not None and all(e == pytest.approx(true_end, rel=1e-6) for e in ends[1:])
+    assert compiled == [29.5] and runner.get(job.id)["progress"]["compile_seconds"] == 29.5
     old = [estimate_seconds_left(n, e, s, Budget(0.005)) + s for n, e, s in reports]
     assert old[0] > 2 * true_end   # what it said before: compiling read as slow tracing
     runner.shutdown()

@@ -81,6 +81,7 @@ def test_target_error_stop_and_progress(room):
     assert res.estimator == "backward" and res.stop_reason == "target_relative_error"
     assert np.all(res.stderr <= 0.02 * res.lux)
     assert calls and calls[-1][0] == res.photons and calls[-1][1] <= 0.02
+    assert calls[0][0] == 0 and calls[0][2] >= res.compile_seconds   # the report before the first round
     assert all(b[0] > a[0] for a, b in zip(calls, calls[1:], strict=False))
 
 
