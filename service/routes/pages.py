@@ -19,6 +19,7 @@ they are missing the pages answer 503 saying how to install them; the API itself
 from __future__ import annotations
 
 import html
+import re
 import time
 from pathlib import Path
 from typing import Any
@@ -226,9 +227,10 @@ def redoc(request: Request) -> HTMLResponse:
 
 
 REDOC_JS_URL = "/static/redoc/redoc.standalone.js"
-#: ReDoc 2's bundle draws Redocly's logo from their CDN under its menu, unconditionally; served here with an empty
-#: inline image instead, so that the page makes no request beyond this service
-REDOC_LOGO = (b"https://cdn.redoc.ly/redoc/logo-mini.svg", b"data:image/svg+xml,%3Csvg xmlns='http://www.w3.org/2000/svg'/%3E")
+#: ReDoc 2's bundle draws Redocly's logo from their host under its menu, unconditionally; served here with an empty
+#: inline image instead (any host's URL of that logo), so that the page makes no request beyond this service
+REDOC_LOGO = re.compile(rb"https://[\w.-]+/redoc/logo-mini\.svg")
+EMPTY_IMAGE = b"data:image/svg+xml,%3Csvg xmlns='http://www.w3.org/2000/svg'/%3E"
 _redoc_js: list[bytes] = []
 
 
@@ -236,6 +238,6 @@ _redoc_js: list[bytes] = []
 def redoc_js() -> Response:
     _need("redoc")
     if not _redoc_js:
-        _redoc_js.append(REQUIRED["redoc"].read_bytes().replace(*REDOC_LOGO))
+        _redoc_js.append(REDOC_LOGO.sub(EMPTY_IMAGE, REQUIRED["redoc"].read_bytes()))
     return Response(_redoc_js[0], media_type="text/javascript", headers={"Cache-Control": "max-age=3600"})
 
