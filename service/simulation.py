@@ -443,15 +443,7 @@ class SimulationHub:
         instance's triangles in its geometry's order); ``instances`` gives each one's node, path, instance id,
         geometry and its own ``lux``/``stderr``. Forward only, without observe, reference or physics_left_out."""
         sid = sensor.get("id")
-        for field, given in (("observe", observe), ("reference", reference), ("physics_left_out", physics_left_out)):
-            if given:
-                raise Invalid(f"sensor {sid!r} is a surface sensor: {field} is not available for it")
-        if budget.target_scope != "worst":
-            raise Invalid(f"sensor {sid!r} is a surface sensor: its target holds every triangle (target_scope "
-                          f"'worst'); give it a photon or time budget instead")
-        if estimator == "backward":
-            raise Invalid(f"sensor {sid!r} is a surface sensor: the backward estimator cannot answer it; use "
-                          f"'forward' or 'auto'")
+        _refuse_for_tally(sid, "surface", "triangle", budget, estimator, observe, reference, physics_left_out)
         live = prepared.live
         instances = [int(i) for i in sensor.get("instances", [])]
         if not instances:
@@ -486,15 +478,7 @@ class SimulationHub:
         nc values, ``c_deg``, ``gamma_deg``, ``flux_lm`` ± ``flux_stderr`` leaving the scene, and the frame. Forward
         only, without observe, reference or physics_left_out; not kept past an edit as lux results are."""
         sid = sensor.get("id")
-        for field, given in (("observe", observe), ("reference", reference), ("physics_left_out", physics_left_out)):
-            if given:
-                raise Invalid(f"sensor {sid!r} is a far-field sensor: {field} is not available for it")
-        if budget.target_scope != "worst":
-            raise Invalid(f"sensor {sid!r} is a far-field sensor: its target holds every bin (target_scope "
-                          f"'worst'); give it a photon or time budget instead")
-        if estimator == "backward":
-            raise Invalid(f"sensor {sid!r} is a far-field sensor: the backward estimator cannot answer it; use "
-                          f"'forward' or 'auto'")
+        _refuse_for_tally(sid, "far-field", "bin", budget, estimator, observe, reference, physics_left_out)
         nc, ng = int(sensor["nc"]), int(sensor["ngamma"])
         if nc * ng > self.limits.max_points:
             raise TooLarge(f"sensor {sid!r} has {nc} x {ng} = {nc * ng} bins; this service answers at most "
@@ -534,6 +518,21 @@ class SimulationHub:
         close = getattr(self._backend, "close", None)
         if close is not None:
             close()
+
+
+def _refuse_for_tally(sid: Any, kind: str, unit: str, budget: Budget, estimator: str, observe: tuple[str, ...],
+                      reference: tuple | None, physics_left_out: tuple[str, ...]) -> None:
+    """Surface and far-field sensors are forward tallies of every `unit` (triangle, bin): refuse (422) what they
+    cannot answer — observables, a target scope other than "worst", the backward estimator."""
+    for field, given in (("observe", observe), ("reference", reference), ("physics_left_out", physics_left_out)):
+        if given:
+            raise Invalid(f"sensor {sid!r} is a {kind} sensor: {field} is not available for it")
+    if budget.target_scope != "worst":
+        raise Invalid(f"sensor {sid!r} is a {kind} sensor: its target holds every {unit} (target_scope "
+                      f"'worst'); give it a photon or time budget instead")
+    if estimator == "backward":
+        raise Invalid(f"sensor {sid!r} is a {kind} sensor: the backward estimator cannot answer it; use "
+                      f"'forward' or 'auto'")
 
 
 @contextlib.contextmanager
