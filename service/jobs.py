@@ -28,6 +28,8 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any
 
+from service.errors import ServiceError
+
 ProgressFn = Callable[[int, float, float], None]
 CancelFn = Callable[[], bool]
 WorkFn = Callable[[ProgressFn, CancelFn], dict[str, Any]]
@@ -47,16 +49,22 @@ class JobStatus(StrEnum):
         return self in (JobStatus.SUCCEEDED, JobStatus.FAILED, JobStatus.CANCELLED)
 
 
-class JobError(Exception):
-    """Root of the job runner's errors."""
+class JobError(ServiceError):
+    """Root of the job runner's errors (under the service's one root, `ServiceError`)."""
 
 
 class JobNotFound(JobError, LookupError):
     """No job with that id (never existed, or forgotten after ``keep_finished`` newer jobs ended)."""
 
+    status = 404
+    title = "Not found"
+
 
 class QueueFull(JobError, RuntimeError):
     """The queue already holds ``max_queued`` jobs waiting for a worker."""
+
+    status = 503
+    title = "Service unavailable"
 
 
 @dataclass(frozen=True)

@@ -23,6 +23,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import Normalize, TwoSlopeNorm
 from matplotlib.figure import Figure
 
+from service.errors import ServiceError
+
 # A change counts as significant where |ΔE| exceeds this many combined standard errors
 # (2σ: about 5 % of unchanged cells of a large grid are flagged by chance, which is why the
 # summary reports the count rather than listing each cell).
@@ -33,8 +35,11 @@ SIGNIFICANCE_SIGMAS = 2.0
 _MAX_DOTTED_CELLS = 60 * 60
 
 
-class MapError(ValueError):
-    """The arrays or the sensor frame handed to a map are inconsistent (a programming error upstream)."""
+class MapError(ServiceError):
+    """The arrays or the sensor frame handed to a map are inconsistent (a programming error upstream, hence 500)."""
+
+    status = 500
+    title = "Map cannot be drawn"
 
 
 @dataclass(frozen=True)

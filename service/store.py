@@ -28,11 +28,12 @@ IdentityChanges = tuple[dict[str, IdentityIn], list[str], bool]
 TABLES = {"light": (db.lights, "lights"), "sensor": (db.sensors, "sensors"), "object": (db.sim_objects, "objects")}
 
 
-class Raced(Exception):
-    """Another service process changed the scene between this process's check and its write."""
+class Raced(Conflict):
+    """Another service process changed the scene between this process's check and its write (caught inside the
+    service, which reloads and retries; a 409 if it ever got out)."""
 
     def __init__(self, scene_id: str) -> None:
-        super().__init__(scene_id)
+        super().__init__(f"scene {scene_id} was changed by another service process meanwhile; retry")
         self.scene_id = scene_id
 
 

@@ -28,6 +28,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from service.errors import Invalid
 from service.paths import occurrence_paths
 from service.schemas import LENGTH_UNITS
 
@@ -41,12 +42,12 @@ AFFINE_TOLERANCE = 1e-9
 MAX_WORLD_M = 1e9
 
 
-class TreeError(ValueError):
-    """A pushed tree is invalid; ``problems`` names each offending node (uuid and what is wrong)."""
+class TreeError(Invalid):
+    """A pushed tree is invalid (422); ``problems`` names each offending node (uuid and what is wrong)."""
 
     def __init__(self, message: str, problems: list[dict[str, Any]] | None = None) -> None:
-        super().__init__(message)
         self.problems = problems or []
+        super().__init__(message, problems=self.problems[:100])
 
 
 def _compose(parent: np.ndarray, local: np.ndarray) -> np.ndarray:

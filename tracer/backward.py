@@ -30,8 +30,8 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
+from tracer.jit import njit
 from tracer.optics.frames import onb, sample_cosine
 from tracer.optics.lights import light_connect, pick_light
 from tracer.optics.surfaces.dispatch import albedo

@@ -32,7 +32,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+
+from tracer.jit import njit, prange
 
 #: Bumped whenever the build or the layout changes: cache files of another version are rebuilt.
 BUILDER_VERSION = "lumenlink-blas-3"

@@ -25,10 +25,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
 
 from tracer import rows8
 from tracer.blas import _up32
+from tracer.jit import njit, prange
 from tracer.kinds import dispatch, mesh
 from tracer.kinds.mesh import MISS, STACK_BASE, pop_nearer, prefetch, prefetch_ref, push3, ray_inverse, slab4_sorted
 from tracer.traverse import STACK_LEN, TOP8_BASE, TOP8_DIST, _closest, _to_object, new_stacks, public_hit

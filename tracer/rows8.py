@@ -25,11 +25,12 @@ from __future__ import annotations
 
 import numpy as np
 from llvmlite import ir
-from numba import njit, types
+from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
 from tracer.blas import STACK_SIZE, _area, _down32, _up32, aligned_rows
+from tracer.jit import njit
 
 WIDTH = 8
 #: float32 values per row (48 planes, 8 references, 8 unused): four cache lines

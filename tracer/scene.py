@@ -29,6 +29,7 @@ from tracer import cache as blas_cache
 from tracer.blas import aligned_rows, build_meshes, collapse, gather_triangles, leaf_order_f32, pack_wide, refit
 from tracer.errors import NotCommittedError, TracerError, UnknownIdError
 from tracer.geometry_id import canonical_arrays, hash_canonical
+from tracer.jit import njit
 from tracer.kinds import SENSOR_KINDS, disk_sensor, mesh, rect_sensor
 from tracer.lanes import batch
 from tracer.tlas import TopLevel, build_top, instance_records, refit_top, world_boxes
@@ -114,7 +115,7 @@ def _empty_store() -> dict[str, np.ndarray]:
     }
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _affine_inverse(m, ofw):
     """Check and invert the 4x4 affine ``m`` into ``ofw`` (3, 4) (compiled: the same arithmetic in
     Python floats cost ~17 µs per instance, which dominated adding 20,000 instances).
@@ -693,7 +694,7 @@ def _check_rays(origins: Any, directions: Any, t_max: Any) -> tuple[np.ndarray, 
     return o, d, tm
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _first_bad_ray(o, d, tm):
     """``(i, what)`` of the first bad ray (what: 1 origin not finite, 2 direction not finite, 3 zero
     direction, 4 t_max NaN or negative), ``(-1, 0)`` when all are good: one pass, where the numpy

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from tracer.jit import njit
 
 REL_OFFSET = 2.0 ** -32
 ABS_OFFSET = 2.0 ** -36

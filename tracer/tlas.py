@@ -20,10 +20,10 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from tracer import rows8
 from tracer.blas import _down32, _up32, aligned_rows, build_bvh_range, collapse, pack_rows
+from tracer.jit import njit
 
 #: an instance visit (transform + BLAS root) costs about this many node visits (SAH)
 INSTANCE_COST = 2.0

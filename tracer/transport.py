@@ -40,9 +40,9 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from tracer.effects import PHOTON_STATES
+from tracer.jit import njit
 from tracer.optics.lights import pick_light, sample_emission
 from tracer.optics.lights.dispatch import emit_wavelength
 from tracer.optics.media.dispatch import medium_coefficients, medium_event

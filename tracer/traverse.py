@@ -26,10 +26,10 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from tracer import rows8
 from tracer.blas import STACK_SIZE, _up32
+from tracer.jit import njit
 from tracer.kinds import dispatch, mesh
 from tracer.kinds.mesh import MISS, pop_nearer, prefetch, ray_inverse, slab
 
@@ -83,6 +83,22 @@ class SceneArrays(NamedTuple):
     sen_f: np.ndarray
     sen_i: np.ndarray
     sen_items: np.ndarray
+
+
+#: dtype and dimensions of each :class:`SceneArrays` field, as :class:`tracer.Scene` packs them
+#: (tests/tracer/test_warmup.py compares them with a committed scene's)
+SCENE_ARRAY_TYPES = {"bvh_f": ("f4", 1), "bvh_i": ("i4", 1), "tri_v": ("f4", 1), "tri_prim": ("i4", 1),
+                     "prim_slot": ("i4", 1), "tri_n": ("f4", 2), "geom_node0": ("i8", 1), "geom_tri0": ("i8", 1),
+                     "geom_ntri": ("i8", 1), "geom_has_normals": ("?", 1), "inst_kind": ("i4", 1),
+                     "inst_geom": ("i4", 1), "world_from_object": ("f8", 3), "object_from_world": ("f8", 3),
+                     "top_f": ("f4", 1), "top_i": ("i4", 1), "top_items": ("i4", 1), "top_rec": ("i8", 1),
+                     "sen_f": ("f4", 1), "sen_i": ("i4", 1), "sen_items": ("i4", 1)}
+
+
+def empty_scene_arrays() -> SceneArrays:
+    """A :class:`SceneArrays` of empty arrays of the right types: what compiling a kernel by its signature needs
+    (`tracer.warmup`), without committing a scene (which compiles the builders)."""
+    return SceneArrays(**{name: np.empty((0,) * ndim, dtype) for name, (dtype, ndim) in SCENE_ARRAY_TYPES.items()})
 
 
 @njit(cache=True, error_model="numpy", inline="always")

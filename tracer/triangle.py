@@ -13,7 +13,7 @@ triangles give ``det == 0`` and never hit; no division by zero happens before th
 
 from __future__ import annotations
 
-from numba import njit
+from tracer.jit import njit
 
 
 @njit(cache=True, error_model="numpy", inline="always")

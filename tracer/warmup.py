@@ -1,23 +1,31 @@
-"""Compile the kernels of a first query in another process, before the query arrives.
+"""Compile the kernels of a first query in other processes, before the query arrives.
 
 numba compiles a kernel on its first call and keeps it in its on-disk cache. On a fresh install that first
-call is the user's first query, which then waits for the compiler: about a minute on 2 cores, and numba
-compiles one function at a time per process (its compiler lock), so a thread of the service's own process
-would only queue behind the user's push. `start_background()` runs `compile_query_kernels` in a child
-process instead, on the second core, while the service compiles what the user's first push needs (bottom
-and top level builders); the query then loads the kernels from the cache. The child compiles in stages,
-each reported on its standard output as it ends:
+call is the user's first query, which then waits for the compiler: about 40 s on 2 cores for the walk and the
+forward kernel, and numba compiles one function at a time per process (its compiler lock), so a thread of the
+service's own process would only queue behind the user's push. `start_background()` runs two child processes
+instead, one per core, while the service compiles what the user's first push needs (bottom and top level
+builders); the query then loads the kernels from the cache. Each child compiles its stages in order and
+reports each on its standard output as it ends ("STAGE SECONDS KERNEL ...", the kernels it compiled):
 
-- ``probe``: the walk of one ray, which places a query's receivers (`tracer.traverse.closest_each`);
-- ``forward``: the forward photon kernel (`tracer.transport.forward_kernel`, photon state "white");
+- ``probe``: the walk of one ray, which places a query's receivers (`tracer.traverse.closest_each`; it compiles
+  the walk the forward kernel calls, `tracer.traverse.closest_with_stacks`);
+- ``optics``: every function the forward kernel calls that is a kernel of its own (each surface kind's
+  ``scatter``, each light kind's ``sample``, the media, the receivers' crossings and tallies; `forward_callees`),
+  so that the forward kernel loads them instead of compiling them;
+- ``forward``: the forward photon kernel (`tracer.transport.forward_kernel`);
 - ``backward``: the backward kernel (`tracer.backward.backward_batches`);
 - ``scene``: the builders of a small room scene (what a later first push needs).
 
-It needs no scene to compile the query kernels: a scene holding only receivers has the very same array
-types as any scene (`tests/tracer/test_warmup.py` checks it), so the kernels are called on that. A query
-calls `wait_background(stage)` before a kernel's first use: it waits for that stage of a child in flight,
-so no kernel is compiled twice, and returns at once where there is none (or it failed: then the query
-compiles for itself, as it would have).
+Child 1 compiles probe, optics, forward; child 2 optics, backward, scene (`CHILDREN`). Both compile the optics,
+from opposite ends of the list: each kernel the other child has already compiled is loaded from numba's cache
+instead (numba looks there before it compiles), so the two share that work whatever else keeps either core busy,
+and child 1 starts the forward kernel as soon as both have met. Every stage but ``scene`` compiles by signature
+(`kernel_types`) and runs nothing, so no child compiles the scene builders the service's push compiles anyway
+(`tests/tracer/test_warmup.py` checks that a first query after the children compiles nothing). A query calls
+`wait_background(stage)` before a kernel's first use: it waits for that stage of a child in flight, so no kernel
+is compiled twice, and returns at once where there is none (or its children failed: then the query compiles for
+itself, as it would have).
 """
 
 from __future__ import annotations
@@ -26,10 +34,13 @@ import subprocess
 import sys
 import threading
 import time
+from typing import Any
 
 import numpy as np
 
-STAGES = ("probe", "forward", "backward", "scene")
+#: the stages each child compiles, in order, and whether it compiles the optics from the end of their list
+CHILDREN = ((("probe", "optics", "forward"), True), (("optics", "backward", "scene"), False))
+STAGES = ("probe", "optics", "forward", "backward", "scene")
 
 
 def box(lo, hi):
@@ -53,86 +64,174 @@ def receivers_only():
     return receivers.arrays()
 
 
-def compile_query_kernels(report=print) -> None:
-    """Compile (or load) every kernel of a first query, stage by stage; `report(line)` says "STAGE SECONDS"."""
-    from tracer.backward import backward_batches, disk_queries
+def kernel_types() -> dict[str, Any]:
+    """numba types of what the query kernels take, built without compiling anything: the scene's and the
+    receivers' arrays (`SceneArrays`), materials, lights, a query's sensors and disks, scalars and vectors."""
+    from numba import typeof, types
+
+    from tracer.backward import QueryArrays
     from tracer.optics.lights import pack_lights
     from tracer.optics.surfaces.dispatch import pack_materials
+    from tracer.transport import SensorArrays
+    from tracer.traverse import empty_scene_arrays
+
+    f8v = np.zeros(1)
+    i8v = np.zeros(1, np.int64)
+    return {"sa": typeof(empty_scene_arrays()), "mats": typeof(pack_materials({}, None, [], set())),
+            "lights": typeof(pack_lights([{"type": "point", "position": [0.0, 0.0, 2.0], "intensity_cd": 1.0}])),
+            "sensors": typeof(SensorArrays(i8v, i8v, i8v, i8v, np.zeros((1, 3)), i8v, f8v)),
+            "disks": typeof(QueryArrays(i8v, *[np.zeros((1, 3))] * 4)),
+            "i8": types.int64, "u8": types.uint64, "f8": types.float64, "vi": types.int64[::1],
+            "vf": types.float64[::1], "mf": types.float64[:, ::1]}
+
+
+def forward_callees() -> list[tuple[Any, tuple]]:
+    """``(kernel, signature)`` of every function the forward kernel (`tracer.transport.trace_photons`) calls that
+    numba compiles on its own (not inlined), with the argument types the forward kernel passes: each surface
+    kind's ``scatter`` and each light kind's ``sample`` (from their registrations, so a new kind is included),
+    the media's switch, the receivers' crossings and tallies, the random numbers."""
+    from tracer import rng, spawn, transport, traverse
+    from tracer.optics import frames, polarization, spectra
+    from tracer.optics.lights import dispatch as lights
+    from tracer.optics.media import dispatch as media
+    from tracer.optics.media import homogeneous
+    from tracer.optics.surfaces import dispatch as surfaces
+
+    t = kernel_types()
+    sa, mats, i8, u8, f8, vi, vf, mf = (t[k] for k in ("sa", "mats", "i8", "u8", "f8", "vi", "vf", "mf"))
+    scatter = (sa, mats, i8, i8, *[f8] * 8, vi, i8, u8, i8, f8, vf)
+    sample = (t["lights"], i8, *[f8] * 5)
+    own = [(kind.scatter, scatter) for kind in surfaces.KINDS]
+    own += [(kind.sample, sample) for kind in lights.KINDS]
+    own += [(media.medium_coefficients, (mats, i8, f8)), (media.medium_event, (mats, i8, *[f8] * 6, u8, i8, vf)),
+            (homogeneous.sample_free_flight, (f8, f8)), (homogeneous.transmittance, (f8, f8)),
+            (spectra.sample_grid, (vf, vf, f8)), (spectra.luminous, (f8,)), (frames.find_in_cdf, (vf, i8, i8, f8)),
+            (polarization.emit, (vf, mf, i8, f8, f8, f8)),
+            (traverse.sensor_crossings_with_stack, (sa, *[f8] * 7, vi, vf, vf, vf, vf, vi)),
+            (transport.record_far, (vf, vf, f8, f8, f8, f8)), (transport.record_spectrum, (vf, i8, i8, f8, f8)),
+            (transport.record_stokes, (vf, i8, i8, f8, vf, f8, f8, f8, mf, i8)),
+            (rng.path_key, (i8, i8, i8)), (rng.uniform, (u8, i8)), (spawn.offset_ray_origin, tuple([f8] * 9))]
+    return [(kernel, sig) for kernel, sig in own if not kernel.targetoptions.get("inline") == "always"]
+
+
+def compile_stage(stage: str, reverse: bool = False) -> None:
+    """Compile (or load) the kernels of one stage (`STAGES`): by signature, without running them, but for the
+    builders of ``scene``, which run on a small room; `reverse`: the optics from the end of their list."""
+    from tracer.backward import backward_batches
     from tracer.scene import Scene
-    from tracer.transport import SensorArrays, forward_kernel
+    from tracer.transport import forward_kernel
     from tracer.traverse import closest_each
 
-    t = time.perf_counter()
-    ra = receivers_only()
-    o, d = np.array([[0.0, 0.0, 2.0]]), np.array([[0.0, 0.0, -1.0]])
-    closest_each(ra, o, d, np.full(1, np.inf), np.empty(1), np.empty(1, np.int64), np.empty((1, 3)))
-    report(f"probe {time.perf_counter() - t:.3f}")
-    t = time.perf_counter()
-    mats = pack_materials({}, None, [], set())
-    lights = pack_lights([{"type": "point", "position": [0.0, 0.0, 2.0], "intensity_cd": 1.0}])
-    sens = SensorArrays(np.array([0, 1], np.int64), np.array([1, 4], np.int64), np.array([1, 4], np.int64),
-                        np.zeros(2, np.int64), np.zeros((2, 3)))
-    forward_kernel("white")(ra, ra, mats, lights, sens, 17, 0, 0, 1, 1)
-    report(f"forward {time.perf_counter() - t:.3f}")
-    t = time.perf_counter()
-    backward_batches(ra, mats, lights, disk_queries(o, -d, 0.1), 0, 0, 1, 1)
-    report(f"backward {time.perf_counter() - t:.3f}")
-    t = time.perf_counter()
-    scene = Scene()
-    for lo, hi in (((0, 0, 0), (4, 4, 3)), ((1, 1, 0.5), (2, 2, 1))):
-        scene.add_instance(scene.add_geometry(*box(lo, hi)), np.eye(4))
-    scene.commit()
-    report(f"scene {time.perf_counter() - t:.3f}")
+    if stage == "scene":
+        scene = Scene()
+        for lo, hi in (((0, 0, 0), (4, 4, 3)), ((1, 1, 0.5), (2, 2, 1))):
+            scene.add_instance(scene.add_geometry(*box(lo, hi)), np.eye(4))
+        scene.commit()
+        return
+    if stage == "optics":
+        callees = forward_callees()
+        for kernel, signature in reversed(callees) if reverse else callees:
+            kernel.compile(signature)
+        return
+    t = kernel_types()
+    sa, mats, lights, i8, vf, vi, mf = (t[k] for k in ("sa", "mats", "lights", "i8", "vf", "vi", "mf"))
+    if stage == "probe":
+        closest_each.compile((sa, mf, mf, vf, vf, vi, mf))
+    elif stage == "forward":
+        forward_kernel("white").compile((sa, sa, mats, lights, t["sensors"], i8, i8, i8, i8, i8))
+    elif stage == "backward":
+        backward_batches.compile((sa, mats, lights, t["disks"], i8, i8, i8, i8))
+    else:
+        raise ValueError(f"no warm-up stage {stage!r}; the stages are {', '.join(STAGES)}")
+
+
+def compile_query_kernels(report=print, stages=STAGES, reverse: bool = False) -> None:
+    """Compile (or load) the kernels of `stages` in order; `report(line)` says "STAGE SECONDS KERNEL ..." after
+    each: the kernels it compiled (not those it loaded), by module and name."""
+    from numba.core import event
+
+    compiled: list[str] = []
+
+    class Compiles(event.Listener):
+        def on_start(self, ev):
+            f = ev.data["dispatcher"].py_func
+            compiled.append(f"{f.__module__}.{f.__qualname__}")
+
+        def on_end(self, ev):
+            pass
+
+    with event.install_listener("numba:compile", Compiles()):
+        for stage in stages:
+            t = time.perf_counter()
+            compiled.clear()
+            compile_stage(stage, reverse)
+            report(" ".join([stage, f"{time.perf_counter() - t:.3f}", *dict.fromkeys(compiled)]))
 
 
 class Background:
-    """A child process compiling the query kernels; `wait(stage)` until it has done that stage (or ended)."""
+    """The child processes compiling the query kernels (`CHILDREN`); `wait(stage)` until that stage is compiled (or
+    every child that compiles it has ended)."""
 
     def __init__(self) -> None:
         self.seconds: dict[str, float] = {}
+        #: the kernels each stage compiled (in either child)
+        self.compiled: dict[str, list[str]] = {}
         self._events = {stage: threading.Event() for stage in STAGES}
-        self._proc = subprocess.Popen([sys.executable, "-m", "tracer.warmup"], stdout=subprocess.PIPE,
-                                      stderr=subprocess.DEVNULL, text=True)
-        threading.Thread(target=self._read, name="lumenlink-warmup", daemon=True).start()
+        self._left = {stage: sum(stage in stages for stages, _ in CHILDREN) for stage in STAGES}
+        self._lock = threading.Lock()
+        self._procs: list[subprocess.Popen] = []
+        for stages, reverse in CHILDREN:
+            proc = subprocess.Popen([sys.executable, "-m", "tracer.warmup", *(["--reverse"] if reverse else []),
+                                     *stages], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+            self._procs.append(proc)
+            threading.Thread(target=self._read, args=(proc, stages), name="lumenlink-warmup", daemon=True).start()
 
-    def _read(self) -> None:
-        assert self._proc.stdout is not None
-        for line in self._proc.stdout:
-            stage, _, seconds = line.strip().partition(" ")
-            if stage in self._events:
-                self.seconds[stage] = float(seconds)
+    def _read(self, proc: subprocess.Popen, stages: tuple[str, ...]) -> None:
+        assert proc.stdout is not None
+        done = set()
+        for line in proc.stdout:
+            stage, seconds, *compiled = line.split() or [""]
+            if stage in stages:
+                done.add(stage)
+                self.seconds.setdefault(stage, float(seconds))
+                self.compiled.setdefault(stage, []).extend(compiled)
                 self._events[stage].set()
-        self._proc.wait()
-        for event in self._events.values():   # ended (or failed): nobody waits any longer
-            event.set()
+        proc.wait()
+        with self._lock:
+            for stage in set(stages) - done:   # this child ended without it: no use waiting for it any longer
+                self._left[stage] -= 1         # unless the other child may still do it
+                if self._left[stage] == 0:
+                    self._events[stage].set()
 
     def wait(self, stage: str, timeout: float | None = None) -> bool:
-        """Wait until `stage` is compiled or the child has ended; False on timeout."""
+        """Wait until `stage` is compiled or every child compiling it has ended; False on timeout."""
         return self._events[stage].wait(timeout)
 
     def status(self) -> dict:
         """{"state": "warming" | "ready" | "failed", "seconds": {stage: s}} for `GET /health`."""
-        code = self._proc.poll()
-        if code is None:
+        codes = [proc.poll() for proc in self._procs]
+        if None in codes:
             state = "warming"
         else:
-            state = "ready" if code == 0 and len(self.seconds) == len(STAGES) else "failed"
+            state = "ready" if not any(codes) and len(self.seconds) == len(STAGES) else "failed"
         return {"state": state, "seconds": dict(self.seconds)}
 
     def join(self, timeout: float | None = None) -> int:
-        """Wait for the child to end; its exit status."""
-        return self._proc.wait(timeout)
+        """Wait for the children to end; the first non-zero exit status, or 0."""
+        codes = [proc.wait(timeout) for proc in self._procs]
+        return next((code for code in codes if code), 0)
 
     def stop(self) -> None:
-        if self._proc.poll() is None:
-            self._proc.kill()
+        for proc in self._procs:
+            if proc.poll() is None:
+                proc.kill()
 
 
 _BACKGROUND: Background | None = None
 
 
 def start_background() -> Background:
-    """Start compiling the query kernels in a child process (once per process); returns its handle."""
+    """Start compiling the query kernels in child processes (once per process); returns their handle."""
     global _BACKGROUND
     if _BACKGROUND is None:
         _BACKGROUND = Background()
@@ -145,5 +244,13 @@ def wait_background(stage: str, timeout: float = 600.0) -> None:
         _BACKGROUND.wait(stage, timeout)
 
 
+def main(args: list[str]) -> None:
+    """A child: ``python -m tracer.warmup [--reverse] [STAGE ...]`` compiles the stages named (all of `STAGES` where
+    none is), the optics from the end of their list with ``--reverse``."""
+    reverse = "--reverse" in args
+    stages = tuple(a for a in args if a != "--reverse") or STAGES
+    compile_query_kernels(report=lambda line: print(line, flush=True), stages=stages, reverse=reverse)
+
+
 if __name__ == "__main__":
-    compile_query_kernels(report=lambda line: print(line, flush=True))
+    main(sys.argv[1:])

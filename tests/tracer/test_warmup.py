@@ -2,24 +2,72 @@
 
 from __future__ import annotations
 
+import json
+import subprocess
+import sys
+from pathlib import Path
+
 import numba
 import numpy as np
 
 from tracer import warmup
 from tracer.scene import Scene
+from tracer.traverse import empty_scene_arrays
+
+ROOT = Path(__file__).resolve().parents[2]
+
+FIRST_QUERY = """
+import json
+import numpy as np
+from numba.core import event
+compiled = []
+
+class Compiles(event.Listener):
+    def on_start(self, e):
+        f = e.data["dispatcher"].py_func
+        compiled.append(f.__module__ + "." + f.__qualname__)
+
+    def on_end(self, e):
+        pass
+
+from tracer.scene import Scene
+from tracer.simulate import Simulation
+from tracer.warmup import box
+
+scene = Scene()
+room = scene.add_instance(scene.add_geometry(*box((0, 0, 0), (4, 4, 3))), np.eye(4))
+mirror = scene.add_instance(scene.add_geometry(*box((3.9, 1, 0.5), (3.95, 3, 2.5))), np.eye(4))
+glass = scene.add_instance(scene.add_geometry(*box((1, 1, 0.5), (2, 2, 1))), np.eye(4))
+scene.commit()
+event.register("numba:compile", Compiles())   # the push is the service's to compile: from the query on
+materials = {room: {"type": "lambertian", "reflectance": 0.5}, mirror: {"type": "mirror", "reflectance": 0.9},
+             glass: {"type": "dielectric", "ior": 1.5}}
+sim = Simulation(scene, materials, [{"type": "point", "position": [2, 2, 2.5], "intensity_cd": 1000.0}])
+pts, nrm = np.array([[2.5, 2.5, 0.0], [3.0, 1.5, 0.0]]), np.array([[0, 0, 1.0], [0, 0, 1.0]])
+forward = sim.illuminance(pts, nrm, max_photons=20_000, estimator="forward")
+print(json.dumps({"compiled": sorted(set(c for c in compiled if c.startswith("tracer."))),
+                  "lux": forward.lux.tolist()}))
+"""
 
 
 def test_a_scene_of_receivers_has_the_array_types_of_any_scene():
-    """The child compiles the query kernels on a scene holding only receivers: that compiles the kernels a real
-    scene runs only if every array has the same type (dtype, dimensions, layout)."""
+    """The warm-up compiles the query kernels for the types of empty arrays (and `receivers_only`): that compiles
+    the kernels a real scene runs only if every array has the same type (dtype, dimensions, layout)."""
     scene = Scene()
     scene.add_instance(scene.add_geometry(*warmup.box((0, 0, 0), (1, 2, 3))), np.eye(4))
     scene.add_instance(scene.add_geometry(*warmup.box((2, 0, 0), (3, 1, 1))), np.eye(4))
     scene.commit()
     assert numba.typeof(warmup.receivers_only()) == numba.typeof(scene.arrays())
+    assert numba.typeof(empty_scene_arrays()) == numba.typeof(scene.arrays())
 
 
-def test_background_child_reports_every_stage_and_waiting_returns():
+def test_after_the_children_a_first_query_compiles_nothing(tmp_path, monkeypatch):
+    """From an empty numba cache: the two children report every stage and end well, and the forward stage, after
+    the probe and the optics, compiles the forward kernel alone: the optics stage compiled the very signatures the
+    forward kernel calls (a kernel of its left out of `forward_callees`, or a type that differs, would be compiled
+    there again). Then a first forward query in a new process (a Lambertian room, a mirror, a glass block, a point
+    light) loads every kernel it runs and compiles none."""
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
     child = warmup.Background()
     try:
         for stage in warmup.STAGES:
@@ -29,5 +77,13 @@ def test_background_child_reports_every_stage_and_waiting_returns():
         assert status["state"] == "ready", status
         assert set(status["seconds"]) == set(warmup.STAGES)
         assert all(s >= 0 for s in status["seconds"].values())
+        forward = [k for k in child.compiled["forward"] if k.startswith("tracer.")]
+        assert forward == ["tracer.transport.forward_batches", "tracer.transport.trace_photons"], forward
+        assert "tracer.optics.surfaces.mirror.scatter" in child.compiled["optics"]
     finally:
         child.stop()
+    r = subprocess.run([sys.executable, "-c", FIRST_QUERY], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    out = json.loads(r.stdout.strip().splitlines()[-1])
+    assert out["compiled"] == [], out["compiled"]
+    assert all(lux > 0 for lux in out["lux"])

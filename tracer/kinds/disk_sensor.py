@@ -10,7 +10,8 @@ Crossing result ``(u, v)``: the object-space point, in the unit disk.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from tracer.jit import njit
 
 KIND = 1
 SENSOR = True

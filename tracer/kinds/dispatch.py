@@ -7,8 +7,7 @@ Rays arrive in object space; results are object-space.
 
 from __future__ import annotations
 
-from numba import njit
-
+from tracer.jit import njit
 from tracer.kinds import disk_sensor, mesh, rect_sensor
 
 

@@ -10,11 +10,12 @@ import math
 
 import numpy as np
 from llvmlite import ir
-from numba import njit, types
+from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
 from tracer import rows8
+from tracer.jit import njit
 from tracer.triangle import intersect_triangle, ray_setup
 
 KIND = 0

@@ -8,7 +8,8 @@ along the sensor's ``u`` and ``v`` edges).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from tracer.jit import njit
 
 KIND = 2
 SENSOR = True

@@ -22,8 +22,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from numba import njit
-
+from tracer.jit import njit
 from tracer.optics.surfaces.base import MaterialError
 from tracer.optics.thinfilm import stack_reflectance
 

@@ -68,8 +68,8 @@ from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
+from tracer.jit import njit
 from tracer.optics.frames import find_in_cdf
 from tracer.optics.spectra import GRID_N, GRID_NM, LAMBDA_MAX, LAMBDA_MIN
 from tracer.optics.surfaces.base import MaterialError

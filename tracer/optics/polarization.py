@@ -32,9 +32,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from tracer.errors import TracerError
+from tracer.jit import njit
 from tracer.optics.frames import onb
 
 S1, S2, S3, E, ON = 0, 1, 2, 3, 6   # columns of a photon's ``pol`` array (E: 3 columns)

@@ -32,9 +32,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from numba import njit
 
 from tracer.errors import TracerError
+from tracer.jit import njit
 from tracer.optics.frames import find_in_cdf
 
 LAMBDA_MIN = 360.0       # nm: first grid sample

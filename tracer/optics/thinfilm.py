@@ -28,7 +28,7 @@ from __future__ import annotations
 import cmath
 import math
 
-from numba import njit
+from tracer.jit import njit
 
 _MAX_DECAY = 35.0   # cap on |Im δ| per layer (amplitude e^-35), as in tmm
 _SMALL_PHASE = 1e-4  # below this |δ|, cos δ and sin δ / δ by their series (error < δ⁴/24)

@@ -13,8 +13,7 @@ An element with an axis in its sheet (a polarizer's, a retarder's fast axis) tak
 
 from __future__ import annotations
 
-from numba import njit
-
+from tracer.jit import njit
 from tracer.optics.polarization import unit_axis
 from tracer.optics.surfaces.base import MaterialError
 

@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numba import njit
 
+from tracer.jit import njit
 from tracer.optics.frames import sample_cosine
 from tracer.optics.polarization import depolarize
 from tracer.optics.spectra import grid_or_value, scalar, varies

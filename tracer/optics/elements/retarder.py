@@ -21,8 +21,8 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
+from tracer.jit import njit
 from tracer.optics.elements.base import parse_axis, sheet_axis
 from tracer.optics.polarization import ON, across, apply_interface, rotate_into
 from tracer.optics.surfaces.base import ABSORBED, CONTINUES, bounds

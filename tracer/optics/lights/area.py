@@ -21,8 +21,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from tracer.jit import njit
 from tracer.optics.frames import find_in_cdf, sample_cosine
 from tracer.optics.lights.base import P_FLUX, P_I0, SHADOW_SHORTEN, LightError, Packing, _num, check_fields
 

@@ -41,9 +41,9 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from tracer.errors import TracerError
+from tracer.jit import njit
 from tracer.optics.frames import find_in_cdf
 
 N_LPAR = 20

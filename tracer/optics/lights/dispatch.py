@@ -9,8 +9,8 @@ tuple (see `tracer.optics.surfaces.dispatch`).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from tracer.jit import njit
 from tracer.optics import spectra
 from tracer.optics.lights import area, collimated, goniometric, point, spot
 from tracer.optics.lights.base import P_FLUX, LightArrays, LightError, Packing

@@ -27,8 +27,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from tracer.jit import njit
 from tracer.optics.frames import find_in_cdf
 from tracer.optics.lights.base import (
     P_AXIS,

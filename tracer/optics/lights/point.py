@@ -17,8 +17,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from tracer.jit import njit
 from tracer.optics.lights.base import (
     P_FLUX,
     P_I0,

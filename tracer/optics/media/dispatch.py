@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-from numba import njit
-
+from tracer.jit import njit
 from tracer.optics.media import homogeneous
 
 KINDS = (homogeneous,)

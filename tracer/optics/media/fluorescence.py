@@ -28,8 +28,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numba import njit
 
+from tracer.jit import njit
 from tracer.optics import spectra
 from tracer.optics.surfaces.base import MaterialError
 

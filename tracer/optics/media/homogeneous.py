@@ -17,8 +17,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
+from tracer.jit import njit
 from tracer.optics.frames import onb
 from tracer.optics.media.fluorescence import SIGMA_F, reemit
 from tracer.optics.mie import mie_ratios, mie_sample_mu

@@ -51,9 +51,9 @@ from collections.abc import Mapping
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from tracer.errors import TracerError
+from tracer.jit import njit
 from tracer.optics import spectra
 from tracer.traverse import shading_normal
 

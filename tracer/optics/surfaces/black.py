@@ -12,8 +12,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from tracer.jit import njit
 from tracer.optics.surfaces.base import ABSORBED, N_PAR
 
 NAME = "black"

@@ -34,8 +34,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numba import njit
 
+from tracer.jit import njit
 from tracer.optics.coating import Coating, coated_reflectance, parse_coating
 from tracer.optics.media.dispatch import HOMOGENEOUS
 from tracer.optics.media.fluorescence import EMISSION_NM, QY, SIGMA_F, Fluorescence, parse_fluorescence

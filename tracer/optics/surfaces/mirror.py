@@ -26,8 +26,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numba import njit
 
+from tracer.jit import njit
 from tracer.optics.coating import Coating, parse_coating
 from tracer.optics.polarization import ON, enter_plane, interface_power, leave_plane
 from tracer.optics.spectra import WHITE_NM, scalar, varies

@@ -15,8 +15,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
+from tracer.jit import njit
 from tracer.optics.frames import sample_cosine
 from tracer.optics.polarization import ON, depolarize, enter_plane, leave_plane
 from tracer.optics.surfaces.base import ABSORBED, CONTINUES, arrival_normal, bounds, reflect_specular
