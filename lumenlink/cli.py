@@ -48,8 +48,9 @@ def serve(
                                                 "this address (tcp://host:8786); the answers are the same.")] = None,
     device: Annotated[str, typer.Option(
         envvar="LUMENLINK_DEVICE", help="auto, cpu or cuda: auto takes a CUDA GPU where numba-cuda finds one, "
-                                        "cuda without one stops here (exit 2). Photon batches still run on the CPU "
-                                        "until the CUDA photon kernel lands; answers say where (`device`).")] = "auto",
+                                        "cuda without one stops here (exit 2). On CUDA the photon batches run on "
+                                        "the card (a scene that does not fit: on the CPU, saying why); answers say "
+                                        "where (`device`).")] = "auto",
 ) -> None:
     """Start the REST service (uvicorn)."""
     _call("service.server", "run", 5, host=host, port=port, data_dir=data_dir, warm=warm, token=token, dask=dask,

@@ -56,8 +56,9 @@ class Settings(BaseSettings):
                                                           "start (`tracer.warmup`; `lumenlink serve` turns it on).")
     device: Literal["auto", "cpu", "cuda"] = Field(default="auto", description=(
         "Where to compute (`tracer.gpu.device`): auto takes CUDA where numba-cuda finds a GPU, else the CPU (the "
-        "reason logged once); cuda without a GPU stops `lumenlink serve` at start. Photon batches still run on the "
-        "CPU until the CUDA photon kernel lands; every answer's `device` says where they ran."))
+        "reason logged once); cuda without a GPU stops `lumenlink serve` at start. On CUDA the photon batches run "
+        "on the card (without a Dask cluster); a scene that does not fit there is answered on the CPU, saying why; "
+        "every answer's `device` says where they ran."))
 
     @model_validator(mode="after")
     def _uploads_fit(self) -> Settings:

@@ -33,6 +33,7 @@ import asyncio
 import contextlib
 import hashlib
 import json
+import logging
 import math
 import threading
 import time
@@ -48,6 +49,7 @@ from service.jobs import Budget, JobRunner
 from service.live import DELETED, LiveRegistry, LiveScene
 from service.optics import to_spec
 
+log = logging.getLogger(__name__)
 #: Async jobs: worker threads and how many may wait.
 JOB_WORKERS = 1
 MAX_QUEUED_JOBS = 16
@@ -203,6 +205,24 @@ def _device(backend: dict | None) -> str | None:
     return device_of(backend)
 
 
+def _device_backend(device: str) -> Any:
+    """`tracer.gpu.backend.CudaBackend` where `device` (auto, cpu, cuda) resolves to CUDA
+    (`tracer.gpu.device.choose`), else None (the CPU; why is logged once by `choose`, or here)."""
+    if device == "cpu":
+        return None
+    from tracer.gpu.device import DeviceUnavailable, choose
+
+    try:
+        if choose(device).kind != "cuda":
+            return None
+        from tracer.gpu.backend import CudaBackend
+
+        return CudaBackend()
+    except (DeviceUnavailable, ImportError) as exc:   # the card went away after `serve` checked it
+        log.warning("device %s: computing on the CPU, because %s", device, exc)
+        return None
+
+
 def _spectral_payload(result: Any) -> dict[str, Any]:
     """The observed spectrum of a result, if any: bands, W/m²/nm ± error, and chromaticity (null where dark)."""
     if getattr(result, "spectral_irradiance", None) is None:
@@ -243,14 +263,19 @@ class SimulationHub:
     dask_scheduler, dask_timeout : optional
         Run the batches on the Dask cluster at this address (`tracer.backends.DaskBackend`); default in this
         process. An unreachable cluster answers 503, never hangs.
+    device : "auto", "cpu" or "cuda", optional
+        Without a Dask cluster: where `tracer.gpu.device.choose` finds CUDA, the batches run on the card
+        (`tracer.gpu.backend.CudaBackend`; a scene that does not fit there is answered on the CPU, its answer's
+        `backend.fallback` saying why); else in this process.
     """
 
     def __init__(self, live: LiveRegistry, limits: Limits,
                  build: Callable[[LiveScene], Any] | None = None,
                  scene_lock: Callable[[str], Any] | None = None, dask_scheduler: str | None = None,
-                 dask_timeout: float = 10.0) -> None:
+                 dask_timeout: float = 10.0, device: str = "cpu") -> None:
         self.live = live
         self.dask_scheduler, self.dask_timeout = dask_scheduler, dask_timeout
+        self.device = device
         self._backend: Any = None
         self._scene_lock = scene_lock or (lambda scene_id: contextlib.nullcontext())
         self.limits = limits
@@ -293,15 +318,18 @@ class SimulationHub:
     # -- simulations --------------------------------------------------------------------------
 
     def backend(self) -> Any:
-        """Where batches run (`tracer.backends`), made on first use: this process, or the Dask cluster."""
+        """Where batches run (`tracer.backends`), made on first use: the Dask cluster, the CUDA card, or this
+        process."""
         with self._lock:
             if self._backend is None:
                 load_transport()
                 from tracer.backends import IN_PROCESS, DaskBackend
 
-                self._backend = (IN_PROCESS if not self.dask_scheduler else
-                                 DaskBackend(self.dask_scheduler, connect_timeout=self.dask_timeout,
-                                             stall_timeout=self.dask_timeout))
+                if self.dask_scheduler:
+                    self._backend = DaskBackend(self.dask_scheduler, connect_timeout=self.dask_timeout,
+                                                stall_timeout=self.dask_timeout)
+                else:
+                    self._backend = _device_backend(self.device) or IN_PROCESS
             return self._backend
 
     def _build_default(self, live: LiveScene) -> Any:
@@ -599,7 +627,8 @@ def hub_for(app: Any) -> SimulationHub:
                 settings = Settings()
             live = app.state.live
             hub = SimulationHub(live, Limits.from_settings(settings), scene_lock=live.lock,
-                                dask_scheduler=settings.dask_scheduler, dask_timeout=settings.dask_timeout)
+                                dask_scheduler=settings.dask_scheduler, dask_timeout=settings.dask_timeout,
+                                device=getattr(settings, "device", "cpu"))
             engine = getattr(app.state, "engine", None)
             if engine is not None:
                 from service.results import ResultStore

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import hashlib
 import logging
+import sys
 import threading
 import time
 import uuid
@@ -315,14 +316,25 @@ class _LostData(RuntimeError):
 
 def device_of(described: dict[str, Any] | None) -> str | None:
     """The answer's ``device`` (DESIGN.md "On a GPU") from a backend's `describe()`: where the photon batches
-    ran, ``"cpu:2 threads"``, or ``"cpu:4 threads on 2 dask workers"``. Every photon kernel runs on CPUs today
-    (`tracer.gpu` has the ray queries on CUDA, not yet the photon transport)."""
+    ran, ``"cuda:0 NVIDIA H100 80GB HBM3"`` (`tracer.gpu.backend.CudaBackend`), ``"cpu:2 threads"``, or
+    ``"cpu:4 threads on 2 dask workers"``."""
     if not described:
         return None
+    if described.get("name") == "cuda":
+        return str(described.get("device", "cuda"))
     where = f"cpu:{int(described.get('threads', 0))} threads"
     if described.get("name") == "dask":
         where += f" on {int(described.get('workers', 0))} dask workers"
     return where
+
+
+def is_backend(obj: Any) -> bool:
+    """Whether `obj` is a backend: `InProcess`, `DaskBackend`, or `tracer.gpu.backend.CudaBackend` (looked up only
+    where that module was imported, which a CudaBackend needs: a CPU-only process never imports numba-cuda)."""
+    if isinstance(obj, InProcess | DaskBackend):
+        return True
+    gpu = sys.modules.get("tracer.gpu.backend")
+    return gpu is not None and isinstance(obj, gpu.CudaBackend)
 
 
 def backend_for(address: str | None) -> InProcess | DaskBackend:

@@ -140,15 +140,22 @@ def backward_batches(sa, M, L, Q, seed, batch0, n_batches, paths):
     out = np.zeros((n_batches, k))
     cnt = np.zeros((n_batches, len(COUNTERS)), np.int64)
     for b in range(n_batches):
-        counters = cnt[b]
         stack, tstack = new_stacks()
-        for q in range(k):
-            acc = 0.0
-            for i in range(paths):
-                key = path_key(seed, batch0 + b, q * paths + i)
-                acc += trace_path(sa, M, L, Q, q, key, counters, stack, tstack)
-            out[b, q] = acc / paths
+        backward_batch(sa, M, L, Q, seed, batch0 + b, paths, out[b], cnt[b], stack, tstack)
     return out, cnt
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def backward_batch(sa, M, L, Q, seed, batch, paths, lux, counters, stack, tstack):
+    """Batch `batch`: `paths` paths per query patch; each patch's estimate (lx) into lux (k,), the counters
+    into counters (2,). Allocates nothing (the stacks are the caller's): `backward_batches` runs it batch after
+    batch, `tracer.gpu.transport` one batch per CUDA thread."""
+    for q in range(Q.kind.shape[0]):
+        acc = 0.0
+        for i in range(paths):
+            key = path_key(seed, batch, q * paths + i)
+            acc += trace_path(sa, M, L, Q, q, key, counters, stack, tstack)
+        lux[q] = acc / paths
 
 
 def disk_queries(centers: np.ndarray, normals: np.ndarray, radius: float) -> QueryArrays:

@@ -64,17 +64,20 @@ from the light can stop at 0 early; give it a photon budget.
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
-from tracer.backends import IN_PROCESS, DaskBackend, InProcess, Shipment
+from tracer.backends import IN_PROCESS, InProcess, Shipment, is_backend
 from tracer.backward import QueryArrays, disk_queries
 from tracer.effects import EFFECTS, EffectError, derive_effects, photon_state, with_forced
 from tracer.errors import TracerError
 from tracer.estimate import Estimate, cost_of
+from tracer.gpu.device import DeviceUnavailable
 from tracer.optics import spectra
 from tracer.optics.lights import connectable, pack_lights
 from tracer.optics.lights.dispatch import polarized_lights, spectral_lights
@@ -96,6 +99,7 @@ ESTIMATORS = ("auto", "forward", "backward")
 OBSERVABLES = ("spectrum", "stokes")
 MAX_SPECTRAL_TALLIES = 4_000_000   # bins × spectral columns a query may record per batch
 
+log = logging.getLogger(__name__)
 _COMPILE_SECONDS: dict[tuple, float] = {}   # first call of each compiled variant in this process
 
 
@@ -360,8 +364,10 @@ class Simulation:
         World metres (`tracer.optics.lights`); area lights carry ``"instances"``.
     default_material : material body, optional
         For instances not in `materials`; without it every non-sensor instance needs a material.
-    backend : `tracer.backends.InProcess` or `DaskBackend`, optional
-        Where the batches run; default this process's threads. The answer is the same wherever they run.
+    backend : `tracer.backends.InProcess`, `DaskBackend` or `tracer.gpu.backend.CudaBackend`, optional
+        Where the batches run; default this process's threads. The answer is the same wherever they run (within
+        error bars on a GPU). A query whose scene does not fit on the card runs on this process's threads, and its
+        result's `backend` says why (``"fallback"``).
 
     Raises
     ------
@@ -370,14 +376,14 @@ class Simulation:
     """
 
     def __init__(self, scene, materials: dict[int, dict], lights: list[dict], default_material: dict | None = None,
-                 backend: InProcess | DaskBackend | None = None):
+                 backend: Any = None):
         if scene is None or not hasattr(scene, "arrays"):
             raise SimulationError("scene must be a tracer.Scene")
         if getattr(scene, "dirty", False) is True:
             raise SimulationError("the scene has changes that are not committed: call scene.commit() first")
         if not isinstance(materials, dict):
             raise SimulationError(f"materials must be a dict {{instance id: body}}, got {type(materials).__name__}")
-        if backend is not None and not isinstance(backend, InProcess | DaskBackend):
+        if backend is not None and not is_backend(backend):
             raise SimulationError(f"backend must be a tracer.backends backend, got {type(backend).__name__}")
         self.backend = IN_PROCESS if backend is None else backend
         self._shipments: dict[str, Shipment] = {}   # the snapshot each kernel reads, per photon state
@@ -680,12 +686,13 @@ class Simulation:
         if which == "backward":
             effects = ["lambertian"]
         t0 = time.perf_counter()
+        backend = _QueryBackend(self.backend)
         if which == "forward":
             res = self._forward(is_grid, centers, normals, radius, grid, budget, int(seed), effects, progress,
-                                cancel, t0, observe_spectrum, refs if observe_stokes else None, surface, far)
+                                cancel, t0, observe_spectrum, refs if observe_stokes else None, surface, far, backend)
         else:
             res = self._backward(is_grid, centers, normals, radius, grid, budget, int(seed), effects, progress,
-                                 cancel, t0)
+                                 cancel, t0, backend)
         res.cost = cost_of(res.lux, res.stderr, res.photons, res.seconds - res.compile_seconds)
         if self._curved and surface is None and far is None:
             if is_grid:
@@ -694,7 +701,7 @@ class Simulation:
             else:
                 budget_lux = lux_budget(res.lux, centers, self._curved, radius=radius)
             res.error_budget = {"tessellation": budget_lux}
-        res.backend = self.backend.describe()
+        res.backend = backend.describe()
         return res
 
     def _snapshot(self, state: str) -> Shipment:
@@ -707,17 +714,19 @@ class Simulation:
             self._shipments[state] = Shipment((self._arrays, self._mats, lights))
         return self._shipments[state]
 
-    def _warm(self, kernel_id: tuple, scene: Shipment, query: Shipment) -> float:
+    def _warm(self, kernel_id: tuple, scene: Shipment, query: Shipment, backend: _QueryBackend) -> float:
         """Compile (or load from cache) a kernel where it runs, on a one-photon batch; seconds it took, once per
         process and backend (waiting for a child process that compiles it, `tracer.warmup`, included)."""
-        local = isinstance(self.backend, InProcess)
-        variant = kernel_id if local else (self.backend.name, *kernel_id)
+        local = isinstance(backend.backend, InProcess)
+        variant = kernel_id if local else (backend.backend.name, *kernel_id)
         if variant in _COMPILE_SECONDS:
             return 0.0
         t = time.perf_counter()
         if local:
             wait_background(kernel_id[0])
-        self.backend.run(kernel_id, scene, query, 0, 1, 1)
+        backend.run(kernel_id, scene, query, 0, 1, 1)
+        if backend.fallback is not None:   # it compiled for this process's CPU, not where it was asked
+            variant = kernel_id
         _COMPILE_SECONDS.setdefault(variant, time.perf_counter() - t)
         return _COMPILE_SECONDS[variant]
 
@@ -755,7 +764,8 @@ class Simulation:
                 return est, batches, "max_seconds", counters
 
     def _forward(self, is_grid, centers, normals, radius, grid, budget, seed, effects, progress, cancel, t0,
-                 observe_spectrum, refs, surface=None, far=None):
+                 observe_spectrum, refs, surface=None, far=None, backend=None):
+        backend = backend or _QueryBackend(self.backend)
         receivers = Scene()
         ids: list[int] = []
         if is_grid:
@@ -810,13 +820,13 @@ class Simulation:
         state = photon_state(effects)
         kernel_id = ("forward", state)
         scene, query = self._snapshot(state), Shipment((ra, sens, n_bins, seed))
-        compile_s = self._warm(kernel_id, scene, query)
+        compile_s = self._warm(kernel_id, scene, query, backend)
 
         with np.errstate(divide="ignore"):
             per_area = np.tile(np.where(area > 0, 1.0 / area, 0.0), n_cols)   # a degenerate triangle: 0 ± 0
 
         def run_round(b0, nb):
-            flux, cnt = self.backend.run(kernel_id, scene, query, b0, nb, per_batch)
+            flux, cnt = backend.run(kernel_id, scene, query, b0, nb, per_batch)
             return flux * per_area[None, :], cnt
 
         est, batches, stop, counters = self._loop(run_round, n_bins * n_cols, per_batch, budget, progress, cancel, t0,
@@ -840,7 +850,8 @@ class Simulation:
                 res.dop = np.where(mean[0] > 0, np.sqrt((mean[-3:] ** 2).sum(axis=0)) / mean[0], np.nan)
         return res
 
-    def _backward(self, is_grid, centers, normals, radius, grid, budget, seed, effects, progress, cancel, t0):
+    def _backward(self, is_grid, centers, normals, radius, grid, budget, seed, effects, progress, cancel, t0,
+                  backend):
         if is_grid:
             uu, vv, nu, nv = grid
             k = nu * nv
@@ -857,15 +868,39 @@ class Simulation:
             paths = int(min(BACKWARD_BATCH, max(1, budget.max_photons // (4 * ROUND_BATCHES * k))))
             per_batch = paths * k
         scene, query = self._snapshot("backward"), Shipment((q, seed))
-        compile_s = self._warm(("backward",), scene, query)
+        compile_s = self._warm(("backward",), scene, query, backend)
 
         def run_round(b0, nb):
-            return self.backend.run(("backward",), scene, query, b0, nb, paths)
+            return backend.run(("backward",), scene, query, b0, nb, paths)
 
         est, batches, stop, counters = self._loop(run_round, k, per_batch, budget, progress, cancel, t0)
         cdict = {"rejected": int(counters[0]), "truncated": int(counters[1])}
         return IlluminanceResult(est.mean, est.stderr, batches * per_batch, time.perf_counter() - t0, effects,
                                  "backward", stop, batches, cdict["rejected"], cdict, compile_s)
+
+
+class _QueryBackend:
+    """One query's backend: `backend`, then, once it says the card cannot take the query
+    (`tracer.gpu.device.DeviceUnavailable`: a scene that does not fit), this process's CPU threads for the rest of
+    the query; `describe()` then says so and why (``"fallback"``). The same batches, the same random numbers."""
+
+    def __init__(self, backend: Any) -> None:
+        self.backend = backend
+        self.fallback: str | None = None
+
+    def run(self, kernel_id, scene, query, batch0, n_batches, size):
+        if self.fallback is None:
+            try:
+                return self.backend.run(kernel_id, scene, query, batch0, n_batches, size)
+            except DeviceUnavailable as exc:
+                self.fallback = f"ran on the CPU because {exc}"
+                log.warning("%s", self.fallback)
+        return IN_PROCESS.run(kernel_id, scene, query, batch0, n_batches, size)
+
+    def describe(self) -> dict[str, Any]:
+        if self.fallback is None:
+            return self.backend.describe()
+        return {**IN_PROCESS.describe(), "fallback": self.fallback}
 
 
 def _left_out_names(names) -> tuple[str, ...]:

@@ -128,11 +128,16 @@ class Cost(BaseModel):
 class Backend(BaseModel):
     """Where an answer's photon batches ran (`tracer.backends`); the answer is the same wherever they ran."""
 
-    name: Literal["in-process", "dask"] = Field(description="`in-process`: threads of the service's own process; "
-                                                            "`dask`: tasks on a Dask cluster.")
-    threads: int = Field(description="Threads the batches were spread over (all workers' threads for dask).")
+    name: Literal["in-process", "dask", "cuda"] = Field(description="`in-process`: threads of the service's own "
+                                                                    "process; `dask`: tasks on a Dask cluster; "
+                                                                    "`cuda`: the CUDA card, one thread per batch.")
+    threads: int | None = Field(None, description="Threads the batches were spread over (all workers' threads for "
+                                                  "dask; absent for cuda).")
     address: str | None = Field(None, description="The Dask scheduler's address.")
     workers: int | None = Field(None, description="Dask workers connected when the answer was made.")
+    device: str | None = Field(None, description="cuda: the card, `cuda:0 <name>`.")
+    fallback: str | None = Field(None, description="Where CUDA was chosen but this query ran on the CPU: why "
+                                                   "(`ran on the CPU because` the scene does not fit on the card…).")
 
 
 class ErrorBudget(BaseModel):
@@ -221,9 +226,10 @@ class IlluminancePublic(BaseModel):
         None, description="With observe spectrum: CIE 1931 (x, y) of the light arriving; null where none arrived.")
     cost: Cost | None = Field(None, description="What tighter errors would cost (seconds and photons per target).")
     backend: Backend | None = Field(None, description="Where the photon batches ran.")
-    device: str | None = Field(None, description="The processor the photon batches ran on: `cpu:<threads> threads` "
-                                                 "(… `on <n> dask workers`); `cuda:0 <card>` once the CUDA photon "
-                                                 "kernel lands (today every photon kernel runs on CPUs).")
+    device: str | None = Field(None, description="The processor the photon batches ran on: `cuda:0 <card>`, "
+                                                 "`cpu:<threads> threads` (… `on <n> dask workers`); where CUDA was "
+                                                 "chosen but the scene did not fit, the CPU, and `backend.fallback` "
+                                                 "says why.")
     radius: float | None = Field(None, description="Radius of the disk receivers the values are means over, m "
                                                    "(the query's, else the default 0.05 m).")
     warnings: list[str] | None = Field(None, description="Points or lights far outside the model (more than 100 "
@@ -281,9 +287,10 @@ class SensorPublic(BaseModel):
                                                        "(dimensionless); null where no light arrived.")
     cost: Cost | None = Field(None, description="What tighter errors would cost (seconds and photons per target).")
     backend: Backend | None = Field(None, description="Where the photon batches ran.")
-    device: str | None = Field(None, description="The processor the photon batches ran on: `cpu:<threads> threads` "
-                                                 "(… `on <n> dask workers`); `cuda:0 <card>` once the CUDA photon "
-                                                 "kernel lands (today every photon kernel runs on CPUs).")
+    device: str | None = Field(None, description="The processor the photon batches ran on: `cuda:0 <card>`, "
+                                                 "`cpu:<threads> threads` (… `on <n> dask workers`); where CUDA was "
+                                                 "chosen but the scene did not fit, the CPU, and `backend.fallback` "
+                                                 "says why.")
     error_budget: ErrorBudget | None = Field(None, description="The tessellation's share of the error, lx.")
     physics_left_out: dict[str, PhysicsLeftOut] | None = Field(
         None, description="Where the query asked: per effect, what turning it on would change, lx.")

@@ -1,6 +1,9 @@
 """Compiles the ray kernels of tracer/gpu/traverse.py (closest hit, any hit: the CPU's two-level walk with stacks in
 ``cuda.local.array``) to sm_90 PTX without a GPU, with the test-only driver stubs of gpu_ptx_sweep.py: run by
 tests/tracer/test_gpu_traverse.py in a child; prints one JSON object {kernel: "ok" | error, kernel + "_ptx_bytes": n}.
+With the argument ``batches``: the photon batch kernels of tracer/gpu/transport.py instead (forward, backward: one
+thread per batch), with the argument types a real `Simulation`'s snapshot and query give them
+(tests/tracer/test_gpu_transport.py).
 """
 
 from __future__ import annotations
@@ -14,8 +17,41 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from gpu_ptx_sweep import CC, stub_driver  # noqa: E402
 
 
+def batch_kernels():
+    """(name, kernel function, argument types) of the photon batch kernels, typed from a real simulation."""
+    import numba
+    import numpy as np
+    from transport_scenes import box, scene_of
+
+    from tracer.backward import disk_queries
+    from tracer.gpu.transport import Tallies, backward_threads, forward_threads
+    from tracer.simulate import Simulation
+    from tracer.transport import SensorArrays
+
+    s, ids = scene_of(box([-1, -1, -1], [1, 1, 1]))
+    sim = Simulation(s, {ids[0]: {"type": "lambertian", "reflectance": 0.5}},
+                     [{"type": "point", "position": [0, 0, 0], "intensity_cd": 1.0}])
+    sa, M, L = sim._snapshot("white").parts
+    i1 = np.zeros(2, np.int64)
+    sens = SensorArrays(i1, i1, i1, i1, np.zeros((2, 3)))
+    q = disk_queries(np.zeros((2, 3)), np.tile([0.0, 0.0, 1.0], (2, 1)), 0.1)
+    out = numba.typeof(Tallies(np.zeros((2, 2)), np.zeros((2, 2), np.int64)))
+    t = numba.typeof
+    i, f = numba.int64, numba.float64
+    return (("forward_threads", forward_threads, (t(sa), t(sa), t(M), t(L), t(sens), i, i, i, i, f, out)),
+            ("backward_threads", backward_threads, (t(sa), t(M), t(L), t(q), i, i, i, out)))
+
+
 def main():
     stub_driver()
+    if sys.argv[1:] == ["batches"]:
+        from tracer.gpu.transport import cuda
+
+        report = {}
+        for name, fn, sig in batch_kernels():
+            compile_one(report, cuda, name, fn, sig)
+        print(json.dumps(report))
+        return
     import numba
     import numpy as np
     from transport_scenes import box, scene_of
@@ -29,14 +65,18 @@ def main():
     report = {}
     for name, fn, sig in (("closest_rays", closest_rays, (sa, f2, f2, f1, f1, i1, i1, f1, f1, f2)),
                           ("any_rays", any_rays, (sa, f2, f2, f1, b1))):
-        try:
-            ptx, _ = cuda.compile_ptx(fn, sig, cc=CC)
-            report[name] = "ok" if ".entry" in ptx else "no .entry in the PTX"
-            report[name + "_ptx_bytes"] = len(ptx)
-            report[name + "_local_stack"] = ".local" in ptx
-        except Exception as e:   # noqa: BLE001 - reported
-            report[name] = f"{type(e).__name__}: {str(e)[:2000]}"
+        compile_one(report, cuda, name, fn, sig)
     print(json.dumps(report))
+
+
+def compile_one(report, cuda, name, fn, sig):
+    try:
+        ptx, _ = cuda.compile_ptx(fn, sig, cc=CC)
+        report[name] = "ok" if ".entry" in ptx else "no .entry in the PTX"
+        report[name + "_ptx_bytes"] = len(ptx)
+        report[name + "_local_stack"] = ".local" in ptx
+    except Exception as e:   # noqa: BLE001 - reported
+        report[name] = f"{type(e).__name__}: {str(e)[:2000]}"
 
 
 if __name__ == "__main__":

@@ -24,9 +24,10 @@ HERE = Path(__file__).resolve().parent
 TOL = 1e-9   # the simulator runs the CPU's compiled walk: equal; a card may contract to FMA
 
 
-def run_child(script: str, env: dict[str, str]) -> dict:
-    r = subprocess.run([sys.executable, str(HERE / script)], env=env, cwd=ROOT, capture_output=True, text=True,
-                       timeout=400)
+def run_child(script: str, env: dict[str, str], *args: str) -> dict:
+    """Run tests/tracer/`script` with `args` in a child process; the JSON object its last line prints."""
+    r = subprocess.run([sys.executable, str(HERE / script), *args], env=env, cwd=ROOT, capture_output=True, text=True,
+                       timeout=900)
     assert r.returncode == 0, r.stderr[-3000:]
     return json.loads(r.stdout.strip().splitlines()[-1])
 

@@ -3,9 +3,10 @@
 ``auto`` takes CUDA where numba-cuda finds a GPU, else the CPU, with the reason logged once; ``cuda`` without a
 usable GPU is an error at start (:class:`DeviceUnavailable`, ``lumenlink serve`` exits 2 with the reason).
 
-Today only ray queries have CUDA kernels (:mod:`tracer.gpu.traverse`); photon batches run on the CPU whatever is
-chosen, until the CUDA photon kernel lands, and an answer's ``device`` says where its batches really ran
-(:func:`cpu_name`).
+Where CUDA is chosen, the photon batches of every query run on the card (:class:`tracer.gpu.backend.CudaBackend`:
+one thread per batch, `tracer.gpu.transport`) and ray queries have their kernels too (:mod:`tracer.gpu.traverse`);
+a scene that does not fit on the card (:class:`DoesNotFit`) is answered on the CPU, saying why. An answer's
+``device`` says where its batches really ran (``"cuda:0 <card>"``, :func:`cpu_name`).
 """
 
 from __future__ import annotations
@@ -19,13 +20,16 @@ from tracer.errors import TracerError
 log = logging.getLogger("lumenlink.device")
 
 CHOICES = ("auto", "cpu", "cuda")
-#: said wherever CUDA was chosen, until the photon kernel runs there
-PHOTONS_ON_CPU = "photon batches still run on the CPU until the CUDA photon kernel lands (issue 27)"
 
 
 class DeviceUnavailable(TracerError, RuntimeError):
     """``cuda`` was asked for where no GPU can be used; the message says why (a `TracerError`: the package's one
     root, and a RuntimeError like `tracer.backends.BackendUnavailable`: the hardware is not there, not bad input)."""
+
+
+class DoesNotFit(DeviceUnavailable):
+    """What a query needs does not fit in the card's free memory (the message says how much was needed and free);
+    `tracer.simulate.Simulation` then answers that query on the CPU, saying why."""
 
 
 @dataclass(frozen=True)
@@ -87,5 +91,6 @@ def choose(requested: str) -> Device:
     dev = Device(requested, "cuda", name, "")
     if name not in _LOGGED:
         _LOGGED.add(name)
-        log.info("device %s: %s; %s", requested, name, PHOTONS_ON_CPU)
+        log.info("device %s: %s; photon batches run there (a scene that does not fit: on the CPU)", requested,
+                 name)
     return dev
