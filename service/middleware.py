@@ -1,5 +1,5 @@
 """ASGI middleware: a request body size limit (413), a budget of body bytes in flight (503), a bearer token
-(401) and one log line per request.
+(401; a browser signs in once for a cookie instead, see `BearerToken`) and one log line per request.
 
 All are plain ASGI so they see the raw byte stream: the limit refuses a body whose ``Content-Length`` is too
 large before reading it, and stops a chunked body as soon as it passes the limit, answering with a
@@ -10,11 +10,13 @@ would pass it: parallel uploads cannot hold more than the budget in memory.
 
 from __future__ import annotations
 
+import hashlib
 import hmac
 import json
 import logging
 import time
 from typing import Any
+from urllib.parse import quote
 
 from service.errors import TooLarge, Unavailable
 
@@ -128,28 +130,65 @@ class BodyLimit:
         await send({"type": "http.response.body", "body": body})
 
 
+#: the cookie a browser gets by signing in (`session_value` of the token)
+SESSION_COOKIE = "lumenlink_session"
+
+
+def session_value(token: str) -> str:
+    """What the sign-in cookie holds: an HMAC-SHA256 keyed by the token, never the token itself."""
+    return hmac.new(token.encode(), b"lumenlink pages session", hashlib.sha256).hexdigest()
+
+
+def _cookie(headers: list[tuple[bytes, bytes]], name: str) -> bytes:
+    for key, value in headers:
+        if key == b"cookie":
+            for part in value.split(b";"):
+                k, _, v = part.strip().partition(b"=")
+                if k == name.encode():
+                    return v
+    return b""
+
+
 class BearerToken:
     """Refuse (401, problem+json, ``WWW-Authenticate: Bearer``) every request without ``Authorization: Bearer
-    <token>``, except the health probe, the API's documentation (`OPEN_PATHS`) and the static scripts and styles the
-    docs and pages load (`OPEN_PREFIX`, files of npm packages and of ``service/web/src``): they hold no data."""
+    <token>``, except the health probe, the API's documentation and the sign-in page (`OPEN_PATHS`) and the static
+    scripts and styles the docs and pages load (`OPEN_PREFIX`, files of npm packages and of ``service/web/src``):
+    they hold no data.
 
-    OPEN_PATHS = ("/health", "/docs", "/docs/oauth2-redirect", "/redoc", "/openapi.json")
+    A browser cannot add that header to a page it opens, nor to an event stream, so a person signs in once at
+    ``/sign-in`` (`service.routes.pages`) with the token and gets the cookie `SESSION_COOKIE` (HttpOnly,
+    SameSite=Strict: other sites' pages cannot send it), which counts as the header. A page opened without either
+    (a GET that accepts text/html) is sent to the sign-in page instead of a 401 body."""
+
+    OPEN_PATHS = ("/health", "/docs", "/docs/oauth2-redirect", "/redoc", "/openapi.json", "/sign-in", "/sign-out")
     OPEN_PREFIX = "/static/"
 
     def __init__(self, app: Any, token: str) -> None:
         self.app = app
         self.expected = f"Bearer {token}".encode()
+        self.session = session_value(token).encode()
 
     async def __call__(self, scope: Scope, receive: Any, send: Any) -> None:
         path = scope.get("path", "")
         if scope["type"] != "http" or path in self.OPEN_PATHS or path.startswith(self.OPEN_PREFIX):
             await self.app(scope, receive, send)
             return
-        given = next((v for k, v in scope.get("headers", []) if k == b"authorization"), b"")
-        if hmac.compare_digest(given, self.expected):
+        headers = scope.get("headers", [])
+        given = next((v for k, v in headers if k == b"authorization"), b"")
+        cookie = _cookie(headers, SESSION_COOKIE)
+        if hmac.compare_digest(given, self.expected) or (cookie and hmac.compare_digest(cookie, self.session)):
             await self.app(scope, receive, send)
             return
-        why = "no Authorization header" if not given else "the token does not match"
+        accept = next((v for k, v in headers if k == b"accept"), b"")
+        if scope.get("method") == "GET" and b"text/html" in accept and not given:
+            query = scope.get("query_string", b"").decode("latin-1")
+            target = quote(path + (f"?{query}" if query else ""), safe="")
+            await send({"type": "http.response.start", "status": 303,
+                        "headers": [(b"location", f"/sign-in?next={target}".encode()), (b"content-length", b"0")]})
+            await send({"type": "http.response.body", "body": b""})
+            return
+        why = ("the sign-in cookie is not this service's token's" if cookie and not given
+               else "no Authorization header" if not given else "the token does not match")
         body = json.dumps({"type": "about:blank", "title": "Unauthorized", "status": 401,
                            "detail": f"{why}: send 'Authorization: Bearer <LUMENLINK_TOKEN>'"}).encode()
         await send({"type": "http.response.start", "status": 401,

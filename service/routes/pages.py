@@ -9,7 +9,9 @@
 - ``GET /scenes/{id}/view/state``: everything that page draws, in one JSON answer;
 - ``GET /scenes/{id}/events``: server-sent events when the scene changes, a job moves or a result lands
   (`service.events`);
-- ``GET /docs``, ``GET /redoc``: Swagger UI and ReDoc with their scripts and styles served from ``/static``.
+- ``GET /docs``, ``GET /redoc``: Swagger UI and ReDoc with their scripts and styles served from ``/static``;
+- ``GET /sign-in``, ``POST /sign-in``, ``GET /sign-out``: where a service has a token (``LUMENLINK_TOKEN``), a person
+  signs in once with it and the browser keeps a cookie that stands for it (`service.middleware.BearerToken`).
 
 No CDN at run time: the browser code comes from npm packages pinned by ``service/web/package-lock.json`` and
 installed by ``make web`` (``npm ci``) into ``service/web/node_modules``, mounted read-only under ``/static``. When
@@ -18,11 +20,13 @@ they are missing the pages answer 503 saying how to install them; the API itself
 
 from __future__ import annotations
 
+import hmac
 import html
 import re
 import time
 from pathlib import Path
 from typing import Any
+from urllib.parse import parse_qs
 
 from fastapi import APIRouter, FastAPI, Request
 from fastapi.openapi.docs import get_redoc_html, get_swagger_ui_html, get_swagger_ui_oauth2_redirect_html
@@ -32,6 +36,7 @@ from starlette.concurrency import run_in_threadpool
 
 from service.errors import Unavailable
 from service.events import EventHub, PageEventsMiddleware
+from service.middleware import SESSION_COOKIE, session_value
 from service.routes.deps import SceneId
 
 WEB_DIR = Path(__file__).resolve().parents[1] / "web"
@@ -109,6 +114,45 @@ def index(request: Request) -> HTMLResponse:
     text = text.replace("{{scenes}}", rows or '<li class="muted">No scenes yet: push a model (lumenlink push) '
                                              'or run lumenlink demo --serve.</li>')
     return HTMLResponse(text, headers={"Cache-Control": "no-store"})
+
+
+def _local(target: str) -> str:
+    """`target` where it is a path of this service, else "/": signing in never sends anyone to another site."""
+    return target if target.startswith("/") and not target.startswith(("//", "/\\")) else "/"
+
+
+@router.get("/sign-in", response_class=HTMLResponse, include_in_schema=False)
+def sign_in_page(request: Request, next: str = "/") -> Response:
+    """The sign-in form (a service without a token needs none: straight on to `next`)."""
+    if not request.app.state.settings.token:
+        return Response(status_code=303, headers={"Location": _local(next)})
+    return _page("sign-in.html", next=_local(next), problem="")
+
+
+@router.post("/sign-in", response_class=HTMLResponse, include_in_schema=False)
+async def sign_in(request: Request) -> Response:
+    """Check the form's token: on a match, the cookie and on to `next`; otherwise the form again with a 401."""
+    form = parse_qs((await request.body()).decode("utf-8", "replace"))
+    given, target = form.get("token", [""])[0], _local(form.get("next", ["/"])[0])
+    token = request.app.state.settings.token
+    if not token:
+        return Response(status_code=303, headers={"Location": target})
+    if not hmac.compare_digest(given.encode(), token.encode()):
+        page = _page("sign-in.html", next=target, problem="That is not this service's token (LUMENLINK_TOKEN).")
+        page.status_code = 401
+        return page
+    answer = Response(status_code=303, headers={"Location": target})
+    answer.set_cookie(SESSION_COOKIE, session_value(token), httponly=True, samesite="strict", path="/",
+                      secure=request.url.scheme == "https")
+    return answer
+
+
+@router.get("/sign-out", include_in_schema=False)
+def sign_out() -> Response:
+    """Forget the cookie; back to the sign-in form."""
+    answer = Response(status_code=303, headers={"Location": "/sign-in"})
+    answer.delete_cookie(SESSION_COOKIE, path="/")
+    return answer
 
 
 @router.get("/scenes/{scene_id}/view", response_class=HTMLResponse, responses={**HTML_200, 503: {}})

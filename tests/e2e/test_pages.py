@@ -264,3 +264,33 @@ def test_a_surface_sensor_colours_the_model_and_a_click_reports_its_triangle(
     assert pick["lux"] == part["lux"][top] and pick["stderr"] == part["stderr"][top] and pick["lux"] > 0
     assert "triangle 2" in page.locator("#pick").inner_text()
     assert watched.errors == []
+
+
+def test_with_a_token_a_person_signs_in_once_and_the_view_works(tmp_path: Path, watched: Watched) -> None:
+    """A service with a token (as beyond loopback): the view's address leads to the sign-in form; after the token
+    is typed in, the same view opens, loads the model and its live event stream with the cookie alone (a browser
+    cannot send the bearer header), with no console error."""
+    token = "pages-token-of-at-least-16-chars"
+    auth = {"Authorization": f"Bearer {token}"}
+    with running_service(tmp_path / "token", env={"LUMENLINK_TOKEN": token}) as base, \
+            httpx.Client(base_url=base, timeout=60, headers=auth) as http:
+        scene = http.post("/scenes", json={"name": "signed-in room"}).json()["id"]
+        floor = _mesh([[0, 0, 0], [4, 0, 0], [4, 4, 0], [0, 4, 0]], [[0, 1, 2], [0, 2, 3]])
+        box = _mesh([[0, 0, 0], [0.4, 0, 0], [0, 0.4, 0]], [[0, 1, 2]])
+        for gid, data in (floor, box):
+            assert http.put(f"/geometries/{gid}", content=data,
+                            headers={"content-type": "model/gltf-binary"}).status_code in (200, 201)
+        assert http.put(f"/scenes/{scene}/document", json=_document(0, 0.6, floor[0], box[0])).status_code == 200
+        page = watched.page
+        page.goto(f"{base}/scenes/{scene}/view")
+        assert page.url.startswith(f"{base}/sign-in?next=")
+        page.fill("#token", "not the token at all")
+        page.click("button[type=submit]")
+        assert "not this service" in page.text_content("#problem")
+        page.fill("#token", token)
+        page.click("button[type=submit]")
+        page.wait_for_url(f"{base}/scenes/{scene}/view")
+        _wait(page, "window.lumenlink.ready && window.lumenlink.connection === 'live'")
+        assert page.evaluate("window.lumenlink.counts()") == {"instances": 2, "sensors": 0}
+        # the 401 of the wrong token's form is the one expected error the browser logs
+        assert [e for e in watched.errors if "401" not in e] == []

@@ -221,6 +221,52 @@ def test_with_a_token_every_request_but_health_and_docs_must_carry_it(tmp_path):
         assert client.post("/scenes", json={"name": "mine"}, headers=good).status_code == 201
 
 
+def test_a_browser_signs_in_once_and_its_cookie_stands_for_the_token(tmp_path):
+    """A page opened without the token goes to the sign-in form; a wrong token gets the form again (401, no
+    cookie); the right one a cookie (HttpOnly, SameSite=Strict, not the token itself) that then opens pages and the
+    API alike; a cookie made for another token, or none after signing out, opens nothing; `next` never leaves the
+    service."""
+    from html import unescape
+
+    from service.middleware import SESSION_COOKIE
+
+    client = make_client(tmp_path, token=TOKEN)
+    html = {"Accept": "text/html,application/xhtml+xml"}
+    with client:
+        r = client.get("/scenes/abc/view?x=1", headers=html, follow_redirects=False)
+        assert r.status_code == 303 and r.headers["location"] == "/sign-in?next=%2Fscenes%2Fabc%2Fview%3Fx%3D1"
+        assert client.get("/scenes", follow_redirects=False).status_code == 401   # an API client: the problem
+        form = client.get("/sign-in?next=/scenes")
+        assert form.status_code == 200 and 'name="token"' in form.text and 'value="/scenes"' in form.text
+        r = client.post("/sign-in", data={"token": "wrong-token-of-some-length", "next": "/"}, follow_redirects=False)
+        assert r.status_code == 401 and "not this service's token" in unescape(r.text) and "set-cookie" not in r.headers
+        assert SESSION_COOKIE not in client.cookies
+        r = client.post("/sign-in", data={"token": TOKEN, "next": "//evil.example/x"}, follow_redirects=False)
+        assert r.status_code == 303 and r.headers["location"] == "/"
+        cookie = r.headers["set-cookie"]
+        assert "HttpOnly" in cookie and "SameSite=strict" in cookie and TOKEN not in cookie
+        assert client.get("/", headers=html).status_code == 200
+        assert client.post("/scenes", json={"name": "from the browser"}).status_code == 201
+        assert [s["name"] for s in client.get("/scenes").json()] == ["from the browser"]
+        client.cookies.clear()
+        client.cookies.set(SESSION_COOKIE, "0" * 64)   # a cookie of another token (or forged)
+        r = client.get("/scenes")
+        assert r.status_code == 401 and "sign-in cookie" in r.json()["detail"]
+        client.cookies.clear()
+        client.post("/sign-in", data={"token": TOKEN, "next": "/"}, follow_redirects=False)
+        assert client.get("/scenes").status_code == 200
+        r = client.get("/sign-out", follow_redirects=False)
+        assert r.status_code == 303 and r.headers["location"] == "/sign-in"
+        assert client.get("/scenes").status_code == 401
+
+
+def test_without_a_token_sign_in_is_not_needed(tmp_path):
+    with make_client(tmp_path) as client:
+        r = client.get("/sign-in?next=/scenes", follow_redirects=False)
+        assert r.status_code == 303 and r.headers["location"] == "/scenes"
+        assert client.get("/", headers={"Accept": "text/html"}).status_code == 200
+
+
 def test_the_adapter_sends_the_token_from_the_environment(monkeypatch):
     from cad_adapter.client import Pusher
 
