@@ -86,19 +86,20 @@ def orphan_report(answer: dict, previous: list[dict] | None) -> list[str]:
 def push_file(file: Path, scene: str, server: str, linear: float | None = None, angular: float | None = None,
               relative: bool = False, *, cache: TessellationCache | None = None, transport: Any = None,
               dry_run: bool = False, on_read: Any = None, tessellation_progress: Any = None,
-              upload_progress: Any = None) -> tuple[Any, Any, Any, float, list[dict] | None]:
+              upload_progress: Any = None, token: str | None = None) -> tuple[Any, Any, Any, float, list[dict] | None]:
     """Read a STEP file, recognise its nodes in the scene called `scene` (`identify` against what the scene holds),
     tessellate what changed and push it: what ``lumenlink push`` does, without printing (`lumenlink.Client.push`
     calls it too). ``on_read(doc)`` is called once the file is read and identified; the progress callables as
     `tessellate`'s and `Pusher`'s. Returns (PushResult, Document, Tessellation, read seconds, the scene's nodes
     before the push or None). Raises the adapter's errors (`CadImportError`, `TessellationError`, `PushError`...).
-    ``dry_run``: diff only; no upload, no sidecar, no scene."""
+    ``dry_run``: diff only; no upload, no sidecar, no scene. ``token``: the bearer token (None:
+    ``$LUMENLINK_TOKEN``)."""
     from .client import Pusher
     from .identity import identify
     from .step_reader import read_step
     from .tessellate import tessellate
 
-    with Pusher(server, transport=transport) as pusher:
+    with Pusher(server, transport=transport, token=token) as pusher:
         tree = pusher.scene_tree(scene)
     previous = tree.nodes if tree is not None else None
     t0 = time.perf_counter()
@@ -112,7 +113,7 @@ def push_file(file: Path, scene: str, server: str, linear: float | None = None, 
     if on_read is not None:
         on_read(doc)
     tess = tessellate(doc, settings, cache=cache, progress=tessellation_progress)
-    with Pusher(server, transport=transport, upload_progress=upload_progress) as pusher:
+    with Pusher(server, transport=transport, upload_progress=upload_progress, token=token) as pusher:
         result = pusher.push(doc, tess, scene, base_revision=tree.revision if tree else None, dry_run=dry_run)
     return result, doc, tess, read_seconds, previous
 

@@ -83,11 +83,12 @@ class Pusher:
     """
 
     def __init__(self, server: str, *, timeout: float = 60.0, transport: httpx.BaseTransport | None = None,
-                 upload_progress: Callable[[int, int, str], None] | None = None) -> None:
+                 upload_progress: Callable[[int, int, str], None] | None = None, token: str | None = None) -> None:
         if not isinstance(server, str) or not server.startswith(("http://", "https://")):
             raise PushError(f"server must be an http(s) URL, got {server!r}")
         self.server = server.rstrip("/")
-        token = os.environ.get("LUMENLINK_TOKEN")   # a service beyond loopback asks for it
+        if token is None:   # a service beyond loopback asks for it
+            token = os.environ.get("LUMENLINK_TOKEN")
         headers = {"Authorization": f"Bearer {token}"} if token else {}
         self.http = httpx.Client(base_url=self.server, timeout=timeout, transport=transport, headers=headers)
         self.upload_progress = upload_progress

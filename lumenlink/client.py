@@ -137,8 +137,8 @@ class Client:
     def __init__(self, server: str | None = None, *, token: str | None = None, timeout: float = 120.0,
                  transport: httpx.BaseTransport | None = None) -> None:
         self.server = check_server(server or os.environ.get("LUMENLINK_SERVER") or DEFAULT_SERVER)
-        token = token if token is not None else os.environ.get("LUMENLINK_TOKEN")
-        headers = {"Authorization": f"Bearer {token}"} if token else {}
+        self.token = token if token is not None else os.environ.get("LUMENLINK_TOKEN")
+        headers = {"Authorization": f"Bearer {self.token}"} if self.token else {}
         self.http = httpx.Client(base_url=self.server, timeout=timeout, transport=transport, headers=headers)
         self._ids: dict[str, str] = {}
 
@@ -224,7 +224,7 @@ class Client:
         rad, default 0.5; ``relative``: ``linear`` is a fraction of each part's size) and only the meshes the
         service lacks are uploaded. Answers the service's answer to the push: the diff by UUID (``added``,
         ``moved``, ``geometry_changed``…), what was rebuilt, the seconds of each stage. ``dry_run``: the diff only.
-        The bearer token is ``$LUMENLINK_TOKEN``'s, as for ``lumenlink push``. Raises `LumenLinkError` (``usage``
+        The bearer token is this client's (its ``token``, else ``$LUMENLINK_TOKEN``). Raises `LumenLinkError` (``usage``
         for an unreadable or non-STEP file; status 409 when the scene changed meanwhile: push again) or
         `ServiceUnreachable`."""
         from cad_adapter.cli import default_cache_dir, push_file
@@ -239,7 +239,7 @@ class Client:
 
         try:
             result = push_file(Path(file), scene, self.server, linear, angular, relative, dry_run=dry_run,
-                               cache=TessellationCache(default_cache_dir()))[0]
+                               cache=TessellationCache(default_cache_dir()), token=self.token)[0]
         except ServiceUnavailable as exc:
             raise ServiceUnreachable(str(exc)) from exc
         except RevisionConflict as exc:

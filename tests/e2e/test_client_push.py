@@ -56,3 +56,23 @@ def test_push_find_assign_map_edit_compare_from_python(tmp_path, monkeypatch) ->
         with pytest.raises(LumenLinkError) as bad:
             ll.push(tmp_path / "missing.step", "py-car")
         assert bad.value.usage and "missing.step" in str(bad.value)
+
+
+def test_push_carries_the_client_s_own_token(tmp_path, monkeypatch) -> None:
+    """`Client(token=...)` pushes with that token, not only with $LUMENLINK_TOKEN: against a service that asks for
+    one, with the variable unset, the push lands; a client with a wrong token gets the 401 as a LumenLinkError."""
+    import cadquery as cq
+
+    monkeypatch.setenv("LUMENLINK_CACHE_DIR", str(tmp_path / "mesh-cache"))
+    monkeypatch.delenv("LUMENLINK_TOKEN", raising=False)
+    step = tmp_path / "block.step"
+    cq.Assembly(cq.Workplane().box(1, 2, 3), name="block").export(str(step))
+    token = "client-token-of-at-least-16-chars"
+    with running_service(tmp_path / "service", env={"LUMENLINK_TOKEN": token}) as url:
+        with Client(url, token="a-wrong-token-of-16-chars") as wrong, pytest.raises(LumenLinkError) as refused:
+            wrong.push(step, "tokened")
+        assert "401" in str(refused.value) or refused.value.status == 401
+        with Client(url, token=token) as ll:
+            answer = ll.push(step, "tokened")
+            assert answer["revision"] == 1 and answer["added"]
+            assert "block" in [n["name"] for n in ll.nodes("tokened")]
