@@ -14,7 +14,8 @@ the query's receivers another. Each batch is seeded by its index (`tracer.rng`),
 are split (threads, tasks, workers, a re-run after a lost worker) the values are bit-identical.
 
 `DaskBackend` sends a snapshot to the workers once (``scatter(broadcast=True)``, keyed by its content),
-keeps it there while the backend holds it (the last `DaskBackend.KEEP_SHIPMENTS`), and splits each round
+keeps it there while the backend holds it (the most recent, at most `DaskBackend.KEEP_SHIPMENTS` of them and
+`DaskBackend.KEEP_BYTES` together: a large scene's old revisions do not pile up on every worker), and splits each round
 of batches into one task per worker thread: a task of several batches of 20,000 photons runs for 0.1 s
 or more, far above Dask's ~1 ms per task. A worker compiles (or loads from numba's cache) each kernel
 once, in its own process. A worker lost mid-round has its tasks re-run elsewhere by the scheduler; a
@@ -54,11 +55,19 @@ class Shipment:
     """Read-only arguments of a kernel (a tuple of arrays, NamedTuples of arrays and numbers), with a content
     key computed once: BLAKE2b over every array's dtype, shape and bytes, in order."""
 
-    __slots__ = ("_key", "parts")
+    __slots__ = ("_key", "_nbytes", "parts")
 
     def __init__(self, parts: tuple) -> None:
         self.parts = parts
         self._key: str | None = None
+        self._nbytes: int | None = None
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of all its arrays (what a worker holds of it)."""
+        if self._nbytes is None:
+            self._nbytes = _nbytes(self.parts)
+        return self._nbytes
 
     @property
     def key(self) -> str:
@@ -67,6 +76,14 @@ class Shipment:
             _digest(h, self.parts)
             self._key = h.hexdigest()
         return self._key
+
+
+def _nbytes(obj: Any) -> int:
+    if isinstance(obj, np.ndarray):
+        return int(obj.nbytes)
+    if isinstance(obj, tuple | list):
+        return sum(_nbytes(item) for item in obj)
+    return 0
 
 
 def _digest(h: Any, obj: Any) -> None:
@@ -155,7 +172,9 @@ class DaskBackend:
     scheduler is unreachable or has no workers before `BackendUnavailable`."""
 
     name = "dask"
-    KEEP_SHIPMENTS = 16      # snapshots and queries kept scattered on the workers, most recent first
+    KEEP_SHIPMENTS = 16      # snapshots and queries kept scattered on the workers, most recent first …
+    KEEP_BYTES = 2 << 30     # … and at most this many bytes together (the latest two, a query's scene and receivers,
+                             # stay whatever their size)
     RESEND_TRIES = 3         # a round whose data was lost with a worker is sent again this often
     THREADS_TTL = 1.0        # s: how long the cluster's thread count is taken as known
 
@@ -167,7 +186,7 @@ class DaskBackend:
         self.stall_timeout = float(stall_timeout)
         self._client: Any = None
         self._lock = threading.Lock()
-        self._shipped: OrderedDict[str, Any] = OrderedDict()   # content key -> Future of the scattered parts
+        self._shipped: OrderedDict[str, tuple[Any, int]] = OrderedDict()   # content key -> (Future, bytes)
         self._threads_seen: tuple[float, int] = (0.0, 0)        # (when, worker threads then)
 
     # -- connection -----------------------------------------------------------------------------
@@ -219,17 +238,18 @@ class DaskBackend:
         """The future of `shipment` on the workers, scattered to every worker once per content key."""
         key = shipment.key
         with self._lock:
-            future = self._shipped.get(key)
-            if future is not None and future.status == "finished":
+            held = self._shipped.get(key)
+            if held is not None and held[0].status == "finished":
                 self._shipped.move_to_end(key)
-                return future
+                return held[0]
         name = f"lumenlink-shipment-{key}"
         future = client.scatter({name: shipment.parts}, broadcast=True, timeout=self.connect_timeout)[name]
         with self._lock:
-            self._shipped[key] = future
+            self._shipped[key] = (future, shipment.nbytes)
             self._shipped.move_to_end(key)
-            while len(self._shipped) > self.KEEP_SHIPMENTS:
-                self._shipped.popitem(last=False)
+            while len(self._shipped) > 2 and (len(self._shipped) > self.KEEP_SHIPMENTS or
+                                              sum(n for _, n in self._shipped.values()) > self.KEEP_BYTES):
+                self._shipped.popitem(last=False)   # the oldest: its data leave the workers once no task needs them
         return future
 
     def _forget(self, *shipments: Shipment) -> None:
