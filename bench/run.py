@@ -16,6 +16,8 @@ import time
 from pathlib import Path
 
 RESULTS = Path(__file__).resolve().parent / "results"
+#: run only when named (`lumenlink bench --only gpu`): needs a GPU, and exits without a result where there is none
+ON_REQUEST = ("gpu",)
 
 
 def available() -> list[str]:
@@ -52,7 +54,7 @@ def main(only: list[str], quick: bool = False) -> int:
         print(f"unknown benchmark(s): {', '.join(unknown)}; available: {', '.join(names)}", file=sys.stderr)
         return 2
     RESULTS.mkdir(parents=True, exist_ok=True)
-    for name in only or names:
+    for name in only or [n for n in names if n not in ON_REQUEST]:
         print(f"== bench {name}", file=sys.stderr, flush=True)
         t0 = time.perf_counter()
         result = importlib.import_module(f"bench.bench_{name}").run(quick=quick)
