@@ -5,9 +5,10 @@ tests/tracer/test_gpu_transport.py in a child with NUMBA_ENABLE_CUDASIM=1; print
 Parts: ``room`` (forward and backward estimators in a Lambertian box room with a point light, CPU and CUDA on
 different seeds, and CUDA on the CPU's seed), ``floor`` (a point source over a black floor: the closed form
 E = I cosθ / r², averaged over each receiver disk), ``oom`` (the card's free memory reported as 1 MiB: the query
-answers on the CPU, saying why), ``lock`` (two threads run batches on one backend at once; each run's start and end).
+answers on the CPU, saying why), ``uploads`` (what each revision sends to the card), ``lock`` (two threads run
+batches on one backend at once; each run's start and end).
 
-Usage: NUMBA_ENABLE_CUDASIM=1 python tests/tracer/gpu_sim_transport.py room floor oom lock
+Usage: NUMBA_ENABLE_CUDASIM=1 python tests/tracer/gpu_sim_transport.py room floor oom uploads lock
 """
 
 from __future__ import annotations
@@ -83,6 +84,43 @@ def part_oom(cuda) -> dict:
     finally:
         gpu_backend.free_bytes = free_bytes
     return out
+
+
+def part_uploads(cuda) -> dict:
+    """What reaches the card: a first query sends the whole scene, a second query of the same revision nothing, a
+    query of the next revision after a move the top level only (each DeviceScene upload's fields, in order)."""
+    import tracer.gpu.backend as gpu_backend
+
+    sent: list[list[str]] = []
+    update = gpu_backend.DeviceScene.update
+
+    def counted(self, sa):
+        fields = update(self, sa)
+        sent.append(list(fields))
+        return fields
+
+    gpu_backend.DeviceScene.update = counted
+    try:
+        fresh = gpu_backend.CudaBackend()
+        s, ids = scene_of(box([-2, -2, 0], [2, 2, 2.5]))
+        mats = {ids[0]: {"type": "lambertian", "reflectance": 0.5}}
+        q = dict(radius=RADIUS, max_photons=2_000, seed=1)
+        Simulation(s, mats, [LIGHT], backend=fresh).illuminance(POINTS, UP, estimator="forward", **q)
+        first = len(sent)
+        sim = Simulation(s, mats, [LIGHT], backend=fresh)
+        sim.illuminance(POINTS, UP, estimator="forward", **q)
+        sim.illuminance(POINTS, UP, estimator="backward", **q)
+        same_revision = len(sent) - first
+        m = s.instance_transform(ids[0]).copy()
+        m[:3, 3] += [0.05, 0.0, 0.0]
+        s.set_transform(ids[0], m)
+        s.commit()
+        res = Simulation(s, mats, [LIGHT], backend=fresh).illuminance(POINTS, UP, estimator="forward", **q)
+    finally:
+        gpu_backend.DeviceScene.update = update
+    return {"first": sent[:first], "same_revision_uploads": same_revision, "after_move": sent[first:],
+            "device": res.backend, "store_fields": list(gpu_backend.STORE_FIELDS),
+            "top_fields": list(gpu_backend.TOP_FIELDS)}
 
 
 def part_lock(cuda) -> dict:

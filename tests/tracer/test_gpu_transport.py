@@ -31,7 +31,7 @@ def simulated():
     if importlib.util.find_spec("numba_cuda") is None:
         pytest.skip("numba-cuda is not installed (pip install -e '.[gpu]')")
     env = {**os.environ, "NUMBA_ENABLE_CUDASIM": "1", "PYTHONPATH": str(ROOT)}
-    return run_child("gpu_sim_transport.py", env, "room", "floor", "oom", "lock")
+    return run_child("gpu_sim_transport.py", env, "room", "floor", "oom", "uploads", "lock")
 
 
 def within(a: dict, b: dict) -> tuple[bool, np.ndarray]:
@@ -87,6 +87,18 @@ def test_scene_that_does_not_fit_runs_on_the_cpu(simulated, estimator):
     assert why.startswith("ran on the CPU because the scene needs") and "cuda:0 simulator" in why, why
     assert "which has 1.0 MiB free" in why, why
     assert r["equal_to_cpu"]
+
+
+def test_the_scene_stays_on_the_card(simulated):
+    """The first query sends the whole scene; more queries of that revision (another Simulation, the other
+    estimator) send nothing; the next revision after a move sends the instances and top levels only."""
+    r = simulated["uploads"]
+    store, top = set(r["store_fields"]), set(r["top_fields"])
+    assert len(store) == 10 and len(top) == 11 and not store & top, r
+    assert len(r["first"]) == 1 and set(r["first"][0]) == store | top, r["first"]
+    assert r["same_revision_uploads"] == 0, r
+    assert len(r["after_move"]) == 1 and set(r["after_move"][0]) == top, r["after_move"]
+    assert r["device"]["name"] == "cuda"
 
 
 def test_one_gpu_job_at_a_time(simulated):

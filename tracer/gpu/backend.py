@@ -30,7 +30,7 @@ import numpy as np
 from tracer.backends import KernelId, Shipment
 from tracer.gpu.device import DoesNotFit, choose
 from tracer.gpu.transport import THREADS, Tallies, backward_kernel, forward_kernel
-from tracer.gpu.traverse import SIMULATOR, DeviceScene, cuda
+from tracer.gpu.traverse import SIMULATOR, STORE_FIELDS, TOP_FIELDS, DeviceScene, _identity, cuda
 from tracer.traverse import SceneArrays
 
 #: one GPU job at a time in this process, whichever backend object runs it
@@ -44,6 +44,13 @@ def free_bytes() -> int:
     if SIMULATOR:   # the simulator's memory is the host's: say the card has what it asks for
         return 1 << 62
     return int(cuda.current_context().get_memory_info()[0])
+
+
+def _same(a: SceneArrays, b: SceneArrays, fields: tuple[str, ...]) -> bool:
+    """Whether `a` and `b` hold the same host arrays in `fields` (the same memory, shape and type, as
+    `DeviceScene` tells them apart: a revision's arrays are views of the scene's; `a` is kept alive beside its copy on
+    the card, so its memory cannot be another array's)."""
+    return all(_identity(getattr(a, f)) == _identity(getattr(b, f)) for f in fields)
 
 
 def _nbytes(obj: Any) -> int:
@@ -93,15 +100,13 @@ class CudaBackend:
 
     def _scene(self, sa: SceneArrays) -> DeviceScene:
         """The card's copy of `sa`: the one kept where it is the same host arrays; else one whose geometry store
-        is the same, brought up to date (a move: the top level only); else a new upload."""
+        is the same, brought up to date (a new revision after a move: the top level only); else a new upload."""
         for k, (host, ds) in self._scenes.items():
-            if host is sa or all(getattr(host, f) is getattr(sa, f) for f in SceneArrays._fields):
+            if host is sa or _same(host, sa, SceneArrays._fields):
                 self._scenes.move_to_end(k)
                 return ds
-        from tracer.gpu.traverse import STORE_FIELDS, TOP_FIELDS
-
         for k, (host, ds) in reversed(self._scenes.items()):
-            if all(getattr(host, f) is getattr(sa, f) for f in STORE_FIELDS):
+            if _same(host, sa, STORE_FIELDS):
                 self._check_fits(_nbytes(tuple(getattr(sa, f) for f in TOP_FIELDS)), "the scene's top level")
                 try:
                     ds.update(sa)
@@ -112,8 +117,10 @@ class CudaBackend:
                 self._scenes.move_to_end(k)
                 return ds
         need = _nbytes(tuple(sa))
-        if need + HEADROOM > free_bytes():
-            self._scenes.clear()   # what this backend holds is not needed for the new scene
+        if need + HEADROOM > free_bytes() and self._scenes:
+            self._scenes.clear()   # what this backend holds is not needed for the new scene: free it now
+            if not SIMULATOR:
+                cuda.current_context().deallocations.clear()   # numba-cuda frees in batches, later, by default
         self._check_fits(need, "the scene")
         try:
             ds = DeviceScene(sa)
