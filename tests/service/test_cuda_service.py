@@ -58,3 +58,20 @@ def test_a_cuda_service_in_the_simulator_answers_as_a_cpu_service(tmp_path):
     sigma = np.hypot(cpu["stderr"], gpu["stderr"])
     assert np.all(sigma < 0.1 * lux_c), (cpu, gpu)
     assert np.all(np.abs(lux_g - lux_c) <= Z * sigma), (lux_c, lux_g, sigma)
+
+
+def test_the_answer_carries_why_it_ran_on_the_cpu():
+    """A query that CUDA could not take (`tracer.simulate` fell back to the CPU) keeps its reason through the wire
+    schema: `backend.fallback`, beside `device` "cpu:…"; a CUDA answer's `backend` names the card."""
+    from types import SimpleNamespace
+
+    from service.routes.simulation import IlluminancePublic
+    from service.simulation import result_payload
+
+    why = "ran on the CPU because the scene needs 3.0 GiB on cuda:0 X, which has 1.0 GiB free (64 MiB kept in reserve)"
+    for backend, device in (({"name": "in-process", "threads": 2, "fallback": why}, "cpu:2 threads"),
+                            ({"name": "cuda", "device": "cuda:0 X"}, "cuda:0 X")):
+        result = SimpleNamespace(lux=[1.0], stderr=[0.1], photons=10, seconds=0.1, effects=["lambertian"],
+                                 estimator="forward", stop_reason="max_photons", backend=backend)
+        wire = IlluminancePublic.model_validate(result_payload(result, 3)).model_dump(exclude_none=True)
+        assert wire["backend"] == backend and wire["device"] == device, wire
