@@ -662,6 +662,11 @@ def markdown(r: dict) -> str:
                       f"{_f(w['optix_preliminary_mrays'])} | {_f(w['gpu_over_optix'], 2)} | "
                       f"{_f(w['cpu_mrays'], 2)} | {w['cpu_threads']} | {_f(w['gpu_over_cpu'], 1)} | "
                       f"{w['hit_fraction']:.4f} | {w['gpu_cpu_same_hit']:.6f} |")
+        agree = [w["optix_cpu_hit_agreement"] for w in r["rows"] if "optix_cpu_hit_agreement" in w]
+        if agree:
+            md += ["", f"Mitsuba and ours hit or miss alike for at least {min(agree):.6f} of the rays in every row; "
+                       f"GPU and CPU hit the same primitive for at least "
+                       f"{min(w['gpu_cpu_same_hit'] for w in r['rows']):.6f}."]
         if o["skipped"]:
             md += ["", f"OptiX columns not measured: {o['skipped']}."]
     if "commit" in r:
