@@ -83,6 +83,19 @@ def part_oom(cuda) -> dict:
             out[est] = {"answer": answer(res), "equal_to_cpu": bool(np.array_equal(res.lux, cpu.lux))}
     finally:
         gpu_backend.free_bytes = free_bytes
+
+    class Broken:   # a kernel that fails on the card (to compile, launch or finish)
+        def __getitem__(self, cfg):
+            def launch(*args):
+                raise RuntimeError("launch failed (test)")
+            return launch
+
+    kernel, gpu_backend.forward_kernel = gpu_backend.forward_kernel, Broken()
+    try:
+        res = room_sim(cuda).illuminance(POINTS, UP, radius=RADIUS, max_photons=4_000, estimator="forward", seed=1)
+        out["kernel_failure"] = answer(res)
+    finally:
+        gpu_backend.forward_kernel = kernel
     return out
 
 

@@ -89,6 +89,14 @@ def test_scene_that_does_not_fit_runs_on_the_cpu(simulated, estimator):
     assert r["equal_to_cpu"]
 
 
+def test_a_kernel_that_fails_on_the_card_runs_on_the_cpu(simulated):
+    """A kernel that fails on the card (here: its launch raises) is no crash: the query runs on the CPU, saying why."""
+    backend = simulated["oom"]["kernel_failure"]["backend"]
+    assert backend["name"] == "in-process", backend
+    assert backend["fallback"] == ("ran on the CPU because the forward kernel failed on cuda:0 simulator: "
+                                   "RuntimeError: launch failed (test)"), backend
+
+
 def test_the_scene_stays_on_the_card(simulated):
     """The first query sends the whole scene; more queries of that revision (another Simulation, the other
     estimator) send nothing; the next revision after a move sends the instances and top levels only."""

@@ -16,7 +16,8 @@ A scene that does not fit: before any upload the bytes it needs are compared wit
 (:func:`free_bytes`, one small function tests replace); where they do not fit, `run` raises
 `tracer.gpu.device.DoesNotFit` (a `TracerError`) saying how much was needed and free, and
 `tracer.simulate.Simulation` answers that query on the CPU, saying why. Never a crash: a CUDA out-of-memory error
-during an upload becomes the same error.
+during an upload becomes the same error, and a kernel that fails to compile, launch or finish on the card a
+`DeviceUnavailable`, which `Simulation` answers on the CPU the same way.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from tracer.backends import KernelId, Shipment
-from tracer.gpu.device import DoesNotFit, choose
+from tracer.gpu.device import DeviceUnavailable, DoesNotFit, choose
 from tracer.gpu.transport import THREADS, Tallies, backward_kernel, forward_kernel
 from tracer.gpu.traverse import SIMULATOR, STORE_FIELDS, TOP_FIELDS, DeviceScene, _identity, cuda
 from tracer.traverse import SceneArrays
@@ -169,18 +170,23 @@ class CudaBackend:
             m, lt = self._small(scene.key + ":materials-lights", (mats, lights))
             q = self._small(query.key, query.parts)
             self._check_fits(_nbytes(out), "the batches' tallies")
-            card = _to_card(out)
-            if kernel_id[0] == "forward":
-                ra, sens, n_bins, seed = q
-                w0 = lights.flux_total[0] / size   # as forward_batches
-                forward_kernel[blocks, THREADS](ds._kernel_arrays(), ra, m, lt, sens, n_bins, seed, batch0, size, w0,
-                                                card)
-            else:
-                qa, seed = q
-                backward_kernel[blocks, THREADS](ds._kernel_arrays(), m, lt, qa, seed, batch0, size, card)
-            if SIMULATOR:
-                return out.values, out.counters
-            return card.values.copy_to_host(), card.counters.copy_to_host()
+            try:
+                card = _to_card(out)
+                if kernel_id[0] == "forward":
+                    ra, sens, n_bins, seed = q
+                    w0 = lights.flux_total[0] / size   # as forward_batches
+                    forward_kernel[blocks, THREADS](ds._kernel_arrays(), ra, m, lt, sens, n_bins, seed, batch0, size,
+                                                    w0, card)
+                else:
+                    qa, seed = q
+                    backward_kernel[blocks, THREADS](ds._kernel_arrays(), m, lt, qa, seed, batch0, size, card)
+                if SIMULATOR:
+                    return out.values, out.counters
+                return card.values.copy_to_host(), card.counters.copy_to_host()
+            except Exception as exc:   # noqa: BLE001 - compiling, launching or reading back failed on the card:
+                # the query is answered on the CPU, saying why (`tracer.simulate`), never a crash
+                raise DeviceUnavailable(f"the {kernel_id[0]} kernel failed on {self.device}: "
+                                        f"{type(exc).__name__}: {str(exc)[:500]}") from exc
 
 
 def _size(nbytes: int) -> str:
