@@ -15,7 +15,7 @@ def test_every_error_the_service_defines_has_the_one_root():
     defined = []
     for info in pkgutil.walk_packages(service.__path__, "service."):
         module = importlib.import_module(info.name)
-        for name, obj in vars(module).items():
+        for obj in vars(module).values():
             if inspect.isclass(obj) and issubclass(obj, BaseException) and obj.__module__ == info.name:
                 defined.append(obj)
     names = {c.__name__ for c in defined}
