@@ -6,6 +6,14 @@ of shape (n_batches, bins) and (n_batches, counters), in batch order:
 
     backend.run(kernel_id, scene: Shipment, query: Shipment, batch0, n_batches, size)
     backend.describe() -> {"name": "in-process", "threads": 2} | {"name": "dask", "address": …, "workers": 2, …}
+    backend.shape -> BatchShape   # how a query's work is cut into batches and rounds for it
+
+A backend's `BatchShape` says how `tracer.simulate` cuts a query for it: photons per forward batch, paths per patch
+per backward batch, the batches of a first round and of the largest. The CPU's (`CPU_SHAPE`: 20,000 photons, 8 to
+128 batches) keeps threads and Dask workers busy for 0.1 s a task; a GPU, which runs one batch per thread, wants
+thousands of small batches a round (`tracer.gpu.backend.GPU_SHAPE`). Answers are bit-identical wherever batches of
+one shape run; two shapes draw different random numbers (the same seed, other batches) and agree within their
+error bars.
 
 ``kernel_id`` names a kernel that any process with `tracer` can make: ``("forward", photon_state)`` or
 ``("backward",)`` (`run_kernel`). A `Shipment` is the read-only data a kernel takes, with a content key:
@@ -33,7 +41,7 @@ import time
 import uuid
 from collections import OrderedDict
 from concurrent.futures import ThreadPoolExecutor
-from typing import Any
+from typing import Any, NamedTuple
 
 import numba
 import numpy as np
@@ -43,6 +51,18 @@ from tracer.errors import TracerError
 log = logging.getLogger(__name__)
 
 KernelId = tuple[str, ...]
+
+
+class BatchShape(NamedTuple):
+    """How a query is cut for a backend (see the module docstring)."""
+
+    forward_photons: int = 20_000   # photons per forward batch (fewer when a query's max_photons is small)
+    backward_paths: int = 32        # paths per query patch per backward batch
+    first_round: int = 8            # batches started between two stop tests, at first
+    max_round: int = 128            # the largest round (rounds grow to a quarter of the batches run so far)
+
+
+CPU_SHAPE = BatchShape()
 
 
 class BackendUnavailable(TracerError, RuntimeError):
@@ -141,6 +161,9 @@ class InProcess:
     _pool: ThreadPoolExecutor | None = None
     _pool_lock = threading.Lock()
 
+    def __init__(self, shape: BatchShape = CPU_SHAPE) -> None:
+        self.shape = shape   # another backend's shape: that backend's very batches, here (tests, a fallback)
+
     @classmethod
     def pool(cls) -> ThreadPoolExecutor:
         with cls._pool_lock:
@@ -172,6 +195,7 @@ class DaskBackend:
     scheduler is unreachable or has no workers before `BackendUnavailable`."""
 
     name = "dask"
+    shape = CPU_SHAPE
     KEEP_SHIPMENTS = 16      # snapshots and queries kept scattered on the workers, most recent first …
     KEEP_BYTES = 2 << 30     # … and at most this many bytes together (the latest two, a query's scene and receivers,
                              # stay whatever their size)

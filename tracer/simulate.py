@@ -47,11 +47,12 @@ a further 2 r sin(tilt), so that no part of the disk lies behind the facet. Ligh
 the receiver from behind (spawned rays start 2⁻³² × magnitude off the surface) and is not counted.
 
 Estimation: independent batches seeded from (seed, batch index) through the counter-based
-`tracer.rng`; batch sizes depend only on the request, batches are started in rounds of
-`ROUND_BATCHES`, growing to a quarter of the batches run so far (at most `MAX_ROUND_BATCHES`: a long query
-gives a cluster's workers tasks of 0.1 s or more while a stop overshoots its rule by at most a quarter), and the
+`tracer.rng`; batch sizes depend only on the request and the backend's `tracer.backends.BatchShape`, batches are
+started in rounds of `ROUND_BATCHES`, growing to a quarter of the batches run so far (at most `MAX_ROUND_BATCHES`,
+and `MAX_ROUND_BYTES` of tallies: a long query gives a cluster's workers tasks of 0.1 s or more while a stop
+overshoots its rule by at most a quarter; a GPU's shape has thousands of small batches a round), and the
 stop test runs between rounds, so for the same seed and stop rule (target error or photon budget) the answer is
-bit-identical whatever the number of threads, processes or machines the batches ran on. Standard errors
+bit-identical whatever the number of threads, processes or machines the batches of one shape ran on. Standard errors
 are batch means (`tracer.estimate`). A query stops when every point's relative error is at most
 `target_relative_error` (``"target_relative_error"``), at `max_photons` (``"max_photons"``),
 `max_seconds` (``"max_seconds"``) or when `cancel()` is truthy (``"cancelled"``). Without any
@@ -72,7 +73,7 @@ from typing import Any
 
 import numpy as np
 
-from tracer.backends import IN_PROCESS, InProcess, Shipment, is_backend
+from tracer.backends import CPU_SHAPE, IN_PROCESS, InProcess, Shipment, is_backend
 from tracer.backward import QueryArrays, disk_queries
 from tracer.effects import EFFECTS, EffectError, derive_effects, photon_state, with_forced
 from tracer.errors import TracerError
@@ -90,11 +91,13 @@ from tracer.warmup import wait_background
 
 DEFAULT_RADIUS = 0.05          # m: disk receiver radius when the query gives none
 DEFAULT_MAX_SECONDS = 30.0     # s: budget of a query that states none
-ROUND_BATCHES = 8              # batches started between two stop tests (the first rounds)
-MAX_ROUND_BATCHES = 128        # the largest round, however long the query has run
+# the CPU's cut of a query (`tracer.backends.BatchShape`; a backend may cut it otherwise: `backend.shape`)
+ROUND_BATCHES = CPU_SHAPE.first_round        # batches started between two stop tests (the first rounds)
+MAX_ROUND_BATCHES = CPU_SHAPE.max_round      # the largest round, however long the query has run
+FORWARD_BATCH = CPU_SHAPE.forward_photons    # photons per forward batch (fewer when max_photons is small)
+BACKWARD_BATCH = CPU_SHAPE.backward_paths    # paths per patch per backward batch
 MIN_BATCHES = 8                # batches before the error bar is trusted for a target-error stop
-FORWARD_BATCH = 20_000         # photons per forward batch (fewer when max_photons is small)
-BACKWARD_BATCH = 32            # paths per patch per backward batch
+MAX_ROUND_BYTES = 256 << 20    # a round's tallies (batches × bins × 8 B) stay below this: fewer batches a round
 ESTIMATORS = ("auto", "forward", "backward")
 OBSERVABLES = ("spectrum", "stokes")
 MAX_SPECTRAL_TALLIES = 4_000_000   # bins × spectral columns a query may record per batch
@@ -730,9 +733,11 @@ class Simulation:
         _COMPILE_SECONDS.setdefault(variant, time.perf_counter() - t)
         return _COMPILE_SECONDS[variant]
 
-    def _loop(self, run_round, n_bins, per_batch, budget, progress, cancel, t0, n_stop=None):
+    def _loop(self, run_round, n_bins, per_batch, budget, progress, cancel, t0, shape, n_stop=None):
         """Rounds of batches until a stop rule holds; returns (Estimate, batches, stop_reason, counters).
-        The error stop looks at the first `n_stop` bins (all by default): the illuminances, not the spectra."""
+        The error stop looks at the first `n_stop` bins (all by default): the illuminances, not the spectra.
+        Rounds follow the backend's `shape`, and hold at most `MAX_ROUND_BYTES` of tallies."""
+        max_round = max(2, min(shape.max_round, MAX_ROUND_BYTES // (8 * max(1, n_bins))))
         if progress is not None:   # before the first round: no photons yet, the seconds spent getting ready
             progress(0, math.inf, time.perf_counter() - t0)   # (compiling or loading the kernel, packing)
         est = Estimate.empty(n_bins)
@@ -740,7 +745,7 @@ class Simulation:
         batches = 0
         counters = None
         while True:
-            nb = min(MAX_ROUND_BATCHES, max(ROUND_BATCHES, batches // 4))
+            nb = min(max_round, max(shape.first_round, batches // 4))
             if budget.max_photons is not None:
                 nb = min(nb, max(1, (budget.max_photons - batches * per_batch) // per_batch))
             nb = max(nb, 2 - batches)   # an error bar needs two batches, whatever the budget
@@ -814,9 +819,10 @@ class Simulation:
             raise SimulationError(f"observing {what} of {n_bins} cells needs {n_bins * n_cols} tallies per "
                                   f"batch (at most {MAX_SPECTRAL_TALLIES}): use at most "
                                   f"{MAX_SPECTRAL_TALLIES // n_cols} cells")
-        per_batch = FORWARD_BATCH
+        shape = backend.shape
+        per_batch = shape.forward_photons
         if budget.max_photons is not None:
-            per_batch = int(min(FORWARD_BATCH, max(1, budget.max_photons // (4 * ROUND_BATCHES))))
+            per_batch = int(min(shape.forward_photons, max(1, budget.max_photons // (4 * shape.first_round))))
         state = photon_state(effects)
         kernel_id = ("forward", state)
         scene, query = self._snapshot(state), Shipment((ra, sens, n_bins, seed))
@@ -830,6 +836,7 @@ class Simulation:
             return flux * per_area[None, :], cnt
 
         est, batches, stop, counters = self._loop(run_round, n_bins * n_cols, per_batch, budget, progress, cancel, t0,
+                                                  shape,
                                                   n_stop)
         cdict = {name: int(c) for name, c in zip(COUNTERS, counters, strict=True)}
         mean, err = est.mean.reshape(n_cols, n_bins), est.stderr.reshape(n_cols, n_bins)
@@ -862,10 +869,11 @@ class Simulation:
         else:
             q = disk_queries(centers, normals, radius)
             k = len(centers)
-        paths = BACKWARD_BATCH
+        shape = backend.shape
+        paths = shape.backward_paths
         per_batch = paths * k
         if budget.max_photons is not None:
-            paths = int(min(BACKWARD_BATCH, max(1, budget.max_photons // (4 * ROUND_BATCHES * k))))
+            paths = int(min(shape.backward_paths, max(1, budget.max_photons // (4 * shape.first_round * k))))
             per_batch = paths * k
         scene, query = self._snapshot("backward"), Shipment((q, seed))
         compile_s = self._warm(("backward",), scene, query, backend)
@@ -873,7 +881,7 @@ class Simulation:
         def run_round(b0, nb):
             return backend.run(("backward",), scene, query, b0, nb, paths)
 
-        est, batches, stop, counters = self._loop(run_round, k, per_batch, budget, progress, cancel, t0)
+        est, batches, stop, counters = self._loop(run_round, k, per_batch, budget, progress, cancel, t0, shape)
         cdict = {"rejected": int(counters[0]), "truncated": int(counters[1])}
         return IlluminanceResult(est.mean, est.stderr, batches * per_batch, time.perf_counter() - t0, effects,
                                  "backward", stop, batches, cdict["rejected"], cdict, compile_s)
@@ -886,6 +894,7 @@ class _QueryBackend:
 
     def __init__(self, backend: Any) -> None:
         self.backend = backend
+        self.shape = backend.shape   # kept on the CPU too: the same batches
         self.fallback: str | None = None
 
     def run(self, kernel_id, scene, query, batch0, n_batches, size):

@@ -45,14 +45,19 @@ def room_sim(backend=None):
 
 
 def part_room(cuda) -> dict:
-    cpu, gpu = room_sim(), room_sim(cuda)
+    """The CPU with its own shape against the card (seed 2) and, on the card's shape, the CPU's batches (seed 1)."""
+    from tracer.backends import InProcess
+
+    cpu, gpu, cpu_cut_as_gpu = room_sim(), room_sim(cuda), room_sim(InProcess(shape=cuda.shape))
     out = {}
     for est, photons in (("forward", 40_000), ("backward", 6_000)):
         q = dict(radius=RADIUS, max_photons=photons, estimator=est)
         a = cpu.illuminance(POINTS, UP, seed=1, **q)
         b = gpu.illuminance(POINTS, UP, seed=2, **q)
         same_seed = gpu.illuminance(POINTS, UP, seed=1, **q)
-        out[est] = {"cpu": answer(a), "cuda": answer(b), "cuda_seed_of_cpu": answer(same_seed)}
+        cut_as_gpu = cpu_cut_as_gpu.illuminance(POINTS, UP, seed=1, **q)
+        out[est] = {"cpu": answer(a), "cuda": answer(b), "cuda_seed_of_cpu": answer(same_seed),
+                    "cpu_cut_as_cuda": answer(cut_as_gpu)}
     return out
 
 
@@ -71,6 +76,7 @@ def part_floor(cuda) -> dict:
 
 def part_oom(cuda) -> dict:
     import tracer.gpu.backend as gpu_backend
+    from tracer.backends import InProcess
 
     free_bytes = gpu_backend.free_bytes
     gpu_backend.free_bytes = lambda: 1 << 20   # the card reports 1 MiB free
@@ -79,7 +85,8 @@ def part_oom(cuda) -> dict:
     try:
         for est in ("forward", "backward"):
             res = room_sim(fresh).illuminance(POINTS, UP, radius=RADIUS, max_photons=4_000, estimator=est, seed=1)
-            cpu = room_sim().illuminance(POINTS, UP, radius=RADIUS, max_photons=4_000, estimator=est, seed=1)
+            cpu = room_sim(InProcess(shape=fresh.shape)).illuminance(   # the card's batches, on the CPU
+                POINTS, UP, radius=RADIUS, max_photons=4_000, estimator=est, seed=1)
             out[est] = {"answer": answer(res), "equal_to_cpu": bool(np.array_equal(res.lux, cpu.lux))}
     finally:
         gpu_backend.free_bytes = free_bytes

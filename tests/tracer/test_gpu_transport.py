@@ -52,18 +52,23 @@ def test_room_agrees_with_the_cpu(simulated, estimator):
     assert gpu["backend"] == {"name": "cuda", "device": "cuda:0 simulator"}, gpu["backend"]
     assert cpu["backend"]["name"] == "in-process"
     assert min(gpu["lux"]) > 0 and max(np.asarray(gpu["stderr"]) / np.asarray(gpu["lux"])) < 0.2, gpu
-    assert gpu["photons"] == cpu["photons"]
+    budget = {"forward": 40_000, "backward": 6_000}[estimator]   # gpu_sim_transport.part_room's
+    assert 0.5 * budget <= gpu["photons"] <= budget and 0.5 * budget <= cpu["photons"] <= budget
     ok, z = within(cpu, gpu)
     assert ok, (z, cpu, gpu)
 
 
 @pytest.mark.parametrize("estimator", ["forward", "backward"])
 def test_same_seed_same_batches_in_the_simulator(simulated, estimator):
-    """One thread per batch, seeded by its index: on the CPU's seed the simulator (which runs the batch function as
-    the CPU's compiled code) gives the CPU's very tallies; a wrong batch index or weight would not."""
+    """One thread per batch, seeded by its index: on the same seed and the card's cut of the query
+    (`tracer.gpu.backend.GPU_SHAPE`, thousands of small batches) the simulator (which runs the batch function as the
+    CPU's compiled code) gives the very tallies of the CPU's threads running the same batches; a wrong batch index
+    or weight would not."""
     r = simulated["room"][estimator]
-    assert r["cuda_seed_of_cpu"]["lux"] == r["cpu"]["lux"]
-    assert r["cuda_seed_of_cpu"]["stderr"] == r["cpu"]["stderr"]
+    assert r["cpu_cut_as_cuda"]["backend"]["name"] == "in-process"
+    assert r["cuda_seed_of_cpu"]["lux"] == r["cpu_cut_as_cuda"]["lux"]
+    assert r["cuda_seed_of_cpu"]["stderr"] == r["cpu_cut_as_cuda"]["stderr"]
+    assert r["cuda_seed_of_cpu"]["photons"] == r["cpu_cut_as_cuda"]["photons"]
 
 
 @pytest.mark.parametrize("estimator", ["forward", "backward"])
@@ -79,7 +84,8 @@ def test_point_source_over_a_floor_closed_form(simulated, estimator):
 
 @pytest.mark.parametrize("estimator", ["forward", "backward"])
 def test_scene_that_does_not_fit_runs_on_the_cpu(simulated, estimator):
-    """The card reports 1 MiB free: the query is answered on the CPU (the CPU's own answer), and says why."""
+    """The card reports 1 MiB free: the query is answered on the CPU (the very batches the card would have run, on
+    the CPU's threads), and says why."""
     r = simulated["oom"][estimator]
     backend = r["answer"]["backend"]
     assert backend["name"] == "in-process", backend

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from tracer.backends import KernelId, Shipment
+from tracer.backends import BatchShape, KernelId, Shipment
 from tracer.gpu.device import DeviceUnavailable, DoesNotFit, choose
 from tracer.gpu.transport import THREADS, Tallies, backward_kernel, forward_kernel
 from tracer.gpu.traverse import SIMULATOR, STORE_FIELDS, TOP_FIELDS, DeviceScene, _identity, cuda
@@ -74,6 +74,11 @@ def _to_card(obj: Any) -> Any:
     return obj
 
 
+#: one batch per thread: a round of thousands of small batches, so the card has threads to run (its constants are
+#: unmeasured: no GPU was lent yet; bench/bench_gpu.py measures photons/s and the time to 1 % on one)
+GPU_SHAPE = BatchShape(forward_photons=256, backward_paths=1, first_round=1024, max_round=16384)
+
+
 class CudaBackend:
     """Photon batches on CUDA device 0 (see the module docstring). Raises `tracer.gpu.device.DeviceUnavailable`
     at construction where numba-cuda finds no GPU (nor its simulator)."""
@@ -82,8 +87,9 @@ class CudaBackend:
     KEEP_SCENES = 2       # scenes' arrays kept on the card, most recent first
     KEEP_SHIPMENTS = 16   # materials, lights and queries kept on the card
 
-    def __init__(self) -> None:
+    def __init__(self, shape: BatchShape = GPU_SHAPE) -> None:
         self.device = choose("cuda").name
+        self.shape = shape
         self._scenes: OrderedDict[int, tuple[SceneArrays, DeviceScene]] = OrderedDict()   # id -> (host, card)
         self._shipped: OrderedDict[str, Any] = OrderedDict()   # shipment key -> its small arrays on the card
         self._n = 0
