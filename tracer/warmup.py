@@ -111,7 +111,7 @@ def forward_callees() -> list[tuple[Any, tuple]]:
             (transport.record_far, (vf, vf, f8, f8, f8, f8)), (transport.record_spectrum, (vf, i8, i8, f8, f8)),
             (transport.record_stokes, (vf, i8, i8, f8, vf, f8, f8, f8, mf, i8)),
             (rng.path_key, (i8, i8, i8)), (rng.uniform, (u8, i8)), (spawn.offset_ray_origin, tuple([f8] * 9))]
-    return [(kernel, sig) for kernel, sig in own if not kernel.targetoptions.get("inline") == "always"]
+    return [(kernel, sig) for kernel, sig in own if kernel.targetoptions.get("inline") != "always"]
 
 
 def compile_stage(stage: str, reverse: bool = False) -> None:
