@@ -86,7 +86,7 @@ class Shipment:
     def nbytes(self) -> int:
         """Bytes of all its arrays (what a worker holds of it)."""
         if self._nbytes is None:
-            self._nbytes = _nbytes(self.parts)
+            self._nbytes = nbytes(self.parts)
         return self._nbytes
 
     @property
@@ -98,11 +98,12 @@ class Shipment:
         return self._key
 
 
-def _nbytes(obj: Any) -> int:
+def nbytes(obj: Any) -> int:
+    """Bytes of every array in `obj` (an array, or tuples and NamedTuples of arrays and numbers)."""
     if isinstance(obj, np.ndarray):
         return int(obj.nbytes)
     if isinstance(obj, tuple | list):
-        return sum(_nbytes(item) for item in obj)
+        return sum(nbytes(item) for item in obj)
     return 0
 
 

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from tracer.backends import BatchShape, KernelId, Shipment
+from tracer.backends import BatchShape, KernelId, Shipment, nbytes
 from tracer.gpu.device import DeviceUnavailable, DoesNotFit, choose
 from tracer.gpu.transport import THREADS, Tallies, backward_kernel, forward_kernel
 from tracer.gpu.traverse import SIMULATOR, STORE_FIELDS, TOP_FIELDS, DeviceScene, _identity, cuda
@@ -52,14 +52,6 @@ def _same(a: SceneArrays, b: SceneArrays, fields: tuple[str, ...]) -> bool:
     `DeviceScene` tells them apart: a revision's arrays are views of the scene's; `a` is kept alive beside its copy on
     the card, so its memory cannot be another array's)."""
     return all(_identity(getattr(a, f)) == _identity(getattr(b, f)) for f in fields)
-
-
-def _nbytes(obj: Any) -> int:
-    if isinstance(obj, np.ndarray):
-        return int(obj.nbytes)
-    if isinstance(obj, tuple | list):
-        return sum(_nbytes(o) for o in obj)
-    return 0
 
 
 def _to_card(obj: Any) -> Any:
@@ -114,7 +106,7 @@ class CudaBackend:
                 return ds
         for k, (host, ds) in reversed(self._scenes.items()):
             if _same(host, sa, STORE_FIELDS):
-                self._check_fits(_nbytes(tuple(getattr(sa, f) for f in TOP_FIELDS)), "the scene's top level")
+                self._check_fits(nbytes(tuple(getattr(sa, f) for f in TOP_FIELDS)), "the scene's top level")
                 try:
                     ds.update(sa)
                 except Exception as exc:   # noqa: BLE001 - a failed upload leaves this copy half updated: drop it
@@ -123,7 +115,7 @@ class CudaBackend:
                 self._scenes[k] = (sa, ds)
                 self._scenes.move_to_end(k)
                 return ds
-        need = _nbytes(tuple(sa))
+        need = nbytes(tuple(sa))
         if need + HEADROOM > free_bytes() and self._scenes:
             self._scenes.clear()   # what this backend holds is not needed for the new scene: free it now
             if not SIMULATOR:
@@ -143,7 +135,7 @@ class CudaBackend:
         """`parts` on the card, sent once per shipment key."""
         card = self._shipped.get(key)
         if card is None:
-            self._check_fits(_nbytes(parts), "the query's data")
+            self._check_fits(nbytes(parts), "the query's data")
             try:
                 card = _to_card(parts)
             except Exception as exc:   # noqa: BLE001
@@ -175,7 +167,7 @@ class CudaBackend:
             ds = self._scene(sa)
             m, lt = self._small(scene.key + ":materials-lights", (mats, lights))
             q = self._small(query.key, query.parts)
-            self._check_fits(_nbytes(out), "the batches' tallies")
+            self._check_fits(nbytes(out), "the batches' tallies")
             try:
                 card = _to_card(out)
                 if kernel_id[0] == "forward":
