@@ -18,6 +18,8 @@ Tables (one row per thing, keyed by scene):
 - ``sensor_results``: the last results of each sensor (``service.results``), one per scene revision and
   state (``edit``: 0, 1, … for successive assignment states at one revision), lux and standard error as
   little-endian float64 bytes; they outlive the sensor, not the scene.
+- ``far_field_results``: the latest result of each far-field sensor (cd on its C-γ grid, as the answer gives it),
+  what its IES / EULUMDAT export reads (``service.results.ResultStore.keep_far``); it outlives a restart.
 
 `open_engine` creates the engine and brings the schema to the latest migration
 (``alembic upgrade head``, run programmatically from the packaged ``service/migrations``).
@@ -146,6 +148,14 @@ sensor_results = Table(
     Column("meta", JSON, nullable=False),            # type, shape, frame, estimator, stop reason, effects
     Column("lux", LargeBinary, nullable=False),
     Column("stderr", LargeBinary, nullable=False),
+)
+
+far_field_results = Table(
+    "far_field_results", metadata,
+    Column("scene_id", String(36), ForeignKey("scenes.id", ondelete="CASCADE"), primary_key=True),
+    Column("sensor_id", String(36), primary_key=True),
+    Column("created_at", DateTime(timezone=True), nullable=False),
+    Column("payload", JSON, nullable=False),        # the far-field answer: candela, stderr, grid, flux, revision
 )
 
 MIGRATIONS = Path(__file__).resolve().parent / "migrations"

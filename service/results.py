@@ -1,4 +1,5 @@
-"""Sensor results that outlive an edit (issue 22): the last results of each sensor, kept in the database.
+"""Sensor results that outlive an edit (issue 22): the last results of each sensor, kept in the database (and
+the latest result of each far-field sensor, which its IES / EULUMDAT export reads: `keep_far`, `far`).
 
 Every sensor simulation that still describes the scene when it ends is kept (`ResultStore.keep`, called by
 `service.simulation.SimulationHub.run_grid`): per scene, sensor and **key**. A key is ``R`` or ``R.k``:
@@ -125,7 +126,28 @@ class ResultStore:
                 conn.execute(delete(t).where(mine, t.c.revision == old.revision, t.c.edit == old.edit))
         return key_of(revision, edit)
 
+    def keep_far(self, scene_id: str, sensor_id: str, payload: dict[str, Any]) -> None:
+        """Keep the latest result of a far-field sensor (its export reads it), replacing the one before; a failure
+        to store is logged, as for `keep`."""
+        t = db.far_field_results
+        mine = and_(t.c.scene_id == scene_id, t.c.sensor_id == sensor_id)
+        try:
+            with self.engine.begin() as conn:
+                conn.execute(delete(t).where(mine))
+                conn.execute(insert(t).values(scene_id=scene_id, sensor_id=sensor_id, created_at=datetime.now(UTC),
+                                              payload=payload))
+        except SQLAlchemyError:
+            log.exception("could not keep the far-field result of sensor %s of scene %s", sensor_id, scene_id)
+
     # -- reading ------------------------------------------------------------------------------
+
+    def far(self, scene_id: str, sensor_id: str) -> dict[str, Any] | None:
+        """The kept latest result of a far-field sensor, or None."""
+        t = db.far_field_results
+        with self.engine.connect() as conn:
+            row = conn.execute(select(t.c.payload).where(t.c.scene_id == scene_id, t.c.sensor_id == sensor_id)
+                               ).first()
+        return None if row is None else dict(row.payload)
 
     def list(self, scene_id: str, sensor_id: str) -> list[dict[str, Any]]:
         """The sensor's kept results, newest first, without their cells."""

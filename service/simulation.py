@@ -442,9 +442,11 @@ class SimulationHub:
         elif sensor["type"] == "far_field":
             payload = self._run_far_field(prepared, sensor, budget, seed, estimator, force_effects, progress, cancel,
                                           observe, reference, physics_left_out)
-            with self._lock:
-                if not cancel or not cancel():
+            if not cancel or not cancel():
+                with self._lock:
                     self._far[(scene_id, str(sensor["id"]))] = payload
+                if self.results is not None:   # the export outlives a restart
+                    self.results.keep_far(scene_id, str(sensor["id"]), payload)
             return payload
         else:
             raise Invalid(f"sensor {sensor.get('id')!r} has type {sensor.get('type')!r}, which cannot be simulated")
@@ -529,9 +531,16 @@ class SimulationHub:
         return payload
 
     def far_result(self, scene_id: str, sensor_id: str) -> dict[str, Any] | None:
-        """The latest result of a far-field sensor (whatever changed since; it names its revision), else None."""
+        """The latest result of a far-field sensor (whatever changed since; it names its revision), else None: from
+        memory, else as kept in the database (a result of an earlier run of the service)."""
         with self._lock:
-            return self._far.get((scene_id, sensor_id))
+            payload = self._far.get((scene_id, sensor_id))
+        if payload is None and self.results is not None:
+            payload = self.results.far(scene_id, sensor_id)
+            if payload is not None:
+                with self._lock:
+                    self._far.setdefault((scene_id, sensor_id), payload)
+        return payload
 
     def grid_result(self, scene_id: str, sensor_id: str) -> dict[str, Any] | None:
         """The latest result of a grid (or surface) sensor while the scene is unchanged since, else None."""

@@ -101,3 +101,26 @@ def test_far_field_refusals(client: Any) -> None:
     big = client.post(f"/scenes/{sid}/sensors", json={"type": "far_field", "nc": 3600, "ngamma": 1801}).json()["id"]
     r = client.post(f"/scenes/{sid}/sensors/{big}/simulate", json={"max_photons": 1000})
     assert r.status_code == 413
+
+
+def test_a_far_field_result_outlives_a_restart(tmp_path: Path) -> None:
+    """The export reads the latest far-field result, kept in the database: after the service restarts on the same
+    data, the IES file is the one it gave before, to the byte; a sensor never simulated still answers 404."""
+    with make_client(tmp_path) as client:
+        sid = _scene(client)
+        fid = client.post(f"/scenes/{sid}/sensors", json={"type": "far_field", "nc": 4, "ngamma": 7, "name": "lamp",
+                                                          "attached_to": "room"}).json()["id"]
+        other = client.post(f"/scenes/{sid}/sensors", json={"type": "far_field", "nc": 4, "ngamma": 7,
+                                                             "name": "spare"}).json()["id"]
+        r = client.post(f"/scenes/{sid}/sensors/{fid}/simulate", json={"max_photons": 20_000, "seed": 2})
+        assert r.status_code == 200, r.text
+        before = client.get(f"/scenes/{sid}/sensors/{fid}/export", params={"format": "ies"})
+        assert before.status_code == 200
+    with make_client(tmp_path) as client:
+        after = client.get(f"/scenes/{sid}/sensors/{fid}/export", params={"format": "ies"})
+        assert after.status_code == 200, after.text
+        assert after.text == before.text and after.headers["x-scene-revision"] == before.headers["x-scene-revision"]
+        assert client.get(f"/scenes/{sid}/sensors/{other}/export").status_code == 404
+        assert client.delete(f"/scenes/{sid}").status_code == 204
+    with make_client(tmp_path) as client:   # the scene's results went with it
+        assert client.get(f"/scenes/{sid}/sensors/{fid}/export").status_code == 404
