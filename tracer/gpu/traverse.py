@@ -140,5 +140,5 @@ def any_rays(sa, o, d, t_max, out):
     out[i] = any_with_stacks(sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t_max[i], stack, tstack)
 
 
-closest_kernel = cuda.jit(closest_rays)
-any_kernel = cuda.jit(any_rays)
+closest_kernel = cuda.jit(closest_rays, cache=True)
+any_kernel = cuda.jit(any_rays, cache=True)
