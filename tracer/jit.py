@@ -24,8 +24,10 @@ PACKAGE = "tracer."
 
 
 def _plain_call_template(original):
+    """numba's `Dispatcher.get_call_template`, typing a call to a tracer kernel with its arguments made plain."""
+
     def get_call_template(self, args, kws):
-        if getattr(self.py_func, "__module__", "").startswith(PACKAGE):
+        if (getattr(self.py_func, "__module__", None) or "").startswith(PACKAGE):
             args = tuple(types.unliteral(a) for a in args)
             kws = {k: types.unliteral(v) for k, v in kws.items()}
         return original(self, args, kws)
