@@ -103,6 +103,9 @@ def share_cache_with_children() -> str | None:
     global _CACHE
     if "numba" in sys.modules:
         return None
+    chosen = os.environ.get("NUMBA_CACHE_DIR")
+    if chosen and (not Path(chosen).exists() or not any(Path(chosen).iterdir())):
+        return chosen   # a caller's own empty cache (bench/gpu_card.py shares one across its steps): keep it
     if _CACHE is None:
         _CACHE = tempfile.TemporaryDirectory(prefix="lumenlink-numba-")
         os.environ["NUMBA_CACHE_DIR"] = _CACHE.name
@@ -710,6 +713,15 @@ def markdown(r: dict) -> str:
             if zs:
                 md.append("GPU against CPU answers, largest |ΔE| / σ combined over the points: " + ", ".join(
                     f"{e} {z:.2f}" for e, z in zs.items()) + " (agreement: ≤ 4).")
+    if "card" in r:
+        md += ["", f"### The card run's steps (bench/gpu_card.py, one call of {r['card']['budget_s']:.0f} s)", "",
+               "| step | exit | seconds | checks (the simulator tests' checks, a card's tolerances) |",
+               "| --- | --- | ---: | --- |"]
+        for name, st in r["card"]["steps"].items():
+            checks = st.get("checks") or {}
+            shown = ", ".join(f"{k} {v:.2f}" if isinstance(v, float) else f"{k} {'yes' if v else 'NO'}"
+                              for k, v in checks.items()) or st.get("why", "—")
+            md.append(f"| {name} | {st['rc']} | {st.get('seconds', '—')} | {shown} |")
     if "compile" in r:
         c = r["compile"]
         md += ["", "### First use of the GPU kernels (child processes)", ""]
@@ -745,6 +757,8 @@ def write_results(res: dict, path: Path | None) -> Path:
 def merge(files: list[str]) -> dict:
     """Results of split runs (``--sections``) on one device joined, later files over earlier ones."""
     parts = [json.loads(Path(f).read_text()) for f in files]
+    cards = [p for p in parts if "steps" in p]   # bench/gpu_card.py's card.json: its checks, beside the figures
+    parts = [p for p in parts if "steps" not in p]
     devices = {p.get("device") for p in parts}
     if len(devices) != 1 or any(p.get("smoke") for p in parts):
         raise SystemExit(f"bench_gpu --merge: the files come from different devices or smoke runs: {sorted(devices)}")
@@ -752,6 +766,11 @@ def merge(files: list[str]) -> dict:
     for p in parts:
         res.update({k: v for k, v in p.items() if k != "sections"})
     res["sections"] = [s for s in SECTIONS if any(s in p.get("sections", []) for p in parts)]
+    for card in cards:
+        res["card"] = {"nvidia_smi": card.get("nvidia_smi"), "budget_s": card.get("budget_s"),
+                       "steps": {n: {k: v for k, v in st.items() if k in ("rc", "seconds", "checks", "why")}
+                                 for n, st in card["steps"].items()}}
+        res["machine"] = f"device host of {card.get('nvidia_smi')} ({res.get('cpu_threads')} CPU threads)"
     res["markdown"] = markdown(res)
     return res
 

@@ -3,14 +3,19 @@
 tests/tracer/test_gpu_traverse.py in a child; prints one JSON object {kernel: "ok" | error, kernel + "_ptx_bytes": n}.
 With the argument ``batches``: the photon batch kernels of tracer/gpu/transport.py instead (forward, backward: one
 thread per batch), with the argument types a real `Simulation`'s snapshot and query give them
-(tests/tracer/test_gpu_transport.py).
+(tests/tracer/test_gpu_transport.py). Each kernel's PTX is then assembled by ptxas for sm_90 where a CUDA toolkit
+has it, as a card's driver does before a launch: NVVM's PTX is not always ptxas's (issue 40).
 """
 
 from __future__ import annotations
 
 import json
 import os
+import re
+import shutil
+import subprocess
 import sys
+import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
@@ -69,12 +74,43 @@ def main():
     print(json.dumps(report))
 
 
+def ptxas() -> str | None:
+    """CUDA's PTX assembler (``$CUDA_HOME/bin/ptxas`` or on the PATH), or None."""
+    home = os.environ.get("CUDA_HOME", "")
+    found = os.path.join(home, "bin", "ptxas") if home else ""
+    return found if found and os.access(found, os.X_OK) else shutil.which("ptxas")
+
+
+def assemble(ptx: str) -> dict:
+    """The PTX through ptxas for sm_90, as a card's driver does before a launch (NVVM's PTX can still be refused
+    there: an LLVM intrinsic left as an external function was, on an H200): {"assembled": "ok" | the error,
+    "registers", "stack_bytes", "spill_bytes"} (ptxas -v), or {"assembled": "skipped: ..."} without ptxas."""
+    exe = ptxas()
+    if exe is None:
+        return {"assembled": "skipped: no ptxas (a CUDA toolkit's bin/, or CUDA_HOME)"}
+    with tempfile.TemporaryDirectory() as tmp:
+        src = os.path.join(tmp, "k.ptx")
+        with open(src, "w") as f:
+            f.write(ptx)
+        r = subprocess.run([exe, f"-arch=sm_{CC[0]}{CC[1]}", "-v", src, "-o", os.path.join(tmp, "k.cubin")],
+                           capture_output=True, text=True, timeout=600)
+    if r.returncode:
+        return {"assembled": (r.stderr or r.stdout)[-2000:]}
+    info = r.stderr + r.stdout
+    entry = re.findall(r"Used (\d+) registers, used \d+ barriers, (\d+) bytes cumulative stack size", info)
+    spills = [int(x) for x in re.findall(r"(\d+) bytes spill stores", info)]
+    return {"assembled": "ok", "registers": int(entry[-1][0]) if entry else None,
+            "stack_bytes": int(entry[-1][1]) if entry else None, "spill_bytes": max(spills, default=0)}
+
+
 def compile_one(report, cuda, name, fn, sig):
     try:
         ptx, _ = cuda.compile_ptx(fn, sig, cc=CC)
         report[name] = "ok" if ".entry" in ptx else "no .entry in the PTX"
         report[name + "_ptx_bytes"] = len(ptx)
         report[name + "_local_stack"] = ".local" in ptx
+        for k, v in assemble(ptx).items():
+            report[f"{name}_{k}"] = v
     except Exception as e:   # noqa: BLE001 - reported
         report[name] = f"{type(e).__name__}: {str(e)[:2000]}"
 

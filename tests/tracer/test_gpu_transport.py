@@ -135,3 +135,5 @@ def test_batch_kernels_compile_to_ptx():
     for name in ("forward_threads", "backward_threads"):
         assert report[name] == "ok", report[name]
         assert report[name + "_local_stack"], report
+        assembled = report[name + "_assembled"]   # ptxas, as a card's driver (issue 40)
+        assert assembled == "ok" or assembled.startswith("skipped"), (name, assembled)

@@ -63,3 +63,6 @@ def test_ray_kernels_compile_to_ptx():
     report = run_child("gpu_ptx_kernels.py", ptx_env())
     assert report["closest_rays"] == "ok" and report["any_rays"] == "ok", report
     assert report["closest_rays_local_stack"] and report["any_rays_local_stack"], report
+    for name in ("closest_rays", "any_rays"):   # ptxas takes the PTX as a card's driver does (issue 40: it refused
+        assembled = report[name + "_assembled"]  # llvm.prefetch on an H200, where NVVM had let it through)
+        assert assembled == "ok" or assembled.startswith("skipped"), (name, assembled)

@@ -31,9 +31,13 @@ def prefetch(typingctx, arr, idx):
     Incoherent rays through a large BVH wait on memory for almost every row (one cache miss per row);
     asking for the next row (or leaf) as soon as it is chosen overlaps its latency with the sorting
     and stack work.
-    Never faults (an address past the array is a harmless hint) and changes no result.
+    Never faults (an address past the array is a harmless hint) and changes no result. Compiled for a CUDA
+    card (an ``nvptx`` module) it emits nothing: NVVM leaves ``llvm.prefetch`` as an external function, which
+    ptxas refuses (seen on an H200, issue 40), and a card hides memory latency with other warps instead.
     """
     def codegen(context, builder, sig, args):
+        if builder.module.triple.startswith("nvptx"):   # on a GPU: no hint (ptxas rejects llvm.prefetch)
+            return context.get_dummy_value()
         ary = context.make_array(sig.args[0])(context, builder, args[0])
         ptr = builder.gep(ary.data, [args[1]])
         i32 = ir.IntType(32)
