@@ -44,7 +44,7 @@ def _overhead_round(backend, sim, tasks: int, repeats: int) -> float:
     from tracer.scene import Scene
     from tracer.transport import SensorArrays
 
-    scene = sim._snapshot("white")
+    scene = sim.snapshot("white")
     receivers = Scene()
     i = receivers.add_disk_sensor(np.array([2.0, 2.0, 0.001]), np.array([0.0, 0.0, 1.0]), 0.05)
     receivers.commit()

@@ -22,3 +22,7 @@ class UnknownIdError(TracerError, KeyError):
 
     def __str__(self) -> str:  # KeyError would repr() the message
         return str(self.args[0]) if self.args else ""
+
+
+class SimulationError(TracerError):
+    """A query or a scene the transport cannot simulate; the message says why."""

@@ -36,7 +36,7 @@ def batch_kernels():
     s, ids = scene_of(box([-1, -1, -1], [1, 1, 1]))
     sim = Simulation(s, {ids[0]: {"type": "lambertian", "reflectance": 0.5}},
                      [{"type": "point", "position": [0, 0, 0], "intensity_cd": 1.0}])
-    sa, M, L = sim._snapshot("white").parts
+    sa, M, L = sim.snapshot("white").parts
     i1 = np.zeros(2, np.int64)
     sens = SensorArrays(i1, i1, i1, i1, np.zeros((2, 3)))
     q = disk_queries(np.zeros((2, 3)), np.tile([0.0, 0.0, 1.0], (2, 1)), 0.1)

@@ -76,7 +76,7 @@ def values():
     s, ids = scene_of(quad([0, 0, 0], [1, 0, 0], [0, 1, 0]))
     sim = Simulation(s, {ids[0]: {"type": "lambertian", "reflectance": 0.5}},
                      [{"type": "point", "position": [0.5, 0.5, 1.0], "intensity_cd": 100.0}])
-    sa, M, L = sim._snapshot("polarized-spectral").parts
+    sa, M, L = sim.snapshot("polarized-spectral").parts
     f, i, u = 0.5, np.int64(1), np.uint64(7)
     farr, iarr = np.zeros(8), np.zeros(8, np.int64)
     v = {

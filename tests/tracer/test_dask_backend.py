@@ -102,10 +102,10 @@ def test_progress_cancellation_and_time_budgets_work_on_the_cluster(cluster):
 def test_a_snapshot_goes_to_the_workers_once_per_content():
     scene, mats, lights = _glass_scene()
     sim = Simulation(scene, mats, lights)
-    assert sim._snapshot("white") is sim._snapshot("white")
-    same = Simulation(scene, mats, lights)._snapshot("white")
-    assert same is not sim._snapshot("white") and same.key == sim._snapshot("white").key
-    moved = Simulation(scene, {**mats, 0: {"type": "lambertian", "reflectance": 0.4}}, lights)._snapshot("white")
+    assert sim.snapshot("white") is sim.snapshot("white")
+    same = Simulation(scene, mats, lights).snapshot("white")
+    assert same is not sim.snapshot("white") and same.key == sim.snapshot("white").key
+    moved = Simulation(scene, {**mats, 0: {"type": "lambertian", "reflectance": 0.4}}, lights).snapshot("white")
     assert moved.key != same.key
     assert Shipment((np.arange(3.0), 1)).key != Shipment((np.arange(3), 1)).key   # dtype counts, not only bytes
 

@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 from tracer.estimate import Estimate
+from tracer.rounds import stop_error
 from tracer.scene import Scene
-from tracer.simulate import LIT_FRACTION, Simulation, SimulationError, _stop_error
+from tracer.simulate import LIT_FRACTION, Simulation, SimulationError
 from tracer.warmup import box
 
 TARGET = 0.05
@@ -60,10 +61,10 @@ def test_the_stop_error_of_each_scope():
     est.add(values)
     mean_est.add(values.mean(axis=1, keepdims=True))
     rel = est.relative_error()
-    assert _stop_error(est, mean_est, None, "worst") == pytest.approx(rel.max()) and rel.max() == rel[2]
-    assert _stop_error(est, mean_est, None, "lit") == pytest.approx(rel[1])       # 0.15 lx < 1 % of 100 lx: out
-    assert _stop_error(est, mean_est, None, "mean") == pytest.approx(mean_est.relative_error()[0])
-    assert _stop_error(est, mean_est, 1, "lit") == pytest.approx(rel[0])          # only the first value counts
+    assert stop_error(est, mean_est, None, "worst") == pytest.approx(rel.max()) and rel.max() == rel[2]
+    assert stop_error(est, mean_est, None, "lit") == pytest.approx(rel[1])       # 0.15 lx < 1 % of 100 lx: out
+    assert stop_error(est, mean_est, None, "mean") == pytest.approx(mean_est.relative_error()[0])
+    assert stop_error(est, mean_est, 1, "lit") == pytest.approx(rel[0])          # only the first value counts
 
 
 def test_an_unknown_scope_is_refused(strip):

@@ -1,0 +1,304 @@
+"""A query's rounds of batches: the stop rules, the round loop, and the forward and backward drivers.
+
+`tracer.simulate.Simulation` turns a sensor's receivers (`tracer.sensors.base.Probe`) into one of these runs. Batches
+are seeded from (seed, batch index); a round's size depends only on the request and the backend's
+`tracer.backends.BatchShape`, so for the same seed and stop rule the answer is bit-identical wherever the batches of
+one shape ran (see `tracer.simulate`'s docstring for the rules). Python orchestration only: the kernels are
+`tracer.transport`'s and `tracer.backward`'s.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from tracer.backends import CPU_SHAPE, IN_PROCESS, InProcess, Shipment
+from tracer.backward import QueryArrays, disk_queries
+from tracer.effects import photon_state
+from tracer.errors import SimulationError
+from tracer.estimate import Estimate
+from tracer.gpu.device import DeviceUnavailable
+from tracer.optics import spectra
+from tracer.scene import Scene
+from tracer.sensors.base import IlluminanceResult, Probe
+from tracer.transport import COUNTERS, SensorArrays, tally_columns
+from tracer.warmup import wait_background
+
+log = logging.getLogger(__name__)
+
+DEFAULT_MAX_SECONDS = 30.0     # s: budget of a query that states none
+ROUND_BATCHES = CPU_SHAPE.first_round        # batches started between two stop tests (the first rounds)
+MAX_ROUND_BATCHES = CPU_SHAPE.max_round      # the largest round, however long the query has run
+FORWARD_BATCH = CPU_SHAPE.forward_photons    # photons per forward batch (fewer when max_photons is small)
+BACKWARD_BATCH = CPU_SHAPE.backward_paths    # paths per patch per backward batch
+MIN_BATCHES = 8                # batches before the error bar is trusted for a target-error stop
+MAX_ROUND_BYTES = 256 << 20    # a round's tallies (batches × bins × 8 B) stay below this: fewer batches a round
+MAX_SPECTRAL_TALLIES = 4_000_000   # bins × spectral columns a query may record per batch
+_COMPILE_SECONDS: dict[tuple, float] = {}   # first call of each compiled variant in this process
+
+
+@dataclass
+class Budget:
+    """A query's stop rules, checked (`budget`): target relative error, seconds, photons, and the target's scope."""
+
+    target: float | None
+    max_seconds: float | None
+    max_photons: int | None
+    scope: str = "worst"
+
+
+TARGET_SCOPES = ("worst", "lit", "mean")
+LIT_FRACTION = 0.01   # "lit" values: at least this fraction of the brightest one
+
+
+def budget(target_relative_error, max_seconds, max_photons, scope="worst") -> Budget:
+    if target_relative_error is not None:
+        if isinstance(target_relative_error, bool) or not (0 < float(target_relative_error) < 1):
+            raise SimulationError(f"target_relative_error must be in (0, 1), got {target_relative_error!r}")
+        target_relative_error = float(target_relative_error)
+    if max_seconds is not None:
+        if isinstance(max_seconds, bool) or not (0 < float(max_seconds) < math.inf):
+            raise SimulationError(f"max_seconds must be > 0 and finite, got {max_seconds!r}")
+        max_seconds = float(max_seconds)
+    if max_photons is not None:
+        if isinstance(max_photons, bool) or int(max_photons) != max_photons or int(max_photons) < 1:
+            raise SimulationError(f"max_photons must be a positive integer, got {max_photons!r}")
+        max_photons = int(max_photons)
+    if scope not in TARGET_SCOPES:
+        raise SimulationError(f"target_scope must be one of {list(TARGET_SCOPES)}, got {scope!r}")
+    if target_relative_error is None and max_seconds is None and max_photons is None:
+        max_seconds = DEFAULT_MAX_SECONDS
+    return Budget(target_relative_error, max_seconds, max_photons, scope)
+
+
+def stop_error(est: Estimate, mean_est: Estimate, n_stop: int | None, scope: str) -> float:
+    """The relative error a target is held to (`target_scope`): "worst", the largest over the values;
+    "lit", the largest over the values at least `LIT_FRACTION` of the brightest (cells in shadow, which
+    a handful of stray photons reach, cannot hold a grid to its target); "mean", that of the mean of
+    the values (its batch means, `mean_est`)."""
+    if scope == "mean":
+        return float(mean_est.relative_error()[0])
+    rel = est.relative_error()[:n_stop]
+    if scope == "lit" and rel.size:
+        mean = est.mean[:n_stop]
+        top = float(np.max(mean))
+        rel = rel[mean >= LIT_FRACTION * top] if top > 0 else rel[:0]
+    return float(np.max(rel)) if rel.size else 0.0
+
+
+class QueryBackend:
+    """One query's backend: `backend`, then, once it says the card cannot take the query
+    (`tracer.gpu.device.DeviceUnavailable`: a scene that does not fit), this process's CPU threads for the rest of
+    the query; `describe()` then says so and why (``"fallback"``). The same batches, the same random numbers."""
+
+    def __init__(self, backend: Any) -> None:
+        self.backend = backend
+        self.shape = backend.shape   # kept on the CPU too: the same batches
+        self.fallback: str | None = None
+
+    def run(self, kernel_id, scene, query, batch0, n_batches, size):
+        if self.fallback is None:
+            try:
+                return self.backend.run(kernel_id, scene, query, batch0, n_batches, size)
+            except DeviceUnavailable as exc:
+                self.fallback = f"ran on the CPU because {exc}"
+                log.warning("%s", self.fallback)
+        return IN_PROCESS.run(kernel_id, scene, query, batch0, n_batches, size)
+
+    def describe(self) -> dict[str, Any]:
+        if self.fallback is None:
+            return self.backend.describe()
+        return {**IN_PROCESS.describe(), "fallback": self.fallback}
+
+
+def warm(kernel_id: tuple, scene: Shipment, query: Shipment, backend: QueryBackend) -> float:
+    """Compile (or load from cache) a kernel where it runs, on a one-photon batch; seconds it took, once per
+    process and backend (waiting for a child process that compiles it, `tracer.warmup`, included)."""
+    local = isinstance(backend.backend, InProcess)
+    variant = kernel_id if local else (backend.backend.name, *kernel_id)
+    if variant in _COMPILE_SECONDS:
+        return 0.0
+    t = time.perf_counter()
+    if local:
+        wait_background(kernel_id[0])
+    backend.run(kernel_id, scene, query, 0, 1, 1)
+    if backend.fallback is not None:   # it compiled for this process's CPU, not where it was asked
+        variant = kernel_id
+    _COMPILE_SECONDS.setdefault(variant, time.perf_counter() - t)
+    return _COMPILE_SECONDS[variant]
+
+
+def loop(run_round, n_bins, per_batch, budget, progress, cancel, t0, shape, n_stop=None):
+    """Rounds of batches (`run_round(batch0, n) -> (values (n, n_bins), counters (n, c))`) until a stop rule
+    holds; returns (Estimate, batches, stop_reason, counters).
+    The error stop looks at the first `n_stop` bins (all by default): the illuminances, not the spectra.
+    Rounds follow the backend's `shape`, and hold at most `MAX_ROUND_BYTES` of tallies."""
+    max_round = max(2, min(shape.max_round, MAX_ROUND_BYTES // (8 * max(1, n_bins))))
+    if progress is not None:   # before the first round: no photons yet, the seconds spent getting ready
+        progress(0, math.inf, time.perf_counter() - t0)   # (compiling or loading the kernel, packing)
+    est = Estimate.empty(n_bins)
+    mean_est = Estimate.empty(1)   # the batch means of the values' mean (target_scope "mean")
+    batches = 0
+    counters = None
+    while True:
+        nb = min(max_round, max(shape.first_round, batches // 4))
+        if budget.max_photons is not None:
+            nb = min(nb, max(1, (budget.max_photons - batches * per_batch) // per_batch))
+        nb = max(nb, 2 - batches)   # an error bar needs two batches, whatever the budget
+        values, cnt = run_round(batches, nb)
+        est.add(values)
+        if budget.scope == "mean":
+            mean_est.add(values[:, :n_stop].mean(axis=1, keepdims=True))
+        counters = cnt.sum(axis=0) if counters is None else counters + cnt.sum(axis=0)
+        batches += nb
+        elapsed = time.perf_counter() - t0
+        worst = stop_error(est, mean_est, n_stop, budget.scope)
+        if progress is not None:
+            progress(batches * per_batch, worst, elapsed)
+        if cancel is not None and cancel():
+            return est, batches, "cancelled", counters
+        if budget.target is not None and batches >= MIN_BATCHES and worst <= budget.target:
+            return est, batches, "target_relative_error", counters
+        if budget.max_photons is not None and (batches + 1) * per_batch > budget.max_photons:
+            return est, batches, "max_photons", counters
+        if budget.max_seconds is not None and elapsed >= budget.max_seconds:
+            return est, batches, "max_seconds", counters
+
+
+def forward(sim, probe: Probe, budget: Budget, seed: int, effects: list[str], progress, cancel, t0: float,
+            observe_spectrum: bool, refs, backend: QueryBackend) -> IlluminanceResult:
+    """Photons from the sources into the probe's receivers (and its surface and far-field tallies), round by round
+    (`loop`): the raw bins, lx (cd and lm for a far field), with their standard errors."""
+    is_grid, centers, normals, radius = probe.is_grid, probe.centers, probe.normals, probe.radius
+    grid: Any = probe.grid
+    surface: Any = probe.surface
+    far: Any = probe.far
+    receivers = Scene()
+    ids: list[int] = []
+    if is_grid:
+        uu, vv, nu, nv = grid
+        ids = [receivers.add_rect_sensor(centers, uu, vv)]
+        n_bins = nu * nv
+        area = np.full(n_bins, float(np.linalg.norm(np.cross(uu, vv))) / (nu * nv))
+    else:
+        ids = [receivers.add_disk_sensor(c, n, radius) for c, n in zip(centers, normals, strict=True)]
+        n_bins = len(centers)
+        area = np.full(n_bins, math.pi * radius * radius)
+    receivers.commit()
+    ra = receivers.arrays()
+    bin0 = np.full(max(ids) + 1 if ids else 0, -1, np.int64)
+    snu = np.ones(len(bin0), np.int64)
+    snv = np.ones(len(bin0), np.int64)
+    if is_grid:
+        bin0[ids[0]] = 0
+        snu[ids[0]], snv[ids[0]] = grid[2], grid[3]
+    else:
+        bin0[ids] = np.arange(len(ids))
+    ref = np.zeros((len(bin0), 3))
+    if refs is not None:
+        ref[ids] = refs[:len(ids)]
+    observe_stokes = refs is not None
+    n_stop = n_bins   # the error stop: the receivers, or the triangles where there are none
+    surf = np.empty(0, np.int64)
+    if surface is not None:
+        surf_map, surf_area = surface
+        surf = np.where(surf_map >= 0, surf_map + n_bins, -1).astype(np.int64)
+        n_bins += len(surf_area)
+        area = np.concatenate([area, surf_area])
+        n_stop = n_stop or n_bins
+    far_row = np.empty(0, np.float64)
+    if far is not None:
+        far_params, far_omega = far
+        far_row = np.array([n_bins, *far_params], np.float64)
+        n_bins += len(far_omega) + 1
+        area = np.concatenate([area, far_omega, [1.0]])   # cd; the last bin, the total leaving, in lm
+        n_stop = n_stop or n_bins - 1
+    sens = SensorArrays(bin0, snu, snv, np.array([int(observe_spectrum), int(observe_stokes)], np.int64), ref,
+                        surf, far_row)
+    n_cols = tally_columns(observe_spectrum, observe_stokes)
+    if n_bins * n_cols > MAX_SPECTRAL_TALLIES:
+        what = " and ".join(o for o, on in (("the spectrum", observe_spectrum), ("Stokes", observe_stokes)) if on)
+        raise SimulationError(f"observing {what} of {n_bins} cells needs {n_bins * n_cols} tallies per "
+                              f"batch (at most {MAX_SPECTRAL_TALLIES}): use at most "
+                              f"{MAX_SPECTRAL_TALLIES // n_cols} cells")
+    shape = backend.shape
+    per_batch = shape.forward_photons
+    if budget.max_photons is not None:
+        per_batch = int(min(shape.forward_photons, max(1, budget.max_photons // (4 * shape.first_round))))
+    state = photon_state(effects)
+    kernel_id = ("forward", state)
+    scene, query = sim.snapshot(state), Shipment((ra, sens, n_bins, seed))
+    compile_s = warm(kernel_id, scene, query, backend)
+
+    with np.errstate(divide="ignore"):
+        per_area = np.tile(np.where(area > 0, 1.0 / area, 0.0), n_cols)   # a degenerate triangle: 0 ± 0
+
+    def run_round(b0, nb):
+        flux, cnt = backend.run(kernel_id, scene, query, b0, nb, per_batch)
+        return flux * per_area[None, :], cnt
+
+    est, batches, stop, counters = loop(run_round, n_bins * n_cols, per_batch, budget, progress, cancel, t0,
+                                              shape,
+                                              n_stop)
+    cdict = {name: int(c) for name, c in zip(COUNTERS, counters, strict=True)}
+    mean, err = est.mean.reshape(n_cols, n_bins), est.stderr.reshape(n_cols, n_bins)
+    res = IlluminanceResult(mean[0], err[0], batches * per_batch, time.perf_counter() - t0, effects,
+                            "forward", stop, batches, cdict["rejected"], cdict, compile_s)
+    if observe_spectrum:
+        res.nm = spectra.bin_centres()
+        res.spectral_irradiance = mean[3:].T / spectra.BIN_NM
+        res.spectral_stderr = err[3:].T / spectra.BIN_NM
+        x, y, z = mean[1], mean[0] / spectra.KM, mean[2]
+        total = x + y + z
+        with np.errstate(divide="ignore", invalid="ignore"):
+            res.cie_xy = np.where(total[:, None] > 0, np.stack([x, y], axis=1) / total[:, None], np.nan)
+    if observe_stokes:
+        res.stokes = np.concatenate([mean[:1], mean[-3:]]).T
+        res.stokes_stderr = np.concatenate([err[:1], err[-3:]]).T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            res.dop = np.where(mean[0] > 0, np.sqrt((mean[-3:] ** 2).sum(axis=0)) / mean[0], np.nan)
+    return res
+
+
+def backward(sim, probe: Probe, budget: Budget, seed: int, effects: list[str], progress, cancel, t0: float,
+             backend: QueryBackend) -> IlluminanceResult:
+    """Paths from uniform points of each receiver patch, with next-event estimation (`tracer.backward`), round by
+    round: the receivers' lx and standard errors."""
+    is_grid, centers, normals, radius = probe.is_grid, probe.centers, probe.normals, probe.radius
+    grid: Any = probe.grid
+    if is_grid:
+        uu, vv, nu, nv = grid
+        k = nu * nv
+        jj, ii = np.divmod(np.arange(k), nu)
+        o = centers[None, :] + (ii / nu)[:, None] * uu[None, :] + (jj / nv)[:, None] * vv[None, :]
+        q = QueryArrays(np.ones(k, np.int64), o, np.tile(uu / nu, (k, 1)), np.tile(vv / nv, (k, 1)),
+                        np.tile(normals, (k, 1)))
+    else:
+        q = disk_queries(centers, normals, radius)
+        k = len(centers)
+    shape = backend.shape
+    paths = shape.backward_paths
+    per_batch = paths * k
+    if budget.max_photons is not None:
+        paths = int(min(shape.backward_paths, max(1, budget.max_photons // (4 * shape.first_round * k))))
+        per_batch = paths * k
+    scene, query = sim.snapshot("backward"), Shipment((q, seed))
+    compile_s = warm(("backward",), scene, query, backend)
+
+    def run_round(b0, nb):
+        return backend.run(("backward",), scene, query, b0, nb, paths)
+
+    est, batches, stop, counters = loop(run_round, k, per_batch, budget, progress, cancel, t0, shape)
+    cdict = {"rejected": int(counters[0]), "truncated": int(counters[1])}
+    return IlluminanceResult(est.mean, est.stderr, batches * per_batch, time.perf_counter() - t0, effects,
+                             "backward", stop, batches, cdict["rejected"], cdict, compile_s)
+
+
+def compile_seconds() -> dict[str, float]:
+    """Seconds each kernel variant took to compile or load, this process: {"forward/white": s, "backward": s}."""
+    return {"/".join(variant): s for variant, s in _COMPILE_SECONDS.items()}

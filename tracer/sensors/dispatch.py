@@ -1,0 +1,37 @@
+"""The one place that picks a sensor kind by its ``type`` (see `tracer.sensors.base` for the contract).
+
+To register a new kind: import its module here and add it to `KINDS`.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from tracer.errors import SimulationError
+from tracer.sensors import disk, far_field, grid, points, surface
+
+#: every registered sensor kind, by its body's ``type``
+KINDS = {m.TYPE: m for m in (points, disk, grid, surface, far_field)}
+
+
+def kind_of(body: Any):
+    """The kind module of a sensor body (a dict with ``type``); `SimulationError` saying what is known otherwise."""
+    if not isinstance(body, dict):
+        raise SimulationError(f"a sensor is a dict {{'type': one of {sorted(KINDS)}, ...}}, got {type(body).__name__}")
+    kind = KINDS.get(body.get("type"))
+    if kind is None:
+        raise SimulationError(f"sensor type {body.get('type')!r} is unknown; known: {sorted(KINDS)}")
+    return kind
+
+
+def run(sim, body: dict, estimator: str = "auto", observe=(), physics_left_out=(), **options) -> Any:
+    """Measure one sensor on `sim` (`tracer.simulate.Simulation`): its probe, the rounds, its answer. `options` are
+    the query's budget and controls (`Simulation.run`). A kind that is forward only answers "auto" forward; one that
+    does not observe refuses ``observe`` and ``physics_left_out``."""
+    kind = kind_of(body)
+    if not kind.OBSERVES and (observe or physics_left_out):
+        raise SimulationError(f"a {kind.TYPE} sensor answers lux or cd only: it takes no observe or physics_left_out")
+    if kind.FORWARD_ONLY and estimator == "auto":
+        estimator = "forward"
+    return kind.answer(sim, *sim.measure(kind.probe, body, estimator=estimator, observe=observe,
+                                         physics_left_out=physics_left_out, **options))
