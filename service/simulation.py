@@ -34,20 +34,20 @@ import contextlib
 import hashlib
 import json
 import logging
-import math
 import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
 
-from service.errors import Invalid, NotFound, ServiceError, TooLarge, Unavailable
+from service import sensor_kinds
+from service.errors import Invalid, NotFound, ServiceError, Unavailable
 from service.jobs import Budget, JobRunner
 from service.live import DELETED, LiveRegistry, LiveScene
 from service.optics import to_spec
+from service.payloads import result_payload
 
 log = logging.getLogger(__name__)
 #: Async jobs: worker threads and how many may wait.
@@ -162,49 +162,6 @@ def find_sensor(live: LiveScene, sensor_id: str) -> dict:
     raise NotFound(f"scene {live.scene_id!r} has no sensor {sensor_id!r} in revision {live.revision}")
 
 
-def _finite_list(a: Any) -> list:
-    arr = np.asarray(a, dtype=float)
-    if not np.all(np.isfinite(arr)):
-        # The transport guarantees finite tallies; a NaN here is a bug, never an answer to send.
-        raise RuntimeError("the light transport returned a non-finite value")
-    return arr.tolist()
-
-
-def result_payload(result: Any, revision: int) -> dict[str, Any]:
-    """An `IlluminanceResult` or `GridResult` as the JSON the routes answer with."""
-    return {
-        "lux": _finite_list(result.lux),
-        "stderr": _finite_list(result.stderr),
-        "photons": int(result.photons),
-        "seconds": float(result.seconds),
-        "effects": sorted(str(e) for e in result.effects),
-        "revision": int(revision),
-        "estimator": str(result.estimator),
-        "stop_reason": str(result.stop_reason),
-        "compile_seconds": float(getattr(result, "compile_seconds", 0.0)),
-        "cost": getattr(result, "cost", None),
-        "backend": getattr(result, "backend", None),
-        "device": _device(getattr(result, "backend", None)),
-        **({"error_budget": {name: _finite_list(v) for name, v in result.error_budget.items()}}
-           if getattr(result, "error_budget", None) else {}),
-        **({"physics_left_out": {name: {**e, "difference": _finite_list(e["difference"]),
-                                        "stderr": _finite_list(e["stderr"])}
-                                 for name, e in result.physics_left_out.items()}}
-           if getattr(result, "physics_left_out", None) else {}),
-        **_spectral_payload(result),
-        **_stokes_payload(result),
-    }
-
-
-def _device(backend: dict | None) -> str | None:
-    """Where the photon batches ran (`tracer.backends.device_of`): "cpu:2 threads", ... on N dask workers."""
-    if backend is None:
-        return None
-    from tracer.backends import device_of
-
-    return device_of(backend)
-
-
 def _device_backend(device: str) -> Any:
     """`tracer.gpu.backend.CudaBackend` where `device` (auto, cpu, cuda) resolves to CUDA
     (`tracer.gpu.device.choose`), else None (the CPU; why is logged once by `choose`, or here)."""
@@ -221,32 +178,6 @@ def _device_backend(device: str) -> Any:
     except (DeviceUnavailable, ImportError) as exc:   # the card went away after `serve` checked it
         log.warning("device %s: computing on the CPU, because %s", device, exc)
         return None
-
-
-def _spectral_payload(result: Any) -> dict[str, Any]:
-    """The observed spectrum of a result, if any: bands, W/m²/nm ± error, and chromaticity (null where dark)."""
-    if getattr(result, "spectral_irradiance", None) is None:
-        return {}
-    xy = np.asarray(result.cie_xy, float)
-    return {"nm": _finite_list(result.nm), "spectral_irradiance": _finite_list(result.spectral_irradiance),
-            "spectral_stderr": _finite_list(result.spectral_stderr),
-            "cie_xy": _nan_to_null(xy.tolist())}
-
-
-def _stokes_payload(result: Any) -> dict[str, Any]:
-    """The observed polarization of a result, if any: Stokes (lx) ± error and the degree of polarization (null
-    where dark)."""
-    if getattr(result, "stokes", None) is None:
-        return {}
-    return {"stokes": _finite_list(result.stokes), "stokes_stderr": _finite_list(result.stokes_stderr),
-            "dop": _nan_to_null(np.asarray(result.dop, float).tolist())}
-
-
-def _nan_to_null(x: Any) -> Any:
-    """Nested lists of floats with NaN (nothing arrived, no colour) as JSON null."""
-    if isinstance(x, list):
-        return [_nan_to_null(v) for v in x]
-    return x if math.isfinite(x) else None
 
 
 class SimulationHub:
@@ -408,126 +339,31 @@ class SimulationHub:
                  force_effects: tuple[str, ...], progress: Callable | None = None,
                  cancel: Callable | None = None, observe: tuple[str, ...] = (),
                  reference: tuple | None = None, physics_left_out: tuple[str, ...] = ()) -> dict[str, Any]:
-        """Simulate one sensor; keeps a grid's result for ``map.png`` while the scene is unchanged."""
+        """Simulate one sensor of any kind (`service.sensor_kinds`); keeps its result where its kind says (a grid's
+        for ``map.png`` while the scene is unchanged, a far field's for its export)."""
         scene_id = prepared.live.scene_id
-        common = dict(target_relative_error=budget.target_relative_error, target_scope=budget.target_scope,
-                      max_seconds=budget.max_seconds,
-                      max_photons=budget.max_photons, seed=seed, estimator=estimator,
-                      force_effects=force_effects, progress=progress, cancel=cancel, observe=observe,
-                      reference=reference, **({"physics_left_out": physics_left_out} if physics_left_out else {}))
-        if sensor["type"] == "grid":
-            nu, nv = int(sensor["nu"]), int(sensor["nv"])
-            if nu * nv > self.limits.max_points:
-                raise TooLarge(f"sensor {sensor['id']!r} has {nu * nv} cells; this service answers "
-                               f"at most {self.limits.max_points} points per query", limit=self.limits.max_points)
-            with _refusals():
-                result = prepared.simulation.grid(np.asarray(sensor["origin"], float),
-                                                  np.asarray(sensor["u"], float), np.asarray(sensor["v"], float),
-                                                  nu, nv, **common)
-            payload = result_payload(result, prepared.live.revision)
-            payload.update(sensor=str(sensor["id"]), type="grid", nu=nu, nv=nv,
-                           origin=list(map(float, sensor["origin"])), u=list(map(float, sensor["u"])),
-                           v=list(map(float, sensor["v"])))
-        elif sensor["type"] == "disk":
-            normal = np.asarray(sensor["normal"], float)
-            normal = normal / np.linalg.norm(normal)
-            with _refusals():
-                result = prepared.simulation.illuminance(np.asarray([sensor["center"]], float), normal[None, :],
-                                                         radius=float(sensor["radius"]), **common)
-            payload = result_payload(result, prepared.live.revision)
-            payload.update(sensor=str(sensor["id"]), type="disk")
-        elif sensor["type"] == "surface":
-            payload = self._run_surface(prepared, sensor, budget, seed, estimator, force_effects, progress, cancel,
-                                        observe, reference, physics_left_out)
-        elif sensor["type"] == "far_field":
-            payload = self._run_far_field(prepared, sensor, budget, seed, estimator, force_effects, progress, cancel,
-                                          observe, reference, physics_left_out)
+        kind = sensor_kinds.kind_of(sensor)
+        kind.check(sensor, sensor_kinds.Query(budget, estimator, observe, reference, physics_left_out), self.limits,
+                   prepared.live)
+        with _refusals():
+            result = prepared.simulation.run(
+                kind.body(sensor, prepared.live), target_relative_error=budget.target_relative_error,
+                target_scope=budget.target_scope, max_seconds=budget.max_seconds, max_photons=budget.max_photons,
+                seed=seed, estimator=estimator, force_effects=force_effects, progress=progress, cancel=cancel,
+                observe=observe, reference=reference, physics_left_out=physics_left_out)
+        payload = kind.payload(result, sensor, prepared.live)
+        if kind.KEEP == "far":
             if not cancel or not cancel():
                 with self._lock:
                     self._far[(scene_id, str(sensor["id"]))] = payload
                 if self.results is not None:   # the export outlives a restart
                     self.results.keep_far(scene_id, str(sensor["id"]), payload)
             return payload
-        else:
-            raise Invalid(f"sensor {sensor.get('id')!r} has type {sensor.get('type')!r}, which cannot be simulated")
-        lux = np.asarray(payload["lux"], float)
-        if sensor["type"] == "surface":   # the mean over the surface: total flux / total area
-            area = np.concatenate([np.asarray(i["area"], float) for i in payload["instances"]])
-            mean = float(lux @ area / area.sum()) if area.sum() > 0 else 0.0
-            payload.update(min_lux=float(lux.min()), mean_lux=mean, max_lux=float(lux.max()))
-        else:
-            payload.update(min_lux=float(lux.min()), mean_lux=float(lux.mean()), max_lux=float(lux.max()))
         with self._lock:
-            if self._generation.get(scene_id, 0) == prepared.generation and sensor["type"] in ("grid", "surface"):
+            if self._generation.get(scene_id, 0) == prepared.generation and kind.KEEP == "map":
                 self._grids[(scene_id, str(sensor["id"]))] = (prepared.generation, payload)
         if self.results is not None and self.is_current(scene_id, prepared.generation):
             self.results.keep(prepared.live, sensor, payload)
-        return payload
-
-    def _run_surface(self, prepared: Prepared, sensor: dict, budget: Budget, seed: int, estimator: str,
-                     force_effects: tuple[str, ...], progress: Callable | None, cancel: Callable | None,
-                     observe: tuple[str, ...], reference: tuple | None,
-                     physics_left_out: tuple[str, ...]) -> dict[str, Any]:
-        """A surface sensor (`tracer.simulate.Simulation.surface`): the illuminance on each triangle of its node's
-        instances. ``lux``/``stderr`` are every triangle's, instance after instance in ``instances`` order (each
-        instance's triangles in its geometry's order); ``instances`` gives each one's node, path, instance id,
-        geometry and its own ``lux``/``stderr``. Forward only, without observe, reference or physics_left_out."""
-        sid = sensor.get("id")
-        _refuse_for_tally(sid, "surface", "triangle", budget, estimator, observe, reference, physics_left_out)
-        live = prepared.live
-        instances = [int(i) for i in sensor.get("instances", [])]
-        if not instances:
-            raise Invalid(f"sensor {sid!r}: node {sensor.get('node')} and its descendants have no geometry in "
-                          f"revision {live.revision}: nothing to tally", node=sensor.get("node"))
-        triangles = sum(len(live.tracer.geometry_arrays(live.tracer.instance_geometry(i))[1]) for i in instances)
-        if triangles > self.limits.max_points:
-            raise TooLarge(f"sensor {sid!r} covers {triangles} triangles; this service answers at most "
-                           f"{self.limits.max_points} points per query", limit=self.limits.max_points)
-        with _refusals():
-            result = prepared.simulation.surface(
-                instances, target_relative_error=budget.target_relative_error, max_seconds=budget.max_seconds,
-                max_photons=budget.max_photons, seed=seed, force_effects=force_effects, progress=progress,
-                cancel=cancel)
-        node_of = {inst: key for key, inst in live.instance_of_node.items()}
-        flat = SimpleNamespace(**{name: getattr(result, name) for name in (
-            "photons", "seconds", "effects", "estimator", "stop_reason", "compile_seconds", "backend")})
-        flat.lux, flat.stderr = np.concatenate(result.lux), np.concatenate(result.stderr)
-        payload = result_payload(flat, live.revision)
-        payload.update(sensor=str(sid), type="surface", node=sensor.get("node"), instances=[
-            {"instance": inst, "node": node_of.get(inst), "path": None,   # the route names the paths
-             "geometry": live.tracer.instance_geometry(inst), "lux": _finite_list(lux), "stderr": _finite_list(err),
-             "area": _finite_list(area)}
-            for inst, lux, err, area in zip(result.instances, result.lux, result.stderr, result.area, strict=True)])
-        return payload
-
-    def _run_far_field(self, prepared: Prepared, sensor: dict, budget: Budget, seed: int, estimator: str,
-                       force_effects: tuple[str, ...], progress: Callable | None, cancel: Callable | None,
-                       observe: tuple[str, ...], reference: tuple | None,
-                       physics_left_out: tuple[str, ...]) -> dict[str, Any]:
-        """A far-field sensor (`tracer.simulate.Simulation.far_field`): ``candela`` and ``stderr`` (cd) as nγ rows of
-        nc values, ``c_deg``, ``gamma_deg``, ``flux_lm`` ± ``flux_stderr`` leaving the scene, and the frame. Forward
-        only, without observe, reference or physics_left_out; not kept past an edit as lux results are."""
-        sid = sensor.get("id")
-        _refuse_for_tally(sid, "far-field", "bin", budget, estimator, observe, reference, physics_left_out)
-        nc, ng = int(sensor["nc"]), int(sensor["ngamma"])
-        if nc * ng > self.limits.max_points:
-            raise TooLarge(f"sensor {sid!r} has {nc} x {ng} = {nc * ng} bins; this service answers at most "
-                           f"{self.limits.max_points} points per query", limit=self.limits.max_points)
-        frame = {k: np.asarray(sensor[k], float) for k in ("direction", "c0") if sensor.get(k) is not None}
-        with _refusals():
-            result = prepared.simulation.far_field(
-                nc, ng, **frame, target_relative_error=budget.target_relative_error, max_seconds=budget.max_seconds,
-                max_photons=budget.max_photons, seed=seed, force_effects=force_effects, progress=progress,
-                cancel=cancel)
-        flat = SimpleNamespace(**{name: getattr(result, name) for name in (
-            "photons", "seconds", "effects", "estimator", "stop_reason", "compile_seconds", "backend")})
-        flat.lux, flat.stderr = result.candela, result.stderr
-        payload = result_payload(flat, prepared.live.revision)
-        payload["candela"] = payload.pop("lux")
-        payload.update(sensor=str(sid), type="far_field", nc=nc, ngamma=ng, c_deg=_finite_list(result.c_deg),
-                       gamma_deg=_finite_list(result.gamma_deg), flux_lm=float(result.flux_lm),
-                       flux_stderr=float(result.flux_stderr), direction=_finite_list(result.direction),
-                       c0=_finite_list(result.c0), max_cd=float(np.max(result.candela)))
         return payload
 
     def far_result(self, scene_id: str, sensor_id: str) -> dict[str, Any] | None:
@@ -555,21 +391,6 @@ class SimulationHub:
         close = getattr(self._backend, "close", None)
         if close is not None:
             close()
-
-
-def _refuse_for_tally(sid: Any, kind: str, unit: str, budget: Budget, estimator: str, observe: tuple[str, ...],
-                      reference: tuple | None, physics_left_out: tuple[str, ...]) -> None:
-    """Surface and far-field sensors are forward tallies of every `unit` (triangle, bin): refuse (422) what they
-    cannot answer — observables, a target scope other than "worst", the backward estimator."""
-    for field, given in (("observe", observe), ("reference", reference), ("physics_left_out", physics_left_out)):
-        if given:
-            raise Invalid(f"sensor {sid!r} is a {kind} sensor: {field} is not available for it")
-    if budget.target_scope != "worst":
-        raise Invalid(f"sensor {sid!r} is a {kind} sensor: its target holds every {unit} (target_scope "
-                      f"'worst'); give it a photon or time budget instead")
-    if estimator == "backward":
-        raise Invalid(f"sensor {sid!r} is a {kind} sensor: the backward estimator cannot answer it; use "
-                      f"'forward' or 'auto'")
 
 
 @contextlib.contextmanager

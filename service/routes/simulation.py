@@ -32,6 +32,7 @@ from service.errors import Invalid, NotFound, TooLarge
 from service.jobs import JobNotFound, QueueFull
 from service.maps import colour_map_png, illuminance_map_png
 from service.routes.deps import ItemId, JobId, SceneId
+from service.sensor_kinds import SensorType
 from service.simulation import SimulationHub, Unavailable, find_sensor, hub_for, resolve_budget
 from tracer.estimate import cost_of
 
@@ -267,7 +268,7 @@ class SensorPublic(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     sensor: str = Field(description="The sensor's id.")
-    type: Literal["grid", "disk", "surface", "far_field"] = Field(description="The sensor's kind.")
+    type: SensorType = Field(description="The sensor's kind.")
     lux: list[Any] | None = Field(None, description=(
         "Illuminance, lx: nv rows of nu cells for a grid, one value for a disk, every triangle for a surface "
         "(instance after instance, as in `instances`); absent for a far field (see `candela`)."))

@@ -1,0 +1,213 @@
+"""The service's side of each sensor kind: one class per kind, one registry (`KINDS`), no switch on a kind elsewhere
+in `service.simulation`.
+
+A kind says what the service needs beyond the tracer's sensor kind (`tracer.sensors`):
+
+- ``TYPE``: the wire's ``type``, the same as the tracer kind it runs;
+- ``KEEP``: where its latest result is kept: ``"map"`` (in memory while the scene is unchanged, for ``map.png`` and
+  the page, and in the result store), ``"store"`` (the result store only), ``"far"`` (the far-field store: its
+  export outlives a restart and an edit);
+- ``check(sensor, query, limits, live)``: refuse (422 `Invalid`, 413 `TooLarge`) what it cannot answer, before anything
+  runs;
+- ``body(sensor, live)``: the tracer sensor body of a stored sensor (world metres);
+- ``payload(result, sensor, live)``: the answer's JSON, ``lux`` (or ``candela``) and the kind's own fields, with
+  ``min_lux``/``mean_lux``/``max_lux`` where it answers lux.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from types import SimpleNamespace
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+
+from service.errors import Invalid, TooLarge
+from service.jobs import Budget
+from service.payloads import finite_list, result_payload
+
+
+@dataclass(frozen=True)
+class Query:
+    """What a sensor query asks beyond its budget (the route's body, checked)."""
+
+    budget: Budget
+    estimator: str
+    observe: tuple[str, ...] = ()
+    reference: tuple | None = None
+    physics_left_out: tuple[str, ...] = ()
+
+
+def summary(payload: dict[str, Any], lux: np.ndarray, weights: np.ndarray | None = None) -> dict[str, Any]:
+    """``min_lux``, ``mean_lux`` (weighted by `weights`, e.g. triangle areas: total flux / total area) and
+    ``max_lux`` added to `payload`."""
+    if weights is None:
+        mean = float(lux.mean())
+    else:
+        mean = float(lux @ weights / weights.sum()) if weights.sum() > 0 else 0.0
+    payload.update(min_lux=float(lux.min()), mean_lux=mean, max_lux=float(lux.max()))
+    return payload
+
+
+def refuse_for_tally(sid: Any, kind: str, unit: str, query: Query) -> None:
+    """Surface and far-field sensors are forward tallies of every `unit` (triangle, bin): refuse (422) what they
+    cannot answer — observables, a target scope other than "worst", the backward estimator."""
+    for field, given in (("observe", query.observe), ("reference", query.reference),
+                         ("physics_left_out", query.physics_left_out)):
+        if given:
+            raise Invalid(f"sensor {sid!r} is a {kind} sensor: {field} is not available for it")
+    if query.budget.target_scope != "worst":
+        raise Invalid(f"sensor {sid!r} is a {kind} sensor: its target holds every {unit} (target_scope "
+                      f"'worst'); give it a photon or time budget instead")
+    if query.estimator == "backward":
+        raise Invalid(f"sensor {sid!r} is a {kind} sensor: the backward estimator cannot answer it; use "
+                      f"'forward' or 'auto'")
+
+
+def _flat(result: Any, lux: Any, stderr: Any) -> SimpleNamespace:
+    """A result's common fields with `lux` and `stderr` in place of its own (for `result_payload`)."""
+    flat = SimpleNamespace(**{name: getattr(result, name) for name in (
+        "photons", "seconds", "effects", "estimator", "stop_reason", "compile_seconds", "backend")})
+    flat.lux, flat.stderr = lux, stderr
+    return flat
+
+
+class Grid:
+    """A rectangle of nu × nv cells, each answering its mean illuminance (lx)."""
+
+    TYPE = "grid"
+    KEEP = "map"
+
+    @staticmethod
+    def check(sensor: dict, query: Query, limits: Any, live: Any) -> None:
+        nu, nv = int(sensor["nu"]), int(sensor["nv"])
+        if nu * nv > limits.max_points:
+            raise TooLarge(f"sensor {sensor['id']!r} has {nu * nv} cells; this service answers "
+                           f"at most {limits.max_points} points per query", limit=limits.max_points)
+
+    @staticmethod
+    def body(sensor: dict, live: Any) -> dict:
+        return {"type": "grid", "nu": int(sensor["nu"]), "nv": int(sensor["nv"]),
+                **{k: np.asarray(sensor[k], float) for k in ("origin", "u", "v")}}
+
+    @staticmethod
+    def payload(result: Any, sensor: dict, live: Any) -> dict:
+        payload = result_payload(result, live.revision)
+        payload.update(sensor=str(sensor["id"]), type="grid", nu=int(sensor["nu"]), nv=int(sensor["nv"]),
+                       origin=list(map(float, sensor["origin"])), u=list(map(float, sensor["u"])),
+                       v=list(map(float, sensor["v"])))
+        return summary(payload, np.asarray(payload["lux"], float))
+
+
+class Disk:
+    """One disk answering its mean illuminance (lx)."""
+
+    TYPE = "disk"
+    KEEP = "store"
+
+    @staticmethod
+    def check(sensor: dict, query: Query, limits: Any, live: Any) -> None:
+        pass
+
+    @staticmethod
+    def body(sensor: dict, live: Any) -> dict:
+        normal = np.asarray(sensor["normal"], float)
+        return {"type": "disk", "center": np.asarray(sensor["center"], float),
+                "normal": normal / np.linalg.norm(normal), "radius": float(sensor["radius"])}
+
+    @staticmethod
+    def payload(result: Any, sensor: dict, live: Any) -> dict:
+        payload = result_payload(result, live.revision)
+        payload.update(sensor=str(sensor["id"]), type="disk")
+        return summary(payload, np.asarray(payload["lux"], float))
+
+
+class Surface:
+    """A node's surfaces: the illuminance on each triangle of its instances (`tracer.sensors.surface`). ``lux`` and
+    ``stderr`` are every triangle's, instance after instance in ``instances`` order (each instance's triangles in its
+    geometry's order); ``instances`` gives each one's node, path, instance id, geometry and its own ``lux``/``stderr``.
+    Forward only, without observe, reference or physics_left_out."""
+
+    TYPE = "surface"
+    KEEP = "map"
+
+    @staticmethod
+    def check(sensor: dict, query: Query, limits: Any, live: Any) -> None:
+        sid = sensor.get("id")
+        refuse_for_tally(sid, "surface", "triangle", query)
+        instances = [int(i) for i in sensor.get("instances", [])]
+        if not instances:
+            raise Invalid(f"sensor {sid!r}: node {sensor.get('node')} and its descendants have no geometry in "
+                          f"revision {live.revision}: nothing to tally", node=sensor.get("node"))
+        triangles = sum(len(live.tracer.geometry_arrays(live.tracer.instance_geometry(i))[1]) for i in instances)
+        if triangles > limits.max_points:
+            raise TooLarge(f"sensor {sid!r} covers {triangles} triangles; this service answers at most "
+                           f"{limits.max_points} points per query", limit=limits.max_points)
+
+    @staticmethod
+    def body(sensor: dict, live: Any) -> dict:
+        return {"type": "surface", "instances": [int(i) for i in sensor.get("instances", [])]}
+
+    @staticmethod
+    def payload(result: Any, sensor: dict, live: Any) -> dict:
+        payload = result_payload(_flat(result, np.concatenate(result.lux), np.concatenate(result.stderr)),
+                                 live.revision)
+        node_of = {inst: key for key, inst in live.instance_of_node.items()}
+        payload.update(sensor=str(sensor.get("id")), type="surface", node=sensor.get("node"), instances=[
+            {"instance": inst, "node": node_of.get(inst), "path": None,   # the route names the paths
+             "geometry": live.tracer.instance_geometry(inst), "lux": finite_list(lux), "stderr": finite_list(err),
+             "area": finite_list(area)}
+            for inst, lux, err, area in zip(result.instances, result.lux, result.stderr, result.area, strict=True)])
+        area = np.concatenate([np.asarray(i["area"], float) for i in payload["instances"]])
+        return summary(payload, np.asarray(payload["lux"], float), area)
+
+
+class FarField:
+    """The scene as a lamp (`tracer.sensors.far_field`): ``candela`` and ``stderr`` (cd) as nγ rows of nc values,
+    ``c_deg``, ``gamma_deg``, ``flux_lm`` ± ``flux_stderr`` leaving the scene, and the frame. Forward only, without
+    observe, reference or physics_left_out; not kept past an edit as lux results are."""
+
+    TYPE = "far_field"
+    KEEP = "far"
+
+    @staticmethod
+    def check(sensor: dict, query: Query, limits: Any, live: Any) -> None:
+        sid = sensor.get("id")
+        refuse_for_tally(sid, "far-field", "bin", query)
+        nc, ng = int(sensor["nc"]), int(sensor["ngamma"])
+        if nc * ng > limits.max_points:
+            raise TooLarge(f"sensor {sid!r} has {nc} x {ng} = {nc * ng} bins; this service answers at most "
+                           f"{limits.max_points} points per query", limit=limits.max_points)
+
+    @staticmethod
+    def body(sensor: dict, live: Any) -> dict:
+        return {"type": "far_field", "nc": int(sensor["nc"]), "ngamma": int(sensor["ngamma"]),
+                **{k: np.asarray(sensor[k], float) for k in ("direction", "c0") if sensor.get(k) is not None}}
+
+    @staticmethod
+    def payload(result: Any, sensor: dict, live: Any) -> dict:
+        payload = result_payload(_flat(result, result.candela, result.stderr), live.revision)
+        payload["candela"] = payload.pop("lux")
+        payload.update(sensor=str(sensor.get("id")), type="far_field", nc=int(sensor["nc"]),
+                       ngamma=int(sensor["ngamma"]), c_deg=finite_list(result.c_deg),
+                       gamma_deg=finite_list(result.gamma_deg), flux_lm=float(result.flux_lm),
+                       flux_stderr=float(result.flux_stderr), direction=finite_list(result.direction),
+                       c0=finite_list(result.c0), max_cd=float(np.max(result.candela)))
+        return payload
+
+
+#: every sensor kind the service answers, by its wire ``type``
+KINDS: dict[str, Any] = {k.TYPE: k for k in (Grid, Disk, Surface, FarField)}
+
+
+def kind_of(sensor: dict) -> Any:
+    """The service kind of a stored sensor; 422 for a type no kind answers."""
+    kind = KINDS.get(str(sensor.get("type")))
+    if kind is None:
+        raise Invalid(f"sensor {sensor.get('id')!r} has type {sensor.get('type')!r}, which cannot be simulated")
+    return kind
+
+if TYPE_CHECKING:   # made from the registry at import: to a type checker it is a string
+    SensorType = str
+else:
+    SensorType = Literal[tuple(KINDS)]   # the wire's sensor types, from the registry
