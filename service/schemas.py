@@ -12,43 +12,32 @@ from __future__ import annotations
 import math
 from typing import Annotated, Any, Literal
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, Strict, StringConstraints, model_validator
+from pydantic import BaseModel, ConfigDict, Field, Strict, StringConstraints, model_validator
 
 from service import optics
-from service.paths import NODE_REF_PATTERN, is_uuid
-from tracer.optics import spectra
-from tracer.optics.polarization import PolarizationError, light_polarization
-
-UUID_PATTERN = r"^[0-9a-fA-F]{8}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{12}$"
-GEOMETRY_PATTERN = r"^[0-9a-f]{64}$"
-
-Uuid = Annotated[str, StringConstraints(pattern=UUID_PATTERN, to_lower=True)]
-GeometryId = Annotated[str, StringConstraints(pattern=GEOMETRY_PATTERN)]
-#: a node by its UUID or by its path (`service.paths`); the route resolves a path to the UUID, which is stored
-NodeRef = Annotated[str, StringConstraints(pattern=NODE_REF_PATTERN),
-                    AfterValidator(lambda s: s.lower() if is_uuid(s) else s),
-                    Field(description="a node's UUID, or its path (names from the root joined by `/`, "
-                                      "`name[2]` for the second sibling of that name; `GET /scenes/{id}/nodes`)")]
-Num = Annotated[float, Strict()]  # a JSON number (an integer is fine; a boolean or a string is not)
-Vec3 = tuple[Num, Num, Num]
-Matrix16 = Annotated[list[Num], Field(min_length=16, max_length=16)]
-Fraction = Annotated[float, Strict(), Field(ge=0.0, le=1.0)]
-NonNegative = Annotated[float, Field(ge=0.0)]
-# A photometric magnitude (cd, lm, lx, lm/m²): beyond 1e15 it is a unit mistake, and a light's flux is held to
-# the tracer's `MAX_FLUX_LM` when a query packs it.
-Photometric = Annotated[float, Field(ge=0.0, le=1e15)]
-Positive = Annotated[float, Field(gt=0.0)]
-
-# metres per unit, for the document's declared length unit
-LENGTH_UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001, "um": 1e-6, "in": 0.0254, "ft": 0.3048}
-LengthUnit = Literal["m", "cm", "mm", "um", "in", "ft"]
-
-
-class Wire(BaseModel):
-    """Base of every wire model: unknown fields rejected, NaN and infinities rejected."""
-
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
-
+from service.sensor_wire import DISK_SENSOR_EXAMPLE, GRID_SENSOR_EXAMPLE, Sensor, SensorCreate  # noqa: F401 (the wire's names)
+from service.wire import (  # noqa: F401 (the wire's names, here as before)
+    GEOMETRY_PATTERN,
+    LENGTH_UNITS,
+    UUID_PATTERN,
+    Attachable,
+    CircularPolarization,
+    Fraction,
+    GeometryId,
+    LengthUnit,
+    LinearPolarization,
+    Matrix16,
+    NodeRef,
+    NonNegative,
+    Num,
+    Photometric,
+    Positive,
+    Spectral,
+    Uuid,
+    Vec3,
+    Wire,
+    nonzero,
+)
 
 # ---------------------------------------------------------------- examples shown by /docs and /redoc
 
@@ -82,15 +71,6 @@ IES_EXAMPLE = ("IESNA:LM-63-2002\n[TEST]LumenLink example\n[MANUFAC]LumenLink\n[
                "TILT=NONE\n1 1000 1 5 1 1 2 0.2 0.2 0\n1.0 1.0 12\n0 22.5 45 67.5 90\n0\n400 350 220 60 0\n")
 GONIOMETRIC_LIGHT_EXAMPLE: dict[str, Any] = {"type": "goniometric", "name": "downlight", "position": [0.0, 0.0, 2.8],
                                              "format": "ies", "data": IES_EXAMPLE}
-GRID_SENSOR_EXAMPLE: dict[str, Any] = {"type": "grid", "name": "floor grid", "origin": [-2.0, -2.0, 0.01],
-                                       "u": [4.0, 0.0, 0.0], "v": [0.0, 4.0, 0.0], "nu": 20, "nv": 20}
-DISK_SENSOR_EXAMPLE: dict[str, Any] = {"type": "disk", "name": "desk", "center": [0.5, 0.5, 0.75],
-                                       "normal": [0.0, 0.0, 1.0], "radius": 0.05}
-
-
-def _nonzero(name: str, v: Vec3 | None) -> None:
-    if v is not None and math.hypot(*v) == 0.0:
-        raise ValueError(f"{name} must be a non-zero vector")
 
 
 # ---------------------------------------------------------------- scenes
@@ -362,46 +342,7 @@ class MaterialPublic(Wire):
 
 # ---------------------------------------------------------------- lights (DESIGN.md bodies)
 
-class LinearPolarization(Wire):
-    type: Literal["linear"] = Field(description="Linearly polarized.")
-    axis: Vec3 = Field(description="the field's direction (in the light's frame: world, or its node's with "
-                                   "attached_to), taken across each ray")
-
-
-class CircularPolarization(Wire):
-    type: Literal["circular"] = Field(description="Circularly polarized.")
-    handedness: Literal["right", "left"] = Field(description="right: S3 = +S0 (IEEE: clockwise seen from the source)")
-
-
-class _Spectral(Wire):
-    spectrum: optics.Spectrum | None = Field(
-        default=None, description="The light's relative spectral power; default equal energy over 380–780 nm.")
-    polarization: Annotated[LinearPolarization | CircularPolarization, Field(discriminator="type")] | None = Field(
-        default=None, description="The light's polarization (`tracer.optics.polarization`); default unpolarized.")
-
-    @model_validator(mode="after")
-    def _spectrum(self) -> _Spectral:
-        if self.spectrum is not None:   # the tracer's rules beyond the schema: increasing nm, some power
-            try:
-                spectra.spectrum(self.spectrum.model_dump(), "spectrum")
-            except spectra.SpectrumError as exc:
-                raise ValueError(str(exc)) from None
-        if self.polarization is not None:   # the tracer's rules beyond the schema: a non-zero axis
-            try:
-                light_polarization(self.polarization.model_dump(), "light")
-            except PolarizationError as exc:
-                raise ValueError(str(exc).removeprefix("light: ")) from None
-        return self
-
-
-class _Attachable(_Spectral):
-    name: Annotated[str, StringConstraints(max_length=200)] | None = Field(None, description="A name for people.")
-    attached_to: NodeRef | None = Field(None, description=(   # then positions/directions are in that node's frame
-        "A node (UUID or path): positions and directions are then in that node's frame, in metres, and follow it "
-        "when a push moves it; default world."))
-
-
-class _Intensity(_Attachable):
+class _Intensity(Attachable):
     intensity_cd: Photometric | None = Field(None, description="Luminous intensity, cd (isotropic: in every "
                                                                "direction of its cone).")
     flux_lm: Photometric | None = Field(None, description="Luminous flux, lm (instead of intensity_cd).")
@@ -434,13 +375,13 @@ class SpotLight(_Intensity):
 
     @model_validator(mode="after")
     def _check(self) -> SpotLight:
-        _nonzero("direction", self.direction)
+        nonzero("direction", self.direction)
         if self.falloff_deg > self.cone_deg:
             raise ValueError(f"falloff_deg ({self.falloff_deg}) must not exceed cone_deg ({self.cone_deg})")
         return self
 
 
-class CollimatedLight(_Attachable):
+class CollimatedLight(Attachable):
     """A parallel beam from an aperture centred on `origin`: a disk (`radius`) or a rectangle
     (`width` × `height`, its height along `up` projected off the direction)."""
 
@@ -457,14 +398,14 @@ class CollimatedLight(_Attachable):
 
     @model_validator(mode="after")
     def _check(self) -> CollimatedLight:
-        _nonzero("direction", self.direction)
+        nonzero("direction", self.direction)
         rect = self.width is not None or self.height is not None
         if (self.radius is None) == (not rect) or (rect and (self.width is None or self.height is None)):
             raise ValueError("give either radius (a disk aperture) or width and height (a rectangle)")
         if self.up is not None:
             if not rect:
                 raise ValueError("up orients a rectangular aperture; a disk has none")
-            _nonzero("up", self.up)
+            nonzero("up", self.up)
             dx, dy, dz = self.direction
             ux, uy, uz = self.up
             cross = math.hypot(dy * uz - dz * uy, dz * ux - dx * uz, dx * uy - dy * ux)
@@ -473,7 +414,7 @@ class CollimatedLight(_Attachable):
         return self
 
 
-class AreaLight(_Spectral):
+class AreaLight(Spectral):
     type: Literal["area"] = Field(description="A node's surfaces emitting (Lambertian).")
     name: Annotated[str, StringConstraints(max_length=200)] | None = Field(None, description="A name for people.")
     node: NodeRef = Field(description="The node (UUID or path) whose surfaces, with its descendants', emit.")
@@ -482,7 +423,7 @@ class AreaLight(_Spectral):
     model_config = ConfigDict(json_schema_extra={"examples": [AREA_LIGHT_EXAMPLE]})
 
 
-class GoniometricLight(_Attachable):
+class GoniometricLight(Attachable):
     """A type-C photometric file; `direction` is its γ = 0 axis (default straight down, −z) and `c0`
     its C = 0 half-plane (default +x); both turn with the node the light is attached to."""
 
@@ -498,8 +439,8 @@ class GoniometricLight(_Attachable):
 
     @model_validator(mode="after")
     def _check(self) -> GoniometricLight:
-        _nonzero("direction", self.direction)
-        _nonzero("c0", self.c0)
+        nonzero("direction", self.direction)
+        nonzero("c0", self.c0)
         if self.direction is not None and self.c0 is not None:
             (ax, ay, az), (bx, by, bz) = self.direction, self.c0
             cross = math.hypot(ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx)
@@ -513,107 +454,6 @@ Light = Annotated[PointLight | SpotLight | CollimatedLight | AreaLight | Goniome
 
 class LightCreate(Wire):
     light: Light = Field(description="A light body.")
-
-
-# ---------------------------------------------------------------- sensors
-
-class GridSensor(_Attachable):
-    """A rectangle ``origin + s·u + t·v`` (s, t in [0, 1]) split into nu × nv cells; front side u × v."""
-
-    type: Literal["grid"] = Field(description="A rectangle of cells, each answering its mean illuminance.")
-    origin: Vec3 = Field(description="A corner of the rectangle [x, y, z], m.")
-    u: Vec3 = Field(description="The edge along which the nu cells lie, m (its length is the width).")
-    v: Vec3 = Field(description="The edge along which the nv cells lie, m; u × v is the side facing the light.")
-    nu: Annotated[int, Field(ge=1, le=4096)] = Field(description="Cells along u.")
-    nv: Annotated[int, Field(ge=1, le=4096)] = Field(description="Cells along v.")
-
-    model_config = ConfigDict(json_schema_extra={"examples": [GRID_SENSOR_EXAMPLE]})
-
-    @model_validator(mode="after")
-    def _check(self) -> GridSensor:
-        _nonzero("u", self.u)
-        _nonzero("v", self.v)
-        ux, uy, uz = self.u
-        vx, vy, vz = self.v
-        cross = math.hypot(uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx)
-        if cross <= 1e-12 * math.hypot(*self.u) * math.hypot(*self.v):
-            raise ValueError("u and v must not be parallel")
-        return self
-
-
-class DiskSensor(_Attachable):
-    type: Literal["disk"] = Field(description="One disk answering its mean illuminance.")
-    center: Vec3 = Field(description="The disk's centre [x, y, z], m.")
-    normal: Vec3 = Field(description="The side that receives (any length, not zero; dimensionless).")
-    radius: Positive = Field(description="The disk's radius, m.")
-
-    model_config = ConfigDict(json_schema_extra={"examples": [DISK_SENSOR_EXAMPLE]})
-
-    @model_validator(mode="after")
-    def _check(self) -> DiskSensor:
-        _nonzero("normal", self.normal)
-        return self
-
-
-class SurfaceSensor(Wire):
-    """The model's own surfaces as a sensor: the illuminance on each triangle of a node's geometry and its
-    descendants' (`tracer.simulate.Simulation.surface`), on the triangles' front side (the outside of a CAD
-    solid). It observes and changes nothing: the light goes on as if it were not there."""
-
-    type: Literal["surface"] = Field(description="A node's surfaces, answering the illuminance on each triangle.")
-    name: Annotated[str, StringConstraints(max_length=200)] | None = Field(None, description="A name for people.")
-    node: NodeRef = Field(description="The node (UUID or path) whose surfaces, with its descendants', are tallied; "
-                                      "it or a descendant must have geometry.")
-
-    model_config = ConfigDict(json_schema_extra={"examples": [{"type": "surface", "node": "room/floor",
-                                                                "name": "the floor in lux"}]})
-
-
-class FarFieldSensor(Wire):
-    """The scene as a lamp seen from far away (`tracer.simulate.Simulation.far_field`): the luminous intensity (cd) of
-    all the light leaving the scene, binned by direction on a type-C grid (γ from `direction`, C from `c0`, as a
-    goniometric light's), and the total flux leaving. The scene is taken as a point: valid where it is small against
-    the viewing distance. It observes and changes nothing. Its latest result exports as an IES or EULUMDAT file
-    (`GET /scenes/{id}/sensors/{sid}/export`)."""
-
-    type: Literal["far_field"] = Field(description="A far-field intensity distribution, cd on a C-γ grid.")
-    name: Annotated[str, StringConstraints(max_length=200)] | None = Field(None, description="A name for people.")
-    nc: Annotated[int, Field(ge=1, le=3600)] = Field(
-        description="C samples (dimensionless count): C_i = i·360°/nc, each owning ±180°/nc around it; 1 for an "
-                    "axially symmetric distribution.")
-    ngamma: Annotated[int, Field(ge=2, le=1801)] = Field(
-        description="γ samples (dimensionless count): γ_j = j·180°/(ngamma−1) from 0° to 180°, each owning ±half a "
-                    "step (the two polar caps are one bin each).")
-    direction: Vec3 | None = Field(None, description="The γ = 0 axis (dimensionless, any length); default −z, "
-                                                     "straight down.")
-    c0: Vec3 | None = Field(None, description="The C = 0 half-plane's direction (dimensionless; its part across "
-                                              "`direction` counts); default +x. C = 90° lies along c0 × direction.")
-    attached_to: NodeRef | None = Field(None, description=(
-        "A node (UUID or path): `direction` and `c0` are then in that node's frame and turn with it when a push "
-        "moves it; default world."))
-
-    model_config = ConfigDict(json_schema_extra={"examples": [{"type": "far_field", "name": "downlight far field",
-                                                                "nc": 24, "ngamma": 37, "direction": [0.0, 0.0, -1.0],
-                                                                "c0": [1.0, 0.0, 0.0]}]})
-
-    @model_validator(mode="after")
-    def _check(self) -> FarFieldSensor:
-        _nonzero("direction", self.direction)
-        _nonzero("c0", self.c0)
-        if self.c0 is not None:   # a default c0 along the direction turns to +y, as for a goniometric light
-            ax, ay, az = self.direction if self.direction is not None else (0.0, 0.0, -1.0)
-            bx, by, bz = self.c0
-            cross = math.hypot(ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx)
-            if cross <= 1e-9 * math.hypot(ax, ay, az) * math.hypot(bx, by, bz):
-                raise ValueError("c0 must not be parallel to direction")
-        return self
-
-
-Sensor = Annotated[GridSensor | DiskSensor | SurfaceSensor | FarFieldSensor, Field(discriminator="type")]
-
-
-class SensorCreate(Wire):
-    sensor: Sensor = Field(description="A sensor body.")
 
 
 # ---------------------------------------------------------------- simulation-owned objects
