@@ -73,6 +73,7 @@ from typing import Any
 
 import numpy as np
 
+from tracer.accel.traverse import closest_each
 from tracer.backends import CPU_SHAPE, IN_PROCESS, InProcess, Shipment, is_backend
 from tracer.backward import QueryArrays, disk_queries
 from tracer.effects import EFFECTS, EffectError, derive_effects, photon_state, with_forced
@@ -86,7 +87,6 @@ from tracer.optics.surfaces.dispatch import backward_ok, material_spec, pack_mat
 from tracer.scene import Scene
 from tracer.tessellation_error import grid_cells, lux_budget, scene_surfaces
 from tracer.transport import COUNTERS, SensorArrays, tally_columns
-from tracer.traverse import closest_each
 from tracer.warmup import wait_background
 
 DEFAULT_RADIUS = 0.05          # m: disk receiver radius when the query gives none

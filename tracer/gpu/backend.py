@@ -28,11 +28,11 @@ from typing import Any
 
 import numpy as np
 
+from tracer.accel.traverse import SceneArrays
 from tracer.backends import BatchShape, KernelId, Shipment, nbytes
 from tracer.gpu.device import DeviceUnavailable, DoesNotFit, choose
 from tracer.gpu.transport import THREADS, Tallies, backward_kernel, forward_kernel
 from tracer.gpu.traverse import SIMULATOR, STORE_FIELDS, TOP_FIELDS, DeviceScene, _identity, cuda
-from tracer.traverse import SceneArrays
 
 #: one GPU job at a time in this process, whichever backend object runs it
 GPU_LOCK = threading.Lock()

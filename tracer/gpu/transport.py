@@ -27,11 +27,11 @@ from typing import NamedTuple
 import numpy as np
 from numba import float64, int64
 
+from tracer.accel.traverse import STACK_LEN
 from tracer.backward import backward_batch
 from tracer.gpu.traverse import SIMULATOR, cuda
 from tracer.optics.polarization import N_POL
 from tracer.transport import MEDIUM_DEPTH, SENSOR_CAP, trace_photons
-from tracer.traverse import STACK_LEN
 
 __all__ = ["SIMULATOR", "THREADS", "Tallies", "backward_kernel", "backward_threads", "forward_kernel",
            "forward_threads"]
