@@ -33,7 +33,7 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module 'tracer' has no attribute {name!r}")
 
 
-def _numba_cache_dir(root: Path = Path(__file__).parent) -> Path:
+def numba_cache_dir(root: Path = Path(__file__).parent) -> Path:
     """A numba cache directory keyed by the content of every tracer source file.
 
     numba checks a cached kernel against its own file only: a kernel compiled with a callee from
@@ -49,6 +49,6 @@ def _numba_cache_dir(root: Path = Path(__file__).parent) -> Path:
 
 if not os.environ.get("NUMBA_CACHE_DIR"):  # a directory the user chose is left alone
     if "numba" in sys.modules:
-        sys.modules["numba"].config.CACHE_DIR = str(_numba_cache_dir())
+        sys.modules["numba"].config.CACHE_DIR = str(numba_cache_dir())
     else:
-        os.environ["NUMBA_CACHE_DIR"] = str(_numba_cache_dir())
+        os.environ["NUMBA_CACHE_DIR"] = str(numba_cache_dir())

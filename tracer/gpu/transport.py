@@ -14,7 +14,7 @@ Outputs travel in a :class:`Tallies` tuple. In numba-cuda's simulator (``NUMBA_E
 kernel as Python and the njit functions it calls as the CPU's compiled code, the tuple holds host arrays (the
 simulator would wrap a top-level array in an object the CPU code cannot take); on a card, device arrays.
 
-The kernels are cached on disk (numba-cuda's ``cache=True``, in numba's cache directory, `tracer._numba_cache_dir`):
+The kernels are cached on disk (numba-cuda's ``cache=True``, in numba's cache directory, `tracer.numba_cache_dir`):
 a process compiles them once per card's compute capability, later processes load them (unmeasured on a card yet).
 
 Importing this module imports numba-cuda (``lumenlink[gpu]``). No figure from a real GPU is measured yet.

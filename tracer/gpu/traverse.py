@@ -34,7 +34,7 @@ TOP_FIELDS = tuple(f for f in SceneArrays._fields if f not in STORE_FIELDS)
 THREADS = 128   # threads per block of the ray kernels
 
 
-def _identity(a: np.ndarray) -> tuple:
+def array_identity(a: np.ndarray) -> tuple:
     """What tells a host array apart from a changed one without reading it: its memory, shape and type (the store
     is append-only: a geometry added or rebuilt moves or grows it)."""
     return a.__array_interface__["data"][0], a.shape, a.dtype.str
@@ -56,7 +56,7 @@ class DeviceScene:
         nbytes = 0
         for name in SceneArrays._fields:
             host = np.ascontiguousarray(getattr(sa, name))
-            ident = _identity(getattr(sa, name))
+            ident = array_identity(getattr(sa, name))
             if name in STORE_FIELDS and self._ids.get(name) == ident:
                 continue
             self._dev[name] = cuda.to_device(host)
