@@ -307,7 +307,7 @@ COLD_SCRIPT = textwrap.dedent("""
     import time, json
     t0 = time.perf_counter()
     import numpy as np, tracer
-    from tracer.traverse import sensor_crossings, shading_normal, hit_point
+    from tracer.accel.traverse import sensor_crossings, shading_normal, hit_point
     from tracer.spawn import offset_ray_origin
     t1 = time.perf_counter()
     s = tracer.Scene()

@@ -1,10 +1,10 @@
-"""Probe for the bottom levels: what 8-wide float32 rows (:mod:`tracer.rows8`) would gain there over today's
+"""Probe for the bottom levels: what 8-wide float32 rows (:mod:`tracer.accel.rows8`) would gain there over today's
 4-wide quantised rows, for walks of one ray.
 
 The solid top level is held in both layouts since this stop: the lanes (incoherent rays) read the 4-wide rows,
-walks of one ray (a camera's rays, light transport) the 8-wide ones (:func:`tracer.traverse._closest`). The
-bottom levels are still 4-wide only. This probe builds one BVH as :mod:`tracer.blas` does, lays it out both
-ways, and times a walk of one ray over each (the same float64 watertight triangle test, :mod:`tracer.triangle`)
+walks of one ray (a camera's rays, light transport) the 8-wide ones (:func:`tracer.accel.traverse.walk_scene`). The
+bottom levels are still 4-wide only. This probe builds one BVH as :mod:`tracer.accel.blas` does, lays it out both
+ways, and times a walk of one ray over each (the same float64 watertight triangle test, :mod:`tracer.accel.triangle`)
 on the same rays in alternating rounds (one thread), checking that they find the same hits. Scenes: ``mesh``
 (the benchmark's 1M-triangle bumpy sphere) and ``flat3`` (the paper's scene 3 as one flattened BVH)::
 
@@ -33,11 +33,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench.bench_tracer import bumpy_sphere, world_triangles  # noqa: E402
 from bench.instructions import scene_and_rays  # noqa: E402
-from tracer import blas  # noqa: E402
-from tracer.kinds.mesh import MISS, pop_nearer, prefetch, traverse_rows  # noqa: E402
-from tracer.rows8 import ROW, descend8, pack8, ray8, slab8  # noqa: E402
-from tracer.traverse import TOP8_BASE, TOP8_DIST, new_stacks  # noqa: E402
-from tracer.triangle import intersect_triangle, ray_setup  # noqa: E402
+from tracer.accel import blas  # noqa: E402
+from tracer.accel.rows8 import ROW, descend8, pack8, ray8, slab8  # noqa: E402
+from tracer.accel.traverse import TOP8_BASE, TOP8_DIST, new_stacks  # noqa: E402
+from tracer.accel.triangle import intersect_triangle, ray_setup  # noqa: E402
+from tracer.accel.wide import MISS, pop_nearer, prefetch, traverse_rows  # noqa: E402
 
 ROUNDS = 7
 
@@ -70,7 +70,7 @@ def walk8(nf, ni, tri, ox, oy, oz, dx, dy, dz, stack, tstack):
                 hit, t, _, _ = intersect_triangle(tri, j, ox, oy, oz, kx, ky, kz, sx, sy, sz, best_t)
                 if hit:
                     best_t = t
-                    t32 = np.float64(blas._up32(t))
+                    t32 = np.float64(blas.up32(t))
         ref, sp = pop_nearer(stack, tstack, sp, TOP8_BASE, best_t)
         if ref == MISS:
             return best_t

@@ -23,6 +23,9 @@ through another process notifies the listeners here like a change made through t
 
 from __future__ import annotations
 
+import functools
+import hashlib
+import json
 from collections.abc import Callable
 from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
@@ -51,6 +54,16 @@ class LiveScene:
     lights: list[dict]  # light bodies with "id", in world metres (attached ones resolved)
     sensors: list[dict]  # sensor bodies with "id", in world metres
     extras: dict[str, Any] = field(default_factory=dict)  # room for later additions, never required
+
+    @functools.cached_property
+    def fingerprint(self) -> str:
+        """A digest of everything besides geometry that a `Simulation` is built from, computed once per snapshot
+        (a snapshot is never changed after it is made: a change makes a new one). The simulation hub rebuilds on
+        every notification anyway; the fingerprint guards a change that did not notify (a snapshot rebuilt from
+        the database after a restart, say)."""
+        payload = json.dumps([self.revision, sorted((int(k), v) for k, v in self.materials.items()),
+                              self.default_material, self.lights], sort_keys=True, default=str)
+        return hashlib.sha256(payload.encode()).hexdigest()
 
 
 class LiveRegistry:

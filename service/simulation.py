@@ -31,8 +31,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import hashlib
-import json
 import logging
 import threading
 import time
@@ -87,19 +85,6 @@ def transport_lights(live: LiveScene) -> list[dict]:
             body["instances"] = [live.instance_of_node[node]]
         lights.append(body)
     return lights
-
-
-def fingerprint(live: LiveScene) -> str:
-    """A digest of everything besides geometry that a `Simulation` is built from.
-
-    The hub rebuilds on every notification anyway; the fingerprint guards the case of a change that
-    did not notify (a snapshot rebuilt from the database after a restart, say).
-    """
-    payload = json.dumps(
-        [live.revision, sorted((int(k), v) for k, v in live.materials.items()), live.default_material, live.lights],
-        sort_keys=True, default=str,
-    )
-    return hashlib.sha256(payload.encode()).hexdigest()
 
 
 @dataclass
@@ -283,7 +268,7 @@ class SimulationHub:
             with self._scene_lock(scene_id):  # no push runs while we read the snapshot
                 generation = self.generation(scene_id)
                 live = self.live.get(scene_id)
-                key = (int(live.revision), generation, fingerprint(live))
+                key = (int(live.revision), generation, live.fingerprint)
                 with self._lock:
                     cached = self._cache.get(scene_id)
                 if cached is not None and cached.key == key:

@@ -2,7 +2,7 @@
 
 Public API (DESIGN.md): :class:`Scene`, :class:`UpdateStats`, :class:`Hits`, :class:`TracerError`,
 and the module :mod:`tracer.geometry_id` (the content hash). Jitted kernels for light transport live
-in :mod:`tracer.traverse` and :mod:`tracer.spawn` (docs/CONTRACTS.md).
+in :mod:`tracer.accel.traverse` and :mod:`tracer.spawn` (docs/CONTRACTS.md).
 
 The names are loaded on first use (PEP 562), so ``import tracer.geometry_id`` (the CAD adapter's only
 need: a SHA-256 over numpy arrays) does not load numba and the kernels.
@@ -33,7 +33,7 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module 'tracer' has no attribute {name!r}")
 
 
-def _numba_cache_dir(root: Path = Path(__file__).parent) -> Path:
+def numba_cache_dir(root: Path = Path(__file__).parent) -> Path:
     """A numba cache directory keyed by the content of every tracer source file.
 
     numba checks a cached kernel against its own file only: a kernel compiled with a callee from
@@ -49,6 +49,6 @@ def _numba_cache_dir(root: Path = Path(__file__).parent) -> Path:
 
 if not os.environ.get("NUMBA_CACHE_DIR"):  # a directory the user chose is left alone
     if "numba" in sys.modules:
-        sys.modules["numba"].config.CACHE_DIR = str(_numba_cache_dir())
+        sys.modules["numba"].config.CACHE_DIR = str(numba_cache_dir())
     else:
-        os.environ["NUMBA_CACHE_DIR"] = str(_numba_cache_dir())
+        os.environ["NUMBA_CACHE_DIR"] = str(numba_cache_dir())

@@ -31,13 +31,13 @@ from typing import NamedTuple
 
 import numpy as np
 
+from tracer.accel.traverse import any_with_stacks, closest_with_stacks, new_stacks
 from tracer.jit import njit
 from tracer.optics.frames import onb, sample_cosine
 from tracer.optics.lights import light_connect, pick_light
 from tracer.optics.surfaces.dispatch import albedo
 from tracer.rng import path_key, uniform
 from tracer.spawn import offset_ray_origin
-from tracer.traverse import any_with_stacks, closest_with_stacks, new_stacks
 
 RR_DEPTH = 3
 MAX_BOUNCES = 10_000

@@ -1,7 +1,7 @@
 """The two-level scene: geometries (bottom levels) and their instances (top level), with commits.
 
 Python owns the objects and the bookkeeping; everything per-triangle or per-ray runs in the jitted
-kernels of :mod:`tracer.blas`, :mod:`tracer.tlas` and :mod:`tracer.traverse`. Nothing a query sees
+kernels of :mod:`tracer.accel.blas`, :mod:`tracer.accel.tlas` and :mod:`tracer.accel.traverse`. Nothing a query sees
 changes until :meth:`Scene.commit`, which builds only what is dirty (Embree's commit boundary):
 
 * a new unique geometry: its BLAS (one compiled call for all new geometries of the commit), or
@@ -25,15 +25,15 @@ from typing import Any
 import numba
 import numpy as np
 
-from tracer import cache as blas_cache
-from tracer.blas import aligned_rows, build_meshes, collapse, gather_triangles, leaf_order_f32, pack_wide, refit
+from tracer.accel import cache as blas_cache
+from tracer.accel.blas import aligned_rows, build_meshes, collapse, gather_triangles, leaf_order_f32, pack_wide, refit
+from tracer.accel.lanes import batch
+from tracer.accel.tlas import TopLevel, build_top, instance_records, refit_top, world_boxes
+from tracer.accel.traverse import SceneArrays
 from tracer.errors import NotCommittedError, TracerError, UnknownIdError
 from tracer.geometry_id import canonical_arrays, hash_canonical
 from tracer.jit import njit
 from tracer.kinds import SENSOR_KINDS, disk_sensor, mesh, rect_sensor
-from tracer.lanes import batch
-from tracer.tlas import TopLevel, build_top, instance_records, refit_top, world_boxes
-from tracer.traverse import SceneArrays
 
 #: BLAS build parameters: largest leaf and the cost of a triangle test relative to a node visit
 MESH_MAX_LEAF = 4
@@ -215,7 +215,7 @@ class Scene:
     Parameters
     ----------
     cache_dir : path or None
-        Directory of the on-disk BLAS library (:mod:`tracer.cache`); None: no disk cache.
+        Directory of the on-disk BLAS library (:mod:`tracer.accel.cache`); None: no disk cache.
     cache_min_triangles : int
         Geometries with fewer triangles are not cached (rebuilding them is cheaper than a file).
     tlas_refit : bool
@@ -390,7 +390,7 @@ class Scene:
         """(2, 3) world-space box ``[lo, hi]`` the top level holds for instance ``i`` as last committed.
 
         It encloses every surface of the instance: for a mesh, the box of its transformed vertices (or,
-        above :data:`tracer.tlas.EXACT_MAX_TRIANGLES`, of its BVH's transformed second-level boxes), so
+        above :data:`tracer.accel.tlas.EXACT_MAX_TRIANGLES`, of its BVH's transformed second-level boxes), so
         a rotated part's box is not the loose box of its rotated object box. ``lo > hi`` for an empty mesh.
         """
         i = self._instance(i)
@@ -602,7 +602,7 @@ class Scene:
 
     # ---------------------------------------------------------------- queries
     def arrays(self) -> SceneArrays:
-        """The committed scene as a :class:`tracer.traverse.SceneArrays` for jitted code."""
+        """The committed scene as a :class:`tracer.accel.traverse.SceneArrays` for jitted code."""
         if self._arrays is None:
             raise NotCommittedError("the scene was never committed: call commit() before querying")
         if self._changed:

@@ -1,7 +1,7 @@
 """Forward photon tracing: photons from the sources through the scene, tallied by the sensors they cross.
 
 This is the paper's scheme (section 4): a photon leaves a source; the top level finds the candidate
-instances and their bottom levels the closest hit (`tracer.traverse.intersect_closest`); on the way
+instances and their bottom levels the closest hit (`tracer.accel.traverse.intersect_closest`); on the way
 the current medium absorbs (continuous weight exp(−σa t)) or scatters it (free-flight sampling,
 Henyey–Greenstein); every sensor the segment crosses records the photon's weight if it arrives on
 its front side (`sensor_crossings_with_stack`; sensors change nothing); at the surface the surface tally
@@ -41,6 +41,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from tracer.accel.traverse import closest_with_stacks, new_stacks, sensor_crossings_with_stack
 from tracer.effects import PHOTON_STATES
 from tracer.jit import njit
 from tracer.optics.lights import pick_light, sample_emission
@@ -53,7 +54,6 @@ from tracer.optics.surfaces.base import ABSORBED, STACK_FULL
 from tracer.optics.surfaces.dispatch import scatter
 from tracer.rng import path_key, uniform
 from tracer.spawn import offset_ray_origin
-from tracer.traverse import closest_with_stacks, new_stacks, sensor_crossings_with_stack
 
 COUNTERS = ("rejected", "truncated", "stack_overflow", "sensor_buffer_full")
 C_REJECTED, C_TRUNCATED, C_STACK, C_SENSOR_FULL = range(4)

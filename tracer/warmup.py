@@ -8,8 +8,8 @@ instead, one per core, while the service compiles what the user's first push nee
 builders); the query then loads the kernels from the cache. Each child compiles its stages in order and
 reports each on its standard output as it ends ("STAGE SECONDS KERNEL ...", the kernels it compiled):
 
-- ``probe``: the walk of one ray, which places a query's receivers (`tracer.traverse.closest_each`; it compiles
-  the walk the forward kernel calls, `tracer.traverse.closest_with_stacks`);
+- ``probe``: the walk of one ray, which places a query's receivers (`tracer.accel.traverse.closest_each`; it compiles
+  the walk the forward kernel calls, `tracer.accel.traverse.closest_with_stacks`);
 - ``optics``: every function the forward kernel calls that is a kernel of its own (each surface kind's
   ``scatter``, each light kind's ``sample``, the media, the receivers' crossings and tallies; `forward_callees`),
   so that the forward kernel loads them instead of compiling them;
@@ -69,11 +69,11 @@ def kernel_types() -> dict[str, Any]:
     receivers' arrays (`SceneArrays`), materials, lights, a query's sensors and disks, scalars and vectors."""
     from numba import typeof, types
 
+    from tracer.accel.traverse import empty_scene_arrays
     from tracer.backward import QueryArrays
     from tracer.optics.lights import pack_lights
     from tracer.optics.surfaces.dispatch import pack_materials
     from tracer.transport import SensorArrays
-    from tracer.traverse import empty_scene_arrays
 
     f8v = np.zeros(1)
     i8v = np.zeros(1, np.int64)
@@ -90,7 +90,8 @@ def forward_callees() -> list[tuple[Any, tuple]]:
     numba compiles on its own (not inlined), with the argument types the forward kernel passes: each surface
     kind's ``scatter`` and each light kind's ``sample`` (from their registrations, so a new kind is included),
     the media's switch, the receivers' crossings and tallies, the random numbers."""
-    from tracer import rng, spawn, transport, traverse
+    from tracer import rng, spawn, transport
+    from tracer.accel import traverse
     from tracer.optics import frames, polarization, spectra
     from tracer.optics.lights import dispatch as lights
     from tracer.optics.media import dispatch as media
@@ -117,10 +118,10 @@ def forward_callees() -> list[tuple[Any, tuple]]:
 def compile_stage(stage: str, reverse: bool = False) -> None:
     """Compile (or load) the kernels of one stage (`STAGES`): by signature, without running them, but for the
     builders of ``scene``, which run on a small room; `reverse`: the optics from the end of their list."""
+    from tracer.accel.traverse import closest_each
     from tracer.backward import backward_batches
     from tracer.scene import Scene
     from tracer.transport import forward_kernel
-    from tracer.traverse import closest_each
 
     if stage == "scene":
         scene = Scene()

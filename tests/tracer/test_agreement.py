@@ -141,7 +141,7 @@ def test_large_meshes_deep_trees(rng: np.random.Generator) -> None:
 def test_large_rotated_meshes_match_brute_force(rng: np.random.Generator) -> None:
     # meshes above tlas.EXACT_MAX_TRIANGLES are bounded by their BVH's transformed second level:
     # random affine instances (mirrored, sheared) of a soup and of a thin strip must lose no hit
-    from tracer.tlas import EXACT_MAX_TRIANGLES
+    from tracer.accel.tlas import EXACT_MAX_TRIANGLES
 
     scene = tracer.Scene()
     soup = reference.random_mesh(rng, EXACT_MAX_TRIANGLES + 200)
@@ -162,7 +162,7 @@ def test_large_rotated_meshes_match_brute_force(rng: np.random.Generator) -> Non
 
 @pytest.mark.parametrize("seed", [4, 5])
 def test_one_instance_scene_matches_brute_force(seed: int) -> None:
-    # a top level with one instance is entered without its box test (tracer.traverse._closest)
+    # a top level with one instance is entered without its box test (tracer.accel.traverse.walk_scene)
     rng = np.random.default_rng(seed)
     scene = tracer.Scene()
     v, f = reference.random_mesh(rng, 200)

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 import tracer
-from tracer import cache, reference
+from tracer import reference
+from tracer.accel import cache
 
 
 def _scene(tmp_path, mesh, m=None, **kw) -> tuple[tracer.Scene, str, tracer.UpdateStats]:

@@ -9,7 +9,7 @@ from numba import njit
 
 import tracer
 from tracer import reference
-from tracer.traverse import intersect_closest
+from tracer.accel.traverse import intersect_closest
 
 
 def _rays(rng: np.random.Generator, k: int = 600):
@@ -28,7 +28,7 @@ def _fresh(state: dict[int, tuple[tuple, np.ndarray]]) -> tuple[tracer.Scene, di
 
 
 def _assert_records(scene: tracer.Scene) -> None:
-    """Each top-level item's record (tracer.tlas.instance_records) names the item's instance, its kind
+    """Each top-level item's record (tracer.accel.tlas.instance_records) names the item's instance, its kind
     and its bottom level's first row and triangle, as the id-indexed arrays do."""
     sa = scene.arrays()
     rec = sa.top_rec.reshape(-1, 4)

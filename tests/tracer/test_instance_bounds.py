@@ -8,8 +8,8 @@ import pytest
 
 import tracer
 from tracer import reference
+from tracer.accel.tlas import EXACT_MAX_TRIANGLES, PAD
 from tracer.errors import NotCommittedError, UnknownIdError
-from tracer.tlas import EXACT_MAX_TRIANGLES, PAD
 
 
 def _diagonal_strip(n_triangles: int) -> tuple[np.ndarray, np.ndarray]:

@@ -7,8 +7,8 @@ from numba import njit
 
 import tracer
 from tracer import reference
+from tracer.accel.traverse import hit_point, intersect_any, intersect_closest, sensor_crossings, shading_normal
 from tracer.spawn import offset_ray_origin
-from tracer.traverse import hit_point, intersect_any, intersect_closest, sensor_crossings, shading_normal
 
 
 @njit(cache=True)

@@ -1,6 +1,6 @@
-"""The batch queries keep several rays in flight per core (tracer.lanes), or trace a camera's coherent
+"""The batch queries keep several rays in flight per core (tracer.accel.lanes), or trace a camera's coherent
 rays one after the other; each ray's answer must be the one-ray-at-a-time traversal's
-(tracer.traverse), whatever the batch size, the mix of rays that finish early and late, or a scene
+(tracer.accel.traverse), whatever the batch size, the mix of rays that finish early and late, or a scene
 with nothing to hit."""
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ from numba import njit
 
 import tracer
 from tracer import reference
-from tracer.lanes import LANES, _coherent
-from tracer.traverse import intersect_any, intersect_closest
+from tracer.accel.lanes import LANES, is_coherent
+from tracer.accel.traverse import intersect_any, intersect_closest
 
 
 @njit(cache=True)
@@ -69,7 +69,7 @@ def test_batch_equals_one_ray_at_a_time(k: int, rays: str) -> None:
     else:
         o = np.tile(rng.uniform(-4, 4, 3), (k, 1)) if rays == "point" else rng.uniform(-4, 4, (k, 3))
         d = (rng.uniform(-2, 2, (k, 3)) - o) * rng.uniform(0.2, 5.0, (k, 1))
-    assert _coherent(o, d, 0, k) == (rays == "camera" or k == 1)
+    assert is_coherent(o, d, 0, k) == (rays == "camera" or k == 1)
     t_max = np.where(rng.random(k) < 0.3, rng.uniform(0, 1, k), np.inf)
     hits = scene.intersect(o, d, t_max, threads=1)
     occ = scene.occluded(o, d, t_max, threads=1)

@@ -16,11 +16,11 @@ TRACER = Path(tracer.__file__).resolve().parent
 def test_any_edit_of_any_tracer_source_changes_the_cache_directory(tmp_path) -> None:
     copy = tmp_path / "tracer"
     shutil.copytree(TRACER, copy, ignore=shutil.ignore_patterns("__pycache__"))
-    before = tracer._numba_cache_dir(copy)
-    assert before == tracer._numba_cache_dir(TRACER)  # the key is the content, not the location
+    before = tracer.numba_cache_dir(copy)
+    assert before == tracer.numba_cache_dir(TRACER)  # the key is the content, not the location
     sources = copy / "optics" / "lights" / "point.py"  # a callee of the transport kernels, in a nested package
     sources.write_text(sources.read_text() + "\n# an edit\n")
-    assert tracer._numba_cache_dir(copy) != before
+    assert tracer.numba_cache_dir(copy) != before
 
 
 def run_python(code: str, **env: str) -> str:
@@ -31,7 +31,7 @@ def run_python(code: str, **env: str) -> str:
 
 def test_kernels_use_the_keyed_directory_unless_the_user_chose_one(tmp_path) -> None:
     code = "import tracer.transport, numba; print(numba.config.CACHE_DIR)"
-    assert run_python(code) == str(tracer._numba_cache_dir())
+    assert run_python(code) == str(tracer.numba_cache_dir())
     assert run_python(code, NUMBA_CACHE_DIR=str(tmp_path)) == str(tmp_path)
     # numba imported first: the setting still reaches the kernels compiled after
-    assert run_python("import numba, tracer.transport; print(numba.config.CACHE_DIR)") == str(tracer._numba_cache_dir())
+    assert run_python("import numba, tracer.transport; print(numba.config.CACHE_DIR)") == str(tracer.numba_cache_dir())

@@ -1,4 +1,4 @@
-"""The solid top level's 8-wide float32 rows (tracer.rows8): each slot holds
+"""The solid top level's 8-wide float32 rows (tracer.accel.rows8): each slot holds
 the binary row's box it came from, before and after a refit; every instance is reached exactly once; and
 the float32 slab test never misses a box the segment meets in exact arithmetic, nor reports an entry
 beyond the exact one (a pending row is culled by comparing that entry with the best hit)."""
@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 from numba import njit
 
-from tracer import tlas
-from tracer.rows8 import NEAR32, ROW, WIDTH, ray8, slab8
-from tracer.traverse import TOP8_DIST, new_stacks
+from tracer.accel import tlas
+from tracer.accel.rows8 import NEAR32, ROW, WIDTH, ray8, slab8
+from tracer.accel.traverse import TOP8_DIST, new_stacks
 
 
 def _boxes(rng: np.random.Generator, n: int, offset: float, size: float) -> np.ndarray:
@@ -185,8 +185,8 @@ def test_float32_slab_test_is_tight_near_the_origin() -> None:
     hit32 = (mask[:, None] >> np.arange(WIDTH)) & 1 == 1
     assert np.all(hit32[hit64])
     assert hit64.sum() > 500 and (hit32 & ~hit64).sum() <= 0.01 * hit64.sum()
-    # short by at most NEAR32, float32 rounding of the distance and of the origin (tracer.blas._down32 and
-    # _up32 round outward by up to 3 ulps: 4 ulps of |o|, over |d|)
+    # short by at most NEAR32, float32 rounding of the distance and of the origin (tracer.accel.blas.down32 and
+    # up32 round outward by up to 3 ulps: 4 ulps of |o|, over |d|)
     oi, di = o[pairs[:, 0]], d[pairs[:, 0]]
     slack = near * (1 - NEAR32 + 4 * 2.0**-24) + (np.abs(oi).max(axis=1) * 2.0**-21 / np.abs(di).min(axis=1))[:, None]
     assert np.all(dist[hit64] >= near[hit64] - slack[hit64])

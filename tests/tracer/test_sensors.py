@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 import tracer
-from tracer.traverse import sensor_crossings
+from tracer.accel.traverse import sensor_crossings
 
 
 def _cross(scene: tracer.Scene, o, d, t_max=np.inf, cap=8):

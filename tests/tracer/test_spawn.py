@@ -11,8 +11,8 @@ import pytest
 
 import tracer
 from tracer import reference
+from tracer.accel.traverse import hit_point
 from tracer.spawn import offset_ray_origin
-from tracer.traverse import hit_point
 
 
 def _offset(p: np.ndarray, n: np.ndarray, d: np.ndarray) -> np.ndarray:

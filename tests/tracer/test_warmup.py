@@ -11,8 +11,8 @@ import numba
 import numpy as np
 
 from tracer import warmup
+from tracer.accel.traverse import empty_scene_arrays
 from tracer.scene import Scene
-from tracer.traverse import empty_scene_arrays
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -28,11 +28,11 @@ from typing import Any
 
 import numpy as np
 
+from tracer.accel.traverse import SceneArrays
 from tracer.backends import BatchShape, KernelId, Shipment, nbytes
 from tracer.gpu.device import DeviceUnavailable, DoesNotFit, choose
 from tracer.gpu.transport import THREADS, Tallies, backward_kernel, forward_kernel
-from tracer.gpu.traverse import SIMULATOR, STORE_FIELDS, TOP_FIELDS, DeviceScene, _identity, cuda
-from tracer.traverse import SceneArrays
+from tracer.gpu.traverse import SIMULATOR, STORE_FIELDS, TOP_FIELDS, DeviceScene, array_identity, cuda
 
 #: one GPU job at a time in this process, whichever backend object runs it
 GPU_LOCK = threading.Lock()
@@ -51,7 +51,7 @@ def _same(a: SceneArrays, b: SceneArrays, fields: tuple[str, ...]) -> bool:
     """Whether `a` and `b` hold the same host arrays in `fields` (the same memory, shape and type, as
     `DeviceScene` tells them apart: a revision's arrays are views of the scene's; `a` is kept alive beside its copy on
     the card, so its memory cannot be another array's)."""
-    return all(_identity(getattr(a, f)) == _identity(getattr(b, f)) for f in fields)
+    return all(array_identity(getattr(a, f)) == array_identity(getattr(b, f)) for f in fields)
 
 
 def _to_card(obj: Any) -> Any:

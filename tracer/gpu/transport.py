@@ -14,7 +14,7 @@ Outputs travel in a :class:`Tallies` tuple. In numba-cuda's simulator (``NUMBA_E
 kernel as Python and the njit functions it calls as the CPU's compiled code, the tuple holds host arrays (the
 simulator would wrap a top-level array in an object the CPU code cannot take); on a card, device arrays.
 
-The kernels are cached on disk (numba-cuda's ``cache=True``, in numba's cache directory, `tracer._numba_cache_dir`):
+The kernels are cached on disk (numba-cuda's ``cache=True``, in numba's cache directory, `tracer.numba_cache_dir`):
 a process compiles them once per card's compute capability, later processes load them (unmeasured on a card yet).
 
 Importing this module imports numba-cuda (``lumenlink[gpu]``). No figure from a real GPU is measured yet.
@@ -27,11 +27,11 @@ from typing import NamedTuple
 import numpy as np
 from numba import float64, int64
 
+from tracer.accel.traverse import STACK_LEN
 from tracer.backward import backward_batch
 from tracer.gpu.traverse import SIMULATOR, cuda
 from tracer.optics.polarization import N_POL
 from tracer.transport import MEDIUM_DEPTH, SENSOR_CAP, trace_photons
-from tracer.traverse import STACK_LEN
 
 __all__ = ["SIMULATOR", "THREADS", "Tallies", "backward_kernel", "backward_threads", "forward_kernel",
            "forward_threads"]

@@ -1,10 +1,10 @@
 """Ray queries on a CUDA device: the committed scene's arrays on the card and closest-hit / any-hit kernels.
 
-The device holds the very :class:`tracer.traverse.SceneArrays` the CPU walks (one layout, one builder), uploaded
+The device holds the very :class:`tracer.accel.traverse.SceneArrays` the CPU walks (one layout, one builder), uploaded
 by :class:`DeviceScene` once per revision: the geometry store (bottom levels, triangles, normals) only when it
 changed, the instances and top levels every time (a move changes those alone). The kernels call the CPU's own
-traversal (:func:`tracer.traverse.closest_with_stacks`, :func:`tracer.traverse.any_with_stacks`), which numba-cuda
-compiles for the device from the same Python; each thread's traversal stacks are ``cuda.local.array``\\ s.
+traversal (:func:`tracer.accel.traverse.closest_with_stacks`, :func:`tracer.accel.traverse.any_with_stacks`), which
+numba-cuda compiles for the device from the same Python; each thread's traversal stacks are ``cuda.local.array``\\ s.
 
 Importing this module imports numba-cuda (``lumenlink[gpu]``). Tests run it in numba-cuda's simulator
 (``NUMBA_ENABLE_CUDASIM=1``, tests/tracer/test_gpu_traverse.py); no figure from a real GPU is measured yet.
@@ -18,8 +18,8 @@ import numpy as np
 from numba import float64, int64
 from numba.core import config
 
+from tracer.accel.traverse import STACK_LEN, SceneArrays, any_with_stacks, closest_with_stacks
 from tracer.gpu import cuda as _cuda
-from tracer.traverse import STACK_LEN, SceneArrays, any_with_stacks, closest_with_stacks
 
 cuda = _cuda()
 #: numba-cuda's simulator (NUMBA_ENABLE_CUDASIM=1): kernels run as Python threads on the CPU
@@ -34,7 +34,7 @@ TOP_FIELDS = tuple(f for f in SceneArrays._fields if f not in STORE_FIELDS)
 THREADS = 128   # threads per block of the ray kernels
 
 
-def _identity(a: np.ndarray) -> tuple:
+def array_identity(a: np.ndarray) -> tuple:
     """What tells a host array apart from a changed one without reading it: its memory, shape and type (the store
     is append-only: a geometry added or rebuilt moves or grows it)."""
     return a.__array_interface__["data"][0], a.shape, a.dtype.str
@@ -56,7 +56,7 @@ class DeviceScene:
         nbytes = 0
         for name in SceneArrays._fields:
             host = np.ascontiguousarray(getattr(sa, name))
-            ident = _identity(getattr(sa, name))
+            ident = array_identity(getattr(sa, name))
             if name in STORE_FIELDS and self._ids.get(name) == ident:
                 continue
             self._dev[name] = cuda.to_device(host)

@@ -1,7 +1,7 @@
 """Bottom-level kinds: what an instance of the top level can be.
 
 Each kind is one module holding its integer ``KIND`` tag, whether it is a ``SENSOR`` (recorded by
-:func:`tracer.traverse.sensor_crossings`, invisible to closest-hit and any-hit queries), its
+:func:`tracer.accel.traverse.sensor_crossings`, invisible to closest-hit and any-hit queries), its
 object-space bounds where these are fixed, and its jitted intersection routines in object space.
 :mod:`tracer.kinds.dispatch` is the only place that switches on the tag (pbrt's TaggedPointer
 dispatch, which numba compiles to a plain branch chain). A new kind is one module here plus one

@@ -342,8 +342,8 @@ def cache_dir() -> Path:
         return Path(env)
     import numba
 
-    from tracer import _numba_cache_dir
-    return Path(numba.config.CACHE_DIR or _numba_cache_dir()) / "optics"
+    from tracer import numba_cache_dir
+    return Path(numba.config.CACHE_DIR or numba_cache_dir()) / "optics"
 
 
 def _digest(key: str, t: MieTable) -> str:

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from tracer.traverse import closest_each
+from tracer.accel.traverse import closest_each
 from tracer.warmup import wait_background
 
 

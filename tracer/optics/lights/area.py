@@ -24,7 +24,7 @@ import numpy as np
 
 from tracer.jit import njit
 from tracer.optics.frames import find_in_cdf, sample_cosine
-from tracer.optics.lights.base import P_FLUX, P_I0, SHADOW_SHORTEN, LightError, Packing, _num, check_fields
+from tracer.optics.lights.base import P_FLUX, P_I0, SHADOW_SHORTEN, LightError, Packing, check_fields, number_field
 
 NAME = "area"
 FIELDS = frozenset({"instances", "exitance_lm_m2", "node"})
@@ -42,7 +42,7 @@ class Spec:
     @classmethod
     def from_body(cls, body: dict, where: str) -> Spec:
         check_fields(body, where, NAME, FIELDS)
-        m_exit = _num(body, "exitance_lm_m2", where)
+        m_exit = number_field(body, "exitance_lm_m2", where)
         ids = body.get("instances")
         if not isinstance(ids, list | tuple) or not ids:
             raise LightError(f"{where}: an area light needs 'instances', a non-empty list of instance ids")

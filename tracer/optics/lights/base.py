@@ -143,7 +143,7 @@ def check_fields(body: dict, where: str, name: str, fields: frozenset) -> None:
         raise LightError(f"{where}: unknown field(s) {sorted(extra)} for a {name!r} light")
 
 
-def _vec(body: dict, key: str, where: str, unit: bool = False) -> np.ndarray:
+def vector_field(body: dict, key: str, where: str, unit: bool = False) -> np.ndarray:
     """body[key] as a (3,) float64 vector of finite numbers, normalised if `unit`."""
     if key not in body:
         raise LightError(f"{where}: missing {key!r}")
@@ -161,7 +161,7 @@ def _vec(body: dict, key: str, where: str, unit: bool = False) -> np.ndarray:
     return v
 
 
-def _num(body: dict, key: str, where: str, lo: float = 0.0, hi: float = math.inf, lo_open: bool = False,
+def number_field(body: dict, key: str, where: str, lo: float = 0.0, hi: float = math.inf, lo_open: bool = False,
          default: float | None = None) -> float:
     """body[key] as a finite float in [lo, hi] ((lo, hi] if `lo_open`); `default` where absent or None."""
     if key not in body or body[key] is None:
@@ -177,16 +177,16 @@ def _num(body: dict, key: str, where: str, lo: float = 0.0, hi: float = math.inf
     return v
 
 
-def _intensity_and_flux(body: dict, where: str, solid_angle: float) -> tuple[float, float]:
+def intensity_and_flux(body: dict, where: str, solid_angle: float) -> tuple[float, float]:
     """(I0 in cd, Φ in lm) from exactly one of `intensity_cd` and `flux_lm`; Φ = I0 × solid_angle (sr)."""
     has_i = body.get("intensity_cd") is not None
     has_f = body.get("flux_lm") is not None
     if has_i == has_f:
         raise LightError(f"{where}: give exactly one of 'intensity_cd' and 'flux_lm'")
     if has_i:
-        i0 = _num(body, "intensity_cd", where)
+        i0 = number_field(body, "intensity_cd", where)
         return i0, i0 * solid_angle
-    flux = _num(body, "flux_lm", where)
+    flux = number_field(body, "flux_lm", where)
     return flux / solid_angle, flux
 
 

@@ -41,9 +41,9 @@ from tracer.optics.lights.base import (
     P_T,
     LightError,
     Packing,
-    _num,
-    _vec,
     check_fields,
+    number_field,
+    vector_field,
 )
 
 NAME = "collimated"
@@ -72,18 +72,18 @@ class Spec:
     @classmethod
     def from_body(cls, body: dict, where: str) -> Spec:
         check_fields(body, where, NAME, FIELDS)
-        origin = _vec(body, "origin", where)
-        a = _vec(body, "direction", where, unit=True)
-        e = _num(body, "illuminance_lx", where)
+        origin = vector_field(body, "origin", where)
+        a = vector_field(body, "direction", where, unit=True)
+        e = number_field(body, "illuminance_lx", where)
         tt, bb = (np.array(v) for v in onb(a[0], a[1], a[2]))
         if "radius" in body and ("width" in body or "height" in body):
             raise LightError(f"{where}: give either 'radius' (disk) or 'width' and 'height' (rectangle)")
         if "radius" in body:
-            return cls(origin, a, tt, bb, e, DISK, _num(body, "radius", where, lo_open=True), 0.0, 0.0)
-        w = _num(body, "width", where, lo_open=True)
-        h = _num(body, "height", where, lo_open=True)
+            return cls(origin, a, tt, bb, e, DISK, number_field(body, "radius", where, lo_open=True), 0.0, 0.0)
+        w = number_field(body, "width", where, lo_open=True)
+        h = number_field(body, "height", where, lo_open=True)
         if "up" in body:
-            up = _vec(body, "up", where, unit=True)
+            up = vector_field(body, "up", where, unit=True)
             bb = up - a * float(up @ a)
             if np.linalg.norm(bb) < 1e-9:
                 raise LightError(f"{where}: 'up' must not be parallel to 'direction'")

@@ -39,10 +39,10 @@ from tracer.optics.lights.base import (
     P_T,
     LightError,
     Packing,
-    _vec,
     check_fields,
     in_light_frame,
     toward_point,
+    vector_field,
 )
 from tracer.photometry import Photometry, parse_photometry
 
@@ -54,8 +54,8 @@ CONNECTABLE = True
 
 def _frame(body: dict, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The luminaire's γ = 0 axis, C = 0 axis and C = 90° axis (an orthonormal frame) from its body."""
-    nadir = _vec(body, "direction", where, unit=True) if "direction" in body else np.array([0.0, 0.0, -1.0])
-    c0 = _vec(body, "c0", where, unit=True) if "c0" in body else np.array([1.0, 0.0, 0.0])
+    nadir = vector_field(body, "direction", where, unit=True) if "direction" in body else np.array([0.0, 0.0, -1.0])
+    c0 = vector_field(body, "c0", where, unit=True) if "c0" in body else np.array([1.0, 0.0, 0.0])
     x = c0 - nadir * float(c0 @ nadir)
     if np.linalg.norm(x) < 1e-9:
         if "c0" in body:
@@ -78,7 +78,7 @@ class Spec:
     @classmethod
     def from_body(cls, body: dict, where: str) -> Spec:
         check_fields(body, where, NAME, FIELDS)
-        position = _vec(body, "position", where)
+        position = vector_field(body, "position", where)
         gamma0, c0, c90 = _frame(body, where)
         fmt = body.get("format")
         data = body.get("data")

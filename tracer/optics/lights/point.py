@@ -25,10 +25,10 @@ from tracer.optics.lights.base import (
     P_POS,
     P_SOLID,
     Packing,
-    _intensity_and_flux,
-    _vec,
     check_fields,
+    intensity_and_flux,
     toward_point,
+    vector_field,
 )
 
 NAME = "point"
@@ -48,8 +48,8 @@ class Spec:
     @classmethod
     def from_body(cls, body: dict, where: str) -> Spec:
         check_fields(body, where, NAME, FIELDS)
-        position = _vec(body, "position", where)
-        i0, flux = _intensity_and_flux(body, where, 4.0 * math.pi)
+        position = vector_field(body, "position", where)
+        i0, flux = intensity_and_flux(body, where, 4.0 * math.pi)
         return cls(position, i0, flux)
 
 

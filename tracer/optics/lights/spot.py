@@ -39,12 +39,12 @@ from tracer.optics.lights.base import (
     P_T,
     LightError,
     Packing,
-    _intensity_and_flux,
-    _num,
-    _vec,
     check_fields,
     in_light_frame,
+    intensity_and_flux,
+    number_field,
     toward_point,
+    vector_field,
 )
 
 NAME = "spot"
@@ -72,14 +72,14 @@ class Spec:
     @classmethod
     def from_body(cls, body: dict, where: str) -> Spec:
         check_fields(body, where, NAME, FIELDS)
-        position = _vec(body, "position", where)
-        axis = _vec(body, "direction", where, unit=True)
-        cone = _num(body, "cone_deg", where, 0.0, 180.0, lo_open=True)
-        fall = _num(body, "falloff_deg", where, 0.0, 180.0, default=0.0)
+        position = vector_field(body, "position", where)
+        axis = vector_field(body, "direction", where, unit=True)
+        cone = number_field(body, "cone_deg", where, 0.0, 180.0, lo_open=True)
+        fall = number_field(body, "falloff_deg", where, 0.0, 180.0, default=0.0)
         if fall > cone:
             raise LightError(f"{where}: 'falloff_deg' ({fall:g}) must not exceed 'cone_deg' ({cone:g})")
         cos_out, cos_in = math.cos(math.radians(cone)), math.cos(math.radians(cone - fall))
-        i0, flux = _intensity_and_flux(body, where, spot_solid_angle(cos_out, cos_in))
+        i0, flux = intensity_and_flux(body, where, spot_solid_angle(cos_out, cos_in))
         return cls(position, axis, cos_out, cos_in, i0, flux)
 
 

@@ -35,7 +35,7 @@ A surface kind is one module in this folder (or in `tracer/optics/elements/`, fo
   * ``key``, ``dim``: the photon's random stream (`tracer.rng.uniform(key, dim)`); a kind returns ``dim``
     advanced past the numbers it drew.
 
-  The arguments: ``sa`` the scene arrays (`tracer.traverse.SceneArrays`), ``M`` the `MaterialArrays`,
+  The arguments: ``sa`` the scene arrays (`tracer.accel.traverse.SceneArrays`), ``M`` the `MaterialArrays`,
   ``inst, prim, hu, hv`` the hit, ``d`` the unit direction of arrival, ``ng`` the hit's unit geometric
   normal (outward for a solid) in world space.
 
@@ -52,10 +52,10 @@ from typing import NamedTuple
 
 import numpy as np
 
+from tracer.accel.traverse import shading_normal
 from tracer.errors import TracerError
 from tracer.jit import njit
 from tracer.optics import spectra
-from tracer.traverse import shading_normal
 
 N_PAR = 6           # parameter row of a surface (a kind's `row` may be shorter: the rest is zero)
 N_MPAR = 8          # parameter row of the medium inside a solid

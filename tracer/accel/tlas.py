@@ -21,8 +21,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from tracer import rows8
-from tracer.blas import _down32, _up32, aligned_rows, build_bvh_range, collapse, pack_rows
+from tracer.accel import rows8
+from tracer.accel.blas import aligned_rows, build_bvh_range, collapse, down32, pack_rows, up32
 from tracer.jit import njit
 
 #: an instance visit (transform + BLAS root) costs about this many node visits (SAH)
@@ -212,12 +212,12 @@ def _refit_binary(rows_f, rows_i, items, links, ids, boxes, touched):
         while True:
             c = 6 * slot
             touched[r] = True
-            rows_f[r, c] = _down32(lo0)
-            rows_f[r, c + 1] = _down32(lo1)
-            rows_f[r, c + 2] = _down32(lo2)
-            rows_f[r, c + 3] = _up32(hi0)
-            rows_f[r, c + 4] = _up32(hi1)
-            rows_f[r, c + 5] = _up32(hi2)
+            rows_f[r, c] = down32(lo0)
+            rows_f[r, c + 1] = down32(lo1)
+            rows_f[r, c + 2] = down32(lo2)
+            rows_f[r, c + 3] = up32(hi0)
+            rows_f[r, c + 4] = up32(hi1)
+            rows_f[r, c + 5] = up32(hi2)
             p = row_parent[r]
             if p < 0:
                 break
@@ -238,7 +238,7 @@ class TopLevel(NamedTuple):
     binary: np.ndarray   # (R, 16) float32, int32 view for the refs
     items: np.ndarray    # (n,) int32 instance ids, in leaf order
     links: tuple         # binary row parents and leaf positions, for refits
-    rows8: np.ndarray | None   # (W, 64) float32, :func:`tracer.rows8.pack8`
+    rows8: np.ndarray | None   # (W, 64) float32, :func:`tracer.accel.rows8.pack8`
     src8: np.ndarray | None   # 8-wide slot -> binary (row, slot)
     rows8_of: np.ndarray | None   # binary row -> the 8-wide row its boxes sit in
 

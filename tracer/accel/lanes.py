@@ -6,11 +6,11 @@ core keeps :data:`LANES` rays in flight and advances them in turn by one step ea
 leaf, or asking for an instance then entering it): while one ray waits for its row, the others
 compute, and the row or transform asked for by a step (``prefetch``) has the other lanes' steps to
 arrive in. The answers are those of
-:func:`tracer.traverse.closest_with_stacks` / :func:`tracer.traverse.any_with_stacks` ray by ray.
+:func:`tracer.accel.traverse.closest_with_stacks` / :func:`tracer.accel.traverse.any_with_stacks` ray by ray.
 
 Each lane's state lives in two small arrays (``F`` floats, ``I`` integers; field indices below),
 its stacks in its own part of the flat stack arrays (top level, then bottom level, as in
-:func:`tracer.traverse.new_stacks`). Meshes are walked step by step here; any other solid kind is
+:func:`tracer.accel.traverse.new_stacks`). Meshes are walked step by step here; any other solid kind is
 intersected in one go through :mod:`tracer.kinds.dispatch`, so a new kind needs no change here.
 
 A block of rays that start at one point and point nearly the same way, neighbour after neighbour (a
@@ -26,13 +26,13 @@ import math
 
 import numpy as np
 
-from tracer import rows8
-from tracer.blas import _up32
+from tracer.accel import rows8
+from tracer.accel.blas import up32
+from tracer.accel.traverse import STACK_LEN, TOP8_BASE, TOP8_DIST, new_stacks, public_hit, to_object, walk_scene
+from tracer.accel.triangle import intersect_triangle, ray_setup
+from tracer.accel.wide import MISS, STACK_BASE, pop_nearer, prefetch, prefetch_ref, push3, ray_inverse, slab4_sorted
 from tracer.jit import njit, prange
 from tracer.kinds import dispatch, mesh
-from tracer.kinds.mesh import MISS, STACK_BASE, pop_nearer, prefetch, prefetch_ref, push3, ray_inverse, slab4_sorted
-from tracer.traverse import STACK_LEN, TOP8_BASE, TOP8_DIST, _closest, _to_object, new_stacks, public_hit
-from tracer.triangle import intersect_triangle, ray_setup
 
 #: rays in flight per core
 LANES = 4
@@ -46,7 +46,7 @@ _SPAN = STACK_LEN   # one lane's part of the stack arrays, laid out as new_stack
 
 # F: float fields
 OX, OY, OZ, DX, DY, DZ = 0, 1, 2, 3, 4, 5               # world ray
-W8 = 6                                                  # its tracer.rows8.ray8 constants: 6..17 (_start)
+W8 = 6                                                  # its tracer.accel.rows8.ray8 constants: 6..17 (_start)
 BEST_T, BU, BV = 18, 19, 20
 T32 = 21                                                # BEST_T rounded up to float32 (_set_best)
 CO = 22                                                 # object-space origin 22..24, direction 25..27
@@ -67,7 +67,7 @@ TOP, ITEMS, ENTER, BOTTOM, DONE = 0, 1, 2, 3, 4
 @njit(cache=True, error_model="numpy", inline="always")
 def _set_ray(F, I, L, f, i, ox, oy, oz, dx, dy, dz):
     """Store a ray in lane ``L``: origin and direction at ``F[L, f : f+6]``, its slab constants
-    (:func:`tracer.kinds.mesh.ray_inverse`) at ``F[L, f+6 : f+12]`` and ``I[L, i : i+3]``."""
+    (:func:`tracer.accel.wide.ray_inverse`) at ``F[L, f+6 : f+12]`` and ``I[L, i : i+3]``."""
     F[L, f] = ox
     F[L, f + 1] = oy
     F[L, f + 2] = oz
@@ -132,7 +132,7 @@ def _start(F, I, L, ray, o, d, t_max, single):
 @njit(cache=True, error_model="numpy", inline="always")
 def _set_best(F, L, t):
     F[L, BEST_T] = t
-    F[L, T32] = np.float64(_up32(t))
+    F[L, T32] = np.float64(up32(t))
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -149,7 +149,7 @@ def _pop_top(I, F, L, stack, tstack):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _step_top(sa, F, I, L, stack, tstack):
-    """Visit one top-level row (8-wide, :mod:`tracer.rows8`); a leaf reached becomes the lane's item range."""
+    """Visit one top-level row (8-wide, :mod:`tracer.accel.rows8`); a leaf reached becomes the lane's item range."""
     ref = I[L, TREF]
     if ref < 0:
         x = -ref - 1
@@ -169,7 +169,7 @@ def _step_top(sa, F, I, L, stack, tstack):
         if ref >= 0:
             for line in range(0, rows8.ROW, 16):
                 prefetch(bf, rows8.ROW * ref + line)
-        else:   # a leaf: its first instance's record (tracer.tlas.instance_records)
+        else:   # a leaf: its first instance's record (tracer.accel.tlas.instance_records)
             prefetch(sa.top_rec, 4 * ((-ref - 1) >> 4))
         return
     _pop_top(I, F, L, stack, tstack)
@@ -208,7 +208,7 @@ def _step_enter(sa, F, I, L, any_hit, scratch, tscratch):
     inst = rec[4 * q]
     I[L, Q] = q + 1
     I[L, STATE] = ITEMS
-    rox, roy, roz, rdx, rdy, rdz = _to_object(sa.object_from_world, inst, F[L, OX], F[L, OY], F[L, OZ], F[L, DX],
+    rox, roy, roz, rdx, rdy, rdz = to_object(sa.object_from_world, inst, F[L, OX], F[L, OY], F[L, OZ], F[L, DX],
                                               F[L, DY], F[L, DZ])
     if rec[4 * q + 1] == mesh.KIND:
         _set_ray(F, I, L, CO, CXL, rox, roy, roz, rdx, rdy, rdz)
@@ -235,7 +235,7 @@ def _step_enter(sa, F, I, L, any_hit, scratch, tscratch):
 @njit(cache=True, error_model="numpy", inline="always")
 def _step_bottom(sa, F, I, L, stack, tstack, any_hit):
     """Visit one row or one leaf of the current instance's bottom level (as
-    :func:`tracer.kinds.mesh.traverse_rows`); when its stack is empty, resume the leaf's items."""
+    :func:`tracer.accel.wide.traverse_rows`); when its stack is empty, resume the leaf's items."""
     ref = I[L, BREF]
     row0 = I[L, ROW0]
     tri0 = I[L, TRI0]
@@ -349,12 +349,12 @@ def _block(sa, o, d, t_max, any_hit, lo, hi, F, I, stack, tstack, scratch, tscra
 def _serial_block(sa, o, d, t_max, any_hit, lo, hi, stack, tstack, out_t, out_inst, out_slot, out_u, out_v):
     """:func:`_block` one ray after the other (a camera's rays, see the module's docstring)."""
     for i in range(lo, hi):
-        out_t[i], out_inst[i], out_slot[i], out_u[i], out_v[i] = _closest(
+        out_t[i], out_inst[i], out_slot[i], out_u[i], out_v[i] = walk_scene(
             sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t_max[i], any_hit, stack, tstack, True)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _coherent(o, d, lo, hi):
+def is_coherent(o, d, lo, hi):
     """True when rays ``lo .. hi-1`` all start at one point and neighbours point nearly the same way
     (:data:`COHERENT`)."""
     s = 0.0
@@ -373,7 +373,7 @@ def _coherent(o, d, lo, hi):
 def _trace_block(sa, o, d, t_max, any_hit, lo, hi, out_t, out_inst, out_slot, out_u, out_v):
     """Rays ``lo .. hi-1`` in lanes, or one after the other when they are coherent."""
     F, I, stack, tstack, scratch, tscratch = _lane_state()
-    if _coherent(o, d, lo, hi):
+    if is_coherent(o, d, lo, hi):
         _serial_block(sa, o, d, t_max, any_hit, lo, hi, scratch, tscratch, out_t, out_inst, out_slot, out_u, out_v)
     else:
         _block(sa, o, d, t_max, any_hit, lo, hi, F, I, stack, tstack, scratch, tscratch, out_t, out_inst, out_slot,
@@ -382,7 +382,7 @@ def _trace_block(sa, o, d, t_max, any_hit, lo, hi, out_t, out_inst, out_slot, ou
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def _finish_closest(sa, lo, hi, out_t, out_inst, out_slot, out_u, out_v, out_n):
-    """Raw results -> the public ones (:func:`tracer.traverse.public_hit`)."""
+    """Raw results -> the public ones (:func:`tracer.accel.traverse.public_hit`)."""
     for i in range(lo, hi):
         (out_t[i], out_inst[i], out_slot[i], out_u[i], out_v[i],
          out_n[i, 0], out_n[i, 1], out_n[i, 2]) = public_hit(sa, out_t[i], out_inst[i], out_slot[i], out_u[i], out_v[i])
@@ -398,8 +398,8 @@ def _lane_state():
 
 @njit(parallel=True, cache=True, error_model="numpy")
 def batch(sa, o, d, t_max, any_hit, out_t, out_inst, out_prim, out_u, out_v, out_n):
-    """Batched :func:`tracer.traverse.intersect_closest` (or, with ``any_hit``, the first hit found, as
-    :func:`tracer.traverse.intersect_any`: then ``out_inst >= 0`` is the answer, the rest is raw) over
+    """Batched :func:`tracer.accel.traverse.intersect_closest` (or, with ``any_hit``, the first hit found, as
+    :func:`tracer.accel.traverse.intersect_any`: then ``out_inst >= 0`` is the answer, the rest is raw) over
     rays ``o[i], d[i]`` (k, 3), ``t_max`` (k,); parallel over blocks of rays, :data:`LANES` rays in
     flight in each (unless they are a camera's coherent rays). One kernel for both queries: each
     compiles the traversal twice (lanes and one by one), which is a cold-compile cost worth paying

@@ -17,7 +17,7 @@ encoded in the reference), so a ray tests both children from one cache line and 
 child it misses. The boxes are exact in float32 because the vertices are float32 (the geometry id
 hashes them so); :func:`pack_rows` still rounds outward. Traversal reads :func:`pack_wide`'s 4-wide
 rows made from them: four boxes quantised to 8 bits in one 64-byte row. The top level is built by
-the same code and laid out in 8-wide float32 rows instead (:mod:`tracer.tlas`, :mod:`tracer.rows8`).
+the same code and laid out in 8-wide float32 rows instead (:mod:`tracer.accel.tlas`, :mod:`tracer.accel.rows8`).
 
 Indices are local to one geometry; the scene adds per-geometry offsets at traversal time, so the
 packed store grows by appending and never rewrites what is there.
@@ -48,7 +48,7 @@ ALL_AXES_MIN = 1024
 
 
 @njit(cache=True, error_model="numpy")
-def _area(x0, y0, z0, x1, y1, z1):
+def box_area(x0, y0, z0, x1, y1, z1):
     ex = x1 - x0
     ey = y1 - y0
     ez = z1 - z0
@@ -203,7 +203,7 @@ def build_bvh_range(bmin, bmax, order, p0, n, node_box, node_a, node_n, k0, max_
                         ry1 = max(ry1, bin_box[b, 4])
                         rz1 = max(rz1, bin_box[b, 5])
                         rc += bin_cnt[b]
-                        right_area[b] = _area(rx0, ry0, rz0, rx1, ry1, rz1)
+                        right_area[b] = box_area(rx0, ry0, rz0, rx1, ry1, rz1)
                         right_cnt[b] = rc
                     lx0 = ly0 = lz0 = np.inf
                     lx1 = ly1 = lz1 = -np.inf
@@ -218,14 +218,14 @@ def build_bvh_range(bmin, bmax, order, p0, n, node_box, node_a, node_n, k0, max_
                         lc += bin_cnt[b]
                         if lc == 0 or right_cnt[b + 1] == 0:
                             continue
-                        c = lc * _area(lx0, ly0, lz0, lx1, ly1, lz1) + right_cnt[b + 1] * right_area[b + 1]
+                        c = lc * box_area(lx0, ly0, lz0, lx1, ly1, lz1) + right_cnt[b + 1] * right_area[b + 1]
                         if c < best:
                             best = c
                             best_b = b
                             best_axis = ax
                             best_lo = a_lo
                             best_scale = scale
-                area = _area(x0, y0, z0, x1, y1, z1)
+                area = box_area(x0, y0, z0, x1, y1, z1)
                 if area > 0.0:
                     split_cost = TRAVERSAL_COST + isect_cost * best / area
                 else:
@@ -492,17 +492,17 @@ def collapse(node_box, node_a, node_n, node_off, node_cnt):
 
 
 @njit(cache=True, error_model="numpy")
-def _down32(x):
+def down32(x):
     """Largest float32 <= x (x finite or infinite). Without a branch (both candidates, then a select): a
-    ray's setup rounds several values (:func:`tracer.rows8.ray8`), whose outcome no predictor can guess."""
+    ray's setup rounds several values (:func:`tracer.accel.rows8.ray8`), whose outcome no predictor can guess."""
     f = np.float32(x)
     g = np.float32(x - abs(x) * 2.5e-7 - 1e-38)
     return g if np.float64(f) > x else f
 
 
 @njit(cache=True, error_model="numpy")
-def _up32(x):
-    """Smallest float32 >= x (branch-free, as :func:`_down32`)."""
+def up32(x):
+    """Smallest float32 >= x (branch-free, as :func:`down32`)."""
     f = np.float32(x)
     g = np.float32(x + abs(x) * 2.5e-7 + 1e-38)
     return g if np.float64(f) < x else f
@@ -513,8 +513,8 @@ def _pack_rows(boxes, refs, out_f, out_i):
     for r in range(boxes.shape[0]):
         for c in range(2):
             for a in range(3):
-                out_f[r, 6 * c + a] = _down32(boxes[r, 6 * c + a])
-                out_f[r, 6 * c + 3 + a] = _up32(boxes[r, 6 * c + 3 + a])
+                out_f[r, 6 * c + a] = down32(boxes[r, 6 * c + a])
+                out_f[r, 6 * c + 3 + a] = up32(boxes[r, 6 * c + 3 + a])
         out_i[r, 12] = refs[r, 0]
         out_i[r, 13] = refs[r, 1]
         out_i[r, 14] = 0
@@ -543,7 +543,7 @@ def widen(boxes, refs, row_cnt):
 
     A wide row holds the grandchildren of a binary row (a child that is a leaf stays a child), so
     each wide level skips a binary level: a ray fetches about half as many rows and tests four boxes
-    at once (:func:`tracer.kinds.mesh.slab4`). Empty slots get an empty box and reference -1.
+    at once (:func:`tracer.accel.wide.slab4`). Empty slots get an empty box and reference -1.
 
     Returns ``wboxes`` (W, 24) float64, SoA planes ``wboxes[w, 4 a + c]`` (``a`` = xmin, ymin, zmin,
     xmax, ymax, zmax; ``c`` the slot), ``wrefs`` (W, 4) int64 (as in :func:`collapse`, rows now wide
@@ -631,8 +631,8 @@ def _quantize(wboxes, out_f, out_b):
             if lo > hi:   # no child box (widen gives every row one; kept safe): an empty grid
                 lo = 0.0
                 hi = 0.0
-            origin = np.float64(_down32(lo))
-            ext = np.float64(_up32(hi)) - origin
+            origin = np.float64(down32(lo))
+            ext = np.float64(up32(hi)) - origin
             # smallest power of two with 255 steps covering ext, not below origin's float32 ulp / 2^20
             # (keeps origin + q scale exact in float64) nor float32's normal range
             e = math.frexp(ext / 255.0)[1] if ext > 0.0 else -126

@@ -27,17 +27,17 @@ from typing import NamedTuple
 
 import numpy as np
 
-from tracer import rows8
-from tracer.blas import STACK_SIZE, _up32
+from tracer.accel import rows8, wide
+from tracer.accel.blas import STACK_SIZE, up32
+from tracer.accel.wide import MISS, pop_nearer, prefetch, ray_inverse, slab
 from tracer.jit import njit
 from tracer.kinds import dispatch, mesh
-from tracer.kinds.mesh import MISS, pop_nearer, prefetch, ray_inverse, slab
 
 #: where the top level's entries start in the traversal stacks (:func:`new_stacks`; a bottom level's from
-#: :data:`tracer.kinds.mesh.STACK_BASE`), and where :func:`tracer.rows8.slab8` leaves its distances
+#: :data:`tracer.accel.wide.STACK_BASE`), and where :func:`tracer.accel.rows8.slab8` leaves its distances
 TOP8_BASE = 0
-TOP8_DIST = mesh.STACK_BASE + 2 * STACK_SIZE
-#: the stacks' length (:func:`new_stacks`; each lane of :mod:`tracer.lanes` has this much of its own)
+TOP8_DIST = wide.STACK_BASE + 2 * STACK_SIZE
+#: the stacks' length (:func:`new_stacks`; each lane of :mod:`tracer.accel.lanes` has this much of its own)
 STACK_LEN = TOP8_DIST + rows8.WIDTH
 
 
@@ -46,10 +46,10 @@ class SceneArrays(NamedTuple):
 
     Geometry store (append-only; indices local to a geometry, offsets below):
     ``bvh_f`` (16 R,) f4 and ``bvh_i`` (16 R,) i4, two flat views of the same 64-byte-aligned 4-wide
-    quantised BLAS rows (:func:`tracer.blas.pack_wide`, 16 values per row); ``tri_v`` (9 M,) f4 — triangle vertices in
-    leaf order, 9 values each (exact: the geometry's vertices are float32; all arithmetic on them is
-    float64); ``tri_prim`` (M,) i4 — original
-    triangle index of each row; ``prim_slot`` (M,) i4 — the inverse (original index -> local row);
+    quantised BLAS rows (:func:`tracer.accel.blas.pack_wide`, 16 values per row); ``tri_v`` (9 M,) f4 —
+    triangle vertices in leaf order, 9 values each (exact: the geometry's vertices are float32; all arithmetic
+    on them is float64); ``tri_prim`` (M,) i4 — original triangle index of each row; ``prim_slot`` (M,) i4 —
+    the inverse (original index -> local row);
     ``tri_n`` (M, 9) f4 — vertex normals in leaf order (zero where the mesh has none);
     ``geom_node0``, ``geom_tri0`` (G,) i8, ``geom_ntri`` (G,) i8, ``geom_has_normals`` (G,) bool.
 
@@ -57,9 +57,9 @@ class SceneArrays(NamedTuple):
     ``world_from_object`` and ``object_from_world`` (I, 3, 4) f8 (affine rows).
 
     Top levels over instance ids: solids ``top_f, top_i, top_items`` in 8-wide float32 rows
-    (:mod:`tracer.rows8`), sensors ``sen_f, sen_i, sen_items`` in binary child-box rows
-    (:func:`tracer.blas.pack_rows`); leaves index ``*_items``. ``top_rec`` (4 n,) i8: the solid items'
-    :func:`tracer.tlas.instance_records` (what entering each one needs, in leaf order).
+    (:mod:`tracer.accel.rows8`), sensors ``sen_f, sen_i, sen_items`` in binary child-box rows
+    (:func:`tracer.accel.blas.pack_rows`); leaves index ``*_items``. ``top_rec`` (4 n,) i8: the solid items'
+    :func:`tracer.accel.tlas.instance_records` (what entering each one needs, in leaf order).
     """
 
     bvh_f: np.ndarray
@@ -102,7 +102,7 @@ def empty_scene_arrays() -> SceneArrays:
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _to_object(m, inst, ox, oy, oz, dx, dy, dz):
+def to_object(m, inst, ox, oy, oz, dx, dy, dz):
     rox = m[inst, 0, 0] * ox + m[inst, 0, 1] * oy + m[inst, 0, 2] * oz + m[inst, 0, 3]
     roy = m[inst, 1, 0] * ox + m[inst, 1, 1] * oy + m[inst, 1, 2] * oz + m[inst, 1, 3]
     roz = m[inst, 2, 0] * ox + m[inst, 2, 1] * oy + m[inst, 2, 2] * oz + m[inst, 2, 3]
@@ -135,14 +135,14 @@ def point_to_world(sa, inst, px, py, pz):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack, inline_mesh):
-    """Top-level traversal over the 8-wide rows ``sa.top_f`` (:mod:`tracer.rows8`; leaves hold instance
+def walk_scene(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack, inline_mesh):
+    """Top-level traversal over the 8-wide rows ``sa.top_f`` (:mod:`tracer.accel.rows8`; leaves hold instance
     ids): each instance hit is entered in object space, a mesh straight from its record (``sa.top_rec``),
     any other kind through :mod:`tracer.kinds.dispatch`.
 
-    ``inline_mesh`` (a constant at each call site): walk a mesh's rows inlined (:func:`tracer.kinds.mesh.walk_rows`,
+    ``inline_mesh`` (a constant at each call site): walk a mesh's rows inlined (:func:`tracer.accel.wide.walk_rows`,
     6 % fewer instructions per camera ray in the paper's scene 3) rather than through a call. Only the batch
-    kernel's walk does (:func:`tracer.lanes._serial_block`): each inlined copy adds compile time, and
+    kernel's walk does (:func:`tracer.accel.lanes._serial_block`): each inlined copy adds compile time, and
     :func:`closest_with_stacks` and :func:`any_with_stacks` are compiled apart and called per transport variant.
     """
     best_t = t_max
@@ -157,7 +157,7 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack, inline_m
     m = sa.object_from_world
     if items.shape[0] == 1:   # one instance: its bottom level's first row tests what its box would
         inst = items[0]
-        rox, roy, roz, rdx, rdy, rdz = _to_object(m, inst, ox, oy, oz, dx, dy, dz)
+        rox, roy, roz, rdx, rdy, rdz = to_object(m, inst, ox, oy, oz, dx, dy, dz)
         hit, t, slot, u, v = dispatch.intersect_solid(sa, inst, rox, roy, roz, rdx, rdy, rdz, best_t, any_hit, stack,
                                                       tstack)
         if hit:
@@ -166,7 +166,7 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack, inline_m
     onx, ony, onz, ofx, ofy, ofz, ix, iy, iz, ixe, iye, ize, xl, yl, zl = rows8.ray8(ox, oy, oz, dx, dy, dz)
     bf = sa.top_f
     bi = sa.top_i
-    t32 = np.float64(_up32(best_t))
+    t32 = np.float64(up32(best_t))
     sp = TOP8_BASE
     ref = 0
     while True:
@@ -188,12 +188,12 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack, inline_m
                 kind = rec[4 * q + 1]
                 if kind < 0:
                     continue
-                rox, roy, roz, rdx, rdy, rdz = _to_object(m, inst, ox, oy, oz, dx, dy, dz)
-                if kind == mesh.KIND and inline_mesh:   # straight from the record (tracer.tlas.instance_records)
-                    hit, t, slot, u, v = mesh.walk_rows(sa.bvh_f, sa.bvh_i, sa.tri_v, rec[4 * q + 2], rec[4 * q + 3],
+                rox, roy, roz, rdx, rdy, rdz = to_object(m, inst, ox, oy, oz, dx, dy, dz)
+                if kind == mesh.KIND and inline_mesh:   # straight from the record (tracer.accel.tlas.instance_records)
+                    hit, t, slot, u, v = wide.walk_rows(sa.bvh_f, sa.bvh_i, sa.tri_v, rec[4 * q + 2], rec[4 * q + 3],
                                                         rox, roy, roz, rdx, rdy, rdz, best_t, any_hit, stack, tstack)
                 elif kind == mesh.KIND:
-                    hit, t, slot, u, v = mesh.traverse_rows(sa.bvh_f, sa.bvh_i, sa.tri_v, rec[4 * q + 2],
+                    hit, t, slot, u, v = wide.traverse_rows(sa.bvh_f, sa.bvh_i, sa.tri_v, rec[4 * q + 2],
                                                             rec[4 * q + 3], rox, roy, roz, rdx, rdy, rdz, best_t,
                                                             any_hit, stack, tstack)
                 else:
@@ -201,7 +201,7 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack, inline_m
                                                                   best_t, any_hit, stack, tstack)
                 if hit:
                     best_t = t
-                    t32 = np.float64(_up32(best_t))
+                    t32 = np.float64(up32(best_t))
                     best_inst = inst
                     best_slot = slot
                     bu = u
@@ -218,10 +218,10 @@ def _closest(sa, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack, inline_m
 def new_stacks():
     """Traversal stacks for the ``*_with_stacks`` functions: ``(stack, tstack)``, of the same length.
 
-    The top level uses the first :data:`tracer.rows8.STACK` entries, a bottom level the next 2 STACK_SIZE
-    (from :data:`tracer.kinds.mesh.STACK_BASE`: a 4-wide level pushes up to three entries per level, of about
-    half the binary depth, which :func:`tracer.blas.check_topology` keeps below STACK_SIZE), then 8 slots
-    for :func:`tracer.rows8.slab8`'s distances (:data:`TOP8_DIST`)."""
+    The top level uses the first :data:`tracer.accel.rows8.STACK` entries, a bottom level the next 2 STACK_SIZE
+    (from :data:`tracer.accel.wide.STACK_BASE`: a 4-wide level pushes up to three entries per level, of about
+    half the binary depth, which :func:`tracer.accel.blas.check_topology` keeps below STACK_SIZE), then 8 slots
+    for :func:`tracer.accel.rows8.slab8`'s distances (:data:`TOP8_DIST`)."""
     return np.empty(STACK_LEN, np.int64), np.empty(STACK_LEN)
 
 
@@ -230,7 +230,7 @@ def closest_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, stack, tstack):
     """:func:`intersect_closest` with caller-provided traversal stacks (:func:`new_stacks`): the form for
     jitted loops over many rays (light transport). A real function, compiled once: inlined, the whole
     two-level traversal was compiled again into every transport variant (twice the cold compile)."""
-    t, inst, slot, u, v = _closest(sa, ox, oy, oz, dx, dy, dz, t_max, False, stack, tstack, False)
+    t, inst, slot, u, v = walk_scene(sa, ox, oy, oz, dx, dy, dz, t_max, False, stack, tstack, False)
     return public_hit(sa, t, inst, slot, u, v)
 
 
@@ -264,7 +264,7 @@ def intersect_closest(sa, ox, oy, oz, dx, dy, dz, t_max):
 @njit(cache=True, error_model="numpy", _nrt=False)
 def any_with_stacks(sa, ox, oy, oz, dx, dy, dz, t_max, stack, tstack):
     """:func:`intersect_any` with caller-provided traversal stacks (:func:`new_stacks`)."""
-    t, inst, slot, u, v = _closest(sa, ox, oy, oz, dx, dy, dz, t_max, True, stack, tstack, False)
+    t, inst, slot, u, v = walk_scene(sa, ox, oy, oz, dx, dy, dz, t_max, True, stack, tstack, False)
     return inst >= 0
 
 
@@ -312,7 +312,7 @@ def sensor_crossings_with_stack(sa, ox, oy, oz, dx, dy, dz, t_max, out_inst, out
         ``(u, v)``: sensor object-space coordinates (disk: unit disk; rect: ``[0, 1]^2``);
         ``cos = -dot(d, n_world) / |d|`` (> 0: the ray arrives on the sensor's front side).
 
-    ``stack``: (at least :data:`tracer.blas.STACK_SIZE`,) int64 scratch (a traversal stack of
+    ``stack``: (at least :data:`tracer.accel.blas.STACK_SIZE`,) int64 scratch (a traversal stack of
     :func:`new_stacks` will do).
     """
     cap = out_inst.shape[0]
@@ -344,7 +344,7 @@ def sensor_crossings_with_stack(sa, ox, oy, oz, dx, dy, dz, t_max, out_inst, out
         first = x >> 4
         for q in range(first, first + (x & 15)):
             inst = sa.sen_items[q]
-            rox, roy, roz, rdx, rdy, rdz = _to_object(m, inst, ox, oy, oz, dx, dy, dz)
+            rox, roy, roz, rdx, rdy, rdz = to_object(m, inst, ox, oy, oz, dx, dy, dz)
             hit, t, u, v = dispatch.cross_sensor(sa, inst, rox, roy, roz, rdx, rdy, rdz, t_max)
             if not hit:
                 continue

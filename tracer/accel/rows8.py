@@ -1,17 +1,17 @@
 """8-wide float32 rows: the solid top level's layout.
 
 A camera ray in the paper's scene 3 visited about 25 top-level rows of the 4-wide layout the bottom levels
-use (:func:`tracer.blas.pack_wide`), each a 4-lane float64 test of 8-bit quantised boxes, and that was most
+use (:func:`tracer.accel.blas.pack_wide`), each a 4-lane float64 test of 8-bit quantised boxes, and that was most
 of its instructions. Here a row holds eight unquantised float32 boxes, tested in one 8-lane float32 vector
 (:func:`slab8`), as Embree's BVH8 nodes are: fewer rows per ray (19 where a ray meets no instance's box
 early) and no dequantising. Measured on scene 3, one thread: camera rays 1.29x faster, incoherent rays
-(:mod:`tracer.lanes`) 1.10x; instructions per ray 28 % / 24 % fewer. The bottom levels stay 4-wide: in the
+(:mod:`tracer.accel.lanes`) 1.10x; instructions per ray 28 % / 24 % fewer. The bottom levels stay 4-wide: in the
 lanes, 8-wide bottom levels were slower (branch ``wide8``) and would take about three times the memory.
 
 Layout: row ``w`` is 64 float32 values (256 bytes, 64-byte aligned): the planes ``8 a + c`` (``a`` =
 xmin, ymin, zmin, xmax, ymax, zmax; ``c`` the slot), each the binary row's float32 plane (already rounded
-outward, :func:`tracer.blas.pack_rows`), then the eight references (int32 view, columns 48-55) as in
-:func:`tracer.blas.collapse` with rows now 8-wide rows. An empty slot has an inverted box and
+outward, :func:`tracer.accel.blas.pack_rows`), then the eight references (int32 view, columns 48-55) as in
+:func:`tracer.accel.blas.collapse` with rows now 8-wide rows. An empty slot has an inverted box and
 reference -1.
 
 The float32 slab test is conservative at any coordinate magnitude: pbrt's form ``(p - o) inv``, whose
@@ -29,7 +29,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from tracer.blas import STACK_SIZE, _area, _down32, _up32, aligned_rows
+from tracer.accel.blas import STACK_SIZE, aligned_rows, box_area, down32, up32
 from tracer.jit import njit
 
 WIDTH = 8
@@ -49,7 +49,7 @@ _FLT_MAX = 3.4028234663852886e38
 
 @njit(cache=True, error_model="numpy")
 def widen8(boxes, refs):
-    """Collapse one tree's binary child-box rows (:func:`tracer.blas.collapse`) into 8-wide rows.
+    """Collapse one tree's binary child-box rows (:func:`tracer.accel.blas.collapse`) into 8-wide rows.
 
     A row starts from a binary row's two children and opens the interior child of largest surface area
     (the likeliest to be entered) into its two children, until it holds eight children or only leaves,
@@ -81,7 +81,7 @@ def widen8(boxes, refs):
                 if refs[s >> 1, s & 1] >= 0:
                     o = 6 * (s & 1)
                     b = s >> 1
-                    area = _area(boxes[b, o], boxes[b, o + 1], boxes[b, o + 2], boxes[b, o + 3], boxes[b, o + 4],
+                    area = box_area(boxes[b, o], boxes[b, o + 1], boxes[b, o + 2], boxes[b, o + 3], boxes[b, o + 4],
                                  boxes[b, o + 5])
                     if area > best_area:
                         best_area = area
@@ -119,7 +119,7 @@ def widen8(boxes, refs):
 @njit(cache=True, error_model="numpy")
 def refit8(rows, wsrc, binary, wrows):
     """Copy into the 8-wide rows ``wrows`` the current planes of the binary rows ``binary`` ((R, 16) float32,
-    :func:`tracer.blas.pack_rows`) their boxes came from: how a refit of the binary top level reaches them."""
+    :func:`tracer.accel.blas.pack_rows`) their boxes came from: how a refit of the binary top level reaches them."""
     for k in range(wrows.shape[0]):
         w = wrows[k]
         for c in range(WIDTH):
@@ -151,7 +151,7 @@ def slab8(typingctx, bf, r, onx, ony, onz, ofx, ofy, ofz, ix, iy, iz, ixe, iye, 
 
     The per-ray constants come from :func:`ray8` (float32 values passed as float64; ``t_max`` too, rounded
     up). A NaN slab (origin on the plane of an axis the ray is parallel to) is ignored, as in
-    :func:`tracer.kinds.mesh.slab`.
+    :func:`tracer.accel.wide.slab`.
     """
     sig = types.int64(bf, types.int64, *(types.float64,) * 12, types.int64, types.int64, types.int64,
                       types.float64, tstack, types.int64)
@@ -232,8 +232,8 @@ def descend8(bi, r, hits, stack, tstack, tb, sp):
 def _origin(o, inv):
     """The origin coordinate rounded to float32 ``(for near distances, for far ones)``: towards the near
     plane and away from it. Clamped first, so an origin beyond float32's range still rounds the right way."""
-    lo = np.float64(_down32(min(o, _FLT_MAX)))
-    hi = np.float64(_up32(max(o, -_FLT_MAX)))
+    lo = np.float64(down32(min(o, _FLT_MAX)))
+    hi = np.float64(up32(max(o, -_FLT_MAX)))
     pos = inv >= 0.0
     return (hi if pos else lo), (lo if pos else hi)
 
@@ -242,8 +242,8 @@ def _origin(o, inv):
 def _far32(inv):
     """``inv`` times :data:`FAR32`, rounded away from zero to float32."""
     x = inv * FAR32
-    up = np.float64(_up32(x))   # both, then a select: the sign is as good as random
-    down = np.float64(_down32(x))
+    up = np.float64(up32(x))   # both, then a select: the sign is as good as random
+    down = np.float64(down32(x))
     return up if x >= 0.0 else down
 
 

@@ -4,7 +4,7 @@ One file per geometry, ``<cache_dir>/<geometry id>.blas.npz`` (uncompressed ``.n
 BVH *topology* only: leaf order and node links, plus the builder version, the geometry id and a
 SHA-256 digest of all of it. Node boxes are not stored: they are refitted from the geometry on load,
 so a file can at worst slow traversal, never make it wrong. A file is used only if it opens, its
-version and id match, its digest matches and the topology passes :func:`tracer.blas.check_topology`;
+version and id match, its digest matches and the topology passes :func:`tracer.accel.blas.check_topology`;
 anything else (truncated, corrupt, foreign, older builder) is ignored and rebuilt. Writes go to a
 temporary file in the same directory and are renamed into place, so readers in other processes see
 either nothing or a whole file.
@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tracer.blas import BUILDER_VERSION, check_topology
+from tracer.accel.blas import BUILDER_VERSION, check_topology
 
 
 def cache_path(cache_dir: str | os.PathLike, gid: str) -> Path:
