@@ -169,7 +169,7 @@ def tessellation_curve(quick: bool) -> dict:
         return {"error": f"cadquery/OCP could not be imported: {exc!r}"}
     from tracer.scene import Scene
     from tracer.simulate import Simulation
-    from tracer.tessellation_error import from_settings
+    from tracer.transport.tessellation_error import from_settings
 
     beam = {"type": "collimated", "origin": [0, 0, 1.0], "direction": [0, 0, -1], "radius": BEAM_R,
             "illuminance_lx": 1000.0}
@@ -469,7 +469,8 @@ def markdown(res: dict) -> str:
                "", "The tessellation budget " + ("bounds the measured error at every setting" if t["budget_holds"]
                                                  else "does NOT bound the measured error everywhere")
                + f" (budget / error ≥ {loosest:,.3g}): it is a bound built for receivers larger than the photons' "
-               "shift (the first-order normal term; `tracer.tessellation_error`), and on a 0.5 mm disk at a focus "
+               "shift (the first-order normal term; `tracer.transport.tessellation_error`), and on a 0.5 mm disk "
+               "at a focus "
                "it says little more than \"the tessellation may move everything\"."]
     md += ["", "### (c) Physics left out: lux difference and time with and without each effect", "",
            "| effect | scene | lux without | lux with | difference ± stderr | \\|difference\\| / σ | closed form "

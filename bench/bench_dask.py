@@ -42,7 +42,7 @@ def _overhead_round(backend, sim, tasks: int, repeats: int) -> float:
     The query is one disk receiver, made the way `Simulation._forward` makes it."""
     from tracer.backends import Shipment
     from tracer.scene import Scene
-    from tracer.transport import SensorArrays
+    from tracer.transport.forward import SensorArrays
 
     scene = sim.snapshot("white")
     receivers = Scene()

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 import tracer
-from tracer import reference
+from tracer.accel import reference
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -308,7 +308,7 @@ COLD_SCRIPT = textwrap.dedent("""
     t0 = time.perf_counter()
     import numpy as np, tracer
     from tracer.accel.traverse import sensor_crossings, shading_normal, hit_point
-    from tracer.spawn import offset_ray_origin
+    from tracer.accel.spawn import offset_ray_origin
     t1 = time.perf_counter()
     s = tracer.Scene()
     g = s.add_geometry([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]], normals=[[0, 0, 1]] * 3)

@@ -128,7 +128,7 @@ t_import = time.perf_counter() - t0
 for force in {variants!r}:
     sim.illuminance(pts, nrm, max_photons=1000, estimator="forward", force_effects=tuple(force))
 sim.illuminance(pts, nrm, max_photons=1000, estimator="backward")
-from tracer.transport import forward_batches
+from tracer.transport.forward import forward_batches
 sizes = {{}}
 for sig in forward_batches.signatures:   # machine code of the one kernel (fresh cache: compiled, inspectable)
     sizes["forward/white"] = len(forward_batches.inspect_asm(sig))

@@ -33,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench.bench_tracer import bumpy_sphere, world_triangles  # noqa: E402
 from bench.instructions import scene_and_rays  # noqa: E402
-from tracer.accel import blas  # noqa: E402
+from tracer.accel import blas, rows4  # noqa: E402
 from tracer.accel.rows8 import ROW, descend8, pack8, ray8, slab8  # noqa: E402
 from tracer.accel.traverse import TOP8_BASE, TOP8_DIST, new_stacks  # noqa: E402
 from tracer.accel.triangle import intersect_triangle, ray_setup  # noqa: E402
@@ -70,7 +70,7 @@ def walk8(nf, ni, tri, ox, oy, oz, dx, dy, dz, stack, tstack):
                 hit, t, _, _ = intersect_triangle(tri, j, ox, oy, oz, kx, ky, kz, sx, sy, sz, best_t)
                 if hit:
                     best_t = t
-                    t32 = np.float64(blas.up32(t))
+                    t32 = np.float64(rows4.up32(t))
         ref, sp = pop_nearer(stack, tstack, sp, TOP8_BASE, best_t)
         if ref == MISS:
             return best_t
@@ -111,9 +111,9 @@ def layouts(tri_v: np.ndarray) -> dict:
     """Both layouts of one BVH over ``tri_v`` (m, 9), and the triangles in leaf order."""
     order, nb, na, nn, nc = blas.build_meshes(tri_v, np.array([0, len(tri_v)]), 4, 1.0)
     boxes, refs, row_cnt = blas.collapse(nb, na, nn, np.zeros(1, np.int64), nc)
-    wide4, _ = blas.pack_wide(boxes, refs, row_cnt)
-    rows8, _ = pack8(blas.pack_rows(boxes, refs))
-    return {"rows4": wide4, "rows8": rows8, "tri": blas.leaf_order_f32(tri_v, order)}
+    wide4, _ = rows4.pack_wide(boxes, refs, row_cnt)
+    rows8, _ = pack8(rows4.pack_rows(boxes, refs))
+    return {"rows4": wide4, "rows8": rows8, "tri": rows4.leaf_order_f32(tri_v, order)}
 
 
 def time_pair(lay: dict, o: np.ndarray, d: np.ndarray) -> dict:

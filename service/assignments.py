@@ -173,7 +173,7 @@ class Assignments:
 def _validate_photometry(fmt: str, text: str) -> None:
     """Parse a goniometric file with the tracer's parser (422 naming the problem if it is wrong)."""
     try:
-        from tracer.photometry import parse_photometry
+        from tracer.photometry.files import parse_photometry
     except ImportError:  # the parser is not built yet: accept, it is parsed again at simulation time
         return
     try:

@@ -92,7 +92,7 @@ class CostLine(BaseModel):
 
 class Cost(BaseModel):
     """What tighter errors would cost on this scene and this machine, from the run's own variance and speed (error
-    ∝ 1/√photons): for the worst lit point and the median one (`tracer.estimate.cost_of`)."""
+    ∝ 1/√photons): for the worst lit point and the median one (`tracer.transport.estimate.cost_of`)."""
 
     targets: list[float] = Field(description="Relative errors (fractions), in the order of each line's lists.")
     photons_per_second: float = Field(description="This run's tracing speed, photons/s (compilation excluded).")
@@ -117,7 +117,7 @@ class Backend(BaseModel):
 
 
 class ErrorBudget(BaseModel):
-    """Errors beside the Monte Carlo one (`tracer.tessellation_error`), lx per point (per cell for a grid)."""
+    """Errors beside the Monte Carlo one (`tracer.transport.tessellation_error`), lx per point (per cell for a grid)."""
 
     tessellation: list[Any] = Field(description="How far each value may move when the curved mirror and glass "
                                                 "surfaces are tessellated finely enough (a bound), lx.")

@@ -2,7 +2,7 @@
 
 Public API (DESIGN.md): :class:`Scene`, :class:`UpdateStats`, :class:`Hits`, :class:`TracerError`,
 and the module :mod:`tracer.geometry_id` (the content hash). Jitted kernels for light transport live
-in :mod:`tracer.accel.traverse` and :mod:`tracer.spawn` (docs/CONTRACTS.md).
+in :mod:`tracer.accel.traverse` and :mod:`tracer.accel.spawn` (docs/CONTRACTS.md).
 
 The names are loaded on first use (PEP 562), so ``import tracer.geometry_id`` (the CAD adapter's only
 need: a SHA-256 over numpy arrays) does not load numba and the kernels.

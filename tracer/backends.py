@@ -127,12 +127,12 @@ def run_kernel(kernel_id: KernelId, scene: tuple, query: tuple, batch0: int, n_b
     worker runs it by import; the kernel is compiled once per process (numba's dispatcher and disk cache)."""
     sa, mats, lights = scene
     if kernel_id[0] == "forward":
-        from tracer.transport import forward_kernel
+        from tracer.transport.forward import forward_kernel
 
         ra, sens, n_bins, seed = query
         return forward_kernel(kernel_id[1])(sa, ra, mats, lights, sens, n_bins, seed, batch0, n_batches, size)
     if kernel_id[0] == "backward":
-        from tracer.backward import backward_batches
+        from tracer.transport.backward import backward_batches
 
         q, seed = query
         return backward_batches(sa, mats, lights, q, seed, batch0, n_batches, size)

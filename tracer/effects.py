@@ -18,7 +18,7 @@ Each kind declares its effects (`effects(spec)` in its module, `tracer/optics/`)
 them. The effects above change no compiled code: they are branches on data (a photon meets a mirror
 only where there is one), which the transport benchmark measured to cost nothing where unused. What a
 photon *carries* does change the kernel (Mitsuba's variants): `photon_state(effects)` names it, and
-`tracer.transport.forward_kernel(state)` is the one factory of kernels. Every effect listed today
+`tracer.transport.forward.forward_kernel(state)` is the one factory of kernels. Every effect listed today
 up to `scattering` needs only a weight, the state ``"white"``; `spectral` (implied by `dispersion`, `coating`
 `fluorescence` and `mie`) needs a wavelength, the state ``"spectral"``; `polarization` needs a Stokes vector and
 its frame (`tracer.optics.polarization`), the state ``"polarized"`` (``"polarized-spectral"`` with both). A

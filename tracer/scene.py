@@ -26,8 +26,9 @@ import numba
 import numpy as np
 
 from tracer.accel import cache as blas_cache
-from tracer.accel.blas import aligned_rows, build_meshes, collapse, gather_triangles, leaf_order_f32, pack_wide, refit
+from tracer.accel.blas import build_meshes, collapse, gather_triangles, refit
 from tracer.accel.lanes import batch
+from tracer.accel.rows4 import aligned_rows, leaf_order_f32, pack_wide
 from tracer.accel.tlas import TopLevel, build_top, instance_records, refit_top, world_boxes
 from tracer.accel.traverse import SceneArrays
 from tracer.errors import NotCommittedError, TracerError, UnknownIdError

@@ -8,24 +8,24 @@ nu, nv)` (an (nv, nu) map of cell averages), `surface(instances)` (lx per triang
 `far_field(nc, ngamma, direction, c0)` (cd on a type-C grid).
 
 Both estimators estimate exactly the receivers' patch averages, so they agree within their error bars:
-- ``"forward"`` (`tracer.transport`): photons from the sources, recorded by the query's own receivers:
+- ``"forward"`` (`tracer.transport.forward`): photons from the sources, recorded by the query's own receivers:
   sensor instances (`Scene.add_disk_sensor` / `add_rect_sensor`) in a small scene of their own beside
   the scene, which a query only reads (so queries on one scene may run at once, and nobody copies it);
-- ``"backward"`` (`tracer.backward`): paths from uniform points of each patch with next-event
+- ``"backward"`` (`tracer.transport.backward`): paths from uniform points of each patch with next-event
   estimation; only where every surface is purely diffuse (its kind says so) and every light can be
   reached by a shadow ray (its kind says so). ``"auto"`` takes it for points and disks where it applies,
   and forward otherwise (grids; surface and far-field sensors are forward only); the result says which ran.
 
 A receiver on a surface is placed on the surface the rays meet, just in front (`tracer.sensors.placement`).
 
-Estimation (`tracer.rounds`): independent batches seeded from (seed, batch index) through the counter-based
+Estimation (`tracer.transport.rounds`): independent batches seeded from (seed, batch index) through the counter-based
 `tracer.rng`; batch sizes depend only on the request and the backend's `tracer.backends.BatchShape`, batches are
 started in rounds of `ROUND_BATCHES`, growing to a quarter of the batches run so far (at most `MAX_ROUND_BATCHES`,
 and `MAX_ROUND_BYTES` of tallies: a long query gives a cluster's workers tasks of 0.1 s or more while a stop
 overshoots its rule by at most a quarter; a GPU's shape has thousands of small batches a round), and the
 stop test runs between rounds, so for the same seed and stop rule (target error or photon budget) the answer is
 bit-identical whatever the number of threads, processes or machines the batches of one shape ran on. Standard errors
-are batch means (`tracer.estimate`). A query stops when every point's relative error is at most
+are batch means (`tracer.transport.estimate`). A query stops when every point's relative error is at most
 `target_relative_error` (``"target_relative_error"``), at `max_photons` (``"max_photons"``),
 `max_seconds` (``"max_seconds"``) or when `cancel()` is truthy (``"cancelled"``). Without any
 budget it runs `DEFAULT_MAX_SECONDS`. Every answer has at least two batches (an error bar needs two),
@@ -47,11 +47,18 @@ import numpy as np
 from tracer.backends import IN_PROCESS, Shipment, is_backend
 from tracer.effects import EFFECTS, EffectError, derive_effects, photon_state, with_forced
 from tracer.errors import SimulationError
-from tracer.estimate import cost_of
 from tracer.optics.lights import connectable, pack_lights
 from tracer.optics.lights.dispatch import polarized_lights, spectral_lights
 from tracer.optics.surfaces.dispatch import backward_ok, material_spec, pack_materials
-from tracer.rounds import (
+from tracer.sensors import dispatch as sensors
+from tracer.sensors.base import IlluminanceResult, Probe, vec3
+from tracer.sensors.far_field import FarFieldResult, far_field_bins
+from tracer.sensors.grid import GridResult
+from tracer.sensors.placement import place_receivers, probe_distance, sensor_offset
+from tracer.sensors.points import DEFAULT_RADIUS
+from tracer.sensors.surface import SurfaceResult
+from tracer.transport.estimate import cost_of
+from tracer.transport.rounds import (
     BACKWARD_BATCH,
     DEFAULT_MAX_SECONDS,
     FORWARD_BATCH,
@@ -68,14 +75,7 @@ from tracer.rounds import (
     compile_seconds,
     forward,
 )
-from tracer.sensors import dispatch as sensors
-from tracer.sensors.base import IlluminanceResult, Probe, vec3
-from tracer.sensors.far_field import FarFieldResult, far_field_bins
-from tracer.sensors.grid import GridResult
-from tracer.sensors.placement import place_receivers, probe_distance, sensor_offset
-from tracer.sensors.points import DEFAULT_RADIUS
-from tracer.sensors.surface import SurfaceResult
-from tracer.tessellation_error import grid_cells, lux_budget, scene_surfaces
+from tracer.transport.tessellation_error import grid_cells, lux_budget, scene_surfaces
 
 __all__ = ["BACKWARD_BATCH", "DEFAULT_MAX_SECONDS", "DEFAULT_RADIUS", "ESTIMATORS", "FORWARD_BATCH", "LIT_FRACTION",
            "MAX_ROUND_BATCHES", "MAX_ROUND_BYTES", "MAX_SPECTRAL_TALLIES", "MIN_BATCHES", "OBSERVABLES",

@@ -13,8 +13,8 @@ reports each on its standard output as it ends ("STAGE SECONDS KERNEL ...", the 
 - ``optics``: every function the forward kernel calls that is a kernel of its own (each surface kind's
   ``scatter``, each light kind's ``sample``, the media, the receivers' crossings and tallies; `forward_callees`),
   so that the forward kernel loads them instead of compiling them;
-- ``forward``: the forward photon kernel (`tracer.transport.forward_kernel`);
-- ``backward``: the backward kernel (`tracer.backward.backward_batches`);
+- ``forward``: the forward photon kernel (`tracer.transport.forward.forward_kernel`);
+- ``backward``: the backward kernel (`tracer.transport.backward.backward_batches`);
 - ``scene``: the builders of a small room scene (what a later first push needs).
 
 Child 1 compiles probe, optics, forward; child 2 optics, backward, scene (`CHILDREN`). Both compile the optics,
@@ -70,10 +70,10 @@ def kernel_types() -> dict[str, Any]:
     from numba import typeof, types
 
     from tracer.accel.traverse import empty_scene_arrays
-    from tracer.backward import QueryArrays
     from tracer.optics.lights import pack_lights
     from tracer.optics.surfaces.dispatch import pack_materials
-    from tracer.transport import SensorArrays
+    from tracer.transport.backward import QueryArrays
+    from tracer.transport.forward import SensorArrays
 
     f8v = np.zeros(1)
     i8v = np.zeros(1, np.int64)
@@ -86,17 +86,18 @@ def kernel_types() -> dict[str, Any]:
 
 
 def forward_callees() -> list[tuple[Any, tuple]]:
-    """``(kernel, signature)`` of every function the forward kernel (`tracer.transport.trace_photons`) calls that
-    numba compiles on its own (not inlined), with the argument types the forward kernel passes: each surface
+    """``(kernel, signature)`` of every function the forward kernel (`tracer.transport.forward.trace_photons`) calls
+    that numba compiles on its own (not inlined), with the argument types the forward kernel passes: each surface
     kind's ``scatter`` and each light kind's ``sample`` (from their registrations, so a new kind is included),
     the media's switch, the receivers' crossings and tallies, the random numbers."""
-    from tracer import rng, spawn, transport
-    from tracer.accel import traverse
+    from tracer import rng
+    from tracer.accel import spawn, traverse
     from tracer.optics import frames, polarization, spectra
     from tracer.optics.lights import dispatch as lights
     from tracer.optics.media import dispatch as media
     from tracer.optics.media import homogeneous
     from tracer.optics.surfaces import dispatch as surfaces
+    from tracer.transport import forward as transport
 
     t = kernel_types()
     sa, mats, i8, u8, f8, vi, vf, mf = (t[k] for k in ("sa", "mats", "i8", "u8", "f8", "vi", "vf", "mf"))
@@ -119,9 +120,9 @@ def compile_stage(stage: str, reverse: bool = False) -> None:
     """Compile (or load) the kernels of one stage (`STAGES`): by signature, without running them, but for the
     builders of ``scene``, which run on a small room; `reverse`: the optics from the end of their list."""
     from tracer.accel.traverse import closest_each
-    from tracer.backward import backward_batches
     from tracer.scene import Scene
-    from tracer.transport import forward_kernel
+    from tracer.transport.backward import backward_batches
+    from tracer.transport.forward import forward_kernel
 
     if stage == "scene":
         scene = Scene()

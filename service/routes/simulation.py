@@ -6,7 +6,7 @@
   triangle, `service.simulation.SimulationHub._run_surface`);
 - ``GET /scenes/{id}/sensors/{sid}/map.png`` — the false-colour map of the sensor's latest result;
 - ``GET /scenes/{id}/sensors/{sid}/export?format=ies|ldt`` — a far-field sensor's latest result as an IES LM-63-2002
-  or EULUMDAT file (`tracer.photometry_export`);
+  or EULUMDAT file (`tracer.photometry.export`);
 - ``GET /jobs/{jid}``, ``DELETE /jobs/{jid}`` — progress and result of a job; cancel it.
 
 Every answer names the scene revision it was computed at; a push or an assignment makes earlier
@@ -48,7 +48,7 @@ from service.simulation_wire import (  # noqa: F401 (the route's models, named h
     SensorSimulate,
     SurfaceInstance,
 )
-from tracer.estimate import cost_of
+from tracer.transport.estimate import cost_of
 
 router = APIRouter(tags=["simulation"])
 
@@ -230,7 +230,7 @@ def sensor_export(scene_id: SceneId, sensor_id: ItemId, request: Request,
     """A far-field sensor's latest result as a photometric file: IES LM-63-2002 (absolute photometry, the flux
     leaving the scene in `[_ABSOLUTELUMENS]`) or EULUMDAT (cd/klm of that flux, LORL 100 %), the type-C table as
     simulated (no symmetry assumed). 404 while the sensor has no result, 422 for a sensor of another kind."""
-    from tracer.photometry_export import write_photometry
+    from tracer.photometry.export import write_photometry
 
     hub = _hub(request)
     live = hub.live.get(scene_id)

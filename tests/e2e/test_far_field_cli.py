@@ -1,7 +1,7 @@
 """A lamp's far field from the command line and the Python client, against a real service process (issue 22):
 `lumenlink sensor` (a far_field body), `lumenlink simulate` (writes <sensor>.csv and <sensor>.ies), `lumenlink export
---format ies|ldt`, `Client.export`; the files read back through `tracer.photometry` to the simulated table and flux
-(within 0.5 %); bad usage exits 2 saying what to do."""
+--format ies|ldt`, `Client.export`; the files read back through `tracer.photometry.files` to the simulated table and
+flux (within 0.5 %); bad usage exits 2 saying what to do."""
 
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ from service_process import running_service  # noqa: E402
 
 from lumenlink import Client  # noqa: E402
 from lumenlink.cli import app  # noqa: E402
-from tracer.photometry import parse_photometry  # noqa: E402
+from tracer.photometry.files import parse_photometry  # noqa: E402
 
 IES = ROOT / "lumenlink" / "data" / "rab_dled6r8y_7.ies"
 pytestmark = pytest.mark.slow

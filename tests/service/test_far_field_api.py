@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from service_helpers import glb, grid_mesh, make_client, node, translation, uid
 
-from tracer.photometry import parse_photometry
+from tracer.photometry.files import parse_photometry
 
 I_CD, H = 50.0, 1.5
 

@@ -28,10 +28,10 @@ def batch_kernels():
     import numpy as np
     from transport_scenes import box, scene_of
 
-    from tracer.backward import disk_queries
     from tracer.gpu.transport import Tallies, backward_threads, forward_threads
     from tracer.simulate import Simulation
-    from tracer.transport import SensorArrays
+    from tracer.transport.backward import disk_queries
+    from tracer.transport.forward import SensorArrays
 
     s, ids = scene_of(box([-1, -1, -1], [1, 1, 1]))
     sim = Simulation(s, {ids[0]: {"type": "lambertian", "reflectance": 0.5}},

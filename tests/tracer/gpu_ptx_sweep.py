@@ -39,14 +39,14 @@ MODULES = [
     "tracer.optics.lights.base", "tracer.optics.lights.point", "tracer.optics.lights.spot",
     "tracer.optics.lights.collimated", "tracer.optics.lights.area", "tracer.optics.lights.goniometric",
     "tracer.optics.lights.dispatch",
-    "tracer.kinds.disk_sensor", "tracer.kinds.rect_sensor", "tracer.spawn",
-    "tracer.transport",
+    "tracer.kinds.disk_sensor", "tracer.kinds.rect_sensor", "tracer.accel.spawn",
+    "tracer.transport.forward",
 ]
 
 #: host-side helpers (they allocate arrays or run whole batches): not device functions, not swept
 HOST = {
-    "tracer.rng._uniforms", "tracer.optics.mie._amplitude_sums", "tracer.transport.trace_photons",
-    "tracer.transport.forward_batches",
+    "tracer.rng._uniforms", "tracer.optics.mie._amplitude_sums", "tracer.transport.forward.trace_photons",
+    "tracer.transport.forward.forward_batches",
 }
 
 
@@ -106,7 +106,7 @@ OVERRIDES = {
     "tracer.optics.thinfilm._p_amplitudes": {"b": "f"},
     "tracer.optics.thinfilm._abs2": {"z": "c"},
     "tracer.optics.lights.base.in_light_frame": {"b": "f"},
-    "tracer.transport.record_spectrum": {"b": "i"},
+    "tracer.transport.forward.record_spectrum": {"b": "i"},
 }
 
 

@@ -1,4 +1,4 @@
-"""The fast two-level tracer agrees with the brute-force world-space reference (tracer.reference).
+"""The fast two-level tracer agrees with the brute-force world-space reference (tracer.accel.reference).
 
 Random scenes: several random meshes, each instanced several times with random affine maps
 (rotations, non-uniform scale, mirroring). Per ray: same t (relative 1e-9), and the same
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import tracer
-from tracer import reference
+from tracer.accel import reference
 
 
 def _random_scene(rng: np.random.Generator, n_geoms: int = 4, n_inst: int = 3, normals: bool = False):

@@ -9,8 +9,7 @@ import numpy as np
 import pytest
 
 import tracer
-from tracer import reference
-from tracer.accel import cache
+from tracer.accel import cache, reference
 
 
 def _scene(tmp_path, mesh, m=None, **kw) -> tuple[tracer.Scene, str, tracer.UpdateStats]:

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from bench.bench_transport import floor_points, room_scene
-from tracer.estimate import COST_TARGETS, cost_of
 from tracer.scene import Scene
 from tracer.simulate import Simulation
+from tracer.transport.estimate import COST_TARGETS, cost_of
 from tracer.warmup import box
 
 

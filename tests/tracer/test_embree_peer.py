@@ -13,7 +13,7 @@ import pytest
 
 import tracer
 from bench import embree_instances
-from tracer import reference
+from tracer.accel import reference
 
 
 def test_instanced_embree_agrees_with_ours() -> None:

@@ -1,6 +1,6 @@
-"""The far-field tally (`Simulation.far_field`, `tracer.transport.SensorArrays.far`): the luminous intensity (cd) of
-a scene seen from far away against closed forms and a real luminaire file, and proof that it observes and changes
-nothing."""
+"""The far-field tally (`Simulation.far_field`, `tracer.transport.forward.SensorArrays.far`): the luminous intensity
+(cd) of a scene seen from far away against closed forms and a real luminaire file, and proof that it observes and
+changes nothing."""
 
 from __future__ import annotations
 
@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from tests.tracer.transport_scenes import box, quad, scene_of
-from tracer.photometry import parse_photometry
+from tracer.photometry.files import parse_photometry
 from tracer.scene import Scene
 from tracer.simulate import Simulation, SimulationError, far_field_bins
-from tracer.transport import SensorArrays, forward_batches
+from tracer.transport.forward import SensorArrays, forward_batches
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "photometry"
 I_CD = 100.0

@@ -59,7 +59,7 @@ def test_physics_compiles_to_ptx():
                 "polarization", "thinfilm", "disk_sensor", "rect_sensor"):
         assert any(f.endswith(mod) for f in families), mod
     for fn in ("surfaces.dispatch.scatter", "surfaces.dispatch.albedo", "media.dispatch.medium_event",
-               "lights.dispatch.sample_emission", "lights.dispatch.light_connect", "transport.record_stokes",
-               "transport.record_spectrum", "rng.uniform", "rng.path_key"):
+               "lights.dispatch.sample_emission", "lights.dispatch.light_connect", "forward.record_stokes",
+               "forward.record_spectrum", "rng.uniform", "rng.path_key"):
         assert any(k.endswith(fn) for k in report), fn
     assert len(report) >= 90, len(report)

@@ -8,7 +8,7 @@ import numpy as np
 from numba import njit
 
 import tracer
-from tracer import reference
+from tracer.accel import reference
 from tracer.accel.traverse import intersect_closest
 
 

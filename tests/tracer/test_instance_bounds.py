@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import tracer
-from tracer import reference
+from tracer.accel import reference
 from tracer.accel.tlas import EXACT_MAX_TRIANGLES, PAD
 from tracer.errors import NotCommittedError, UnknownIdError
 

@@ -6,9 +6,9 @@ import numpy as np
 from numba import njit
 
 import tracer
-from tracer import reference
+from tracer.accel import reference
+from tracer.accel.spawn import offset_ray_origin
 from tracer.accel.traverse import hit_point, intersect_any, intersect_closest, sensor_crossings, shading_normal
-from tracer.spawn import offset_ray_origin
 
 
 @njit(cache=True)

@@ -10,7 +10,7 @@ import pytest
 from numba import njit
 
 import tracer
-from tracer import reference
+from tracer.accel import reference
 from tracer.accel.lanes import LANES, is_coherent
 from tracer.accel.traverse import intersect_any, intersect_closest
 

@@ -14,7 +14,7 @@ from transport_scenes import quad, scene_of
 from tracer.optics.lights import LightError, connectable, light_connect, pack_lights, sample_emission
 from tracer.optics.lights import dispatch as lights_dispatch
 from tracer.optics.lights.base import SHADOW_SHORTEN
-from tracer.photometry import parse_photometry
+from tracer.photometry.files import parse_photometry
 
 FIX = Path(__file__).resolve().parents[1] / "fixtures" / "photometry"
 UP = (0.0, 0.0, 1.0)

@@ -30,8 +30,9 @@ def run_python(code: str, **env: str) -> str:
 
 
 def test_kernels_use_the_keyed_directory_unless_the_user_chose_one(tmp_path) -> None:
-    code = "import tracer.transport, numba; print(numba.config.CACHE_DIR)"
+    code = "import tracer.transport.forward, numba; print(numba.config.CACHE_DIR)"
     assert run_python(code) == str(tracer.numba_cache_dir())
     assert run_python(code, NUMBA_CACHE_DIR=str(tmp_path)) == str(tmp_path)
     # numba imported first: the setting still reaches the kernels compiled after
-    assert run_python("import numba, tracer.transport; print(numba.config.CACHE_DIR)") == str(tracer.numba_cache_dir())
+    assert run_python("import numba, tracer.transport.forward; print(numba.config.CACHE_DIR)") == str(
+        tracer.numba_cache_dir())

@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 from tracer.effects import EffectError, derive_effects, photon_state, with_forced
-from tracer.estimate import Estimate
 from tracer.optics.frames import sample_cosine
 from tracer.optics.lights import LightError, pack_lights, sample_emission, spot_solid_angle
 from tracer.optics.media.homogeneous import hg_phase, hg_sample_cos, hg_scatter, sample_free_flight, transmittance
@@ -17,6 +16,7 @@ from tracer.optics.surfaces.base import MaterialError, reflect
 from tracer.optics.surfaces.dielectric import fresnel_dielectric, refract
 from tracer.optics.surfaces.dispatch import material_row, pack_materials
 from tracer.rng import uniforms
+from tracer.transport.estimate import Estimate
 
 
 def test_fresnel_normal_incidence_and_symmetry():
@@ -240,7 +240,7 @@ def test_goniometric_emission_reproduces_the_table(tmp_path):
     d = samples[:, 3:6]
     inside = -d[:, 2] > math.cos(math.radians(30))
     est = lights.flux_total[0] * (f * inside).mean()
-    from tracer.photometry import parse_photometry
+    from tracer.photometry.files import parse_photometry
     p = parse_photometry("ies", text)
     cells = p.cell_flux()
     g_hi = p.gamma_deg[1:]

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tracer.photometry import PhotometryError, parse_photometry
+from tracer.photometry.files import PhotometryError, parse_photometry
 
 FIX = Path(__file__).resolve().parents[1] / "fixtures" / "photometry"
 

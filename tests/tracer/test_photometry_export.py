@@ -1,5 +1,5 @@
-"""IES / EULUMDAT export of a far field (`tracer.photometry_export`): the files read back through the project's own
-parsers (`tracer.photometry`) to the same candela table, to the printed precision, and to the flux that left the
+"""IES / EULUMDAT export of a far field (`tracer.photometry.export`): the files read back through the project's own
+parsers (`tracer.photometry.files`) to the same candela table, to the printed precision, and to the flux that left the
 scene within 0.5 %."""
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from tests.tracer.transport_scenes import box, quad, scene_of
-from tracer.photometry import PhotometryError, parse_photometry
-from tracer.photometry_export import decimals, write_ies, write_ldt, write_photometry
+from tracer.photometry.export import decimals, write_ies, write_ldt, write_photometry
+from tracer.photometry.files import PhotometryError, parse_photometry
 from tracer.simulate import Simulation
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "photometry"

@@ -18,7 +18,8 @@ import tracer
 
 TUPLES = {"sa", "L", "M", "S", "Q"}
 #: entry points that allocate (their stacks, their outputs): called once per batch, or for convenience
-ALLOCATING = {"tracer.backward.backward_batches", "tracer.accel.lanes.batch", "tracer.transport.forward_batches",
+ALLOCATING = {"tracer.transport.backward.backward_batches", "tracer.accel.lanes.batch",
+             "tracer.transport.forward.forward_batches",
               "tracer.accel.traverse.intersect_closest", "tracer.accel.traverse.intersect_any",
               "tracer.accel.traverse.sensor_crossings", "tracer.accel.traverse.closest_each"}
 
@@ -37,7 +38,7 @@ def _kernels_taking_tuples() -> dict[str, CPUDispatcher]:
 
 def test_per_ray_kernels_count_no_references() -> None:
     kernels = _kernels_taking_tuples()
-    assert {"tracer.accel.traverse.closest_with_stacks", "tracer.transport.trace_photons",
+    assert {"tracer.accel.traverse.closest_with_stacks", "tracer.transport.forward.trace_photons",
             "tracer.optics.lights.spot.sample",
             "tracer.optics.surfaces.dielectric.scatter"} <= set(kernels)   # the walk finds them
     assert ALLOCATING <= set(kernels)

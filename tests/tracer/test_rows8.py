@@ -185,7 +185,7 @@ def test_float32_slab_test_is_tight_near_the_origin() -> None:
     hit32 = (mask[:, None] >> np.arange(WIDTH)) & 1 == 1
     assert np.all(hit32[hit64])
     assert hit64.sum() > 500 and (hit32 & ~hit64).sum() <= 0.01 * hit64.sum()
-    # short by at most NEAR32, float32 rounding of the distance and of the origin (tracer.accel.blas.down32 and
+    # short by at most NEAR32, float32 rounding of the distance and of the origin (tracer.accel.rows4.down32 and
     # up32 round outward by up to 3 ulps: 4 ulps of |o|, over |d|)
     oi, di = o[pairs[:, 0]], d[pairs[:, 0]]
     slack = near * (1 - NEAR32 + 4 * 2.0**-24) + (np.abs(oi).max(axis=1) * 2.0**-21 / np.abs(di).min(axis=1))[:, None]

@@ -1,4 +1,4 @@
-"""Self-intersection: a secondary ray spawned with tracer.spawn.offset_ray_origin from a hit point
+"""Self-intersection: a secondary ray spawned with tracer.accel.spawn.offset_ray_origin from a hit point
 does not re-hit its own surface, at scales 1e-3 .. 1e5 and far from the origin.
 
 Uses a convex closed sphere: a reflected ray must leave it without any hit, a transmitted ray must
@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import tracer
-from tracer import reference
+from tracer.accel import reference
+from tracer.accel.spawn import offset_ray_origin
 from tracer.accel.traverse import hit_point
-from tracer.spawn import offset_ray_origin
 
 
 def _offset(p: np.ndarray, n: np.ndarray, d: np.ndarray) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""The surface tally (`Simulation.surface`, `tracer.transport.SensorArrays.surf`): illuminance per triangle of
+"""The surface tally (`Simulation.surface`, `tracer.transport.forward.SensorArrays.surf`): illuminance per triangle of
 the model itself, against closed forms, and proof that it observes and changes nothing."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import pytest
 from tests.tracer.transport_scenes import box, quad, scene_of
 from tracer.scene import Scene
 from tracer.simulate import Simulation, SimulationError
-from tracer.transport import SensorArrays, forward_batches
+from tracer.transport.forward import SensorArrays, forward_batches
 
 I_CD = 100.0
 H = 2.0

@@ -12,10 +12,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tracer.estimate import Estimate
-from tracer.rounds import stop_error
 from tracer.scene import Scene
 from tracer.simulate import LIT_FRACTION, Simulation, SimulationError
+from tracer.transport.estimate import Estimate
+from tracer.transport.rounds import stop_error
 from tracer.warmup import box
 
 TARGET = 0.05

@@ -1,4 +1,4 @@
-"""The tessellation error budget (issue 24, in part; `tracer.tessellation_error`).
+"""The tessellation error budget (issue 24, in part; `tracer.transport.tessellation_error`).
 
 Geometry: a cadquery sphere and paraboloid, meshed by the project's own `cad_adapter.tessellate.mesh_shape` at
 coarse settings and at a much finer one; the true error of each mesh is measured against the closed-form surface
@@ -25,7 +25,7 @@ import pytest
 cq = pytest.importorskip("cadquery")
 
 from cad_adapter.tessellate import mesh_shape  # noqa: E402
-from tracer.tessellation_error import from_mesh, from_settings  # noqa: E402
+from tracer.transport.tessellation_error import from_mesh, from_settings  # noqa: E402
 
 R = 10.0              # sphere radius (mesh units)
 F = 5.0               # paraboloid focal length: z = ρ² / 4F, smallest radius of curvature 2F at the apex
@@ -116,7 +116,7 @@ def test_the_estimates_bound_the_measured_error_of_a_coarse_mesh(name, linear, a
     if name == "sphere":
         assert nrm < 1e-6      # the interpolated normal of a facet on a sphere is p/|p|: exact up to float32
     else:
-        # the first-order bound ψ against a second-order error: documented in tracer.tessellation_error
+        # the first-order bound ψ against a second-order error: documented in tracer.transport.tessellation_error
         est = from_mesh(mesh.vertices, mesh.triangles, mesh.normals)
         assert fine_nrm * 10 <= nrm <= 0.25 * est.normal ** 2
 

@@ -124,7 +124,7 @@ def test_spot_and_goniometric_sources_by_both_estimators():
     z = np.abs(f.lux - b.lux) / np.hypot(f.stderr, b.stderr)
     assert np.all(z < 4.0), (f.lux, b.lux)
     # directly under the spot, inside its full-intensity cone, the goniometric light at γ = 26.6°
-    from tracer.photometry import parse_photometry
+    from tracer.photometry.files import parse_photometry
     p = parse_photometry("ies", ies)
     gamma = math.degrees(math.atan2(1.0, 2.0))
     gon = float(p.intensity(180.0, gamma)) * math.cos(math.radians(gamma)) / 5.0
@@ -232,7 +232,7 @@ def test_goniometric_axes_turn_the_distribution():
     """γ = 0 along `direction`, C = 0 along `c0`: on a wall the light faces, E = I(C, γ) cos³γ / d²."""
     from pathlib import Path
 
-    from tracer.photometry import parse_photometry
+    from tracer.photometry.files import parse_photometry
 
     ies = (Path(__file__).resolve().parents[1] / "fixtures" / "photometry" / "rab_boa2_5.ies").read_text()
     table = parse_photometry("ies", ies)

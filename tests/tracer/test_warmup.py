@@ -78,7 +78,8 @@ def test_after_the_children_a_first_query_compiles_nothing(tmp_path, monkeypatch
         assert set(status["seconds"]) == set(warmup.STAGES)
         assert all(s >= 0 for s in status["seconds"].values())
         forward = [k for k in child.compiled["forward"] if k.startswith("tracer.")]
-        assert forward == ["tracer.transport.forward_batches", "tracer.transport.trace_photons"], forward
+        assert forward == [
+            "tracer.transport.forward.forward_batches", "tracer.transport.forward.trace_photons"], forward
         assert "tracer.optics.surfaces.mirror.scatter" in child.compiled["optics"]
     finally:
         child.stop()

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import tracer
-from tracer import reference
+from tracer.accel import reference
 
 CENTRE = np.array([1e5, -1e5, 1e5])
 

@@ -1,4 +1,4 @@
-"""The 4-wide quantised rows of the bottom levels (tracer.accel.blas.pack_wide): every stored box encloses its
+"""The 4-wide quantised rows of the bottom levels (tracer.accel.rows4.pack_wide): every stored box encloses its
 child's exact box, whatever the coordinates' magnitude (the top level's 8-wide rows: test_rows8.py)."""
 
 from __future__ import annotations
@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from numba import njit
 
-from tracer.accel.blas import build_meshes, collapse, gather_triangles, pack_wide, widen
+from tracer.accel.blas import build_meshes, collapse, gather_triangles
+from tracer.accel.rows4 import pack_wide, widen
 from tracer.accel.wide import BOX_EPS, ray_inverse, slab4_sorted
 
 

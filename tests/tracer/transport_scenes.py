@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from tracer import reference
+from tracer.accel import reference
 from tracer.scene import Scene
 
 

@@ -27,7 +27,7 @@ import math
 import numpy as np
 
 from tracer.accel import rows8
-from tracer.accel.blas import up32
+from tracer.accel.rows4 import up32
 from tracer.accel.traverse import STACK_LEN, TOP8_BASE, TOP8_DIST, new_stacks, public_hit, to_object, walk_scene
 from tracer.accel.triangle import intersect_triangle, ray_setup
 from tracer.accel.wide import MISS, STACK_BASE, pop_nearer, prefetch, prefetch_ref, push3, ray_inverse, slab4_sorted

@@ -1,7 +1,7 @@
 """8-wide float32 rows: the solid top level's layout.
 
 A camera ray in the paper's scene 3 visited about 25 top-level rows of the 4-wide layout the bottom levels
-use (:func:`tracer.accel.blas.pack_wide`), each a 4-lane float64 test of 8-bit quantised boxes, and that was most
+use (:func:`tracer.accel.rows4.pack_wide`), each a 4-lane float64 test of 8-bit quantised boxes, and that was most
 of its instructions. Here a row holds eight unquantised float32 boxes, tested in one 8-lane float32 vector
 (:func:`slab8`), as Embree's BVH8 nodes are: fewer rows per ray (19 where a ray meets no instance's box
 early) and no dequantising. Measured on scene 3, one thread: camera rays 1.29x faster, incoherent rays
@@ -10,7 +10,7 @@ lanes, 8-wide bottom levels were slower (branch ``wide8``) and would take about 
 
 Layout: row ``w`` is 64 float32 values (256 bytes, 64-byte aligned): the planes ``8 a + c`` (``a`` =
 xmin, ymin, zmin, xmax, ymax, zmax; ``c`` the slot), each the binary row's float32 plane (already rounded
-outward, :func:`tracer.accel.blas.pack_rows`), then the eight references (int32 view, columns 48-55) as in
+outward, :func:`tracer.accel.rows4.pack_rows`), then the eight references (int32 view, columns 48-55) as in
 :func:`tracer.accel.blas.collapse` with rows now 8-wide rows. An empty slot has an inverted box and
 reference -1.
 
@@ -29,7 +29,8 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from tracer.accel.blas import STACK_SIZE, aligned_rows, box_area, down32, up32
+from tracer.accel.blas import STACK_SIZE, box_area
+from tracer.accel.rows4 import aligned_rows, down32, up32
 from tracer.jit import njit
 
 WIDTH = 8
@@ -119,7 +120,7 @@ def widen8(boxes, refs):
 @njit(cache=True, error_model="numpy")
 def refit8(rows, wsrc, binary, wrows):
     """Copy into the 8-wide rows ``wrows`` the current planes of the binary rows ``binary`` ((R, 16) float32,
-    :func:`tracer.accel.blas.pack_rows`) their boxes came from: how a refit of the binary top level reaches them."""
+    :func:`tracer.accel.rows4.pack_rows`) their boxes came from: how a refit of the binary top level reaches them."""
     for k in range(wrows.shape[0]):
         w = wrows[k]
         for c in range(WIDTH):

@@ -22,7 +22,8 @@ from typing import NamedTuple
 import numpy as np
 
 from tracer.accel import rows8
-from tracer.accel.blas import aligned_rows, build_bvh_range, collapse, down32, pack_rows, up32
+from tracer.accel.blas import build_bvh_range, collapse
+from tracer.accel.rows4 import aligned_rows, down32, pack_rows, up32
 from tracer.jit import njit
 
 #: an instance visit (transform + BLAS root) costs about this many node visits (SAH)

@@ -28,7 +28,8 @@ from typing import NamedTuple
 import numpy as np
 
 from tracer.accel import rows8, wide
-from tracer.accel.blas import STACK_SIZE, up32
+from tracer.accel.blas import STACK_SIZE
+from tracer.accel.rows4 import up32
 from tracer.accel.wide import MISS, pop_nearer, prefetch, ray_inverse, slab
 from tracer.jit import njit
 from tracer.kinds import dispatch, mesh
@@ -46,7 +47,7 @@ class SceneArrays(NamedTuple):
 
     Geometry store (append-only; indices local to a geometry, offsets below):
     ``bvh_f`` (16 R,) f4 and ``bvh_i`` (16 R,) i4, two flat views of the same 64-byte-aligned 4-wide
-    quantised BLAS rows (:func:`tracer.accel.blas.pack_wide`, 16 values per row); ``tri_v`` (9 M,) f4 —
+    quantised BLAS rows (:func:`tracer.accel.rows4.pack_wide`, 16 values per row); ``tri_v`` (9 M,) f4 —
     triangle vertices in leaf order, 9 values each (exact: the geometry's vertices are float32; all arithmetic
     on them is float64); ``tri_prim`` (M,) i4 — original triangle index of each row; ``prim_slot`` (M,) i4 —
     the inverse (original index -> local row);
@@ -58,7 +59,7 @@ class SceneArrays(NamedTuple):
 
     Top levels over instance ids: solids ``top_f, top_i, top_items`` in 8-wide float32 rows
     (:mod:`tracer.accel.rows8`), sensors ``sen_f, sen_i, sen_items`` in binary child-box rows
-    (:func:`tracer.accel.blas.pack_rows`); leaves index ``*_items``. ``top_rec`` (4 n,) i8: the solid items'
+    (:func:`tracer.accel.rows4.pack_rows`); leaves index ``*_items``. ``top_rec`` (4 n,) i8: the solid items'
     :func:`tracer.accel.tlas.instance_records` (what entering each one needs, in leaf order).
     """
 

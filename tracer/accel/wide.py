@@ -1,4 +1,4 @@
-"""The walk of one ray through a mesh's bottom level: 4-wide quantised rows (:func:`tracer.accel.blas.pack_wide`).
+"""The walk of one ray through a mesh's bottom level: 4-wide quantised rows (:func:`tracer.accel.rows4.pack_wide`).
 
 The slab tests of a wide row's four boxes (scalar :func:`slab`, vector :func:`slab4`, sorted
 :func:`slab4_sorted`), the near-first ordering and the traversal stack (:func:`order4`, :func:`push3`,
@@ -78,7 +78,7 @@ def _slab_lanes(context, builder, sig, args):
         ptr = builder.bitcast(builder.gep(qbase, [builder.mul(p, i64(4))], inbounds=True),
                               ir.VectorType(ir.IntType(8), 4).as_pointer())
         q = builder.uitofp(builder.load(ptr, align=1), d4)
-        return builder.call(fma, [q, scale, origin])   # exact either way (tracer.accel.blas._quantize): one op
+        return builder.call(fma, [q, scale, origin])   # exact either way (tracer.accel.rows4._quantize): one op
 
     # origin and scale: two 4-float loads widened at once, each value then splat from its lane
     f4p = ir.VectorType(ir.FloatType(), 4).as_pointer()
@@ -109,7 +109,7 @@ _SLAB_ARGS = (types.int64,) + (types.float64,) * 9 + (types.int64,) * 3 + (types
 
 @intrinsic
 def slab4(typingctx, bf, r, ox, oy, oz, ix, iy, iz, ixe, iye, ize, xl, yl, zl, t_max):
-    """Slab test of the four child boxes of the wide row at ``bf[r]`` (:func:`tracer.accel.blas.pack_wide`)
+    """Slab test of the four child boxes of the wide row at ``bf[r]`` (:func:`tracer.accel.rows4.pack_wide`)
     in one pass of 4-lane double-precision vector code (:func:`_slab_lanes`).
 
     Arguments as for :func:`slab` (``xl`` etc.: the near plane, 0/1/2 or 3/4/5). Returns the four
@@ -298,7 +298,7 @@ def walk_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hit, s
     through it without a call (:func:`tracer.accel.traverse.walk_scene`), whose argument passing and register
     spills cost 6 % of a camera ray's instructions in the paper's scene 3.
 
-    Wide rows (:func:`tracer.accel.blas.pack_wide`): the four boxes are tested at once (:func:`slab4`), the
+    Wide rows (:func:`tracer.accel.rows4.pack_wide`): the four boxes are tested at once (:func:`slab4`), the
     hits sorted by entry distance with a branch-free network; the nearest is visited next, the
     others pushed farthest first (a pending entry is skipped when it starts beyond the best hit).
     ``stack``, ``tstack``: as from :func:`tracer.accel.traverse.new_stacks`; a bottom level uses the entries

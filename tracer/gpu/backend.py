@@ -150,7 +150,8 @@ class CudaBackend:
 
     def run(self, kernel_id: KernelId, scene: Shipment, query: Shipment, batch0: int, n_batches: int, size: int):
         """Batches batch0 … batch0 + n_batches − 1 (`size` photons, or paths per patch, each) on the card."""
-        from tracer import backward, transport
+        from tracer.transport import backward
+        from tracer.transport import forward as transport
 
         sa, mats, lights = scene.parts
         if kernel_id[0] == "forward":

@@ -1,11 +1,11 @@
 """Photon batches on a CUDA device: one thread runs one batch, exactly as the CPU's batch loop does.
 
-The CPU runs batches one after the other (:func:`tracer.transport.forward_batches`,
-:func:`tracer.backward.backward_batches`); here thread ``b`` of a launch runs batch ``batch0 + b`` through the very
-same njit function the CPU's loop body calls (:func:`tracer.transport.trace_photons`,
-:func:`tracer.backward.backward_batch`), which numba-cuda compiles for the device from the same Python. What the
-CPU allocates per batch (the medium stack, the sensor-crossing buffers, the traversal stacks, the Stokes vector)
-is the thread's ``cuda.local.array``; the thread writes its own tally row ``values[b]`` and counter row
+The CPU runs batches one after the other (:func:`tracer.transport.forward.forward_batches`,
+:func:`tracer.transport.backward.backward_batches`); here thread ``b`` of a launch runs batch ``batch0 + b`` through
+the very same njit function the CPU's loop body calls (:func:`tracer.transport.forward.trace_photons`,
+:func:`tracer.transport.backward.backward_batch`), which numba-cuda compiles for the device from the same Python.
+What the CPU allocates per batch (the medium stack, the sensor-crossing buffers, the traversal stacks, the Stokes
+vector) is the thread's ``cuda.local.array``; the thread writes its own tally row ``values[b]`` and counter row
 ``counters[b]``. Same batch size and seed ⇒ the same random numbers (`tracer.rng`, keyed by (seed, batch, photon));
 per-batch tallies ⇒ the estimator's error bars are unchanged. Answers agree with the CPU's within error bars, not
 bit for bit (a card may contract a·b + c to one rounding).
@@ -28,10 +28,10 @@ import numpy as np
 from numba import float64, int64
 
 from tracer.accel.traverse import STACK_LEN
-from tracer.backward import backward_batch
 from tracer.gpu.traverse import SIMULATOR, cuda
 from tracer.optics.polarization import N_POL
-from tracer.transport import MEDIUM_DEPTH, SENSOR_CAP, trace_photons
+from tracer.transport.backward import backward_batch
+from tracer.transport.forward import MEDIUM_DEPTH, SENSOR_CAP, trace_photons
 
 __all__ = ["SIMULATOR", "THREADS", "Tallies", "backward_kernel", "backward_threads", "forward_kernel",
            "forward_threads"]
@@ -48,7 +48,7 @@ class Tallies(NamedTuple):
 
 def forward_threads(sa, ra, M, L, S, n_bins, seed, batch0, photons, w0, out):
     """Thread b: forward batch batch0 + b of `photons` photons of weight `w0`, into out.values[b] and
-    out.counters[b] (the body of `tracer.transport.forward_batches`'s loop)."""
+    out.counters[b] (the body of `tracer.transport.forward.forward_batches`'s loop)."""
     b = cuda.grid(1)
     if b >= out.values.shape[0]:
         return
@@ -69,7 +69,7 @@ def forward_threads(sa, ra, M, L, S, n_bins, seed, batch0, photons, w0, out):
 
 def backward_threads(sa, M, L, Q, seed, batch0, paths, out):
     """Thread b: backward batch batch0 + b, `paths` paths per query patch, into out.values[b] and out.counters[b]
-    (the body of `tracer.backward.backward_batches`'s loop)."""
+    (the body of `tracer.transport.backward.backward_batches`'s loop)."""
     b = cuda.grid(1)
     if b >= out.values.shape[0]:
         return

@@ -10,9 +10,10 @@ A sensor kind is one module of this folder, registered by one line in `tracer.se
 - ``answer(sim, probe, res) -> result`` — the raw bins (`IlluminanceResult`: one value per bin, in bin order) put
   in the kind's shape and units, with the run's photons, seconds, effects, estimator, stop reason, cost and backend.
 
-What a photon or a path adds to the bins is the kernels' (`tracer.transport.SensorArrays`, `tracer.backward`):
-a receiver crossed from its front side adds the photon's flux; bins are divided by their area (lx), a far field's by
-its solid angle (cd). `tracer.rounds` runs the batches; the estimate's standard error is that of batch means.
+What a photon or a path adds to the bins is the kernels' (`tracer.transport.forward.SensorArrays`,
+`tracer.transport.backward`): a receiver crossed from its front side adds the photon's flux; bins are divided by
+their area (lx), a far field's by its solid angle (cd). `tracer.transport.rounds` runs the batches; the estimate's
+standard error is that of batch means.
 """
 
 from __future__ import annotations
@@ -68,10 +69,10 @@ class IlluminanceResult:
     Where the query observes the spectrum: nm (N_BINS,) — centres of the 5 nm bands;
     spectral_irradiance, spectral_stderr (k, N_BINS) — W/m²/nm in each band and its standard error;
     cie_xy (k, 2) — CIE 1931 chromaticity of the light arriving (NaN where nothing arrived).
-    cost : dict — what tighter errors would cost on this scene and machine (`tracer.estimate.cost_of`).
+    cost : dict — what tighter errors would cost on this scene and machine (`tracer.transport.estimate.cost_of`).
     error_budget : dict or None — ``{"tessellation": (k,) lx}`` where the scene holds curved optical surfaces
     (mirror or glass meshes with vertex normals): how far each value may move when they are tessellated finely
-    enough (`tracer.tessellation_error`); None elsewhere.
+    enough (`tracer.transport.tessellation_error`); None elsewhere.
     backend : dict — where the batches ran (`tracer.backends`): {"name": "in-process", "threads": n} or
     {"name": "dask", "address": …, "workers": n, "threads": n}.
     physics_left_out : dict or None — where the query asked (`Simulation.left_out`): per effect,

@@ -2,12 +2,12 @@
 
 ``{"type": "far_field", "nc": 1..3600, "ngamma": 2..1801, "direction": (3,) (default −z, the nadir), "c0": (3,)
 (default +x, +y where direction lies along x)}``: γ from `direction`, C from `c0` (only its part across `direction`
-counts), C = 90° along c0 × direction, as a goniometric light's (`tracer.photometry`). Every photon that leaves the
-scene (its ray meets nothing) is binned by its direction, I = flux in the bin / the bin's solid angle. A far field:
+counts), C = 90° along c0 × direction, as a goniometric light's (`tracer.photometry.files`). Every photon that leaves
+the scene (its ray meets nothing) is binned by its direction, I = flux in the bin / the bin's solid angle. A far field:
 the scene is taken as a point, small against the viewing distance (a photometric distance of five or more times the
 luminaire's largest dimension, the usual rule): where the lamp is seen from nearer, its size matters and this answer
-does not hold. Forward only; it observes and changes nothing (`tracer.transport.SensorArrays.far`); the error stop
-looks at every bin (an empty one counts as converged). The answer: `FarFieldResult`.
+does not hold. Forward only; it observes and changes nothing (`tracer.transport.forward.SensorArrays.far`); the error
+stop looks at every bin (an empty one counts as converged). The answer: `FarFieldResult`.
 """
 
 from __future__ import annotations
@@ -19,8 +19,8 @@ from typing import Any
 import numpy as np
 
 from tracer.errors import SimulationError
-from tracer.rounds import MAX_SPECTRAL_TALLIES
 from tracer.sensors.base import IlluminanceResult, Probe, vec3
+from tracer.transport.rounds import MAX_SPECTRAL_TALLIES
 
 TYPE = "far_field"
 FORWARD_ONLY = True

@@ -4,8 +4,8 @@
 side its geometric normal points to, object-space e1 × e2 mapped to world: the outside of a CAD solid; light
 arriving from behind is not counted) divided by its world area (the instance's transform applied), averaged over the
 triangle. Forward only: the kernel adds each photon's weight where it hits a tallied triangle, before the surface
-scatters it (`tracer.transport.SensorArrays.surf`), which observes and changes nothing: every path and every other
-tally of the same query is bit-identical with and without it. Its error stop looks at every triangle (one that
+scatters it (`tracer.transport.forward.SensorArrays.surf`), which observes and changes nothing: every path and every
+other tally of the same query is bit-identical with and without it. Its error stop looks at every triangle (one that
 received nothing so far counts as converged), so a target error on a fine mesh is reached late: give it a photon or
 time budget. The answer: `SurfaceResult`.
 """
@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 
 from tracer.errors import SimulationError
-from tracer.rounds import MAX_SPECTRAL_TALLIES
 from tracer.sensors.base import IlluminanceResult, Probe
+from tracer.transport.rounds import MAX_SPECTRAL_TALLIES
 
 TYPE = "surface"
 FORWARD_ONLY = True

@@ -9,7 +9,7 @@ once in `dispatch.KINDS` (its kind id is its position there). Each module holds:
 - ``EFFECTS``: the effects (`tracer.effects`) the light needs beyond the baseline: ``()`` for every
   current kind.
 - ``CONNECTABLE``: whether a shadow ray can reach the light, so that next-event estimation
-  (`tracer.backward`) can sample it: True for point, spot, goniometric and area lights, False for a
+  (`tracer.transport.backward`) can sample it: True for point, spot, goniometric and area lights, False for a
   collimated beam (no point of it lies in a direction a shadow ray could pick). A kind that is not
   connectable says why in ``WHY_NOT_CONNECTABLE`` (a sentence naming it, for error messages).
 - ``Spec``: a frozen dataclass; ``Spec.from_body(body: dict, where: str) -> Spec`` validates a light

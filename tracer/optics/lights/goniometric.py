@@ -1,6 +1,6 @@
 """Goniometric light: a point with the type-C intensity table of an IES or EULUMDAT file.
 
-The table is `tracer.photometry`'s (bilinear in C and γ). The luminaire's γ = 0 axis is `direction`
+The table is `tracer.photometry.files`'s (bilinear in C and γ). The luminaire's γ = 0 axis is `direction`
 and its C = 0 half-plane contains `c0` (only the part of c0 across direction counts); C = 90° lies
 along c0 × direction (+y by default). An attached light turns with its node because the service turns
 both axes. Photons leave in a table cell chosen in proportion to its flux, uniformly in solid angle
@@ -44,7 +44,7 @@ from tracer.optics.lights.base import (
     toward_point,
     vector_field,
 )
-from tracer.photometry import Photometry, parse_photometry
+from tracer.photometry.files import Photometry, parse_photometry
 
 NAME = "goniometric"
 FIELDS = frozenset({"position", "format", "data", "direction", "c0"})

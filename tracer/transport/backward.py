@@ -31,13 +31,13 @@ from typing import NamedTuple
 
 import numpy as np
 
+from tracer.accel.spawn import offset_ray_origin
 from tracer.accel.traverse import any_with_stacks, closest_with_stacks, new_stacks
 from tracer.jit import njit
 from tracer.optics.frames import onb, sample_cosine
 from tracer.optics.lights import light_connect, pick_light
 from tracer.optics.surfaces.dispatch import albedo
 from tracer.rng import path_key, uniform
-from tracer.spawn import offset_ray_origin
 
 RR_DEPTH = 3
 MAX_BOUNCES = 10_000
@@ -134,7 +134,7 @@ def backward_batches(sa, M, L, Q, seed, batch0, n_batches, paths):
     """Batches batch0 … batch0+n_batches−1, each `paths` paths per query patch.
 
     Returns (lux (n_batches, k) float64: each batch's estimate per patch; counters (n_batches, 2) int64).
-    Serial and without the GIL, like `tracer.transport.forward_batches`.
+    Serial and without the GIL, like `tracer.transport.forward.forward_batches`.
     """
     k = Q.kind.shape[0]
     out = np.zeros((n_batches, k))

@@ -2,8 +2,8 @@
 
 Both files hold the type-C table of the far field as it is: the γ samples 0°, Δγ, …, 180° and the C samples 0°,
 ΔC, …, 360° − ΔC (no symmetry assumed; a far field of one C sample is written as axially symmetric), each value the
-intensity averaged over its bin (`tracer.simulate.FarFieldResult`). `tracer.photometry` reads them back to the same
-table, to the printed precision: candelas are printed in fixed point with six significant digits of the largest
+intensity averaged over its bin (`tracer.simulate.FarFieldResult`). `tracer.photometry.files` reads them back to the
+same table, to the printed precision: candelas are printed in fixed point with six significant digits of the largest
 value (`decimals`), so every value is within half a unit of its last printed digit.
 
 IES: absolute photometry (lumens per lamp −1, candela multiplier 1, ballast factor 1, metres, a point: a luminous
@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from tracer.photometry import PhotometryError
+from tracer.photometry.files import PhotometryError
 
 __all__ = ["decimals", "write_ies", "write_ldt", "write_photometry"]
 

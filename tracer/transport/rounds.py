@@ -4,7 +4,7 @@
 are seeded from (seed, batch index); a round's size depends only on the request and the backend's
 `tracer.backends.BatchShape`, so for the same seed and stop rule the answer is bit-identical wherever the batches of
 one shape ran (see `tracer.simulate`'s docstring for the rules). Python orchestration only: the kernels are
-`tracer.transport`'s and `tracer.backward`'s.
+`tracer.transport.forward`'s and `tracer.transport.backward`'s.
 """
 
 from __future__ import annotations
@@ -18,15 +18,15 @@ from typing import Any
 import numpy as np
 
 from tracer.backends import CPU_SHAPE, IN_PROCESS, InProcess, Shipment
-from tracer.backward import QueryArrays, disk_queries
 from tracer.effects import photon_state
 from tracer.errors import SimulationError
-from tracer.estimate import Estimate
 from tracer.gpu.device import DeviceUnavailable
 from tracer.optics import spectra
 from tracer.scene import Scene
 from tracer.sensors.base import IlluminanceResult, Probe
-from tracer.transport import COUNTERS, SensorArrays, tally_columns
+from tracer.transport.backward import QueryArrays, disk_queries
+from tracer.transport.estimate import Estimate
+from tracer.transport.forward import COUNTERS, SensorArrays, tally_columns
 from tracer.warmup import wait_background
 
 log = logging.getLogger(__name__)
@@ -267,8 +267,8 @@ def forward(sim, probe: Probe, budget: Budget, seed: int, effects: list[str], pr
 
 def backward(sim, probe: Probe, budget: Budget, seed: int, effects: list[str], progress, cancel, t0: float,
              backend: QueryBackend) -> IlluminanceResult:
-    """Paths from uniform points of each receiver patch, with next-event estimation (`tracer.backward`), round by
-    round: the receivers' lx and standard errors."""
+    """Paths from uniform points of each receiver patch, with next-event estimation (`tracer.transport.backward`),
+    round by round: the receivers' lx and standard errors."""
     is_grid, centers, normals, radius = probe.is_grid, probe.centers, probe.normals, probe.radius
     grid: Any = probe.grid
     if is_grid:

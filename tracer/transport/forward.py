@@ -41,6 +41,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from tracer.accel.spawn import offset_ray_origin
 from tracer.accel.traverse import closest_with_stacks, new_stacks, sensor_crossings_with_stack
 from tracer.effects import PHOTON_STATES
 from tracer.jit import njit
@@ -53,7 +54,6 @@ from tracer.optics.spectra import BIN_NM, LAMBDA_MIN, N_BINS, XBAR_GRID, ZBAR_GR
 from tracer.optics.surfaces.base import ABSORBED, STACK_FULL
 from tracer.optics.surfaces.dispatch import scatter
 from tracer.rng import path_key, uniform
-from tracer.spawn import offset_ray_origin
 
 COUNTERS = ("rejected", "truncated", "stack_overflow", "sensor_buffer_full")
 C_REJECTED, C_TRUNCATED, C_STACK, C_SENSOR_FULL = range(4)
