@@ -18,7 +18,6 @@ import numpy as np
 from pydantic import TypeAdapter
 
 from service.errors import Conflict, Invalid, NotFound
-from service.live import LiveScene
 from service.scenes import Scenes, SceneState
 from service.schemas import Light, Material, ObjectCreate, Sensor
 from service.store import TABLES, Raced
@@ -180,22 +179,6 @@ def _validate_photometry(fmt: str, text: str) -> None:
         parse_photometry(fmt, text)
     except ValueError as exc:
         raise Invalid(f"invalid {fmt} photometry file: {exc}") from exc
-
-
-def scene_effects(live: LiveScene, uses_default: bool = True) -> list[str]:
-    """The scene's effect set, by the transport's one rule (`tracer.effects.derive_effects`) over its
-    materials (and the default material where some instance uses it) and its lights. A body stored under older, looser
-    rules that the tracer now refuses is left out here (a summary never fails); a query says what is wrong."""
-    from tracer.effects import derive_effects
-    from tracer.optics.surfaces.dispatch import MaterialError, material_spec
-
-    specs = []
-    for body in list(live.materials.values()) + ([live.default_material] if uses_default else []):
-        try:
-            specs.append(material_spec(body))
-        except MaterialError:
-            continue
-    return derive_effects(specs, live.lights)
 
 
 def validate_body(kind: str, body: Any) -> dict:

@@ -32,7 +32,7 @@ import numpy as np
 from service.config import Settings
 from service.document import NodeBytes
 from service.errors import NotFound, Unavailable
-from service.live import DELETED, LiveRegistry, LiveScene
+from service.live import DELETED, LiveRegistry, LiveScene, scene_effects
 from service.meshes import MeshStore
 from service.schemas import LENGTH_UNITS, IdentityIn
 from service.store import SceneStore, _color
@@ -347,8 +347,6 @@ class Scenes:
     # ------------------------------------------------------------ views
 
     def summary(self, scene_id: str) -> dict[str, Any]:
-        from service.assignments import scene_effects
-
         state = self.state(scene_id)
         with state.lock:
             live = self._live_locked(state)
