@@ -58,3 +58,24 @@ def test_geometry_id_imports_without_numba() -> None:
     code = "import sys, tracer.geometry_id; print('numba' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
     assert out == "False"
+
+
+def test_the_service_client_stands_alone() -> None:
+    """The adapter and `lumenlink.Client` share one HTTP client (`lumenlink.http`) and one error hierarchy
+    (`lumenlink.errors`); those two import nothing of ours besides each other, so the adapter may use them
+    without taking in the command line, the service or the tracer, and the adapter uses nothing else of lumenlink."""
+    ours = {"tracer", "service", "cad_adapter", "lumenlink", "bench"}
+    for name in ("http", "errors"):
+        path = ROOT / "lumenlink" / f"{name}.py"
+        tree = ast.parse(path.read_text(), filename=str(path))
+        modules = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module}
+        modules |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+        assert {m for m in modules if m.split(".")[0] in ours} <= {"lumenlink.errors"}, (name, modules)
+    used = set()
+    for path in (ROOT / "cad_adapter").rglob("*.py"):
+        tree = ast.parse(path.read_text(), filename=str(path))
+        used |= {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module
+                 and n.module.split(".")[0] == "lumenlink"}
+        used |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names
+                 if a.name.split(".")[0] == "lumenlink"}
+    assert used == {"lumenlink.http", "lumenlink.errors"}, used

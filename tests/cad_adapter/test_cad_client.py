@@ -164,6 +164,43 @@ def test_problem_details_reach_the_user(fake) -> None:
         p.push(*doc_and_tess(), scene="car")
 
 
+def test_one_client_one_error_hierarchy(fake) -> None:
+    """The adapter's push errors are the service client's errors: the same refusal reads the same through
+    `lumenlink.Client` and `Pusher`, with the problem and status on both, and a dead service is one class."""
+    import lumenlink
+    from lumenlink.http import ServiceClient
+
+    problem = {"title": "Unprocessable Entity", "detail": "the listing is refused", "status": 422}
+
+    def reject(request: httpx.Request) -> httpx.Response:
+        return httpx.Response(422, json=problem, headers={"content-type": "application/problem+json"})
+
+    with Pusher("http://fake", transport=httpx.MockTransport(reject)) as p, pytest.raises(PushError) as pushed:
+        p.scene_by_name("car")
+    with lumenlink.Client("http://fake", transport=httpx.MockTransport(reject)) as ll, \
+            pytest.raises(lumenlink.LumenLinkError) as listed:
+        ll.scenes()
+    assert isinstance(p, ServiceClient) and isinstance(ll, ServiceClient)
+    assert isinstance(pushed.value, lumenlink.LumenLinkError) and isinstance(pushed.value, cad_adapter.CadAdapterError)
+    assert str(pushed.value) == str(listed.value) == ("listing scenes failed: HTTP 422: Unprocessable Entity: "
+                                                      "the listing is refused")
+    for err in (pushed.value, listed.value):
+        assert (err.status, err.problem, err.usage) == (422, problem, True)
+
+    def refuse(request: httpx.Request) -> httpx.Response:
+        raise httpx.ConnectError("connection refused", request=request)
+
+    with Pusher("http://127.0.0.1:9", transport=httpx.MockTransport(refuse)) as p, \
+            pytest.raises(lumenlink.ServiceUnreachable) as down:
+        p.scene_by_name("car")
+    assert isinstance(down.value, ServiceUnavailable)
+
+    fake.bump_before_push = True
+    with pusher(fake) as p, pytest.raises(lumenlink.LumenLinkError) as conflict:
+        p.push(*doc_and_tess(), scene="car")
+    assert isinstance(conflict.value, RevisionConflict) and conflict.value.status == 409 and not conflict.value.usage
+
+
 @pytest.mark.parametrize("server", ["", "ftp://x", "127.0.0.1:8000"])
 def test_bad_server_url(server) -> None:
     with pytest.raises(PushError, match="http"):
