@@ -60,22 +60,37 @@ def test_geometry_id_imports_without_numba() -> None:
     assert out == "False"
 
 
-def test_the_service_client_stands_alone() -> None:
+def lumenlink_modules_used(path: Path) -> set[str]:
+    """The lumenlink modules a file imports (``from lumenlink import glb`` counts as lumenlink.glb)."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    out: set[str] = set()
+    for n in ast.walk(tree):
+        if isinstance(n, ast.Import):
+            out |= {a.name for a in n.names if a.name.split(".")[0] == "lumenlink"}
+        elif isinstance(n, ast.ImportFrom) and n.level == 0 and n.module == "lumenlink":
+            out |= {f"lumenlink.{a.name}" for a in n.names}
+        elif isinstance(n, ast.ImportFrom) and n.level == 0 and n.module and n.module.startswith("lumenlink."):
+            out.add(n.module)
+    return out
+
+
+#: lumenlink's modules that the adapter and the service share, and the only modules of ours each may import
+SHARED = {"lumenlink.http": {"lumenlink.errors"}, "lumenlink.errors": set(), "lumenlink.glb": {"tracer.geometry_id"}}
+
+
+def test_the_shared_modules_stand_alone() -> None:
     """The adapter and `lumenlink.Client` share one HTTP client (`lumenlink.http`) and one error hierarchy
-    (`lumenlink.errors`); those two import nothing of ours besides each other, so the adapter may use them
-    without taking in the command line, the service or the tracer, and the adapter uses nothing else of lumenlink."""
+    (`lumenlink.errors`), the adapter and the service one GLB decoder (`lumenlink.glb`). Those import nothing of
+    ours but what `SHARED` lists, so neither side takes in the command line, the CAD stack or the service through
+    them, and neither side uses anything else of lumenlink."""
     ours = {"tracer", "service", "cad_adapter", "lumenlink", "bench"}
-    for name in ("http", "errors"):
-        path = ROOT / "lumenlink" / f"{name}.py"
+    for module, allowed in SHARED.items():
+        path = ROOT / (module.replace(".", "/") + ".py")
         tree = ast.parse(path.read_text(), filename=str(path))
         modules = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module}
         modules |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
-        assert {m for m in modules if m.split(".")[0] in ours} <= {"lumenlink.errors"}, (name, modules)
-    used = set()
-    for path in (ROOT / "cad_adapter").rglob("*.py"):
-        tree = ast.parse(path.read_text(), filename=str(path))
-        used |= {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module
-                 and n.module.split(".")[0] == "lumenlink"}
-        used |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names
-                 if a.name.split(".")[0] == "lumenlink"}
-    assert used == {"lumenlink.http", "lumenlink.errors"}, used
+        assert {m for m in modules if m.split(".")[0] in ours} <= allowed, (module, modules)
+    for package, expected in (("cad_adapter", {"lumenlink.http", "lumenlink.errors", "lumenlink.glb"}),
+                              ("service", {"lumenlink.glb"})):
+        used = set().union(*(lumenlink_modules_used(p) for p in (ROOT / package).rglob("*.py")))
+        assert used == expected, (package, used)
