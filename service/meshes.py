@@ -20,7 +20,7 @@ import numpy as np
 
 from lumenlink import glb
 from service.errors import BadRequest, Invalid, NotFound
-from tracer.geometry_id import geometry_id, is_geometry_id
+from tracer.geometry_id import hash_canonical, is_geometry_id
 
 
 @dataclass
@@ -64,16 +64,24 @@ class MeshStore:
         return self._path(gid, ".npz").exists()
 
     def validate_upload(self, gid: str, data: bytes) -> Mesh:
-        """Decode `data` and check that it hashes to `gid`: BadRequest (400) if not, Invalid (422) if no mesh."""
+        """Decode `data` and check that it hashes to `gid`: BadRequest (400) if not, Invalid (422) if no mesh.
+
+        The id is computed as the mesh comes (with its normals where it has them): one hash for a right id.
+        Only where that is not `gid` and the mesh has normals is the id without them tried (a client that
+        hashes its positions only); the mesh is then kept without normals. The stored arrays are not hashed
+        again (`Scenes.ensure_geometry` gives the tracer their id)."""
         check_id(gid)
         mesh = decode_glb(data)
-        plain = geometry_id(mesh.vertices, mesh.triangles)
+        full = hash_canonical(mesh.vertices, mesh.triangles, mesh.normals)
+        if full == gid:
+            return mesh
+        if mesh.normals is None:
+            raise BadRequest(f"the mesh does not hash to the id in the URL: it hashes to {full}", actual=full)
+        plain = hash_canonical(mesh.vertices, mesh.triangles, None)
         if plain == gid:
             return Mesh(mesh.vertices, mesh.triangles, None)
-        if mesh.normals is not None and geometry_id(mesh.vertices, mesh.triangles, mesh.normals) == gid:
-            return mesh
-        raise BadRequest(f"the mesh does not hash to the id in the URL: it hashes to {plain}"
-                         + (" (without normals)" if mesh.normals is not None else ""), actual=plain)
+        raise BadRequest(f"the mesh does not hash to the id in the URL: it hashes to {full} (with its normals), "
+                         f"{plain} (without)", actual=plain)
 
     def write(self, gid: str, data: bytes, mesh: Mesh) -> None:
         """Store the GLB and its arrays (atomically; rewriting an existing id is harmless)."""

@@ -299,9 +299,8 @@ class Scenes:
                               f"({self.meshes.root}): every service process on one database must share one data "
                               f"directory (LUMENLINK_DATA_DIR)", geometry=gid)
         mesh = self.meshes.load(gid)
-        got = state.tracer.add_geometry(mesh.vertices, mesh.triangles, mesh.normals)
-        if got != gid:
-            raise RuntimeError(f"tracer gave geometry id {got} for stored mesh {gid}")
+        # the store holds only meshes whose id was checked on upload (one hash per mesh): not hashed again here
+        state.tracer.add_geometry(mesh.vertices, mesh.triangles, mesh.normals, known_id=gid)
         state.geometries.add(gid)
         return True
 

@@ -28,6 +28,7 @@ class FakeService:
         self.calls: list[tuple[str, str]] = []
         self.documents: list[dict] = []
         self.bump_before_push = False  # someone else pushes between our GET and our PUT
+        self.check_ids = True  # hash each upload as the service does (off where a test counts the adapter's hashes)
 
     def __call__(self, request: httpx.Request) -> httpx.Response:
         path, method = request.url.path, request.method
@@ -45,7 +46,7 @@ class FakeService:
         m = re.fullmatch(r"/geometries/([0-9a-f]{64})", path)
         if m and method == "PUT":
             assert request.headers["content-type"] == "model/gltf-binary"
-            if geometry_id(*decode_glb(request.content)) != m.group(1):
+            if self.check_ids and geometry_id(*decode_glb(request.content)) != m.group(1):
                 return httpx.Response(400, json={"title": "Bad Request", "detail": "hash mismatch"})
             self.meshes.add(m.group(1))
             return httpx.Response(201, json={"id": m.group(1)})
@@ -279,6 +280,42 @@ def test_watch_pushes_on_change_debounced(fake, tmp_path) -> None:
     assert codes == [0] and len(fake.documents) == 2
     before, after = ({n["uuid"]: n["geometry"] for n in d["nodes"]} for d in fake.documents)
     assert sum(before[u] != after[u] for u in before) == 1
+
+
+def counted_geometry_hashes(monkeypatch) -> list[int]:
+    """Count every geometry-id hash from now on (each `tracer.geometry_id.hash_canonical`, whoever calls it):
+    a counting wrapper around the SHA-256 that module starts with its prefix."""
+    import types
+
+    import tracer.geometry_id as ids
+
+    calls: list[int] = []
+    real = ids.hashlib.sha256
+
+    def sha256(data: bytes = b"", **kwargs):
+        if data == ids.PREFIX:
+            calls.append(1)
+        return real(data, **kwargs)
+
+    monkeypatch.setattr(ids, "hashlib", types.SimpleNamespace(sha256=sha256))
+    return calls
+
+
+def test_a_push_hashes_each_mesh_once(fake, car_step, tmp_path, monkeypatch) -> None:
+    """`lumenlink push` (read, identify, tessellate, upload, push) computes each distinct mesh's geometry id once:
+    the upload and the pushed tree use the id tessellation made. From a disk cache the mesh is hashed once too
+    (checked against the id stored beside it)."""
+    fake.check_ids = False  # the fake service's own check would count here
+    t = httpx.MockTransport(fake)
+    hashes = counted_geometry_hashes(monkeypatch)
+    result = cli.push_file(car_step, "car", "http://fake", 1.0, 0.8, transport=t,
+                           cache=cad_adapter.TessellationCache(tmp_path / "cache"))[0]
+    assert result.geometries == 7 and result.uploaded == 7 and fake.count("PUT", r"/geometries/.*") == 7
+    assert len(hashes) == 7
+    hashes.clear()
+    again = cli.push_file(car_step, "car", "http://fake", 1.0, 0.8, transport=t,
+                          cache=cad_adapter.TessellationCache(tmp_path / "cache"))[0]
+    assert again.uploaded == 0 and len(hashes) == 7
 
 
 def test_watch_bad_input(tmp_path) -> None:
