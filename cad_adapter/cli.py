@@ -209,13 +209,15 @@ def _check_options(linear: float | None, angular: float | None, relative: bool, 
 
 
 def _check_server(server: str, console: Console) -> bool:
-    """A URL without a scheme is bad usage (exit 2), said with what to add."""
-    if isinstance(server, str) and server.startswith(("http://", "https://")):
-        return True
-    hint = f": add http:// (http://{server})" if isinstance(server, str) and "://" not in server else \
-        ": give one like http://127.0.0.1:8000"
-    console.print(f"[red]error:[/] the server URL {server!r} is not an http(s) URL{hint}")
-    return False
+    """A URL without a scheme is bad usage (exit 2), said with what to add (the client's own check)."""
+    from lumenlink.http import check_server  # loads httpx: only when a command talks to a service
+
+    try:
+        check_server(server, PushError)
+    except PushError as exc:
+        console.print(f"[red]error:[/] {exc}")
+        return False
+    return True
 
 
 def push(file: Path, scene: str, server: str, linear: float | None = None, angular: float | None = None,

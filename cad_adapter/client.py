@@ -6,17 +6,20 @@ if none has it) → ``GET /scenes/{id}`` (its revision) → ``POST /geometries/m
 ``base_revision``. Uploads are content-addressed, so an interrupted push leaves nothing half-done: the
 tree changes in one request or not at all. A 409 means someone changed the scene meanwhile: the client
 re-reads the revision, raises :class:`~cad_adapter.errors.RevisionConflict` and never retries by itself.
+
+The connection, token and error answers are the one client's (`lumenlink.http.ServiceClient`); `Pusher` adds
+the calls of a push and raises the adapter's `PushError` family (also `lumenlink.LumenLinkError`s).
 """
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
 
 import httpx
+
+from lumenlink.http import ServiceClient
 
 from .errors import PushError, RevisionConflict, ServiceUnavailable
 from .glb import MEDIA_TYPE, encode_glb
@@ -53,22 +56,8 @@ class PushResult:
     seconds: dict[str, float] = field(default_factory=dict)
 
 
-def _problem(resp: httpx.Response) -> str:
-    """A readable message out of an RFC 9457 problem (or any) error response."""
-    try:
-        data = resp.json()
-    except ValueError:
-        return resp.text[:500] or resp.reason_phrase
-    if isinstance(data, dict):
-        parts = [str(data[k]) for k in ("title", "detail") if data.get(k)]
-        if data.get("errors"):
-            parts.append(str(data["errors"])[:500])
-        return ": ".join(parts) or str(data)[:500]
-    return str(data)[:500]
-
-
-class Pusher:
-    """A client of one service.
+class Pusher(ServiceClient):
+    """A client of one service, for pushes.
 
     Parameters
     ----------
@@ -80,51 +69,28 @@ class Pusher:
         For tests (``httpx.MockTransport``).
     upload_progress : callable(done, total, gid), optional
         Called after each uploaded mesh.
+    token : str, optional
+        Bearer token; default ``$LUMENLINK_TOKEN`` (a service beyond loopback asks for it).
     """
+
+    error = PushError
+    unreachable = ServiceUnavailable
 
     def __init__(self, server: str, *, timeout: float = 60.0, transport: httpx.BaseTransport | None = None,
                  upload_progress: Callable[[int, int, str], None] | None = None, token: str | None = None) -> None:
-        if not isinstance(server, str) or not server.startswith(("http://", "https://")):
-            raise PushError(f"server must be an http(s) URL, got {server!r}")
-        self.server = server.rstrip("/")
-        if token is None:   # a service beyond loopback asks for it
-            token = os.environ.get("LUMENLINK_TOKEN")
-        headers = {"Authorization": f"Bearer {token}"} if token else {}
-        self.http = httpx.Client(base_url=self.server, timeout=timeout, transport=transport, headers=headers)
+        if not isinstance(server, str) or not server.strip():
+            raise PushError(f"server must be an http(s) URL, got {server!r}", usage=True)
+        super().__init__(server, token=token, timeout=timeout, transport=transport)
         self.upload_progress = upload_progress
-
-    def close(self) -> None:
-        self.http.close()
 
     def __enter__(self) -> Pusher:
         return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-    def _request(self, method: str, url: str, **kwargs: Any) -> httpx.Response:
-        try:
-            return self.http.request(method, url, **kwargs)
-        except httpx.TimeoutException as exc:
-            raise ServiceUnavailable(f"the service at {self.server} did not answer {method} {url} in time "
-                                     f"({type(exc).__name__})") from exc
-        except httpx.TransportError as exc:
-            raise ServiceUnavailable(f"cannot reach the service at {self.server} ({exc}); is `lumenlink serve` "
-                                     "running there?") from exc
-
-    def _json(self, resp: httpx.Response, what: str, ok: tuple[int, ...] = (200,)) -> Any:
-        if resp.status_code not in ok:
-            raise PushError(f"{what} failed: HTTP {resp.status_code}: {_problem(resp)}")
-        try:
-            return resp.json()
-        except ValueError as exc:
-            raise PushError(f"{what}: the service answered HTTP {resp.status_code} without JSON") from exc
 
     # ---------------------------------------------------------------- the calls
 
     def scene_by_name(self, name: str) -> dict | None:
         """The scene called ``name`` (``{id, name, revision}``), or None."""
-        scenes = self._json(self._request("GET", "/scenes"), "listing scenes")
+        scenes = self._call("GET", "/scenes", "listing scenes")
         if isinstance(scenes, dict):  # tolerate {"scenes": [...]}
             scenes = scenes.get("scenes", [])
         for s in scenes:
@@ -139,25 +105,24 @@ class Pusher:
         found = self.scene_by_name(name)
         if found is not None:
             return found, False
-        created = self._json(self._request("POST", "/scenes", json={"name": name}), f"creating scene {name!r}",
-                             ok=(200, 201))
+        created = self._call("POST", "/scenes", f"creating scene {name!r}", json={"name": name})
         return created, True
 
     def revision(self, scene_id: str) -> int:
         """The scene's current revision."""
-        data = self._json(self._request("GET", f"/scenes/{scene_id}"), f"reading scene {scene_id}")
+        data = self._call("GET", f"/scenes/{scene_id}", f"reading scene {scene_id}")
         return int(data["revision"])
 
     def missing(self, ids: list[str]) -> list[str]:
         """Which of ``ids`` the service does not store yet."""
         if not ids:
             return []
-        data = self._json(self._request("POST", "/geometries/missing", json={"ids": ids}), "asking for missing meshes")
+        data = self._call("POST", "/geometries/missing", "asking for missing meshes", json={"ids": ids})
         return list(data["missing"])
 
     def upload(self, gid: str, glb: bytes) -> None:
-        resp = self._request("PUT", f"/geometries/{gid}", content=glb, headers={"content-type": MEDIA_TYPE})
-        self._json(resp, f"uploading geometry {gid[:12]}", ok=(200, 201))
+        self._call("PUT", f"/geometries/{gid}", f"uploading geometry {gid[:12]}", content=glb,
+                   headers={"content-type": MEDIA_TYPE})
 
     def scene_tree(self, name: str) -> SceneTree | None:
         """What the scene called ``name`` holds now (its nodes, for reconciliation), or None if there is none."""
@@ -165,8 +130,8 @@ class Pusher:
         if info is None:
             return None
         sid = str(info["id"])
-        summary = self._json(self._request("GET", f"/scenes/{sid}"), f"reading scene {name!r}")
-        nodes = self._json(self._request("GET", f"/scenes/{sid}/nodes"), f"reading the nodes of scene {name!r}")
+        summary = self._call("GET", f"/scenes/{sid}", f"reading scene {name!r}")
+        nodes = self._call("GET", f"/scenes/{sid}/nodes", f"reading the nodes of scene {name!r}")
         if not isinstance(nodes, list):
             raise PushError(f"GET /scenes/{sid}/nodes answered {type(nodes).__name__}, not a list")
         return SceneTree(sid, int(summary["revision"]), summary.get("length_unit"), nodes,
@@ -186,8 +151,8 @@ class Pusher:
             raise RevisionConflict(
                 f"the scene changed on the service since revision {body.get('base_revision')} "
                 f"(it is now at revision {current if current is not None else '?'}); nothing was pushed. "
-                "Check what changed, then push again.", current_revision=current)
-        return self._json(resp, "pushing the document")
+                "Check what changed, then push again.", current_revision=current, problem=_json_or_empty(resp))
+        return self._answer(resp, "pushing the document", ok=(200,))
 
     def push(self, doc: Document, tess: Tessellation, scene: str, base_revision: int | None = None,
              dry_run: bool = False) -> PushResult:
@@ -259,6 +224,14 @@ class Pusher:
             body["base_revision"] = self.revision(scene_id)
         answer = self.push_document(scene_id, body, dry_run=True)
         return PushResult(answer, scene_id, False, len(used), 0, 0, {"dry_run": time.perf_counter() - t})
+
+
+def _json_or_empty(resp: httpx.Response) -> dict:
+    try:
+        data = resp.json()
+    except ValueError:
+        return {}
+    return data if isinstance(data, dict) else {}
 
 
 @dataclass

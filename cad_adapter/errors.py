@@ -2,9 +2,17 @@
 
 Every error says what went wrong in words a user can act on; where a node is concerned it carries the
 node's occurrence path (and UUID when one is known) so that the caller can point at it.
+
+Talking to the service has one error hierarchy for every client (`lumenlink.errors`): `PushError` is a
+`LumenLinkError` as well as a `CadAdapterError` (with the service's ``status`` and ``problem``),
+`ServiceUnavailable` a `ServiceUnreachable`, `RevisionConflict` a `PushError` with status 409.
 """
 
 from __future__ import annotations
+
+from typing import Any
+
+from lumenlink.errors import LumenLinkError, ServiceUnreachable
 
 
 class CadAdapterError(ValueError):
@@ -42,11 +50,25 @@ class IdentityError(CadAdapterError):
     """The sidecar file is unreadable or inconsistent, or a carried UUID is used twice."""
 
 
-class PushError(CadAdapterError):
-    """Talking to the service failed; nothing was half-pushed."""
+class PushError(CadAdapterError, LumenLinkError):
+    """Talking to the service failed; nothing was half-pushed.
+
+    Attributes
+    ----------
+    status, problem, usage
+        As `lumenlink.errors.LumenLinkError`'s: the service's HTTP status and problem+json, and whether the
+        call itself was wrong.
+    """
+
+    def __init__(self, message: str, *, status: int | None = None, problem: dict[str, Any] | None = None,
+                 usage: bool = False) -> None:
+        CadAdapterError.__init__(self, message)
+        self.status = status
+        self.problem = problem or {}
+        self.usage = usage
 
 
-class ServiceUnavailable(PushError):
+class ServiceUnavailable(PushError, ServiceUnreachable):
     """The service cannot be reached (down, wrong URL, timed out)."""
 
 
@@ -59,6 +81,7 @@ class RevisionConflict(PushError):
         The scene's revision as re-read after the conflict.
     """
 
-    def __init__(self, message: str, *, current_revision: int | None = None) -> None:
-        super().__init__(message)
+    def __init__(self, message: str, *, current_revision: int | None = None,
+                 problem: dict[str, Any] | None = None) -> None:
+        super().__init__(message, status=409, problem=problem)
         self.current_revision = current_revision

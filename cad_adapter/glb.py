@@ -1,22 +1,22 @@
 """GLB (glTF 2.0 binary) encoding of one geometry, exactly round-tripping through trimesh.
 
 One mesh, one primitive: POSITION float32, NORMAL float32 when the mesh has normals, indices uint32.
-The service decodes with ``trimesh.load(..., process=False)`` and recomputes the geometry id from the
-decoded arrays; :func:`decode_glb` does the same here, and the tests check that the id survives.
+Decoding is the wire format's one decoder, `lumenlink.glb.decode_glb`, which the service uses too to check
+an upload against its id; :func:`decode_glb` here only turns its errors into the adapter's, and the tests
+check that the id survives.
 """
 
 from __future__ import annotations
 
-import io
-
 import numpy as np
 import trimesh
 
+from lumenlink import glb as lumenlink_glb
 from tracer.geometry_id import canonical_arrays
 
 from .errors import CadAdapterError
 
-MEDIA_TYPE = "model/gltf-binary"
+MEDIA_TYPE = lumenlink_glb.MEDIA_TYPE
 
 
 def encode_glb(vertices: np.ndarray, triangles: np.ndarray, normals: np.ndarray | None = None) -> bytes:
@@ -50,16 +50,10 @@ def encode_glb(vertices: np.ndarray, triangles: np.ndarray, normals: np.ndarray 
 def decode_glb(data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """Decode GLB bytes into (vertices float32 (n,3), triangles uint32 (m,3), normals float32 or None).
 
-    Mirrors what the service does (``trimesh.load(..., process=False)``); the arrays are exactly those
-    :func:`encode_glb` was given.
+    The service's decoder (`lumenlink.glb.decode_glb`); the arrays are exactly those :func:`encode_glb` was given.
+    CadAdapterError where the bytes are not a geometry GLB.
     """
     try:
-        loaded = trimesh.load(io.BytesIO(data), file_type="glb", process=False)
-    except Exception as exc:
+        return lumenlink_glb.decode_glb(data)
+    except lumenlink_glb.GlbError as exc:
         raise CadAdapterError(f"not a readable GLB: {exc}") from exc
-    meshes = list(loaded.geometry.values()) if isinstance(loaded, trimesh.Scene) else [loaded]
-    if len(meshes) != 1 or not isinstance(meshes[0], trimesh.Trimesh):
-        raise CadAdapterError(f"a geometry GLB holds exactly one triangle mesh, this one holds {len(meshes)} item(s)")
-    mesh = meshes[0]
-    normals = np.asarray(mesh.vertex_normals) if "vertex_normals" in mesh._cache.cache else None
-    return canonical_arrays(mesh.vertices, mesh.faces, normals)

@@ -14,7 +14,6 @@ shape's colour, and failing those the colour covering the largest area of the pa
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 import numpy as np
@@ -23,10 +22,9 @@ from OCP.GProp import GProp_GProps
 from OCP.IFSelect import IFSelect_RetDone
 from OCP.Quantity import Quantity_Color
 from OCP.STEPCAFControl import STEPCAFControl_Reader
-from OCP.TCollection import TCollection_AsciiString, TCollection_ExtendedString
+from OCP.TCollection import TCollection_ExtendedString
 from OCP.TColStd import TColStd_SequenceOfAsciiString
-from OCP.TDataStd import TDataStd_Name
-from OCP.TDF import TDF_Label, TDF_LabelSequence, TDF_Tool
+from OCP.TDF import TDF_Label, TDF_LabelSequence
 from OCP.TDocStd import TDocStd_Document
 from OCP.TopAbs import TopAbs_FACE
 from OCP.TopExp import TopExp_Explorer
@@ -43,6 +41,7 @@ from OCP.XCAFDoc import (
 from .errors import CadImportError, EmptyDocumentError
 from .matching import display_name
 from .tree import UNIT_METRES, Document, Node, Part, assign_paths
+from .xcaf import carried_uuids, label_entry, label_name
 
 #: STEP unit names (lower case, as ``FileUnits`` reports them) to the units a document may declare.
 STEP_UNITS: dict[str, str] = {
@@ -53,9 +52,6 @@ STEP_UNITS: dict[str, str] = {
     "inch": "in", "in": "in",
     "foot": "ft", "feet": "ft", "ft": "ft",
 }
-
-UUID_RE = re.compile(r"[0-9a-fA-F]{8}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{12}")
-
 
 def check_step_file(path: str | Path) -> Path:
     """Return ``path`` as a Path if it names a readable STEP Part 21 file, else raise CadImportError.
@@ -82,21 +78,6 @@ def check_step_file(path: str | Path) -> Path:
             f"{text[:24]!r})"
         )
     return p
-
-
-def label_name(label: TDF_Label) -> str:
-    """The TDataStd_Name of a label, or ''."""
-    attr = TDataStd_Name()
-    if label.FindAttribute(TDataStd_Name.GetID_s(), attr):
-        return str(attr.Get().ToExtString())
-    return ""
-
-
-def label_entry(label: TDF_Label) -> str:
-    """The label's entry ('0:1:1:3'): unique within one document."""
-    s = TCollection_AsciiString()
-    TDF_Tool.Entry_s(label, s)
-    return str(s.ToCString())
 
 
 def location_matrix(loc: TopLoc_Location) -> np.ndarray:
@@ -320,8 +301,6 @@ def read_step(path: str | Path) -> Document:
     EmptyDocumentError
         The file holds no shape with faces.
     """
-    from .step_uuid import carried_uuids
-
     doc, reader, unit, warnings = read_xcaf(path)
     p = Path(path).resolve()
     out = document_from_xcaf(doc, p.name, unit, p, carried_uuids(reader, doc))

@@ -1,4 +1,5 @@
-"""UUIDs carried inside STEP files: a writer that puts them in, and the reader's side that finds them.
+"""UUIDs carried inside STEP files: the writer that puts them in (the reader's side that finds them is
+:func:`cad_adapter.xcaf.carried_uuids`, which :func:`cad_adapter.step_reader.read_step` calls).
 
 Where the UUIDs go (OCP allows it through the STEP model the XCAF writer builds, before it is written):
 
@@ -26,13 +27,12 @@ from OCP.IFSelect import IFSelect_RetDone
 from OCP.Interface import Interface_Static
 from OCP.Quantity import Quantity_Color, Quantity_TOC_RGB
 from OCP.StepBasic import StepBasic_Product
-from OCP.STEPCAFControl import STEPCAFControl_Reader, STEPCAFControl_Writer
-from OCP.STEPConstruct import STEPConstruct_Tool
+from OCP.STEPCAFControl import STEPCAFControl_Writer
 from OCP.STEPControl import STEPControl_AsIs
 from OCP.StepRepr import StepRepr_NextAssemblyUsageOccurrence
 from OCP.TCollection import TCollection_ExtendedString, TCollection_HAsciiString
 from OCP.TDataStd import TDataStd_Name
-from OCP.TDF import TDF_Label, TDF_LabelSequence
+from OCP.TDF import TDF_Label
 from OCP.TDocStd import TDocStd_Document
 from OCP.TopLoc import TopLoc_Location
 from OCP.XCAFApp import XCAFApp_Application
@@ -40,83 +40,10 @@ from OCP.XCAFDoc import XCAFDoc_ColorSurf, XCAFDoc_DocumentTool, XCAFDoc_ShapeTo
 from OCP.XSControl import XSControl_WorkSession
 
 from .errors import CadAdapterError
-from .step_reader import UUID_RE, label_entry, label_name
 from .tree import UNIT_METRES, Document
+from .xcaf import entities, entity_text
 
 _STEP_UNIT = {"mm": "MM", "cm": "CM", "m": "M", "um": "UM", "in": "INCH", "ft": "FT"}
-
-
-def _entities(model):
-    for i in range(1, model.NbEntities() + 1):
-        yield model.Value(i)
-
-
-def _text(h) -> str:
-    return "" if h is None else str(h.ToCString())
-
-
-def carried_uuids(reader: STEPCAFControl_Reader, doc: TDocStd_Document) -> dict[str, str]:
-    """UUIDs a read STEP file carries, by XCAF label entry (component labels and free-shape labels).
-
-    A NAUO whose ``id`` is a UUID marks its component; a root product whose ``id`` is a UUID marks the
-    free shape of the same name. Malformed or missing ids are ignored (the sidecar takes over).
-    """
-    ws = reader.ChangeReader().WS()
-    model = reader.ChangeReader().Model()
-    if model is None:
-        return {}
-    shape_tool = XCAFDoc_DocumentTool.ShapeTool_s(doc.Main())
-    tool = STEPConstruct_Tool(ws)
-    label_map = reader.GetShapeLabelMap()
-    out: dict[str, str] = {}
-    root_products: dict[str, str] = {}
-    for ent in _entities(model):
-        if isinstance(ent, StepRepr_NextAssemblyUsageOccurrence):
-            text = _text(ent.Id())
-            if UUID_RE.fullmatch(text):
-                try:
-                    label = STEPCAFControl_Reader.FindInstance_s(ent, shape_tool, tool, label_map)
-                except Exception:  # OCCT cannot place it: leave it to the sidecar
-                    continue
-                if not label.IsNull():
-                    out[label_entry(label)] = text.lower()
-        elif isinstance(ent, StepBasic_Product):
-            text = _text(ent.Id())
-            if UUID_RE.fullmatch(text):
-                root_products.setdefault(_text(ent.Name()), text.lower())
-    if root_products:
-        labels = TDF_LabelSequence()
-        shape_tool.GetFreeShapes(labels)
-        for i in range(1, labels.Length() + 1):
-            lab = labels.Value(i)
-            u = root_products.get(label_name(lab))
-            if u is not None:
-                out.setdefault(label_entry(lab), u)
-    return _only_single_occurrences(out, shape_tool)
-
-
-def _only_single_occurrences(found: dict[str, str], shape_tool) -> dict[str, str]:
-    """Drop component UUIDs whose component is reached more than once (a shared sub-assembly's inside)."""
-    counts: dict[str, int] = {}
-
-    def walk(label, depth: int) -> None:
-        comps = TDF_LabelSequence()
-        shape_tool.GetComponents_s(label, comps)
-        for i in range(1, comps.Length() + 1):
-            comp = comps.Value(i)
-            e = label_entry(comp)
-            counts[e] = counts.get(e, 0) + 1
-            ref = TDF_Label()
-            if shape_tool.GetReferredShape_s(comp, ref) and shape_tool.IsAssembly_s(ref) and depth < 64:
-                walk(ref, depth + 1)
-
-    labels = TDF_LabelSequence()
-    shape_tool.GetFreeShapes(labels)
-    for i in range(1, labels.Length() + 1):
-        lab = labels.Value(i)
-        counts[label_entry(lab)] = counts.get(label_entry(lab), 0) + 1
-        walk(lab, 0)
-    return {e: u for e, u in found.items() if counts.get(e, 0) == 1}
 
 
 def _set_name(label, text: str) -> None:
@@ -211,9 +138,9 @@ def write_step(doc: Document, path: str | Path) -> Path:
         raise CadAdapterError("OCCT could not transfer the document to STEP")
     model = writer.ChangeWriter().Model()
     found = 0
-    for ent in _entities(model):
+    for ent in entities(model):
         if isinstance(ent, StepRepr_NextAssemblyUsageOccurrence | StepBasic_Product):
-            name = _text(ent.Name())
+            name = entity_text(ent.Name())
             if name in tokens:
                 uuid, real = tokens[name]
                 ent.SetId(TCollection_HAsciiString(uuid))

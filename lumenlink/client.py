@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import difflib
 import math
-import os
 import re
 import time
 from collections.abc import Callable, Iterable, Sequence
@@ -33,69 +32,18 @@ from urllib.parse import quote
 
 import httpx
 
-DEFAULT_SERVER = "http://127.0.0.1:8000"
+from lumenlink.errors import LumenLinkError, ServiceUnreachable
+from lumenlink.http import DEFAULT_SERVER, ServiceClient, check_server
+
+__all__ = ["DEFAULT_SERVER", "Client", "LumenLinkError", "ServiceUnreachable", "check_server", "sensor_csv",
+           "triples"]
 _UUID = re.compile(r"^[0-9a-fA-F]{8}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{12}$")
 #: job states after which a job changes no more
 FINISHED = ("succeeded", "failed", "cancelled")
 
 
-class LumenLinkError(Exception):
-    """Anything that went wrong talking to the service.
-
-    Attributes
-    ----------
-    status : int or None
-        The HTTP status of the service's answer; None when the client refused before asking (a bad
-        argument, a scene name no scene has) or no service answered.
-    problem : dict
-        The service's RFC 9457 problem (``title``, ``detail``, and extensions such as ``errors`` or
-        ``did_you_mean``); empty when the client refused by itself.
-    usage : bool
-        The request itself was wrong (a bad argument, an unknown name, a 4xx other than 409): fix the call.
-    """
-
-    def __init__(self, message: str, *, status: int | None = None, problem: dict[str, Any] | None = None,
-                 usage: bool = False) -> None:
-        super().__init__(message)
-        self.status = status
-        self.problem = problem or {}
-        self.usage = usage
-
-    @property
-    def did_you_mean(self) -> list[str]:
-        return list(self.problem.get("did_you_mean") or [])
-
-
-class ServiceUnreachable(LumenLinkError):
-    """No service answered at the server's address (or not in time)."""
-
-
 def _is_uuid(s: str) -> bool:
     return bool(_UUID.match(s))
-
-
-def check_server(server: str) -> str:
-    """The base URL without a trailing slash; a usage error saying what to add if it has no http(s) scheme."""
-    if not isinstance(server, str) or not server.strip():
-        raise LumenLinkError("the server URL is empty: give one like http://127.0.0.1:8000", usage=True)
-    server = server.strip()
-    if not re.match(r"^https?://", server, re.IGNORECASE):
-        if "://" in server:
-            raise LumenLinkError(f"the server URL {server!r} is not http(s): give one like http://127.0.0.1:8000",
-                                 usage=True)
-        raise LumenLinkError(f"the server URL {server!r} has no scheme: add http:// (http://{server})", usage=True)
-    return server.rstrip("/")
-
-
-def _message(resp: httpx.Response, what: str) -> tuple[str, dict[str, Any]]:
-    try:
-        data = resp.json()
-    except ValueError:
-        return f"{what}: HTTP {resp.status_code}: {resp.text[:300] or resp.reason_phrase}", {}
-    if not isinstance(data, dict):
-        return f"{what}: HTTP {resp.status_code}: {str(data)[:300]}", {}
-    detail = data.get("detail") or data.get("title") or resp.reason_phrase
-    return f"{what}: {detail} (HTTP {resp.status_code})", data
 
 
 def triples(values: Any, what: str) -> list[list[float]]:
@@ -119,8 +67,8 @@ def triples(values: Any, what: str) -> list[list[float]]:
     return out
 
 
-class Client:
-    """A client of one LumenLink service.
+class Client(ServiceClient):
+    """A client of one LumenLink service (its connection, token and errors: `lumenlink.http.ServiceClient`).
 
     Parameters
     ----------
@@ -136,45 +84,13 @@ class Client:
 
     def __init__(self, server: str | None = None, *, token: str | None = None, timeout: float = 120.0,
                  transport: httpx.BaseTransport | None = None) -> None:
-        self.server = check_server(server or os.environ.get("LUMENLINK_SERVER") or DEFAULT_SERVER)
-        self.token = token if token is not None else os.environ.get("LUMENLINK_TOKEN")
-        headers = {"Authorization": f"Bearer {self.token}"} if self.token else {}
-        self.http = httpx.Client(base_url=self.server, timeout=timeout, transport=transport, headers=headers)
+        super().__init__(server, token=token, timeout=timeout, transport=transport)
         self._ids: dict[str, str] = {}
-
-    def close(self) -> None:
-        self.http.close()
 
     def __enter__(self) -> Client:
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
     # ------------------------------------------------------------ plumbing
-
-    def _request(self, method: str, url: str, **kwargs: Any) -> httpx.Response:
-        try:
-            return self.http.request(method, url, **kwargs)
-        except httpx.TimeoutException as exc:
-            raise ServiceUnreachable(f"the service at {self.server} did not answer {method} {url} in time") from exc
-        except httpx.TransportError as exc:
-            raise ServiceUnreachable(f"cannot reach the service at {self.server} ({exc}); is `lumenlink serve` "
-                                     "running there?") from exc
-
-    def _call(self, method: str, url: str, what: str, ok: tuple[int, ...] = (200, 201), **kwargs: Any) -> Any:
-        resp = self._request(method, url, **kwargs)
-        if resp.status_code not in ok:
-            message, problem = _message(resp, what)
-            raise LumenLinkError(message, status=resp.status_code, problem=problem,
-                                 usage=400 <= resp.status_code < 500 and resp.status_code != 409)
-        if resp.status_code == 204 or not resp.content:
-            return None
-        try:
-            return resp.json()
-        except ValueError as exc:
-            raise LumenLinkError(f"{what}: the service answered HTTP {resp.status_code} without JSON",
-                                 status=resp.status_code) from exc
 
     def _sid(self, scene: str | dict) -> str:
         """A scene's id from its name, its id or its record."""
@@ -228,22 +144,14 @@ class Client:
         for an unreadable or non-STEP file; status 409 when the scene changed meanwhile: push again) or
         `ServiceUnreachable`."""
         from cad_adapter.cli import default_cache_dir, push_file
-        from cad_adapter.errors import (
-            CadAdapterError,
-            CadImportError,
-            RevisionConflict,
-            ServiceUnavailable,
-            TessellationError,
-        )
+        from cad_adapter.errors import CadAdapterError, CadImportError, TessellationError
         from cad_adapter.tessellate import TessellationCache
 
         try:
             result = push_file(Path(file), scene, self.server, linear, angular, relative, dry_run=dry_run,
                                cache=TessellationCache(default_cache_dir()), token=self.token)[0]
-        except ServiceUnavailable as exc:
-            raise ServiceUnreachable(str(exc)) from exc
-        except RevisionConflict as exc:
-            raise LumenLinkError(str(exc), status=409) from exc
+        except LumenLinkError:   # the adapter's PushError family is ours (ServiceUnreachable, 409) as it is
+            raise
         except (CadImportError, TessellationError) as exc:
             raise LumenLinkError(f"{file}: {exc}", usage=True) from exc
         except CadAdapterError as exc:
@@ -405,11 +313,8 @@ class Client:
     def map_png(self, scene: str | dict, sensor_id: str, vmax: float | None = None) -> bytes:
         """The false-colour PNG of a grid sensor's latest result (the scene as it is now)."""
         params = {"vmax": vmax} if vmax is not None else None
-        resp = self._request("GET", f"/scenes/{self._sid(scene)}/sensors/{sensor_id}/map.png", params=params)
-        if resp.status_code != 200:
-            message, problem = _message(resp, f"reading the map of sensor {sensor_id}")
-            raise LumenLinkError(message, status=resp.status_code, problem=problem)
-        return resp.content
+        return self._bytes(f"/scenes/{self._sid(scene)}/sensors/{sensor_id}/map.png",
+                           f"reading the map of sensor {sensor_id}", params)
 
     def export(self, scene: str | dict, sensor: str, format: str = "ies", *,
                out: str | Path | None = None) -> str:
@@ -501,14 +406,6 @@ class Client:
             raise LumenLinkError("no sensor has two kept results: simulate, edit the scene, simulate again, then "
                                  "compare", usage=True)
         return answers
-
-    def _bytes(self, url: str, what: str, params: dict[str, Any] | None = None) -> bytes:
-        resp = self._request("GET", url, params=params)
-        if resp.status_code != 200:
-            message, problem = _message(resp, what)
-            raise LumenLinkError(message, status=resp.status_code, problem=problem,
-                                 usage=400 <= resp.status_code < 500 and resp.status_code != 409)
-        return resp.content
 
     def illuminance(self, scene: str | dict, points: Any, normals: Any, *, radius: float | None = None,
                     target: float | None = None, max_seconds: float | None = None, max_photons: int | None = None,

@@ -15,10 +15,9 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from pydantic import TypeAdapter
+from pydantic import BaseModel, TypeAdapter
 
 from service.errors import Conflict, Invalid, NotFound
-from service.live import LiveScene
 from service.scenes import Scenes, SceneState
 from service.schemas import Light, Material, ObjectCreate, Sensor
 from service.store import TABLES, Raced
@@ -63,8 +62,10 @@ class Assignments:
     # ------------------------------------------------------------ materials
 
     @_retried
-    def set_material(self, scene_id: str, key: str, body: dict) -> dict[str, Any]:
-        clean = material_adapter.validate_python(body).model_dump(exclude_none=True)
+    def set_material(self, scene_id: str, key: str, body: dict | BaseModel) -> dict[str, Any]:
+        """Assign a material body: a dict (validated here) or a `Material` the route already validated (not again)."""
+        model = body if isinstance(body, BaseModel) else material_adapter.validate_python(body)
+        clean = model.model_dump(exclude_none=True)
         with self.scenes.current(scene_id) as state:
             if not state.has_node(key) and key not in state.objects:
                 raise NotFound(f"no node or object {key} in scene {scene_id}", node=key)
@@ -182,26 +183,16 @@ def _validate_photometry(fmt: str, text: str) -> None:
         raise Invalid(f"invalid {fmt} photometry file: {exc}") from exc
 
 
-def scene_effects(live: LiveScene, uses_default: bool = True) -> list[str]:
-    """The scene's effect set, by the transport's one rule (`tracer.effects.derive_effects`) over its
-    materials (and the default material where some instance uses it) and its lights. A body stored under older, looser
-    rules that the tracer now refuses is left out here (a summary never fails); a query says what is wrong."""
-    from tracer.effects import derive_effects
-    from tracer.optics.surfaces.dispatch import MaterialError, material_spec
-
-    specs = []
-    for body in list(live.materials.values()) + ([live.default_material] if uses_default else []):
-        try:
-            specs.append(material_spec(body))
-        except MaterialError:
-            continue
-    return derive_effects(specs, live.lights)
-
-
 def validate_body(kind: str, body: Any) -> dict:
-    """Validate a light, sensor or object body; answers it as a clean dict (422 on a bad field)."""
+    """Validate a light, sensor or object body; answers it as a clean dict (422 on a bad field).
+
+    A wire model (`Light`, `Sensor`, `ObjectCreate`) that FastAPI already validated is not validated again (pydantic
+    would run every validator anew); only what the schema cannot say (an object's transform) is checked here."""
     adapter = {"light": light_adapter, "sensor": sensor_adapter}.get(kind)
-    model = adapter.validate_python(body) if adapter is not None else ObjectCreate.model_validate(body)
+    if isinstance(body, BaseModel):
+        model = body
+    else:
+        model = adapter.validate_python(body) if adapter is not None else ObjectCreate.model_validate(body)
     out = model.model_dump(exclude_none=True)
     if kind == "object":
         out["transform"] = [float(x) for x in out["transform"]]

@@ -19,6 +19,8 @@ answer is stale. ``LiveRegistry.lock(scene_id)`` is that lock (re-entrant): hold
 With several service processes on one database, `get`, `revision` and `lock` first bring the scene up to
 date with what the others committed (one SELECT; `service.scenes.Scenes.state`), and a scene changed
 through another process notifies the listeners here like a change made through this one.
+
+`scene_effects(live)` is a live scene's effect set (the scene summary and the simulation both ask it).
 """
 
 from __future__ import annotations
@@ -111,3 +113,20 @@ class LiveRegistry:
         """Tell every listener that `scene_id` changed (called by the sync service)."""
         for listener in list(self._listeners):
             listener(scene_id, revision)
+
+
+def scene_effects(live: LiveScene, uses_default: bool = True) -> list[str]:
+    """The scene's effect set, by the transport's one rule (`tracer.effects.derive_effects`) over its
+    materials (and the default material where some instance uses it) and its lights. A body stored under older, looser
+    rules that the tracer now refuses is left out here (a summary never fails); a query says what is wrong."""
+    # imported on first use, not to dodge a circle: the tracer's numba start-up is not paid by /health
+    from tracer.effects import derive_effects
+    from tracer.optics.surfaces.dispatch import MaterialError, material_spec
+
+    specs = []
+    for body in list(live.materials.values()) + ([live.default_material] if uses_default else []):
+        try:
+            specs.append(material_spec(body))
+        except MaterialError:
+            continue
+    return derive_effects(specs, live.lights)

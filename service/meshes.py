@@ -11,17 +11,16 @@ the directory. Files are written to a temporary name and renamed: a reader never
 from __future__ import annotations
 
 import io
-import json
 import os
-import struct
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from lumenlink import glb
 from service.errors import BadRequest, Invalid, NotFound
-from tracer.geometry_id import canonical_arrays, geometry_id, is_geometry_id
+from tracer.geometry_id import hash_canonical, is_geometry_id
 
 
 @dataclass
@@ -41,55 +40,13 @@ def check_id(gid: str) -> str:
     return gid
 
 
-def _glb_has_normals(data: bytes) -> bool:
-    """Whether the GLB's first mesh primitive carries a NORMAL attribute (read from its JSON chunk)."""
-    if len(data) < 20 or data[:4] != b"glTF":
-        raise Invalid("the body is not a GLB file (it must start with the magic 'glTF')")
-    version, length = struct.unpack_from("<II", data, 4)
-    if version != 2:
-        raise Invalid(f"only glTF 2 binaries (GLB version 2) are accepted, got version {version}")
-    if length != len(data):
-        raise Invalid(f"GLB header says {length} bytes but the body has {len(data)}")
-    chunk_length, chunk_type = struct.unpack_from("<II", data, 12)
-    if chunk_type != 0x4E4F534A or 20 + chunk_length > len(data):
-        raise Invalid("GLB has no valid JSON chunk")
-    try:
-        gltf = json.loads(data[20:20 + chunk_length])
-        prims = [p for m in gltf.get("meshes", []) for p in m.get("primitives", [])]
-    except (ValueError, AttributeError, TypeError) as exc:
-        raise Invalid(f"GLB JSON chunk is unreadable: {exc}") from exc
-    if len(prims) != 1:
-        raise Invalid(f"a geometry must be exactly one mesh primitive; the GLB has {len(prims)}")
-    return "NORMAL" in (prims[0].get("attributes") or {})
-
-
 def decode_glb(data: bytes) -> Mesh:
-    """Decode a one-mesh GLB into canonical arrays; Invalid (422) for anything that is not a valid mesh."""
-    has_normals = _glb_has_normals(data)
-    import trimesh  # the service may use trimesh; imported here to keep startup light
-
+    """Decode a one-mesh GLB into canonical arrays (`lumenlink.glb.decode_glb`, the one decoder both sides use);
+    Invalid (422) for anything that is not a valid mesh."""
     try:
-        loaded = trimesh.load(io.BytesIO(data), file_type="glb", process=False)
-    except Exception as exc:  # trimesh raises many kinds on bad input
-        raise Invalid(f"GLB could not be decoded: {type(exc).__name__}: {exc}") from exc
-    if isinstance(loaded, trimesh.Scene):
-        meshes = list(loaded.geometry.values())
-        if len(meshes) != 1:
-            raise Invalid(f"a geometry must be exactly one mesh; the GLB holds {len(meshes)}")
-        mesh = meshes[0]
-    else:
-        mesh = loaded
-    if not isinstance(mesh, trimesh.Trimesh):
-        raise Invalid(f"the GLB holds a {type(mesh).__name__}, not a triangle mesh")
-    vertices = np.asarray(mesh.vertices)
-    faces = np.asarray(mesh.faces)
-    normals = np.asarray(mesh.vertex_normals) if has_normals else None
-    try:
-        v, f, n = canonical_arrays(vertices, faces, normals)
-    except ValueError as exc:
-        raise Invalid(f"invalid mesh: {exc}") from exc
-    if len(f) == 0:
-        raise Invalid("invalid mesh: it has no triangles")
+        v, f, n = glb.decode_glb(data)
+    except glb.GlbError as exc:
+        raise Invalid(str(exc)) from exc
     return Mesh(v, f, n)
 
 
@@ -107,16 +64,24 @@ class MeshStore:
         return self._path(gid, ".npz").exists()
 
     def validate_upload(self, gid: str, data: bytes) -> Mesh:
-        """Decode `data` and check that it hashes to `gid`: BadRequest (400) if not, Invalid (422) if no mesh."""
+        """Decode `data` and check that it hashes to `gid`: BadRequest (400) if not, Invalid (422) if no mesh.
+
+        The id is computed as the mesh comes (with its normals where it has them): one hash for a right id.
+        Only where that is not `gid` and the mesh has normals is the id without them tried (a client that
+        hashes its positions only); the mesh is then kept without normals. The stored arrays are not hashed
+        again (`Scenes.ensure_geometry` gives the tracer their id)."""
         check_id(gid)
         mesh = decode_glb(data)
-        plain = geometry_id(mesh.vertices, mesh.triangles)
+        full = hash_canonical(mesh.vertices, mesh.triangles, mesh.normals)
+        if full == gid:
+            return mesh
+        if mesh.normals is None:
+            raise BadRequest(f"the mesh does not hash to the id in the URL: it hashes to {full}", actual=full)
+        plain = hash_canonical(mesh.vertices, mesh.triangles, None)
         if plain == gid:
             return Mesh(mesh.vertices, mesh.triangles, None)
-        if mesh.normals is not None and geometry_id(mesh.vertices, mesh.triangles, mesh.normals) == gid:
-            return mesh
-        raise BadRequest(f"the mesh does not hash to the id in the URL: it hashes to {plain}"
-                         + (" (without normals)" if mesh.normals is not None else ""), actual=plain)
+        raise BadRequest(f"the mesh does not hash to the id in the URL: it hashes to {full} (with its normals), "
+                         f"{plain} (without)", actual=plain)
 
     def write(self, gid: str, data: bytes, mesh: Mesh) -> None:
         """Store the GLB and its arrays (atomically; rewriting an existing id is harmless)."""

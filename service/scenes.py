@@ -32,7 +32,7 @@ import numpy as np
 from service.config import Settings
 from service.document import NodeBytes
 from service.errors import NotFound, Unavailable
-from service.live import DELETED, LiveRegistry, LiveScene
+from service.live import DELETED, LiveRegistry, LiveScene, scene_effects
 from service.meshes import MeshStore
 from service.schemas import LENGTH_UNITS, IdentityIn
 from service.store import SceneStore, _color
@@ -299,9 +299,8 @@ class Scenes:
                               f"({self.meshes.root}): every service process on one database must share one data "
                               f"directory (LUMENLINK_DATA_DIR)", geometry=gid)
         mesh = self.meshes.load(gid)
-        got = state.tracer.add_geometry(mesh.vertices, mesh.triangles, mesh.normals)
-        if got != gid:
-            raise RuntimeError(f"tracer gave geometry id {got} for stored mesh {gid}")
+        # the store holds only meshes whose id was checked on upload (one hash per mesh): not hashed again here
+        state.tracer.add_geometry(mesh.vertices, mesh.triangles, mesh.normals, known_id=gid)
         state.geometries.add(gid)
         return True
 
@@ -347,8 +346,6 @@ class Scenes:
     # ------------------------------------------------------------ views
 
     def summary(self, scene_id: str) -> dict[str, Any]:
-        from service.assignments import scene_effects
-
         state = self.state(scene_id)
         with state.lock:
             live = self._live_locked(state)

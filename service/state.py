@@ -19,8 +19,9 @@ from typing import Any
 
 from sqlalchemy import Engine
 
-from service.assignments import Assignments, scene_effects, validate_body
+from service.assignments import Assignments, validate_body
 from service.config import Settings
+from service.live import scene_effects
 from service.meshes import MeshStore
 from service.push import Pushes
 from service.scenes import DEFAULT_MATERIAL, Scenes, SceneState

@@ -91,3 +91,39 @@ def test_tracer_modules_share_public_names_only() -> None:
     """Between tracer's modules (tracer/accel/ and the rest) only public names cross a module line."""
     offenders = [f for path in sorted((ROOT / "tracer").rglob("*.py")) for f in private_names_imported(path, "tracer")]
     assert not offenders, f"private names used across tracer's modules: {offenders}"
+
+
+def lumenlink_modules_used(path: Path) -> set[str]:
+    """The lumenlink modules a file imports (``from lumenlink import glb`` counts as lumenlink.glb)."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    out: set[str] = set()
+    for n in ast.walk(tree):
+        if isinstance(n, ast.Import):
+            out |= {a.name for a in n.names if a.name.split(".")[0] == "lumenlink"}
+        elif isinstance(n, ast.ImportFrom) and n.level == 0 and n.module == "lumenlink":
+            out |= {f"lumenlink.{a.name}" for a in n.names}
+        elif isinstance(n, ast.ImportFrom) and n.level == 0 and n.module and n.module.startswith("lumenlink."):
+            out.add(n.module)
+    return out
+
+
+#: lumenlink's modules that the adapter and the service share, and the only modules of ours each may import
+SHARED = {"lumenlink.http": {"lumenlink.errors"}, "lumenlink.errors": set(), "lumenlink.glb": {"tracer.geometry_id"}}
+
+
+def test_the_shared_modules_stand_alone() -> None:
+    """The adapter and `lumenlink.Client` share one HTTP client (`lumenlink.http`) and one error hierarchy
+    (`lumenlink.errors`), the adapter and the service one GLB decoder (`lumenlink.glb`). Those import nothing of
+    ours but what `SHARED` lists, so neither side takes in the command line, the CAD stack or the service through
+    them, and neither side uses anything else of lumenlink."""
+    ours = {"tracer", "service", "cad_adapter", "lumenlink", "bench"}
+    for module, allowed in SHARED.items():
+        path = ROOT / (module.replace(".", "/") + ".py")
+        tree = ast.parse(path.read_text(), filename=str(path))
+        modules = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module}
+        modules |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+        assert {m for m in modules if m.split(".")[0] in ours} <= allowed, (module, modules)
+    for package, expected in (("cad_adapter", {"lumenlink.http", "lumenlink.errors", "lumenlink.glb"}),
+                              ("service", {"lumenlink.glb"})):
+        used = set().union(*(lumenlink_modules_used(p) for p in (ROOT / package).rglob("*.py")))
+        assert used == expected, (package, used)

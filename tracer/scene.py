@@ -32,7 +32,7 @@ from tracer.accel.rows4 import aligned_rows, leaf_order_f32, pack_wide
 from tracer.accel.tlas import TopLevel, build_top, instance_records, refit_top, world_boxes
 from tracer.accel.traverse import SceneArrays
 from tracer.errors import NotCommittedError, TracerError, UnknownIdError
-from tracer.geometry_id import canonical_arrays, hash_canonical
+from tracer.geometry_id import canonical_arrays, hash_canonical, is_geometry_id
 from tracer.jit import njit
 from tracer.kinds import SENSOR_KINDS, disk_sensor, mesh, rect_sensor
 
@@ -260,7 +260,7 @@ class Scene:
         self._changed = True
 
     # ---------------------------------------------------------------- geometries
-    def add_geometry(self, vertices: Any, triangles: Any, normals: Any = None) -> str:
+    def add_geometry(self, vertices: Any, triangles: Any, normals: Any = None, *, known_id: str | None = None) -> str:
         """Add a triangle mesh; its BLAS is built at the next commit unless its id is known.
 
         Parameters
@@ -271,6 +271,9 @@ class Scene:
             Vertex indices.
         normals : (n, 3) float or None
             Vertex normals for shading (need not be unit).
+        known_id : str, optional
+            The arrays' geometry id where the caller has already computed it (the service checked it when the
+            mesh was uploaded): taken as given, not hashed again, so it must be the arrays' own id.
 
         Returns
         -------
@@ -281,7 +284,9 @@ class Scene:
             v, f, n = canonical_arrays(vertices, triangles, normals)
         except ValueError as exc:
             raise TracerError(f"add_geometry: {exc}") from None
-        gid = hash_canonical(v, f, n)
+        if known_id is not None and not is_geometry_id(known_id):
+            raise TracerError(f"add_geometry: known_id must be a geometry id (64 lowercase hex), got {known_id!r}")
+        gid = hash_canonical(v, f, n) if known_id is None else known_id
         if gid in self._geoms:
             return gid
         box = mesh.object_bounds_of(v) if len(f) else np.array([np.inf] * 3 + [-np.inf] * 3)

@@ -63,7 +63,7 @@ def put_material(scene_id: SceneId, node: NodeRef, body: Material, manager: Mana
     """Assign a material to a node (inherited by its descendants that have none) or to a sim-owned object.
 
     ``node``: the node's UUID or its path (URL-encoded, or plain: ``car/lens``); the answer names the UUID."""
-    return manager.set_material(scene_id, _node_key(manager, scene_id, node), body.model_dump(exclude_none=True))
+    return manager.set_material(scene_id, _node_key(manager, scene_id, node), body)   # validated once, by FastAPI
 
 
 @router.get("/scenes/{scene_id}/materials", response_model=list[MaterialPublic])

@@ -7,7 +7,6 @@ from typing import Any
 from fastapi import APIRouter, Request, Response
 from starlette.concurrency import run_in_threadpool
 
-from service.meshes import check_id
 from service.routes.deps import GeometryPath, Manager
 from service.schemas import GeometryPublic, MissingPublic, MissingQuery
 
@@ -28,7 +27,7 @@ def missing(body: MissingQuery, manager: Manager) -> dict[str, Any]:
 )
 async def put_geometry(gid: GeometryPath, request: Request, manager: Manager, response: Response) -> dict[str, Any]:
     """Store one mesh (GLB, one primitive). 400 if it does not hash to `gid`, 422 if it is no valid mesh."""
-    check_id(gid)
+    # `gid` has passed GeometryPath's pattern (422 before this runs); the store checks it once more as it names files
     data = await request.body()
     answer = await run_in_threadpool(manager.put_geometry, gid, data)
     response.status_code = 201 if answer["created"] else 200
@@ -39,4 +38,4 @@ async def put_geometry(gid: GeometryPath, request: Request, manager: Manager, re
             responses={200: {"content": {"model/gltf-binary": {}}}})
 def get_geometry(gid: GeometryPath, manager: Manager) -> Response:
     """The GLB exactly as uploaded."""
-    return Response(manager.geometry_glb(check_id(gid)), media_type="model/gltf-binary")
+    return Response(manager.geometry_glb(gid), media_type="model/gltf-binary")

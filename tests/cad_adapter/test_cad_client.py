@@ -28,6 +28,7 @@ class FakeService:
         self.calls: list[tuple[str, str]] = []
         self.documents: list[dict] = []
         self.bump_before_push = False  # someone else pushes between our GET and our PUT
+        self.check_ids = True  # hash each upload as the service does (off where a test counts the adapter's hashes)
 
     def __call__(self, request: httpx.Request) -> httpx.Response:
         path, method = request.url.path, request.method
@@ -45,7 +46,7 @@ class FakeService:
         m = re.fullmatch(r"/geometries/([0-9a-f]{64})", path)
         if m and method == "PUT":
             assert request.headers["content-type"] == "model/gltf-binary"
-            if geometry_id(*decode_glb(request.content)) != m.group(1):
+            if self.check_ids and geometry_id(*decode_glb(request.content)) != m.group(1):
                 return httpx.Response(400, json={"title": "Bad Request", "detail": "hash mismatch"})
             self.meshes.add(m.group(1))
             return httpx.Response(201, json={"id": m.group(1)})
@@ -164,6 +165,43 @@ def test_problem_details_reach_the_user(fake) -> None:
         p.push(*doc_and_tess(), scene="car")
 
 
+def test_one_client_one_error_hierarchy(fake) -> None:
+    """The adapter's push errors are the service client's errors: the same refusal reads the same through
+    `lumenlink.Client` and `Pusher`, with the problem and status on both, and a dead service is one class."""
+    import lumenlink
+    from lumenlink.http import ServiceClient
+
+    problem = {"title": "Unprocessable Entity", "detail": "the listing is refused", "status": 422}
+
+    def reject(request: httpx.Request) -> httpx.Response:
+        return httpx.Response(422, json=problem, headers={"content-type": "application/problem+json"})
+
+    with Pusher("http://fake", transport=httpx.MockTransport(reject)) as p, pytest.raises(PushError) as pushed:
+        p.scene_by_name("car")
+    with lumenlink.Client("http://fake", transport=httpx.MockTransport(reject)) as ll, \
+            pytest.raises(lumenlink.LumenLinkError) as listed:
+        ll.scenes()
+    assert isinstance(p, ServiceClient) and isinstance(ll, ServiceClient)
+    assert isinstance(pushed.value, lumenlink.LumenLinkError) and isinstance(pushed.value, cad_adapter.CadAdapterError)
+    assert str(pushed.value) == str(listed.value) == ("listing scenes failed: HTTP 422: Unprocessable Entity: "
+                                                      "the listing is refused")
+    for err in (pushed.value, listed.value):
+        assert (err.status, err.problem, err.usage) == (422, problem, True)
+
+    def refuse(request: httpx.Request) -> httpx.Response:
+        raise httpx.ConnectError("connection refused", request=request)
+
+    with Pusher("http://127.0.0.1:9", transport=httpx.MockTransport(refuse)) as p, \
+            pytest.raises(lumenlink.ServiceUnreachable) as down:
+        p.scene_by_name("car")
+    assert isinstance(down.value, ServiceUnavailable)
+
+    fake.bump_before_push = True
+    with pusher(fake) as p, pytest.raises(lumenlink.LumenLinkError) as conflict:
+        p.push(*doc_and_tess(), scene="car")
+    assert isinstance(conflict.value, RevisionConflict) and conflict.value.status == 409 and not conflict.value.usage
+
+
 @pytest.mark.parametrize("server", ["", "ftp://x", "127.0.0.1:8000"])
 def test_bad_server_url(server) -> None:
     with pytest.raises(PushError, match="http"):
@@ -242,6 +280,42 @@ def test_watch_pushes_on_change_debounced(fake, tmp_path) -> None:
     assert codes == [0] and len(fake.documents) == 2
     before, after = ({n["uuid"]: n["geometry"] for n in d["nodes"]} for d in fake.documents)
     assert sum(before[u] != after[u] for u in before) == 1
+
+
+def counted_geometry_hashes(monkeypatch) -> list[int]:
+    """Count every geometry-id hash from now on (each `tracer.geometry_id.hash_canonical`, whoever calls it):
+    a counting wrapper around the SHA-256 that module starts with its prefix."""
+    import types
+
+    import tracer.geometry_id as ids
+
+    calls: list[int] = []
+    real = ids.hashlib.sha256
+
+    def sha256(data: bytes = b"", **kwargs):
+        if data == ids.PREFIX:
+            calls.append(1)
+        return real(data, **kwargs)
+
+    monkeypatch.setattr(ids, "hashlib", types.SimpleNamespace(sha256=sha256))
+    return calls
+
+
+def test_a_push_hashes_each_mesh_once(fake, car_step, tmp_path, monkeypatch) -> None:
+    """`lumenlink push` (read, identify, tessellate, upload, push) computes each distinct mesh's geometry id once:
+    the upload and the pushed tree use the id tessellation made. From a disk cache the mesh is hashed once too
+    (checked against the id stored beside it)."""
+    fake.check_ids = False  # the fake service's own check would count here
+    t = httpx.MockTransport(fake)
+    hashes = counted_geometry_hashes(monkeypatch)
+    result = cli.push_file(car_step, "car", "http://fake", 1.0, 0.8, transport=t,
+                           cache=cad_adapter.TessellationCache(tmp_path / "cache"))[0]
+    assert result.geometries == 7 and result.uploaded == 7 and fake.count("PUT", r"/geometries/.*") == 7
+    assert len(hashes) == 7
+    hashes.clear()
+    again = cli.push_file(car_step, "car", "http://fake", 1.0, 0.8, transport=t,
+                          cache=cad_adapter.TessellationCache(tmp_path / "cache"))[0]
+    assert again.uploaded == 0 and len(hashes) == 7
 
 
 def test_watch_bad_input(tmp_path) -> None:

@@ -70,6 +70,20 @@ def test_glb_decode_garbage() -> None:
         decode_glb(b"not a glb at all")
 
 
+@pytest.mark.parametrize("data", [b"not a glb at all", b"glTF" + bytes([1, 0, 0, 0]) + b"\0" * 24,
+                                  b"glTF" + bytes([2, 0, 0, 0, 99, 0, 0, 0]) + b"\0" * 12])
+def test_one_decoder_on_both_sides(data) -> None:
+    """The adapter and the service decode with the one decoder (lumenlink.glb): the same bytes are refused
+    for the same reason on both sides (the service's 422 detail is the adapter's message)."""
+    from service.errors import Invalid
+
+    with pytest.raises(CadAdapterError) as ours:
+        decode_glb(data)
+    with pytest.raises(Invalid) as theirs:
+        service_decode(data)
+    assert str(ours.value) == f"not a readable GLB: {theirs.value}"
+
+
 def check_schema(body: dict) -> None:
     from service.schemas import DocumentPush
 
