@@ -42,6 +42,10 @@ if TYPE_CHECKING:  # pragma: no cover
 DELETED = -1   # the revision a notification carries when its scene was deleted
 
 
+#: the material of a surface nobody assigned one to (stated in `GET /scenes/{id}`)
+DEFAULT_MATERIAL: dict[str, Any] = {"type": "lambertian", "reflectance": 0.5}
+
+
 @dataclass
 class LiveScene:
     """One scene revision as the simulation sees it (all lengths in metres)."""

@@ -31,16 +31,17 @@ import numpy as np
 
 from service.config import Settings
 from service.document import NodeBytes
-from service.errors import NotFound, Unavailable
-from service.live import DELETED, LiveRegistry, LiveScene, scene_effects
+from service.errors import NotFound
+from service.live import DEFAULT_MATERIAL, DELETED, LiveRegistry, LiveScene
 from service.meshes import MeshStore
+from service.scene_geometries import SceneGeometries
+from service.scene_views import SceneViews
 from service.schemas import LENGTH_UNITS, IdentityIn
-from service.store import SceneStore, _color
+from service.store import SceneStore
 from service.tree import Tree, apply_to_scene, diff_trees
 
 log = logging.getLogger("lumenlink.service")
 
-DEFAULT_MATERIAL: dict[str, Any] = {"type": "lambertian", "reflectance": 0.5}
 
 
 @dataclass
@@ -103,7 +104,7 @@ class SceneState:
         return out
 
 
-class Scenes:
+class Scenes(SceneGeometries, SceneViews):
     """All scenes of this process, backed by the database (`SceneStore`) and the mesh store."""
 
     def __init__(self, settings: Settings, store: SceneStore, meshes: MeshStore,
@@ -251,59 +252,6 @@ class Scenes:
 
     # ------------------------------------------------------------ geometry
 
-    def _look_up_geometries(self, ids: Any) -> None:
-        """Add to the known geometries those of `ids` that another service process stored (one SELECT)."""
-        unknown = {g for g in ids if isinstance(g, str) and g not in self.known_geometries}
-        if unknown:
-            self.known_geometries.update(self.store.geometry_ids(unknown))
-
-    def known(self, ids: list[str]) -> set[str]:
-        self._look_up_geometries(ids)
-        return {g for g in ids if g in self.known_geometries}
-
-    def missing_geometries(self, ids: list[str]) -> list[str]:
-        self._look_up_geometries(ids)
-        seen: set[str] = set()
-        out = []
-        for g in ids:
-            if g not in self.known_geometries and g not in seen:
-                seen.add(g)
-                out.append(g)
-        return out
-
-    def put_geometry(self, gid: str, data: bytes) -> dict[str, Any]:
-        """Store an uploaded GLB (idempotent): 400 if it does not hash to `gid`, 422 if it is no valid mesh."""
-        mesh = self.meshes.validate_upload(gid, data)
-        self._look_up_geometries([gid])
-        created = gid not in self.known_geometries or not self.meshes.has(gid)
-        if created:
-            self.meshes.write(gid, data, mesh)
-            self.store.add_geometry(gid, len(mesh.vertices), len(mesh.triangles), mesh.normals is not None, len(data))
-            self.known_geometries.add(gid)
-        return {"id": gid, "vertices": len(mesh.vertices), "triangles": len(mesh.triangles),
-                "normals": mesh.normals is not None, "bytes": len(data), "created": created}
-
-    def geometry_glb(self, gid: str) -> bytes:
-        self._look_up_geometries([gid])
-        if gid not in self.known_geometries:
-            raise NotFound(f"no geometry {gid}")
-        return self.meshes.glb(gid)
-
-    def ensure_geometry(self, state: SceneState, gid: str) -> bool:
-        """Add a stored mesh to the scene's tracer scene (once); whether it was added now."""
-        if gid in state.geometries:
-            return False
-        if not self.meshes.has(gid):
-            # stored by another service process whose data directory this one does not share
-            raise Unavailable(f"geometry {gid} is in the database but not in this process's mesh store "
-                              f"({self.meshes.root}): every service process on one database must share one data "
-                              f"directory (LUMENLINK_DATA_DIR)", geometry=gid)
-        mesh = self.meshes.load(gid)
-        # the store holds only meshes whose id was checked on upload (one hash per mesh): not hashed again here
-        state.tracer.add_geometry(mesh.vertices, mesh.triangles, mesh.normals, known_id=gid)
-        state.geometries.add(gid)
-        return True
-
     @staticmethod
     def commit(state: SceneState) -> dict[str, Any]:
         stats = state.tracer.commit()
@@ -343,72 +291,12 @@ class Scenes:
         else:
             state.tracer.set_transform(inst, t)
 
-    # ------------------------------------------------------------ views
-
-    def summary(self, scene_id: str) -> dict[str, Any]:
-        state = self.state(scene_id)
-        with state.lock:
-            live = self._live_locked(state)
-            n_instances = len(state.instances) + len(state.object_instances)
-            counts: dict[str, int] = {}
-            for u in state.instances:
-                gid = str(state.tree.geometries[state.tree.index[u]])
-                counts[gid] = counts.get(gid, 0) + 1
-            for oid in state.object_instances:
-                gid = state.objects[oid]["geometry"]
-                counts[gid] = counts.get(gid, 0) + 1
-            source = self.store.source(state.id)
-            triangles = self.store.triangles(counts)
-            return {"id": state.id, "name": state.name, "revision": state.revision, "length_unit": state.length_unit,
-                    "nodes": len(state.tree), "objects": n_instances, "triangles": triangles,
-                    "geometries": len(counts), "effects": scene_effects(live, n_instances > len(live.materials)),
-                    "orphaned": state.orphans(),
-                    "materials_assigned": sum(1 for k in state.materials
-                                              if state.has_node(k) or k in state.objects),
-                    "default_material": dict(DEFAULT_MATERIAL),
-                    "default_material_instances": n_instances - len(live.materials),
-                    "lights": len(live.lights), "sensors": len(live.sensors), "sim_objects": len(state.objects),
-                    "last_commit": state.last_commit, "source": source}
-
-    def revisions(self, scene_id: str) -> list[dict[str, Any]]:
-        """One entry per accepted push that changed the tree: its counts and stage seconds, oldest first."""
-        self.state(scene_id)  # 404 for an unknown scene
-        return self.store.revisions(scene_id)
-
-    def nodes(self, scene_id: str) -> list[dict[str, Any]]:
-        """The current tree, one record per node in document order: the pushed fields, the tracer
-        instance, and what the CAD adapter reconciles a new document against — the occurrence
-        ``path`` (`Tree.paths`), ``world`` (root_from_node, 16 numbers row-major, in the document's
-        length unit) and the node's identity record (``product``, ``signature``; null without one)."""
-        state = self.state(scene_id)
-        with state.lock:
-            t = state.tree
-            paths = t.paths()
-            local = t.local.reshape(-1, 16).tolist()
-            if t.world_doc is not None:
-                world_doc = t.world_doc
-            else:  # the world in metres with its translations back in document units
-                world_doc = t.world.copy()
-                world_doc[:, :3, 3] /= t.scale
-            world = world_doc.reshape(-1, 16).tolist()
-            identity = state.identity
-            out = []
-            for i, u in enumerate(t.uuids):
-                rec = identity.get(u)
-                out.append({"uuid": u, "parent": t.parents[i], "name": t.names[i], "transform": local[i],
-                            "geometry": t.geometries[i], "color": _color(t.colors[i]),
-                            "instance": state.instances.get(u), "path": paths[i], "world": world[i],
-                            "product": rec.product if rec is not None else None,
-                            "signature": rec.signature.model_dump(exclude_none=True)
-                            if rec is not None and rec.signature is not None else None})
-            return out
-
     def live_scene(self, scene_id: str) -> LiveScene:
         state = self.state(scene_id)
         with state.lock:
-            return self._live_locked(state)
+            return self.live_locked(state)
 
-    def _live_locked(self, state: SceneState) -> LiveScene:
+    def live_locked(self, state: SceneState) -> LiveScene:
         if state.live is not None:
             return state.live
         tree = state.tree

@@ -37,7 +37,7 @@ class Raced(Conflict):
         self.scene_id = scene_id
 
 
-def _color(c: tuple[float, float, float] | None) -> list[float] | None:
+def color_of(c: tuple[float, float, float] | None) -> list[float] | None:
     return None if c is None else list(c)
 
 
@@ -234,7 +234,7 @@ class SceneStore:
                     j = new.index[u]
                     rows.append({"scene_id": scene_id, "uuid": u, "position": float(j), "parent": new.parents[j],
                                  "name": new.names[j], "transform": _blob(new.local[j]),
-                                 "geometry": new.geometries[j], "color": _color(new.colors[j])})
+                                 "geometry": new.geometries[j], "color": color_of(new.colors[j])})
                 conn.execute(insert(db.nodes), rows)
             if identity_changes is not None:
                 _write_identity(conn, scene_id, *identity_changes)

@@ -9,13 +9,41 @@ Crossing result ``(u, v)``: the object-space point, in the unit disk.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
+from tracer.errors import TracerError
 from tracer.jit import njit
+from tracer.kinds.base import orthonormal_basis, vec3
 
 KIND = 1
 SENSOR = True
 OBJECT_BOUNDS = np.array([-1.0, -1.0, 0.0, 1.0, 1.0, 0.0])
+
+
+def placement(center: Any, normal: Any, radius: Any) -> np.ndarray:
+    """world_from_object (4, 4) of a disk of `center` (m), front side `normal` (any non-zero length) and `radius`
+    (m, > 0): the unit disk scaled by r along an orthonormal basis of its plane."""
+    c = vec3(center, "disk sensor center")
+    n = vec3(normal, "disk sensor normal")
+    ln = float(np.linalg.norm(n))
+    if not ln > 0.0:
+        raise TracerError("disk sensor normal must be non-zero")
+    try:
+        r = float(radius)
+    except (TypeError, ValueError):
+        raise TracerError(f"disk sensor radius must be a number, got {radius!r}") from None
+    if not (np.isfinite(r) and r > 0.0):
+        raise TracerError(f"disk sensor radius must be positive and finite, got {radius!r}")
+    n = n / ln
+    t1, t2 = orthonormal_basis(n)
+    m = np.eye(4)
+    m[:3, 0] = r * t1
+    m[:3, 1] = r * t2
+    m[:3, 2] = n
+    m[:3, 3] = c
+    return m
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)

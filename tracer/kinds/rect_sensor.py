@@ -7,13 +7,35 @@ along the sensor's ``u`` and ``v`` edges).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
+from tracer.errors import TracerError
 from tracer.jit import njit
+from tracer.kinds.base import vec3
 
 KIND = 2
 SENSOR = True
 OBJECT_BOUNDS = np.array([0.0, 0.0, 0.0, 1.0, 1.0, 0.0])
+
+
+def placement(origin: Any, u: Any, v: Any) -> np.ndarray:
+    """world_from_object (4, 4) of the parallelogram ``origin + a u + b v``, ``a, b`` in [0, 1] (m), front side
+    ``u x v``: the unit square mapped by u, v and the unit normal."""
+    o = vec3(origin, "rect sensor origin")
+    uu = vec3(u, "rect sensor u")
+    vv = vec3(v, "rect sensor v")
+    n = np.cross(uu, vv)
+    ln = float(np.linalg.norm(n))
+    if not ln > 1e-12 * float(np.linalg.norm(uu) * np.linalg.norm(vv)) or ln == 0.0:
+        raise TracerError("rect sensor u and v must be non-zero and not parallel")
+    m = np.eye(4)
+    m[:3, 0] = uu
+    m[:3, 1] = vv
+    m[:3, 2] = n / ln
+    m[:3, 3] = o
+    return m
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
