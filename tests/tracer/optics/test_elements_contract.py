@@ -18,7 +18,8 @@ through `dispatch.scatter`:
 How these were seen to fail (each a temporary local edit of tracer/, run, then restored; none is committed):
 - the diffuser's far-side branch sending T back to the arrival side: its near cosine lobe carries 0.15290 ± 0.00254
   where R = 0 is stated;
-- the polarizer passing k1 (not (k1 + k2)/2) to a white photon: 1.00000 ± 0.00354 against the stated 0.5.
+- the polarizer passing k1 (not (k1 + k2)/2) to a white photon: 1.00000 ± 0.00354 against the stated 0.5;
+- the retarder returning f = 1.05: the furnace at T = 1 reads 1.05 > 1, its straight lobe 1.05 against 1.
 """
 
 from __future__ import annotations
