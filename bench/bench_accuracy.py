@@ -19,8 +19,8 @@
     of n = 1.5 glass across a beam at normal incidence against no pane; closed form (1 − R)/(1 + R) = 0.923077 of
     the beam passes), dispersion (a 60° BK7 prism at minimum deviation for the d line, a 5 mm receiver 1 m away
     along the d-line ray: Sellmeier index against the constant n_d = 1.5168, white light = 5000 K blackbody), and
-    polarization (the thick plate at Brewster's angle, tests/tracer/test_polarization.py, measured by the answer's
-    own `physics_left_out`; closed form Rs/(1 + Rs) − 2R/(1 + R) = 0.128867 − 0.137740 of the beam).
+    polarization (the thick plate at Brewster's angle, tests/tracer/optics/test_polarization.py, measured by the
+    answer's own `physics_left_out`; closed form Rs/(1 + Rs) − 2R/(1 + R) = 0.128867 − 0.137740 of the beam).
 
 What a digit costs: a Monte Carlo error falls as seconds^−½, so 10× less error costs 100× the seconds; the fits
 below give the measured exponent and the seconds at 1 % and 0.1 %. For Radiance and the tessellation the

@@ -8,9 +8,9 @@ measures the cold compile, the later ones load what it compiled.
 Steps, in order:
 1. ``compile``: ``bench.bench_gpu --sections compile`` (first use of the ray kernels and the forward photon kernel in
    a child with an empty cache, then a child that loads them) -> ``gpu-compile.json``.
-2. ``traverse``: ``tests/tracer/gpu_sim_traverse.py`` on the card (not the simulator): the closest-hit and any-hit
+2. ``traverse``: ``tests/tracer/gpu/gpu_sim_traverse.py`` on the card (not the simulator): the closest-hit and any-hit
    kernels against the CPU walk on random rays, before and after a move, and what each revision uploads.
-3. ``transport``: ``tests/tracer/gpu_sim_transport.py room floor uploads oom lock`` on the card: room answers within
+3. ``transport``: ``tests/tracer/gpu/gpu_sim_transport.py room floor uploads oom lock`` on the card: room answers within
    4 combined sigma of the CPU's, the point source over a floor against E = I cos/r^2, the fallbacks, one job at a
    time.
 4. ``kernels``: registers, local memory and the largest block of every kernel compiled on the card.
@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-TESTS = ROOT / "tests" / "tracer"
+TESTS = ROOT / "tests" / "tracer" / "gpu"
 Z = 4.0          # combined standard errors allowed between two estimates
 HIT_TOL = 1e-6   # hit distance, u, v, normal: a card may round differently from the CPU (FMA)
 
@@ -146,7 +146,7 @@ def child(cmd: list[str], env: dict, limit: float) -> dict:
 
 
 def judge_traverse(r: dict) -> dict:
-    """Hits on the card against the CPU walk (tests/tracer/test_gpu_traverse.py's checks, a card's tolerance)."""
+    """Hits on the card against the CPU walk (tests/tracer/gpu/test_gpu_traverse.py's checks, a card's tolerance)."""
     checks = {}
     for part in ("before", "after"):
         p = r[part]
@@ -167,7 +167,7 @@ def zscore(a: dict, b: dict) -> float:
 
 
 def judge_transport(r: dict) -> dict:
-    """Room and floor answers (tests/tracer/test_gpu_transport.py's checks, a card's tolerance)."""
+    """Room and floor answers (tests/tracer/gpu/test_gpu_transport.py's checks, a card's tolerance)."""
     checks: dict = {}
     for est in ("forward", "backward"):
         room = r["room"][est]

@@ -4,9 +4,9 @@ standard error; bad names are a 422 naming the known effects, never a 5xx.
 
 The scene: a lossless glass block (n = 1.5, 1 cm thick, 4 m × 4 m) under an unpolarized beam of 100 lx, radius
 5 mm, at Brewster's angle; a receiver (radius 0.3 m) across the specular reflection 1 m away. Closed forms
-(tests/tracer/test_polarization.py): the s/p-averaged Fresnel the scene runs with reflects 2R/(1 + R) = 0.137740 of
-the beam (R = Rs/2, Rs = 0.147929), polarized Fresnel Rs/(1 + Rs) = 0.128867. A black floor under a point light
-(tests/service/test_simulation_api.py) is the scene where polarization changes nothing.
+(tests/tracer/optics/test_polarization.py): the s/p-averaged Fresnel the scene runs with reflects 2R/(1 + R) =
+0.137740 of the beam (R = Rs/2, Rs = 0.147929), polarized Fresnel Rs/(1 + Rs) = 0.128867. A black floor under a point
+light (tests/service/test_simulation_api.py) is the scene where polarization changes nothing.
 """
 
 from __future__ import annotations

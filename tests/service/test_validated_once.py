@@ -56,9 +56,9 @@ def test_a_material_body_is_validated_once(scene, monkeypatch) -> None:
 
 
 def test_a_light_body_is_validated_once(scene, monkeypatch) -> None:
-    """A goniometric light's model validator checks `direction` and `c0` (two `_nonzero` calls) once."""
+    """A goniometric light's model validator checks `direction` and `c0` (two `nonzero` calls) once."""
     client, sid = scene
-    checks = counted(monkeypatch, service.schemas, "_nonzero")
+    checks = counted(monkeypatch, service.schemas, "nonzero")
     body = {"type": "goniometric", "position": [0, 0, 2], "format": "ies", "data": IES,
             "direction": [0, 0, -1], "c0": [1, 0, 0]}
     r = client.post(f"/scenes/{sid}/lights", json=body)

@@ -7,7 +7,7 @@ traversal (:func:`tracer.accel.traverse.closest_with_stacks`, :func:`tracer.acce
 numba-cuda compiles for the device from the same Python; each thread's traversal stacks are ``cuda.local.array``\\ s.
 
 Importing this module imports numba-cuda (``lumenlink[gpu]``). Tests run it in numba-cuda's simulator
-(``NUMBA_ENABLE_CUDASIM=1``, tests/tracer/test_gpu_traverse.py); no figure from a real GPU is measured yet.
+(``NUMBA_ENABLE_CUDASIM=1``, tests/tracer/gpu/test_gpu_traverse.py); no figure from a real GPU is measured yet.
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ flux; DFF from the table; the ten direct ratios are not computed (0).
 
 The flux a reader integrates from the table (`Photometry.total_flux`, bilinear between the samples) differs from the
 flux that left the scene only by the interpolation between bin averages: exact in C (a periodic trapezoid rule), of
-second order in Δγ (0.1 % on a 5° grid of a real downlight; tests/tracer/test_photometry_export.py).
+second order in Δγ (0.1 % on a 5° grid of a real downlight; tests/tracer/photometry/test_photometry_export.py).
 """
 
 from __future__ import annotations

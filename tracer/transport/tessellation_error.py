@@ -21,9 +21,9 @@ Two sources, both plain numpy (nothing here runs per photon):
   diagonal may turn the normal by √2·a, an arc of sagitta R(1 − cos(a/√2)). OCCT does not check every point of a
   triangle: measured on a cadquery sphere of radius 10, the mesh lies up to 2.08·d from it (d ≤ 0.01, triangles
   by the seam whose long edge OCCT left with a midpoint sagitta of 2.07·d), 1.3·d at d = 0.02, and under 0.8·d on
-  a paraboloid (tests/tracer/test_tessellation_error.py). So position ≤ `OCCT_EXCESS` · min(d, R(1 − cos(a/√2)))
-  with OCCT_EXCESS = 2.5: an empirical constant with a margin over the 2.08 measured, not a proof. The normal
-  spread over a triangle is ψ ≤ min(√2·a, 2·acos(1 − position/R)), and the normal error at most ψ (below).
+  a paraboloid (tests/tracer/transport/test_tessellation_error.py). So position ≤ `OCCT_EXCESS` · min(d, R(1 −
+  cos(a/√2))) with OCCT_EXCESS = 2.5: an empirical constant with a margin over the 2.08 measured, not a proof. The
+  normal spread over a triangle is ψ ≤ min(√2·a, 2·acos(1 − position/R)), and the normal error at most ψ (below).
 - `from_mesh(vertices, triangles, normals)`: for a mesh pushed alone (no settings known), from its vertex normals.
   Per triangle, ψ is the largest angle between two of its vertex normals and ℓ its longest edge; an arc whose
   normal turns by ψ over a chord ℓ lies at most (ℓ/2)·tan(ψ/4) off the chord. Inside a triangle whose vertices lie
@@ -65,8 +65,8 @@ All the light at the point is treated as having met the surface (conservative wh
 surfaces add their Δ. The Fresnel split (reflect or refract) also changes with the angle; that second-order term
 is left out.
 
-Measured (tests/tracer/test_tessellation_error.py, a paraboloid mirror of focal length 0.25 m and rim 0.5 m under a
-collimated beam, disks of radius 5 cm, 400k photons): at the focus the coarse dish (linear 1 cm, angular 0.5)
+Measured (tests/tracer/transport/test_tessellation_error.py, a paraboloid mirror of focal length 0.25 m and rim 0.5 m
+under a collimated beam, disks of radius 5 cm, 400k photons): at the focus the coarse dish (linear 1 cm, angular 0.5)
 gives 71,554 ± 37 lx against 81,000 through the fine one (0.5 mm, 0.05), a gap of 9,446 lx, and a budget of
 6.8e6 lx; beyond the focus gaps of 6.5 and 8.5 lx (within noise) against budgets of 7.3e4 and 7.1e4. The budget
 holds and is loose by two orders of magnitude: Δ ≈ 0.34 m against a 5 cm receiver, almost all of it the

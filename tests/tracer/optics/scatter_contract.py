@@ -15,8 +15,8 @@ import dataclasses
 import math
 
 import numpy as np
-from transport_scenes import quad, scene_of
 
+from tests.tracer.transport_scenes import quad, scene_of
 from tracer.jit import njit
 from tracer.optics.elements.base import parse_axis
 from tracer.optics.polarization import N_POL, ON, S1, S3, E

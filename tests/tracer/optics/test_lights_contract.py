@@ -35,8 +35,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from transport_scenes import mesh_area, quad, scene_of
 
+from tests.tracer.transport_scenes import mesh_area, quad, scene_of
 from tracer.jit import njit
 from tracer.optics.lights import LightError, connectable, light_connect, pack_lights, sample_emission
 from tracer.optics.lights import dispatch as lights_dispatch

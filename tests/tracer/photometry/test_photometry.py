@@ -10,7 +10,7 @@ import pytest
 
 from tracer.photometry.files import PhotometryError, parse_photometry
 
-FIX = Path(__file__).resolve().parents[1] / "fixtures" / "photometry"
+FIX = Path(__file__).resolve().parents[2] / "fixtures" / "photometry"
 
 REAL = [  # (file, stated flux, relative tolerance): the real luminaires of tests/fixtures/photometry
     ("rab_dled6r8y_7.ies", 532.0, 0.005),       # axial symmetry, absolute photometry, [_ABSOLUTELUMENS]

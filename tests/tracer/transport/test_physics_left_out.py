@@ -3,8 +3,8 @@ measured by a pilot with it forced on, against closed forms.
 
 - A lossless glass plate (n = 1.5, 1 cm) at Brewster's angle under unpolarized light. The scene needs no
   polarization, so the run averages s and p at each interface: 2R / (1 + R) = 0.137740 of the beam reflects
-  (R = Rs / 2). Polarized Fresnel gives Rs / (1 + Rs) = 0.128867 (tests/tracer/test_polarization.py). The reported
-  difference must be their difference within 4 combined standard errors, and far from 0.
+  (R = Rs / 2). Polarized Fresnel gives Rs / (1 + Rs) = 0.128867 (tests/tracer/optics/test_polarization.py). The
+  reported difference must be their difference within 4 combined standard errors, and far from 0.
 - A Lambertian room: polarization changes nothing there, so the difference is 0 within 4σ (the pilot runs forward,
   the run backward: two independent estimators of the same value).
 

@@ -16,7 +16,7 @@ from tracer.scene import Scene
 from tracer.simulate import Simulation, SimulationError, far_field_bins
 from tracer.transport.forward import SensorArrays, forward_batches
 
-FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "photometry"
+FIXTURES = Path(__file__).resolve().parents[2] / "fixtures" / "photometry"
 I_CD = 100.0
 BLACK = {"type": "lambertian", "reflectance": 0.0}
 

@@ -15,7 +15,7 @@ from tracer.photometry.export import decimals, write_ies, write_ldt, write_photo
 from tracer.photometry.files import PhotometryError, parse_photometry
 from tracer.simulate import Simulation
 
-FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "photometry"
+FIXTURES = Path(__file__).resolve().parents[2] / "fixtures" / "photometry"
 
 
 def lamp_far_field(name: str, nc: int, ngamma: int, photons: int = 800_000):

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.tracer.test_gpu_ptx import ROOT, ptx_env
+from tests.tracer.gpu.test_gpu_ptx import ROOT, ptx_env
 
 HERE = Path(__file__).resolve().parent
 TOL = 1e-9   # the simulator runs the CPU's compiled walk: equal; a card may contract to FMA

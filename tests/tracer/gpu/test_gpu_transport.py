@@ -20,8 +20,8 @@ import os
 import numpy as np
 import pytest
 
-from tests.tracer.test_gpu_ptx import ROOT, ptx_env
-from tests.tracer.test_gpu_traverse import run_child
+from tests.tracer.gpu.test_gpu_ptx import ROOT, ptx_env
+from tests.tracer.gpu.test_gpu_traverse import run_child
 
 Z = 4.0   # combined standard errors allowed between two estimates (the issue's |ΔE| ≤ 4σ)
 

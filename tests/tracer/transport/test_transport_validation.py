@@ -11,7 +11,8 @@ import math
 
 import numpy as np
 import pytest
-from transport_scenes import (
+
+from tests.tracer.transport_scenes import (
     box,
     disk_average,
     icosphere,
@@ -22,7 +23,6 @@ from transport_scenes import (
     quad,
     scene_of,
 )
-
 from tracer.simulate import Simulation
 
 BLACK = {"type": "black"}

@@ -229,7 +229,7 @@ def test_spot_flux_and_emission_weights_are_unbiased():
 
 def test_goniometric_emission_reproduces_the_table(tmp_path):
     from pathlib import Path
-    text = (Path(__file__).resolve().parents[1] / "fixtures" / "photometry" / "rab_bayled78_4.ies").read_text()
+    text = (Path(__file__).resolve().parents[2] / "fixtures" / "photometry" / "rab_bayled78_4.ies").read_text()
     lights = pack_lights([{"type": "goniometric", "position": [0, 0, 3], "format": "ies", "data": text}])
     assert lights.flux_total[0] == pytest.approx(5820.155, rel=1e-5)
     rng = np.random.default_rng(4)

@@ -1,6 +1,6 @@
 """One source for both targets (issue 27): every device function of the optics seam, the rng, frames, spectra,
 polarization, thin films and the sensors' crossings and tallies compiles to PTX for sm_90 with numba-cuda, from the
-same plain Python the CPU's ``njit`` compiles (no GPU needed: tests/tracer/gpu_ptx_sweep.py, in a child process).
+same plain Python the CPU's ``njit`` compiles (no GPU needed: tests/tracer/gpu/gpu_ptx_sweep.py, in a child process).
 
 Skipped, with the reason, where numba-cuda (``pip install -e '.[gpu]'``; the dev extra has it) or NVVM (a CUDA
 toolkit, ``CUDA_HOME``) is missing.
@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 HERE = Path(__file__).resolve().parent
 
 

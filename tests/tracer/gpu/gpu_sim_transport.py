@@ -1,5 +1,5 @@
 """Photon batches through `tracer.gpu.backend.CudaBackend` in numba-cuda's simulator, beside the CPU: run by
-tests/tracer/test_gpu_transport.py in a child with NUMBA_ENABLE_CUDASIM=1; prints one JSON object with the answers
+tests/tracer/gpu/test_gpu_transport.py in a child with NUMBA_ENABLE_CUDASIM=1; prints one JSON object with the answers
 (lux, stderr, photons, device), which the test compares.
 
 Parts: ``room`` (forward and backward estimators in a Lambertian box room with a point light, CPU and CUDA on
@@ -8,7 +8,7 @@ E = I cosθ / r², averaged over each receiver disk), ``oom`` (the card's free m
 answers on the CPU, saying why), ``uploads`` (what each revision sends to the card), ``lock`` (two threads run
 batches on one backend at once; each run's start and end).
 
-Usage: NUMBA_ENABLE_CUDASIM=1 python tests/tracer/gpu_sim_transport.py room floor oom uploads lock
+Usage: NUMBA_ENABLE_CUDASIM=1 python tests/tracer/gpu/gpu_sim_transport.py room floor oom uploads lock
 """
 
 from __future__ import annotations
@@ -23,8 +23,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from transport_scenes import box, disk_average, point_source_e, quad, scene_of  # noqa: E402
-
+from tests.tracer.transport_scenes import box, disk_average, point_source_e, quad, scene_of  # noqa: E402
 from tracer.simulate import Simulation  # noqa: E402
 
 POINTS = np.array([[0.0, 0.0, 0.0], [1.0, 0.3, 0.0], [-0.6, 1.1, 0.0]])

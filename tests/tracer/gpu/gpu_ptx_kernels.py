@@ -1,9 +1,9 @@
 """Compiles the ray kernels of tracer/gpu/traverse.py (closest hit, any hit: the CPU's two-level walk with stacks in
 ``cuda.local.array``) to sm_90 PTX without a GPU, with the test-only driver stubs of gpu_ptx_sweep.py: run by
-tests/tracer/test_gpu_traverse.py in a child; prints one JSON object {kernel: "ok" | error, kernel + "_ptx_bytes": n}.
-With the argument ``batches``: the photon batch kernels of tracer/gpu/transport.py instead (forward, backward: one
-thread per batch), with the argument types a real `Simulation`'s snapshot and query give them
-(tests/tracer/test_gpu_transport.py). Each kernel's PTX is then assembled by ptxas for sm_90 where a CUDA toolkit
+tests/tracer/gpu/test_gpu_traverse.py in a child; prints one JSON object {kernel: "ok" | error, kernel +
+"_ptx_bytes": n}. With the argument ``batches``: the photon batch kernels of tracer/gpu/transport.py instead
+(forward, backward: one thread per batch), with the argument types a real `Simulation`'s snapshot and query give them
+(tests/tracer/gpu/test_gpu_transport.py). Each kernel's PTX is then assembled by ptxas for sm_90 where a CUDA toolkit
 has it, as a card's driver does before a launch: NVVM's PTX is not always ptxas's (issue 40).
 """
 
@@ -26,8 +26,8 @@ def batch_kernels():
     """(name, kernel function, argument types) of the photon batch kernels, typed from a real simulation."""
     import numba
     import numpy as np
-    from transport_scenes import box, scene_of
 
+    from tests.tracer.transport_scenes import box, scene_of
     from tracer.gpu.transport import Tallies, backward_threads, forward_threads
     from tracer.simulate import Simulation
     from tracer.transport.backward import disk_queries
@@ -59,8 +59,8 @@ def main():
         return
     import numba
     import numpy as np
-    from transport_scenes import box, scene_of
 
+    from tests.tracer.transport_scenes import box, scene_of
     from tracer.gpu.traverse import any_rays, closest_rays, cuda
 
     s, _ = scene_of(box([-1, -1, -1], [1, 1, 1]))

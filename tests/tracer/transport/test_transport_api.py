@@ -7,8 +7,8 @@ import math
 import numba
 import numpy as np
 import pytest
-from transport_scenes import box, point_source_e, quad, scene_of
 
+from tests.tracer.transport_scenes import box, point_source_e, quad, scene_of
 from tracer.optics.lights import LightError
 from tracer.optics.surfaces.base import MaterialError
 from tracer.simulate import GridResult, IlluminanceResult, Simulation, SimulationError
@@ -111,7 +111,7 @@ def test_spot_and_goniometric_sources_by_both_estimators():
     from pathlib import Path
 
     s, (floor,) = scene_of(quad((-30, -30, 0), (60, 0, 0), (0, 60, 0)))
-    ies = (Path(__file__).resolve().parents[1] / "fixtures" / "photometry" / "rab_dled6r8y_7.ies").read_text()
+    ies = (Path(__file__).resolve().parents[2] / "fixtures" / "photometry" / "rab_dled6r8y_7.ies").read_text()
     lights = [{"type": "spot", "position": [0, 0, 2], "direction": [0, 0, -1], "cone_deg": 30, "falloff_deg": 10,
                "intensity_cd": 500.0},
               {"type": "goniometric", "position": [1, 0, 2], "format": "ies", "data": ies}]
@@ -234,7 +234,7 @@ def test_goniometric_axes_turn_the_distribution():
 
     from tracer.photometry.files import parse_photometry
 
-    ies = (Path(__file__).resolve().parents[1] / "fixtures" / "photometry" / "rab_boa2_5.ies").read_text()
+    ies = (Path(__file__).resolve().parents[2] / "fixtures" / "photometry" / "rab_boa2_5.ies").read_text()
     table = parse_photometry("ies", ies)
     s, (wall,) = scene_of(quad((2, -30, -30), (0, 0, 60), (0, 60, 0)))   # the plane x = 2, facing -x
     light = {"type": "goniometric", "position": [0, 0, 0], "format": "ies", "data": ies,
@@ -268,7 +268,7 @@ def test_goniometric_axes_turn_the_distribution():
 def test_goniometric_axes_must_not_be_parallel():
     from pathlib import Path
 
-    ies = (Path(__file__).resolve().parents[1] / "fixtures" / "photometry" / "rab_boa2_5.ies").read_text()
+    ies = (Path(__file__).resolve().parents[2] / "fixtures" / "photometry" / "rab_boa2_5.ies").read_text()
     s, (floor,) = scene_of(quad((-1, -1, 0), (2, 0, 0), (0, 2, 0)))
     with pytest.raises(LightError, match="'c0' must not be parallel"):
         Simulation(s, {floor: {"type": "black"}}, [{"type": "goniometric", "position": [0, 0, 1], "format": "ies",

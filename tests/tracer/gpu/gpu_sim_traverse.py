@@ -1,8 +1,8 @@
 """Ray kernels of tracer/gpu/traverse.py against the CPU walk, and what a move uploads: run by
-tests/tracer/test_gpu_traverse.py in a child with NUMBA_ENABLE_CUDASIM=1 (numba-cuda's simulator); prints one JSON
+tests/tracer/gpu/test_gpu_traverse.py in a child with NUMBA_ENABLE_CUDASIM=1 (numba-cuda's simulator); prints one JSON
 object with the comparisons, which the test checks.
 
-Usage: NUMBA_ENABLE_CUDASIM=1 python tests/tracer/gpu_sim_traverse.py
+Usage: NUMBA_ENABLE_CUDASIM=1 python tests/tracer/gpu/gpu_sim_traverse.py
 """
 
 from __future__ import annotations
@@ -16,8 +16,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from transport_scenes import box, icosphere  # noqa: E402
-
+from tests.tracer.transport_scenes import box, icosphere  # noqa: E402
 from tracer.scene import Scene  # noqa: E402
 
 

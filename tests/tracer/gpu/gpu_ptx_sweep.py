@@ -1,6 +1,6 @@
 """Compiles the device functions of the optics seam (and the rng, frames, spectra, polarization, thin films, the
 sensors' crossings and tallies) to PTX for sm_90 with numba-cuda, without a GPU or a driver: run by
-tests/tracer/test_gpu_ptx.py in a child process, prints one JSON object {name: "ok" | error}.
+tests/tracer/gpu/test_gpu_ptx.py in a child process, prints one JSON object {name: "ok" | error}.
 
 Each function goes in as numba-cuda's ``cuda.jit(device=True)`` would take it: its plain Python (``.py_func``)
 with argument types of the values the CPU kernels pass (the tuples from a real ``Simulation``'s snapshot, the
@@ -9,7 +9,7 @@ the current device's compute capability, which numba-cuda asks when it compiles 
 dispatcher for CUDA, and NVRTC's list of architectures (``NUMBA_FORCE_CUDA_CC`` answers it). NVVM and libdevice
 must be present (``CUDA_HOME``, a CUDA toolkit or the ``cuda-toolkit[nvvm]`` wheels).
 
-Usage: python tests/tracer/gpu_ptx_sweep.py [name-substring ...]
+Usage: python tests/tracer/gpu/gpu_ptx_sweep.py [name-substring ...]
 """
 
 from __future__ import annotations
@@ -69,8 +69,8 @@ def stub_driver():
 def values():
     """Argument values of a small scene as the CPU kernels receive them, by argument name."""
     import numpy as np
-    from transport_scenes import quad, scene_of
 
+    from tests.tracer.transport_scenes import quad, scene_of
     from tracer.simulate import Simulation
 
     s, ids = scene_of(quad([0, 0, 0], [1, 0, 0], [0, 1, 0]))
