@@ -20,9 +20,11 @@ class SceneViews:
     store: SceneStore
 
     def state(self, scene_id: str) -> Any:
+        """The scene's state, current with the database (`service.scenes.Scenes.state` provides it)."""
         raise NotImplementedError
 
     def live_locked(self, state: Any) -> LiveScene:
+        """The scene's live snapshot, its lock held (`service.scenes.Scenes.live_locked` provides it)."""
         raise NotImplementedError
 
     def summary(self, scene_id: str) -> dict[str, Any]:

@@ -38,6 +38,7 @@ from service.wire import (  # noqa: F401 (the wire's names, here as before)
     Wire,
     nonzero,
 )
+from tracer.optics.lights import spot
 
 # ---------------------------------------------------------------- examples shown by /docs and /redoc
 
@@ -376,8 +377,9 @@ class SpotLight(_Intensity):
     @model_validator(mode="after")
     def _check(self) -> SpotLight:
         nonzero("direction", self.direction)
-        if self.falloff_deg > self.cone_deg:
-            raise ValueError(f"falloff_deg ({self.falloff_deg}) must not exceed cone_deg ({self.cone_deg})")
+        problem = spot.falloff_problem(self.cone_deg, self.falloff_deg)   # the tracer's rule, stated once
+        if problem:
+            raise ValueError(problem)
         return self
 
 

@@ -76,11 +76,20 @@ class Spec:
         axis = vector_field(body, "direction", where, unit=True)
         cone = number_field(body, "cone_deg", where, 0.0, 180.0, lo_open=True)
         fall = number_field(body, "falloff_deg", where, 0.0, 180.0, default=0.0)
-        if fall > cone:
-            raise LightError(f"{where}: 'falloff_deg' ({fall:g}) must not exceed 'cone_deg' ({cone:g})")
+        problem = falloff_problem(cone, fall)
+        if problem:
+            raise LightError(f"{where}: {problem}")
         cos_out, cos_in = math.cos(math.radians(cone)), math.cos(math.radians(cone - fall))
         i0, flux = intensity_and_flux(body, where, spot_solid_angle(cos_out, cos_in))
         return cls(position, axis, cos_out, cos_in, i0, flux)
+
+
+def falloff_problem(cone_deg: float, falloff_deg: float) -> str | None:
+    """What is wrong with a spot's falloff against its cone (both degrees), or None: the one statement of the rule
+    (the service's wire model asks it too)."""
+    if falloff_deg > cone_deg:
+        return f"'falloff_deg' ({falloff_deg:g}) must not exceed 'cone_deg' ({cone_deg:g})"
+    return None
 
 
 def pack(spec: Spec, j: int, out: Packing, where: str) -> float:
