@@ -18,7 +18,7 @@ standard error is that of batch means.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
@@ -53,11 +53,10 @@ class Probe:
         return self.grid is not None
 
 
-@dataclass
-class IlluminanceResult:
-    """Illuminance at query points.
+@dataclass(kw_only=True)
+class Readout:
+    """What every sensor's answer says of its run (keyword fields, after the kind's own).
 
-    lux, stderr : (k,) float64, lx — patch-average illuminance and its standard error.
     photons : int — photons (forward) or paths (backward, all points together) traced.
     seconds : float — wall time of the query.
     effects : list[str] — the effect set of the kernel that ran.
@@ -66,6 +65,32 @@ class IlluminanceResult:
     batches : int; rejected : int — samples dropped as non-finite (never tallied);
     counters : dict — every kernel counter; compile_seconds : float — spent compiling (or loading
     from numba's cache) a kernel variant used for the first time in this process.
+    backend : dict — where the batches ran (`tracer.backends`): {"name": "in-process", "threads": n} or
+    {"name": "dask", "address": …, "workers": n, "threads": n}.
+    """
+
+    photons: int
+    seconds: float
+    effects: list[str]
+    estimator: str
+    stop_reason: str
+    batches: int = 0
+    rejected: int = 0
+    counters: dict = field(default_factory=dict)
+    compile_seconds: float = 0.0
+    backend: dict | None = None
+
+    def readout(self) -> dict[str, Any]:
+        """The run's fields, to pass on to the kind's answer (``Answer(..., **raw.readout())``)."""
+        return {f.name: getattr(self, f.name) for f in fields(Readout)}
+
+
+@dataclass
+class IlluminanceResult(Readout):
+    """Illuminance at query points.
+
+    lux, stderr : (k,) float64, lx — patch-average illuminance and its standard error; the run's fields as for
+    `Readout`.
     Where the query observes the spectrum: nm (N_BINS,) — centres of the 5 nm bands;
     spectral_irradiance, spectral_stderr (k, N_BINS) — W/m²/nm in each band and its standard error;
     cie_xy (k, 2) — CIE 1931 chromaticity of the light arriving (NaN where nothing arrived).
@@ -73,8 +98,6 @@ class IlluminanceResult:
     error_budget : dict or None — ``{"tessellation": (k,) lx}`` where the scene holds curved optical surfaces
     (mirror or glass meshes with vertex normals): how far each value may move when they are tessellated finely
     enough (`tracer.transport.tessellation_error`); None elsewhere.
-    backend : dict — where the batches ran (`tracer.backends`): {"name": "in-process", "threads": n} or
-    {"name": "dask", "address": …, "workers": n, "threads": n}.
     physics_left_out : dict or None — where the query asked (`Simulation.left_out`): per effect,
     ``{"difference": (k,) lx, "stderr": (k,) lx, "photons", "seconds", "estimator", "ran"}``, the lux with that
     effect forced on minus `lux`.
@@ -85,15 +108,6 @@ class IlluminanceResult:
 
     lux: np.ndarray
     stderr: np.ndarray
-    photons: int
-    seconds: float
-    effects: list[str]
-    estimator: str
-    stop_reason: str
-    batches: int = 0
-    rejected: int = 0
-    counters: dict = field(default_factory=dict)
-    compile_seconds: float = 0.0
     nm: np.ndarray | None = None
     spectral_irradiance: np.ndarray | None = None
     spectral_stderr: np.ndarray | None = None
@@ -103,7 +117,6 @@ class IlluminanceResult:
     dop: np.ndarray | None = None
     cost: dict | None = None
     error_budget: dict | None = None
-    backend: dict | None = None
     physics_left_out: dict | None = None
 
 

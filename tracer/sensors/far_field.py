@@ -13,13 +13,13 @@ stop looks at every bin (an empty one counts as converged). The answer: `FarFiel
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from tracer.errors import SimulationError
-from tracer.sensors.base import IlluminanceResult, Probe, vec3
+from tracer.sensors.base import IlluminanceResult, Probe, Readout, vec3
 from tracer.transport.rounds import MAX_SPECTRAL_TALLIES
 
 TYPE = "far_field"
@@ -28,7 +28,7 @@ OBSERVES = False
 
 
 @dataclass
-class FarFieldResult:
+class FarFieldResult(Readout):
     """Luminous intensity of the scene as a lamp (`Simulation.far_field`).
 
     candela, stderr : (nγ, nc) float64, cd — row j is γ_j = j Δγ (Δγ = 180°/(nγ−1)), column i is C_i = i ΔC
@@ -50,16 +50,6 @@ class FarFieldResult:
     flux_stderr: float
     direction: np.ndarray
     c0: np.ndarray
-    photons: int
-    seconds: float
-    effects: list[str]
-    estimator: str
-    stop_reason: str
-    batches: int = 0
-    rejected: int = 0
-    counters: dict = field(default_factory=dict)
-    compile_seconds: float = 0.0
-    backend: dict | None = None
 
 
 def far_field_bins(nc: int, ngamma: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -115,5 +105,4 @@ def answer(sim, probe: Probe, res: IlluminanceResult) -> FarFieldResult:
         cd[j, :] = cd[j, 0]
         err[j, :] = err[j, 0]
     return FarFieldResult(cd, err, k["c_deg"], k["gamma_deg"], k["omega"], float(res.lux[-1]), float(res.stderr[-1]),
-                          k["axis"], k["c0"], res.photons, res.seconds, res.effects, res.estimator, res.stop_reason,
-                          res.batches, res.rejected, res.counters, res.compile_seconds, res.backend)
+                          k["axis"], k["c0"], **res.readout())

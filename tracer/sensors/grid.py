@@ -53,10 +53,9 @@ def answer(sim, probe: Probe, res: IlluminanceResult) -> GridResult:
     def cells(a):
         return None if a is None else a.reshape(shape + a.shape[1:])
 
-    out = GridResult(cells(res.lux), cells(res.stderr), res.photons, res.seconds, res.effects, res.estimator,
-                     res.stop_reason, res.batches, res.rejected, res.counters, res.compile_seconds, res.nm,
-                     cells(res.spectral_irradiance), cells(res.spectral_stderr), cells(res.cie_xy),
-                     cells(res.stokes), cells(res.stokes_stderr), cells(res.dop), res.cost, backend=res.backend)
+    out = GridResult(cells(res.lux), cells(res.stderr), res.nm, cells(res.spectral_irradiance),
+                     cells(res.spectral_stderr), cells(res.cie_xy), cells(res.stokes), cells(res.stokes_stderr),
+                     cells(res.dop), res.cost, **res.readout())
     if res.error_budget is not None:
         out.error_budget = {name: cells(v) for name, v in res.error_budget.items()}
     if res.physics_left_out is not None:

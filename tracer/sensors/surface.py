@@ -12,13 +12,13 @@ time budget. The answer: `SurfaceResult`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from tracer.errors import SimulationError
-from tracer.sensors.base import IlluminanceResult, Probe
+from tracer.sensors.base import IlluminanceResult, Probe, Readout
 from tracer.transport.rounds import MAX_SPECTRAL_TALLIES
 
 TYPE = "surface"
@@ -27,7 +27,7 @@ OBSERVES = False
 
 
 @dataclass
-class SurfaceResult:
+class SurfaceResult(Readout):
     """Illuminance on the triangles of instances (`Simulation.surface`).
 
     instances : list[int] — the instances asked for, in order; lux, stderr, area : list of (m_i,) float64 per
@@ -40,16 +40,6 @@ class SurfaceResult:
     lux: list[np.ndarray]
     stderr: list[np.ndarray]
     area: list[np.ndarray]
-    photons: int
-    seconds: float
-    effects: list[str]
-    estimator: str
-    stop_reason: str
-    batches: int = 0
-    rejected: int = 0
-    counters: dict = field(default_factory=dict)
-    compile_seconds: float = 0.0
-    backend: dict | None = None
 
 
 def probe(sim, body: dict) -> Probe:
@@ -98,5 +88,4 @@ def answer(sim, probe: Probe, res: IlluminanceResult) -> SurfaceResult:
         err.append(res.stderr[at:at + len(a)])
         out_a.append(a)
         at += len(a)
-    return SurfaceResult(probe.keep["ids"], lux, err, out_a, res.photons, res.seconds, res.effects, res.estimator,
-                         res.stop_reason, res.batches, res.rejected, res.counters, res.compile_seconds, res.backend)
+    return SurfaceResult(probe.keep["ids"], lux, err, out_a, **res.readout())

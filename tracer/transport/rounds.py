@@ -247,8 +247,9 @@ def forward(sim, probe: Probe, budget: Budget, seed: int, effects: list[str], pr
                                               n_stop)
     cdict = {name: int(c) for name, c in zip(COUNTERS, counters, strict=True)}
     mean, err = est.mean.reshape(n_cols, n_bins), est.stderr.reshape(n_cols, n_bins)
-    res = IlluminanceResult(mean[0], err[0], batches * per_batch, time.perf_counter() - t0, effects,
-                            "forward", stop, batches, cdict["rejected"], cdict, compile_s)
+    res = IlluminanceResult(mean[0], err[0], photons=batches * per_batch, seconds=time.perf_counter() - t0,
+                            effects=effects, estimator="forward", stop_reason=stop, batches=batches,
+                            rejected=cdict["rejected"], counters=cdict, compile_seconds=compile_s)
     if observe_spectrum:
         res.nm = spectra.bin_centres()
         res.spectral_irradiance = mean[3:].T / spectra.BIN_NM
@@ -295,8 +296,9 @@ def backward(sim, probe: Probe, budget: Budget, seed: int, effects: list[str], p
 
     est, batches, stop, counters = loop(run_round, k, per_batch, budget, progress, cancel, t0, shape)
     cdict = {"rejected": int(counters[0]), "truncated": int(counters[1])}
-    return IlluminanceResult(est.mean, est.stderr, batches * per_batch, time.perf_counter() - t0, effects,
-                             "backward", stop, batches, cdict["rejected"], cdict, compile_s)
+    return IlluminanceResult(est.mean, est.stderr, photons=batches * per_batch, seconds=time.perf_counter() - t0,
+                             effects=effects, estimator="backward", stop_reason=stop, batches=batches,
+                             rejected=cdict["rejected"], counters=cdict, compile_seconds=compile_s)
 
 
 def compile_seconds() -> dict[str, float]:
