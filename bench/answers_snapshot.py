@@ -1,0 +1,92 @@
+"""Bit-identical answers across a refactor: record every field of every query kind on fixed seeds, then compare.
+
+    python -m bench.answers_snapshot record before.pkl      # on the old tree
+    python -m bench.answers_snapshot record after.pkl       # on the new tree
+    python -m bench.answers_snapshot compare before.pkl after.pkl   # "identical", or which fields differ
+
+The queries: points forward and backward, observe spectrum and Stokes, a "lit" target scope, a grid with both
+estimators, a surface, a far field, and physics_left_out on points and on a grid (a glass room, so that the
+polarization pilot runs). Seconds, compile seconds and cost (which depend on the machine) are left out; every other
+field is compared with np.array_equal (NaN equal to NaN). Used for issue 35's moves (README, "Benchmarks").
+"""
+
+from __future__ import annotations
+
+import pickle
+import sys
+
+import numpy as np
+
+TIMED = ("seconds", "compile_seconds", "cost")
+
+
+def fields_of(res) -> dict:
+    out = {}
+    for k, v in vars(res).items():
+        if k in TIMED:
+            continue
+        if k == "physics_left_out" and isinstance(v, dict):
+            v = {n: {kk: vv for kk, vv in e.items() if kk != "seconds"} for n, e in v.items()}
+        out[k] = v
+    return out
+
+
+def record(path: str) -> None:
+    from tests.tracer.transport_scenes import box, scene_of
+    from tracer.simulate import Simulation
+
+    s, ids = scene_of(box([-2, -2, 0], [2, 2, 2.5]))
+    light = {"type": "point", "position": [0.2, -0.1, 2.0], "intensity_cd": 1000.0}
+    sim = Simulation(s, {ids[0]: {"type": "lambertian", "reflectance": 0.5}}, [light])
+    p = np.array([[0.0, 0.0, 0.0], [1.0, 0.3, 0.0], [-0.6, 1.1, 0.0]])
+    n = np.tile([0.0, 0.0, 1.0], (3, 1))
+    grid = ([-1.5, -1.5, 0], [3, 0, 0], [0, 3, 0])
+    out = {}
+    for est in ("forward", "backward"):
+        out["points_" + est] = fields_of(sim.illuminance(p, n, radius=0.3, max_photons=20000, seed=1, estimator=est))
+    out["observe"] = fields_of(sim.illuminance(p, n, radius=0.3, max_photons=20000, seed=2, estimator="forward",
+                                               observe=["spectrum", "stokes"]))
+    out["target_lit"] = fields_of(sim.illuminance(p, n, radius=0.3, target_relative_error=0.05, seed=3,
+                                                  target_scope="lit"))
+    out["grid"] = fields_of(sim.grid(*grid, 4, 3, max_photons=20000, seed=4))
+    out["grid_backward"] = fields_of(sim.grid(*grid, 4, 3, max_photons=2000, seed=4, estimator="backward"))
+    out["surface"] = fields_of(sim.surface([ids[0]], max_photons=20000, seed=5))
+    out["far_field"] = fields_of(sim.far_field(8, 5, max_photons=20000, seed=6))
+    glass = Simulation(s, {ids[0]: {"type": "dielectric", "ior": 1.5}}, [light])
+    out["left_out"] = fields_of(glass.illuminance(p, n, radius=0.3, max_photons=20000, seed=7,
+                                                  physics_left_out=["polarization"]))
+    out["grid_left_out"] = fields_of(glass.grid([-1.5, -1.5, 0.1], [3, 0, 0], [0, 3, 0], 2, 2, max_photons=20000,
+                                                seed=8, physics_left_out=["polarization"]))
+    with open(path, "wb") as f:
+        pickle.dump(out, f)
+    print(f"recorded {len(out)} queries to {path}")
+
+
+def same(x, y) -> bool:
+    if isinstance(x, dict):
+        return isinstance(y, dict) and x.keys() == y.keys() and all(same(x[k], y[k]) for k in x)
+    if isinstance(x, list | tuple):
+        return isinstance(y, list | tuple) and len(x) == len(y) and all(same(p, q) for p, q in zip(x, y, strict=True))
+    if isinstance(x, np.ndarray):
+        return isinstance(y, np.ndarray) and x.shape == y.shape and np.array_equal(x, y, equal_nan=True)
+    return x == y
+
+
+def compare(a_path: str, b_path: str) -> int:
+    with open(a_path, "rb") as fa, open(b_path, "rb") as fb:
+        a, b = pickle.load(fa), pickle.load(fb)
+    bad = {k: sorted(f for f in a[k] if not same(a[k][f], b.get(k, {}).get(f))) for k in a if not same(a[k], b.get(k))}
+    if not bad and a.keys() == b.keys():
+        print("identical")
+        return 0
+    print(f"differ: {bad or sorted(set(a) ^ set(b))}")
+    return 1
+
+
+if __name__ == "__main__":
+    if len(sys.argv) == 3 and sys.argv[1] == "record":
+        record(sys.argv[2])
+    elif len(sys.argv) == 4 and sys.argv[1] == "compare":
+        sys.exit(compare(sys.argv[2], sys.argv[3]))
+    else:
+        sys.exit(__doc__)
