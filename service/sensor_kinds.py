@@ -111,6 +111,8 @@ class Disk:
 
     @staticmethod
     def body(sensor: dict, live: Any) -> dict:
+        # the normal is made unit here and again by the tracer, as the service always did: one rounding fewer
+        # would move the answer's last bits
         normal = np.asarray(sensor["normal"], float)
         return {"type": "disk", "center": np.asarray(sensor["center"], float),
                 "normal": normal / np.linalg.norm(normal), "radius": float(sensor["radius"])}

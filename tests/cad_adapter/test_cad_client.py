@@ -16,6 +16,7 @@ from cad_adapter.client import Pusher
 from cad_adapter.errors import PushError, RevisionConflict, ServiceUnavailable
 from cad_adapter.glb import decode_glb
 from cad_adapter.step_uuid import write_step
+from tests.hash_counting import counted_geometry_hashes
 from tracer.geometry_id import geometry_id
 
 
@@ -280,25 +281,6 @@ def test_watch_pushes_on_change_debounced(fake, tmp_path) -> None:
     assert codes == [0] and len(fake.documents) == 2
     before, after = ({n["uuid"]: n["geometry"] for n in d["nodes"]} for d in fake.documents)
     assert sum(before[u] != after[u] for u in before) == 1
-
-
-def counted_geometry_hashes(monkeypatch) -> list[int]:
-    """Count every geometry-id hash from now on (each `tracer.geometry_id.hash_canonical`, whoever calls it):
-    a counting wrapper around the SHA-256 that module starts with its prefix."""
-    import types
-
-    import tracer.geometry_id as ids
-
-    calls: list[int] = []
-    real = ids.hashlib.sha256
-
-    def sha256(data: bytes = b"", **kwargs):
-        if data == ids.PREFIX:
-            calls.append(1)
-        return real(data, **kwargs)
-
-    monkeypatch.setattr(ids, "hashlib", types.SimpleNamespace(sha256=sha256))
-    return calls
 
 
 def test_a_push_hashes_each_mesh_once(fake, car_step, tmp_path, monkeypatch) -> None:

@@ -4,29 +4,13 @@ the scene back."""
 
 from __future__ import annotations
 
-import types
-
 import numpy as np
 import pytest
 import trimesh
 from service_helpers import car_document, grid_mesh, make_client
 
 import tracer.geometry_id as ids
-
-
-def counted_geometry_hashes(monkeypatch) -> list[int]:
-    """Count every geometry-id hash from now on (each `tracer.geometry_id.hash_canonical`, whoever calls it):
-    a counting wrapper around the SHA-256 that module starts with its prefix."""
-    calls: list[int] = []
-    real = ids.hashlib.sha256
-
-    def sha256(data: bytes = b"", **kwargs):
-        if data == ids.PREFIX:
-            calls.append(1)
-        return real(data, **kwargs)
-
-    monkeypatch.setattr(ids, "hashlib", types.SimpleNamespace(sha256=sha256))
-    return calls
+from tests.hash_counting import counted_geometry_hashes
 
 
 def with_normals(n: int, z: float) -> tuple[str, bytes]:
