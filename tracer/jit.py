@@ -14,10 +14,12 @@ the change is made once, when this module is first imported, before any kernel c
 
 from __future__ import annotations
 
+from typing import Any
+
 from numba import njit, prange
 from numba.core import dispatcher, types
 
-__all__ = ["njit", "prange"]
+__all__ = ["kind_switch", "njit", "prange"]
 
 #: the modules whose kernels are called without literal arguments
 PACKAGE = "tracer."
@@ -39,3 +41,32 @@ def _plain_call_template(original):
 if not getattr(dispatcher.Dispatcher.get_call_template, "plain_arguments", False):
     dispatcher.Dispatcher.get_call_template = _plain_call_template(  # type: ignore[method-assign]
         dispatcher.Dispatcher.get_call_template)
+
+
+def kind_switch(name: str, params: str, tag: str, cases: dict[int, Any], default: str, *, doc: str = "",
+                **options: Any):
+    """The one switch of a family on a kind tag, written out from its registry: ``name(params)`` returns
+    ``cases[k](params)`` for the ``k`` that the expression `tag` equals, else `default`, jitted with `options`.
+
+    pbrt dispatches a TaggedPointer with a template; numba types neither a tuple of kernels nor a call through
+    one, so the branch chain is generated here from the registered kinds, and a new kind is its module plus its
+    registration line, never a new branch. The chain is compiled from source text attributed to the calling
+    module's file, so numba's ``cache=True`` keeps it; its name carries a digest of the cases, so a changed
+    registry is a new cache entry, never a stale one.
+    """
+    import hashlib
+    import sys
+
+    caller = sys._getframe(1).f_globals
+    names = {k: f"_case_{int(k)}" for k in sorted(cases)}
+    lines = [f"    if _tag == {int(k)}:\n        return {n}({params})\n" for k, n in names.items()]
+    identity = ";".join(f"{k}={f.py_func.__module__}.{f.py_func.__qualname__}" for k, f in sorted(cases.items()))
+    digest = hashlib.sha256(f"{params}|{tag}|{default}|{identity}".encode()).hexdigest()[:12]
+    source = f"def {name}({params}):\n    _tag = {tag}\n{''.join(lines)}    return {default}\n"
+    scope = {n: cases[k] for k, n in names.items()}
+    exec(compile(source, caller["__file__"], "exec"), scope)   # noqa: S102 - the source is built above, from names
+    fn = scope[name]
+    fn.__module__ = caller["__name__"]
+    fn.__qualname__ = f"{name}_{digest}"
+    fn.__doc__ = doc
+    return njit(**options)(fn)

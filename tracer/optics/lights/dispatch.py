@@ -1,7 +1,7 @@
 """The light kinds' registration: the one place that lists them and switches on a kind id.
 
-A kind's id is its position in `KINDS`. Adding a kind: its module (see `base`), its entry at the end of
-`KINDS` with an id constant, and a branch in `sample_emission` and in `light_connect`. `sample_emission`
+A kind's id is its position in `KINDS`. Adding a kind: its module (see `base`) and its entry at the end of
+`KINDS`; `sample_emission` and `light_connect` are written out from `KINDS` (`tracer.jit.kind_switch`). `sample_emission`
 is inlined into the transport kernel, with the point light's `sample`: a call per photon passes the lights'
 tuple (see `tracer.optics.surfaces.dispatch`).
 """
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from tracer.jit import njit
+from tracer.jit import kind_switch, njit
 from tracer.optics import spectra
 from tracer.optics.lights import area, collimated, goniometric, point, spot
 from tracer.optics.lights.base import P_FLUX, LightArrays, LightError, Packing
@@ -124,21 +124,11 @@ def connectable(L: LightArrays) -> tuple[bool, str]:
     return True, ""
 
 
-@njit(cache=True, _nrt=False, inline="always")
-def sample_emission(L, j, u0, u1, u2, u3, u4):
-    """Emit one photon from light j: (ox, oy, oz, dx, dy, dz, f, on_surface, nx, ny, nz), see `base`."""
-    k = L.kind[j]
-    if k == POINT:
-        return point.sample(L, j, u0, u1, u2, u3, u4)
-    if k == SPOT:
-        return spot.sample(L, j, u0, u1, u2, u3, u4)
-    if k == COLLIMATED:
-        return collimated.sample(L, j, u0, u1, u2, u3, u4)
-    if k == GONIOMETRIC:
-        return goniometric.sample(L, j, u0, u1, u2, u3, u4)
-    if k == AREA:
-        return area.sample(L, j, u0, u1, u2, u3, u4)
-    return 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, False, 0.0, 0.0, 0.0  # an id no kind has: a photon of weight 0
+sample_emission = kind_switch(
+    "sample_emission", "L, j, u0, u1, u2, u3, u4", "L.kind[j]", {k: m.sample for k, m in enumerate(KINDS)},
+    "(0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, False, 0.0, 0.0, 0.0)",   # an id no kind has: a photon of weight 0
+    doc="Emit one photon from light j: (ox, oy, oz, dx, dy, dz, f, on_surface, nx, ny, nz), see `base`.",
+    cache=True, _nrt=False, inline="always")
 
 
 @njit(cache=True, _nrt=False, inline="always")
@@ -149,18 +139,8 @@ def emit_wavelength(L, j, u):
     return sample_grid(L.spd_cdf[j], L.spd_f[j], u)
 
 
-@njit(cache=True, _nrt=False)
-def light_connect(L, j, x, y, z, nx, ny, nz, u1, u2, u3):
-    """Next-event estimation toward light j from x (m) with unit normal n: (e, sx, sy, sz, t_max), see `base`."""
-    k = L.kind[j]
-    if k == POINT:
-        return point.connect(L, j, x, y, z, nx, ny, nz, u1, u2, u3)
-    if k == SPOT:
-        return spot.connect(L, j, x, y, z, nx, ny, nz, u1, u2, u3)
-    if k == COLLIMATED:
-        return collimated.connect(L, j, x, y, z, nx, ny, nz, u1, u2, u3)
-    if k == GONIOMETRIC:
-        return goniometric.connect(L, j, x, y, z, nx, ny, nz, u1, u2, u3)
-    if k == AREA:
-        return area.connect(L, j, x, y, z, nx, ny, nz, u1, u2, u3)
-    return 0.0, 0.0, 0.0, 0.0, 0.0  # an id no kind has: nothing arrives
+light_connect = kind_switch(
+    "light_connect", "L, j, x, y, z, nx, ny, nz, u1, u2, u3", "L.kind[j]", {k: m.connect for k, m in enumerate(KINDS)},
+    "(0.0, 0.0, 0.0, 0.0, 0.0)",   # an id no kind has: nothing arrives
+    doc="Next-event estimation toward light j from x (m) with unit normal n: (e, sx, sy, sz, t_max), see `base`.",
+    cache=True, _nrt=False)
