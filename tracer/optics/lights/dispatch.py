@@ -1,9 +1,9 @@
 """The light kinds' registration: the one place that lists them and switches on a kind id.
 
 A kind's id is its position in `KINDS`. Adding a kind: its module (see `base`) and its entry at the end of
-`KINDS`; `sample_emission` and `light_connect` are written out from `KINDS` (`tracer.jit.kind_switch`). `sample_emission`
-is inlined into the transport kernel, with the point light's `sample`: a call per photon passes the lights'
-tuple (see `tracer.optics.surfaces.dispatch`).
+`KINDS`; `sample_emission` and `light_connect` are written out from `KINDS` (`tracer.jit.kind_switch`).
+`sample_emission` is inlined into the transport kernel, with the point light's `sample`: a call per photon passes
+the lights' tuple (see `tracer.optics.surfaces.dispatch`).
 """
 
 from __future__ import annotations
