@@ -17,6 +17,9 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel, TypeAdapter
 
+from service.elements import check_assignment
+from service.elements import public as element_public
+from service.elements import sync as element_sync
 from service.errors import Conflict, Invalid, NotFound
 from service.scenes import Scenes, SceneState
 from service.schemas import Light, Material, ObjectCreate, Sensor
@@ -159,6 +162,67 @@ class Assignments:
                 state.materials.pop(aid, None)
             self.scenes.changed(state)
 
+    # ------------------------------------------------------------ elements with an inside
+
+    @_retried
+    def add_element(self, scene_id: str, body: dict) -> dict[str, Any]:
+        """Put a library element onto a node's support faces (`service.elements`); 422 where it cannot go, with
+        nothing changed."""
+        body = dict(body)
+        with self.scenes.current(scene_id) as state:
+            check_assignment(body, self.scenes.elements, state)
+            for aid, other in state.elements.items():
+                if other["node"] == body["node"]:
+                    raise Conflict(f"node {body['node']} already carries element assignment {aid}: delete it first",
+                                   node=body["node"])
+            aid = str(uuidlib.uuid4())
+            state.elements[aid] = body
+            try:
+                element_sync(state, self.scenes.elements)
+            except Exception:
+                self.scenes.forget(scene_id)
+                raise
+            problem = state.element_problems.pop(aid, None)
+            if problem is not None:   # the tracer refused it before changing anything
+                del state.elements[aid]
+                raise Invalid(f"the element cannot go onto node {body['node']}: {problem}", node=body["node"])
+            try:
+                state.last_commit = self.scenes.commit(state)
+                self.store.add_assignment(scene_id, state.version, "element", aid, body)
+            except Exception:
+                self.scenes.forget(scene_id)
+                raise
+            self.scenes.changed(state)
+            return element_public(state, aid, body)
+
+    def list_elements(self, scene_id: str) -> list[dict[str, Any]]:
+        state = self.scenes.state(scene_id)
+        with state.lock:
+            return [element_public(state, aid, body) for aid, body in state.elements.items()]
+
+    def get_element(self, scene_id: str, aid: str) -> dict[str, Any]:
+        state = self.scenes.state(scene_id)
+        with state.lock:
+            if aid not in state.elements:
+                raise NotFound(f"no element assignment {aid} in scene {scene_id}")
+            return element_public(state, aid, state.elements[aid])
+
+    @_retried
+    def delete_element(self, scene_id: str, aid: str) -> None:
+        """Take an element off its part (the part is plain again: its own faces, instance and material)."""
+        with self.scenes.current(scene_id) as state:
+            if aid not in state.elements:
+                raise NotFound(f"no element assignment {aid} in scene {scene_id}")
+            try:
+                del state.elements[aid]
+                element_sync(state, self.scenes.elements)
+                state.last_commit = self.scenes.commit(state)
+                self.store.delete_assignment(scene_id, state.version, "element", aid)
+            except Exception:
+                self.scenes.forget(scene_id)
+                raise
+            self.scenes.changed(state)
+
     def purge_orphans(self, scene_id: str) -> list[dict[str, str]]:
         """Delete every orphaned assignment of the scene; answers what was deleted."""
         with self.scenes.current(scene_id) as state:
@@ -166,6 +230,8 @@ class Assignments:
             for o in gone:
                 if o["kind"] == "material":
                     self.delete_material(scene_id, o["id"])
+                elif o["kind"] == "element":
+                    self.delete_element(scene_id, o["id"])
                 else:
                     self.delete_assignment(scene_id, o["kind"], o["id"])
             return gone

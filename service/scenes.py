@@ -31,6 +31,9 @@ import numpy as np
 
 from service.config import Settings
 from service.document import NodeBytes
+from service.elements import ElementLibrary
+from service.elements import describe as element_describe
+from service.elements import sync as element_sync
 from service.errors import NotFound
 from service.live import DEFAULT_MATERIAL, DELETED, LiveRegistry, LiveScene
 from service.meshes import MeshStore
@@ -62,6 +65,9 @@ class SceneState:
     lights: dict[str, dict] = field(default_factory=dict)  # id -> body as given
     sensors: dict[str, dict] = field(default_factory=dict)
     objects: dict[str, dict] = field(default_factory=dict)
+    elements: dict[str, dict] = field(default_factory=dict)  # element assignment id -> body
+    element_instances: dict[str, int] = field(default_factory=dict)  # element assignment id -> instance carrying it
+    element_problems: dict[str, str] = field(default_factory=dict)  # element assignment id -> why it is not applied
     last_commit: dict[str, Any] = field(default_factory=dict)
     node_bytes: NodeBytes | None = None  # where each node sits in the body that made `tree` (row i = chunk i)
     identity: dict[str, IdentityIn] = field(default_factory=dict)  # node uuid -> its identity record, as stored
@@ -96,9 +102,10 @@ class SceneState:
         for key in self.materials:
             if missing(key) and key not in self.objects:
                 out.append({"kind": "material", "id": key, "node": key})
-        for kind, table in (("light", self.lights), ("sensor", self.sensors), ("object", self.objects)):
+        for kind, table in (("light", self.lights), ("sensor", self.sensors), ("object", self.objects),
+                            ("element", self.elements)):
             for aid, body in table.items():
-                node = self.anchor_of(body)
+                node = body["node"] if kind == "element" else self.anchor_of(body)
                 if missing(node):
                     out.append({"kind": kind, "id": aid, "node": node})  # type: ignore[dict-item]
         return out
@@ -118,6 +125,7 @@ class Scenes(SceneGeometries, SceneViews):
         self._scene_locks: dict[str, threading.RLock] = {}
         self.live = LiveRegistry(self.live_scene, self.revision, lambda scene_id: self.state(scene_id).lock)
         self.known_geometries: set[str] = store.geometry_ids()
+        self.elements = ElementLibrary(store.engine, settings.data_dir / "elements")   # shared by every scene
 
     def new_tracer_scene(self) -> Any:
         if self._scene_factory is not None:
@@ -217,12 +225,14 @@ class Scenes(SceneGeometries, SceneViews):
         state = SceneState(scene_id, row.name, row.revision, row.length_unit, Tree.empty(unit),
                            self.new_tracer_scene(), assign_revision=row.assign_revision,
                            materials=stored["materials"], lights=stored["lights"], sensors=stored["sensors"],
-                           objects=stored["objects"], lock=lock, identity=stored["identity"])
+                           objects=stored["objects"], elements=stored["elements"], lock=lock,
+                           identity=stored["identity"])
         diff = diff_trees(state.tree, tree)
         state.tree = tree
         apply_to_scene(state.tracer, state.instances, tree, diff, lambda g: self.ensure_geometry(state, g))
         for oid, body in state.objects.items():
             self.place_object(state, oid, body)
+        element_sync(state, self.elements)
         state.last_commit = self.commit(state)
         log.info("loaded scene %s (revision %d, %d nodes): %s", scene_id, state.revision, len(tree),
                  state.last_commit)
@@ -243,6 +253,10 @@ class Scenes(SceneGeometries, SceneViews):
             if oid not in state.object_instances:
                 self.place_object(state, oid, body)
                 moved = moved or oid in state.object_instances
+        if stored["elements"] != state.elements:
+            state.elements = stored["elements"]
+            element_sync(state, self.elements)
+            moved = True
         if moved:
             state.last_commit = self.commit(state)
         state.materials, state.lights, state.sensors = stored["materials"], stored["lights"], stored["sensors"]
@@ -326,7 +340,8 @@ class Scenes(SceneGeometries, SceneViews):
         sensors = [r for r in (_resolve(state, sid, body) for sid, body in state.sensors.items()) if r is not None]
         state.live = LiveScene(state.id, state.revision, state.tracer, instance_of_node, node_world, materials,
                                dict(DEFAULT_MATERIAL), lights, sensors,
-                               extras={"length_unit": state.length_unit, "objects": dict(state.objects)})
+                               extras={"length_unit": state.length_unit, "objects": dict(state.objects),
+                                       "elements": element_describe(state)})
         return state.live
 
 

@@ -337,6 +337,8 @@ class SimulationHub:
                 seed=seed, estimator=estimator, force_effects=force_effects, progress=progress, cancel=cancel,
                 observe=observe, reference=reference, physics_left_out=physics_left_out)
         payload = kind.payload(result, sensor, prepared.live)
+        if prepared.live.extras.get("elements"):   # the elements with an inside it traced, and their model
+            payload["elements"] = prepared.live.extras["elements"]
         if kind.KEEP == "far":
             if not cancel or not cancel():
                 with self._lock:
