@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from service import kind_wire
 from service.config import Settings
 from service.document import NodeBytes
 from service.errors import NotFound
@@ -80,7 +81,7 @@ class SceneState:
 
     def anchor_of(self, body: dict) -> str | None:
         """The node a light/sensor/object body depends on (attached_to, or an area light's node)."""
-        return body.get("attached_to") or (body.get("node") if body.get("type") in ("area", "surface") else None)
+        return kind_wire.anchor_of(body)
 
     def orphans(self, only_nodes: set[str] | None = None) -> list[dict[str, str]]:
         """Assignments whose node is not in the tree (optionally only those naming `only_nodes`)."""
@@ -331,38 +332,15 @@ class Scenes(SceneGeometries, SceneViews):
 
 
 def _resolve(state: SceneState, aid: str, body: dict) -> dict | None:
-    """A light/sensor body in world metres (None while its node is missing); an area light and a surface sensor
-    carry "instances": the instance ids of their node's subtree."""
-    out = {k: copy.deepcopy(v) for k, v in body.items() if k not in ("attached_to", "name")}
-    out["id"] = aid
-    if body.get("type") in ("area", "surface"):   # a surface sensor keeps its node (the answer names it)
-        node = body["node"]
+    """A light/sensor body in world metres (None while its node is missing); a body with a node field (an area
+    light, a surface sensor) carries "instances": the instance ids of that node's subtree (`kind_wire.follow_node`)."""
+    node = kind_wire.anchor_of(body)
+    world, instances = None, None
+    if node is not None:
         if not state.has_node(node):
             return None
-        if body.get("type") == "area":
-            out.pop("node")
-        out["instances"] = [state.instances[u] for u in state.tree.subtree(node) if u in state.instances]
-        return out
-    node = body.get("attached_to")
-    if node is None:
-        return out
-    row = state.tree.index.get(node)
-    if row is None:
-        return None
-    w = state.tree.world[row]
-    lin = w[:3, :3]
-    for key in ("position", "origin", "center"):
-        if key in out:
-            out[key] = (lin @ np.asarray(out[key], dtype=float) + w[:3, 3]).tolist()
-    for key in ("direction", "normal", "up", "c0"):
-        if key in out:
-            d = lin @ np.asarray(out[key], dtype=float)
-            out[key] = (d / np.linalg.norm(d)).tolist()
-    for key in ("u", "v"):
-        if key in out:
-            out[key] = (lin @ np.asarray(out[key], dtype=float)).tolist()
-    pol = out.get("polarization")
-    if isinstance(pol, dict) and pol.get("type") == "linear":   # the field's axis turns with the node
-        a = lin @ np.asarray(pol["axis"], dtype=float)
-        out["polarization"] = {**pol, "axis": (a / np.linalg.norm(a)).tolist()}
-    return out
+        if body.get("attached_to") is not None:
+            world = state.tree.world[state.tree.index[node]]
+        else:
+            instances = [state.instances[u] for u in state.tree.subtree(node) if u in state.instances]
+    return {**kind_wire.follow_node(body, world, instances), "id": aid}

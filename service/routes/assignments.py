@@ -12,11 +12,12 @@ from typing import Any
 from fastapi import APIRouter, Request, Response
 from pydantic import Field
 
-from service import paths, units
+from service import kind_wire, paths, units
 from service.errors import ServiceError
 from service.routes.deps import ItemId, Manager, NodeRef, SceneId
 from service.schemas import AssignmentPublic, Light, Material, MaterialPublic, ObjectCreate, OrphanPublic, Sensor
 from service.state import validate_body
+from tracer.optics.fields import node_field
 
 router = APIRouter(tags=["assignments"])
 
@@ -47,10 +48,10 @@ def _node_key(manager: Manager, scene_id: str, ref: str) -> str:
 
 
 def _resolve_anchors(manager: Manager, scene_id: str, body: dict[str, Any]) -> dict[str, Any]:
-    """The body with a path in `attached_to` (or an area light's or a surface sensor's `node`) replaced by that
-    node's uuid."""
-    keys = ["attached_to"] + (["node"] if body.get("type") in ("area", "surface") else [])
-    refs = {k: body[k] for k in keys if isinstance(body.get(k), str)}
+    """The body with a path in `attached_to` (or in its kind's node field: an area light's or a surface sensor's
+    `node`) replaced by that node's uuid."""
+    keys = ["attached_to", node_field(kind_wire.fields_of(body))]
+    refs = {k: body[k] for k in keys if k is not None and isinstance(body.get(k), str)}
     if paths.needs_nodes(*refs.values()):
         nodes = manager.nodes(scene_id)
         for k, ref in refs.items():
