@@ -98,8 +98,8 @@ class Assignments:
         """Add a light, sensor or sim-owned object (validated body); answers its public form."""
         body = dict(body)  # a retry (`_retried`) starts again from the body as given
         with self.scenes.current(scene_id) as state:
-            self._check_anchor(state, state.anchor_of(body), kind)
-            field = node_field(kind_wire.fields_of(body)) if kind == "sensor" else None
+            self._check_anchor(state, state.anchor_of(kind, body), kind)
+            field = node_field(kind_wire.fields_of(kind, body)) if kind == "sensor" else None
             if field is not None and not any(u in state.instances for u in state.tree.subtree(body[field])):
                 raise Invalid(f"{body['type']} sensor: node {body[field]} and its descendants have no geometry: "
                               f"nothing to tally", node=body[field])
@@ -128,7 +128,7 @@ class Assignments:
         with state.lock:
             out = []
             for aid, body in getattr(state, TABLES[kind][1]).items():
-                anchor = state.anchor_of(body)
+                anchor = state.anchor_of(kind, body)
                 out.append({"id": aid, "body": body, "orphaned": anchor is not None and not state.has_node(anchor)})
             return out
 

@@ -137,24 +137,25 @@ class SensorCreate(Wire):
     sensor: Sensor = Field(description="A sensor body.")
 
 
-def fields_of(body: dict) -> dict[str, BodyField]:
-    """The declared fields of a light or sensor body's kind ({} for an object or a type no kind has)."""
-    t = body.get("type")
-    return next((table[t] for table in FIELDS.values() if t in table), {})
+def fields_of(family: str, body: dict) -> dict[str, BodyField]:
+    """The declared fields of a `family` ("light", "sensor") body's kind ({} for an object or a type no kind has;
+    a light kind and a sensor kind may share a name)."""
+    return FIELDS.get(family, {}).get(body.get("type"), {})   # type: ignore[arg-type]
 
 
-def anchor_of(body: dict) -> str | None:
-    """The node a light or sensor body depends on: the one it is attached to, or the one its node field names."""
-    node = node_field(fields_of(body))
+def anchor_of(family: str, body: dict) -> str | None:
+    """The node a light, sensor or object body depends on: the one it is attached to, or the one its node field
+    names."""
+    node = node_field(fields_of(family, body))
     return body.get("attached_to") or (body.get(node) if node is not None else None)
 
 
-def follow_node(body: dict, world: np.ndarray | None, instances: list[int] | None) -> dict:
+def follow_node(family: str, body: dict, world: np.ndarray | None, instances: list[int] | None) -> dict:
     """A stored body in world metres: its points, directions and edges carried by the node's 4×4 `world` (a
     direction made unit) where it is attached, and a node field's `instances` given; a linear polarization's axis
     turns with the node too."""
     out = {k: copy.deepcopy(v) for k, v in body.items() if k not in ("attached_to", "name")}
-    table = fields_of(body)
+    table = fields_of(family, body)
     if instances is not None:
         out["instances"] = instances
     if world is None:

@@ -79,9 +79,9 @@ class SceneState:
     def has_node(self, key: str) -> bool:
         return key in self.tree.index
 
-    def anchor_of(self, body: dict) -> str | None:
+    def anchor_of(self, kind: str, body: dict) -> str | None:
         """The node a light/sensor/object body depends on (attached_to, or an area light's node)."""
-        return kind_wire.anchor_of(body)
+        return kind_wire.anchor_of(kind, body)
 
     def orphans(self, only_nodes: set[str] | None = None) -> list[dict[str, str]]:
         """Assignments whose node is not in the tree (optionally only those naming `only_nodes`)."""
@@ -99,7 +99,7 @@ class SceneState:
                 out.append({"kind": "material", "id": key, "node": key})
         for kind, table in (("light", self.lights), ("sensor", self.sensors), ("object", self.objects)):
             for aid, body in table.items():
-                node = self.anchor_of(body)
+                node = self.anchor_of(kind, body)
                 if missing(node):
                     out.append({"kind": kind, "id": aid, "node": node})  # type: ignore[dict-item]
         return out
@@ -323,18 +323,19 @@ class Scenes(SceneGeometries, SceneViews):
                 materials[inst] = copy.deepcopy(state.materials[oid])
         instance_of_node = dict(state.instances)
         instance_of_node.update(state.object_instances)
-        lights = [r for r in (_resolve(state, lid, body) for lid, body in state.lights.items()) if r is not None]
-        sensors = [r for r in (_resolve(state, sid, body) for sid, body in state.sensors.items()) if r is not None]
+        lights = [r for r in (_resolve(state, "light", i, body) for i, body in state.lights.items()) if r is not None]
+        sensors = [r for r in (_resolve(state, "sensor", i, body) for i, body in state.sensors.items())
+                   if r is not None]
         state.live = LiveScene(state.id, state.revision, state.tracer, instance_of_node, node_world, materials,
                                dict(DEFAULT_MATERIAL), lights, sensors,
                                extras={"length_unit": state.length_unit, "objects": dict(state.objects)})
         return state.live
 
 
-def _resolve(state: SceneState, aid: str, body: dict) -> dict | None:
+def _resolve(state: SceneState, family: str, aid: str, body: dict) -> dict | None:
     """A light/sensor body in world metres (None while its node is missing); a body with a node field (an area
     light, a surface sensor) carries "instances": the instance ids of that node's subtree (`kind_wire.follow_node`)."""
-    node = kind_wire.anchor_of(body)
+    node = kind_wire.anchor_of(family, body)
     world, instances = None, None
     if node is not None:
         if not state.has_node(node):
@@ -343,4 +344,4 @@ def _resolve(state: SceneState, aid: str, body: dict) -> dict | None:
             world = state.tree.world[state.tree.index[node]]
         else:
             instances = [state.instances[u] for u in state.tree.subtree(node) if u in state.instances]
-    return {**kind_wire.follow_node(body, world, instances), "id": aid}
+    return {**kind_wire.follow_node(family, body, world, instances), "id": aid}

@@ -117,7 +117,7 @@ class Measured:
     @staticmethod
     def body(sensor: dict, live: Any) -> dict:
         out: dict[str, Any] = {"type": sensor["type"]}
-        for f in kind_wire.fields_of(sensor).values():
+        for f in kind_wire.fields_of("sensor", sensor).values():
             v = sensor.get(f.name)
             if f.value == "node":
                 out["instances"] = [int(i) for i in sensor.get("instances", [])]

@@ -78,7 +78,7 @@ def transport_lights(live: LiveScene) -> list[dict]:
     lights = []
     for light in live.lights:
         body = {k: v for k, v in light.items() if k not in ("attached_to", "name")}
-        field = node_field(kind_wire.fields_of(body))
+        field = node_field(kind_wire.fields_of("light", body))
         if field is not None and "instances" not in body:   # a snapshot made without the scene's tree
             node = body.get(field)
             if node not in live.instance_of_node:

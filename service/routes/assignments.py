@@ -47,10 +47,10 @@ def _node_key(manager: Manager, scene_id: str, ref: str) -> str:
     return paths.resolve(manager.nodes(scene_id), ref, scene_id)
 
 
-def _resolve_anchors(manager: Manager, scene_id: str, body: dict[str, Any]) -> dict[str, Any]:
+def _resolve_anchors(manager: Manager, scene_id: str, kind: str, body: dict[str, Any]) -> dict[str, Any]:
     """The body with a path in `attached_to` (or in its kind's node field: an area light's or a surface sensor's
     `node`) replaced by that node's uuid."""
-    keys = ["attached_to", node_field(kind_wire.fields_of(body))]
+    keys = ["attached_to", node_field(kind_wire.fields_of(kind, body))]
     refs = {k: body[k] for k in keys if k is not None and isinstance(body.get(k), str)}
     if paths.needs_nodes(*refs.values()):
         nodes = manager.nodes(scene_id)
@@ -89,7 +89,8 @@ def _routes(kind: str, plural: str, schema: Any) -> None:
                  name=f"add_{kind}")
     def add(scene_id: SceneId, body: schema, manager: Manager,  # type: ignore[valid-type]
             request: Request) -> dict[str, Any]:
-        added = manager.add_assignment(scene_id, kind, _resolve_anchors(manager, scene_id, validate_body(kind, body)))
+        clean = _resolve_anchors(manager, scene_id, kind, validate_body(kind, body))
+        added = manager.add_assignment(scene_id, kind, clean)
         if kind in ("light", "sensor") and not added.get("orphaned"):
             added = {**added, "warnings": _far(request, scene_id, kind, str(added["id"]))}
         return added
