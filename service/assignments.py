@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel, TypeAdapter
 
+from service import kind_wire
 from service.elements import check_assignment
 from service.elements import public as element_public
 from service.elements import sync as element_sync
@@ -25,6 +26,7 @@ from service.scenes import Scenes, SceneState
 from service.schemas import Light, Material, ObjectCreate, Sensor
 from service.store import TABLES, Raced
 from service.tree import Tree, TreeError
+from tracer.optics.fields import node_field
 
 material_adapter: TypeAdapter = TypeAdapter(Material)
 light_adapter: TypeAdapter = TypeAdapter(Light)
@@ -99,13 +101,11 @@ class Assignments:
         """Add a light, sensor or sim-owned object (validated body); answers its public form."""
         body = dict(body)  # a retry (`_retried`) starts again from the body as given
         with self.scenes.current(scene_id) as state:
-            self._check_anchor(state, state.anchor_of(body), kind)
-            if kind == "sensor" and body["type"] == "surface" and not any(
-                    u in state.instances for u in state.tree.subtree(body["node"])):
-                raise Invalid(f"surface sensor: node {body['node']} and its descendants have no geometry: nothing to "
-                              f"tally", node=body["node"])
-            if kind == "light" and body["type"] == "goniometric":
-                _validate_photometry(body["format"], body["data"])
+            self._check_anchor(state, state.anchor_of(kind, body), kind)
+            field = node_field(kind_wire.fields_of(kind, body)) if kind == "sensor" else None
+            if field is not None and not any(u in state.instances for u in state.tree.subtree(body[field])):
+                raise Invalid(f"{body['type']} sensor: node {body[field]} and its descendants have no geometry: "
+                              f"nothing to tally", node=body[field])
             if kind == "object" and self.scenes.missing_geometries([body["geometry"]]):
                 raise Invalid(f"geometry {body['geometry']} is not uploaded (PUT /geometries/{{id}} first)",
                               missing=[body["geometry"]])
@@ -131,7 +131,7 @@ class Assignments:
         with state.lock:
             out = []
             for aid, body in getattr(state, TABLES[kind][1]).items():
-                anchor = state.anchor_of(body)
+                anchor = state.anchor_of(kind, body)
                 out.append({"id": aid, "body": body, "orphaned": anchor is not None and not state.has_node(anchor)})
             return out
 
@@ -237,18 +237,6 @@ class Assignments:
             return gone
 
 
-def _validate_photometry(fmt: str, text: str) -> None:
-    """Parse a goniometric file with the tracer's parser (422 naming the problem if it is wrong)."""
-    try:
-        from tracer.photometry.files import parse_photometry
-    except ImportError:  # the parser is not built yet: accept, it is parsed again at simulation time
-        return
-    try:
-        parse_photometry(fmt, text)
-    except ValueError as exc:
-        raise Invalid(f"invalid {fmt} photometry file: {exc}") from exc
-
-
 def validate_body(kind: str, body: Any) -> dict:
     """Validate a light, sensor or object body; answers it as a clean dict (422 on a bad field).
 
@@ -267,7 +255,4 @@ def validate_body(kind: str, body: Any) -> dict:
             Tree.build(["00000000-0000-0000-0000-000000000000"], [None], [""], t.reshape(1, 16), [None], None, "m")
         except TreeError as exc:
             raise Invalid(f"object transform: {str(exc).split(': ', 1)[-1]}") from exc
-    for key in ("position", "origin", "center", "direction", "normal", "u", "v", "up"):
-        if key in out:
-            out[key] = list(out[key])
-    return out
+    return {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}   # [x, y, z] as JSON keeps it

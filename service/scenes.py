@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from service import kind_wire
 from service.config import Settings
 from service.document import NodeBytes
 from service.elements import ElementLibrary
@@ -84,9 +85,9 @@ class SceneState:
     def has_node(self, key: str) -> bool:
         return key in self.tree.index
 
-    def anchor_of(self, body: dict) -> str | None:
+    def anchor_of(self, kind: str, body: dict) -> str | None:
         """The node a light/sensor/object body depends on (attached_to, or an area light's node)."""
-        return body.get("attached_to") or (body.get("node") if body.get("type") in ("area", "surface") else None)
+        return kind_wire.anchor_of(kind, body)
 
     def orphans(self, only_nodes: set[str] | None = None) -> list[dict[str, str]]:
         """Assignments whose node is not in the tree (optionally only those naming `only_nodes`)."""
@@ -105,7 +106,7 @@ class SceneState:
         for kind, table in (("light", self.lights), ("sensor", self.sensors), ("object", self.objects),
                             ("element", self.elements)):
             for aid, body in table.items():
-                node = body["node"] if kind == "element" else self.anchor_of(body)
+                node = body["node"] if kind == "element" else self.anchor_of(kind, body)
                 if missing(node):
                     out.append({"kind": kind, "id": aid, "node": node})  # type: ignore[dict-item]
         return out
@@ -336,8 +337,9 @@ class Scenes(SceneGeometries, SceneViews):
                 materials[inst] = copy.deepcopy(state.materials[oid])
         instance_of_node = dict(state.instances)
         instance_of_node.update(state.object_instances)
-        lights = [r for r in (_resolve(state, lid, body) for lid, body in state.lights.items()) if r is not None]
-        sensors = [r for r in (_resolve(state, sid, body) for sid, body in state.sensors.items()) if r is not None]
+        lights = [r for r in (_resolve(state, "light", i, body) for i, body in state.lights.items()) if r is not None]
+        sensors = [r for r in (_resolve(state, "sensor", i, body) for i, body in state.sensors.items())
+                   if r is not None]
         state.live = LiveScene(state.id, state.revision, state.tracer, instance_of_node, node_world, materials,
                                dict(DEFAULT_MATERIAL), lights, sensors,
                                extras={"length_unit": state.length_unit, "objects": dict(state.objects),
@@ -345,39 +347,16 @@ class Scenes(SceneGeometries, SceneViews):
         return state.live
 
 
-def _resolve(state: SceneState, aid: str, body: dict) -> dict | None:
-    """A light/sensor body in world metres (None while its node is missing); an area light and a surface sensor
-    carry "instances": the instance ids of their node's subtree."""
-    out = {k: copy.deepcopy(v) for k, v in body.items() if k not in ("attached_to", "name")}
-    out["id"] = aid
-    if body.get("type") in ("area", "surface"):   # a surface sensor keeps its node (the answer names it)
-        node = body["node"]
+def _resolve(state: SceneState, family: str, aid: str, body: dict) -> dict | None:
+    """A light/sensor body in world metres (None while its node is missing); a body with a node field (an area
+    light, a surface sensor) carries "instances": the instance ids of that node's subtree (`kind_wire.follow_node`)."""
+    node = kind_wire.anchor_of(family, body)
+    world, instances = None, None
+    if node is not None:
         if not state.has_node(node):
             return None
-        if body.get("type") == "area":
-            out.pop("node")
-        out["instances"] = [state.instances[u] for u in state.tree.subtree(node) if u in state.instances]
-        return out
-    node = body.get("attached_to")
-    if node is None:
-        return out
-    row = state.tree.index.get(node)
-    if row is None:
-        return None
-    w = state.tree.world[row]
-    lin = w[:3, :3]
-    for key in ("position", "origin", "center"):
-        if key in out:
-            out[key] = (lin @ np.asarray(out[key], dtype=float) + w[:3, 3]).tolist()
-    for key in ("direction", "normal", "up", "c0"):
-        if key in out:
-            d = lin @ np.asarray(out[key], dtype=float)
-            out[key] = (d / np.linalg.norm(d)).tolist()
-    for key in ("u", "v"):
-        if key in out:
-            out[key] = (lin @ np.asarray(out[key], dtype=float)).tolist()
-    pol = out.get("polarization")
-    if isinstance(pol, dict) and pol.get("type") == "linear":   # the field's axis turns with the node
-        a = lin @ np.asarray(pol["axis"], dtype=float)
-        out["polarization"] = {**pol, "axis": (a / np.linalg.norm(a)).tolist()}
-    return out
+        if body.get("attached_to") is not None:
+            world = state.tree.world[state.tree.index[node]]
+        else:
+            instances = [state.instances[u] for u in state.tree.subtree(node) if u in state.instances]
+    return {**kind_wire.follow_node(family, body, world, instances), "id": aid}
