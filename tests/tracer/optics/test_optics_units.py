@@ -197,7 +197,7 @@ def test_materials_must_cover_the_instances():
     ({"type": "spot", "position": [0, 0, 1], "direction": [0, 0, -1], "cone_deg": 30, "falloff_deg": 40,
       "intensity_cd": 1}, "must not exceed"),
     ({"type": "collimated", "origin": [0, 0, 1], "direction": [0, 0, -1], "illuminance_lx": 5},
-     "missing 'width'"),
+     "or 'width' and 'height'"),
     ({"type": "collimated", "origin": [0, 0, 1], "direction": [0, 0, -1], "radius": 0, "illuminance_lx": 5},
      "'radius' must be >"),
     ({"type": "goniometric", "position": [0, 0, 1], "format": "ies", "data": "junk"}, "no 'TILT=' line"),
