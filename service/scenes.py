@@ -124,7 +124,9 @@ class Scenes(SceneGeometries, SceneViews):
         self._states: dict[str, SceneState] = {}
         self._lock = threading.Lock()
         self._scene_locks: dict[str, threading.RLock] = {}
-        self.live = LiveRegistry(self.live_scene, self.revision, lambda scene_id: self.state(scene_id).lock)
+        # the scene's lock is the one its state holds (`_load` gives it): taking it reads nothing from the database,
+        # so a query reads the scene's state once, in `live_scene`
+        self.live = LiveRegistry(self.live_scene, self.revision, self.scene_lock)
         self.known_geometries: set[str] = store.geometry_ids()
         self.elements = ElementLibrary(store.engine, settings.data_dir / "elements")   # shared by every scene
 

@@ -261,15 +261,23 @@ class SimulationHub:
         except ValueError as exc:  # the transport refuses a body it cannot simulate, saying why
             raise Invalid(f"the scene cannot be simulated: {exc}") from exc
 
-    def prepare(self, scene_id: str) -> Prepared:
-        """The scene's current snapshot and its simulation (built once per change); raises `NotFound`."""
-        self.live.revision(scene_id)  # NotFound before any per-scene state is made for an unknown id
+    def prepare(self, scene_id: str, check: Callable[[LiveScene], None] | None = None) -> Prepared:
+        """The scene's current snapshot and its simulation (built once per change); raises `NotFound`. The scene's
+        state is read once (`live.get`: one version check against the database), under its lock; `check(live)`
+        refuses a query on that snapshot before anything is built."""
         with self._lock:
             build_lock = self._scene_locks.setdefault(scene_id, threading.Lock())
         with build_lock:  # two first queries of one scene build it once
             with self._scene_lock(scene_id):  # no push runs while we read the snapshot
+                try:
+                    live = self.live.get(scene_id)
+                except NotFound:
+                    with self._lock:   # no per-scene state is kept for an unknown id
+                        self._scene_locks.pop(scene_id, None)
+                    raise
+                if check is not None:
+                    check(live)
                 generation = self.generation(scene_id)
-                live = self.live.get(scene_id)
                 key = (int(live.revision), generation, live.fingerprint)
                 with self._lock:
                     cached = self._cache.get(scene_id)

@@ -155,12 +155,15 @@ def _sensor_query(scene_id: str, sensor_id: str, query: SensorSimulate, request:
     hub = _hub(request)
     budget = resolve_budget(hub.limits, query.target_relative_error, query.max_seconds, query.max_photons,
                             query.target_scope)
-    sensor = find_sensor(hub.live.get(scene_id), sensor_id)
-    if sensor.get("type") == "grid" and int(sensor["nu"]) * int(sensor["nv"]) > hub.limits.max_points:
-        raise TooLarge(f"sensor {sensor_id!r} has {int(sensor['nu']) * int(sensor['nv'])} cells; this service "
-                       f"answers at most {hub.limits.max_points} points per query", limit=hub.limits.max_points)
-    prepared = hub.prepare(scene_id)
-    sensor = find_sensor(prepared.live, sensor_id)  # the same sensor in the snapshot the query runs on
+
+    def sized(live: Any) -> None:   # refused before anything is built
+        sensor = find_sensor(live, sensor_id)
+        if sensor.get("type") == "grid" and int(sensor["nu"]) * int(sensor["nv"]) > hub.limits.max_points:
+            raise TooLarge(f"sensor {sensor_id!r} has {int(sensor['nu']) * int(sensor['nv'])} cells; this service "
+                           f"answers at most {hub.limits.max_points} points per query", limit=hub.limits.max_points)
+
+    prepared = hub.prepare(scene_id, sized)   # the one read of the scene's state
+    sensor = find_sensor(prepared.live, sensor_id)  # the sensor in the snapshot the query runs on
     map_url = str(request.url_for("sensor_map", scene_id=scene_id, sensor_id=sensor_id).path)
     warnings = units.far_warnings(prepared.live, units.sensor_positions(prepared.live, [sensor_id])
                                   + units.light_positions(prepared.live))

@@ -20,6 +20,7 @@ from tracer.kinds.base import orthonormal_basis, vec3
 KIND = 1
 SENSOR = True
 GEOMETRY = "sensor:disk"   # what `tracer.Scene.instance_geometry` reports
+EXAMPLE = ([0.2, -0.1, 0.5], [0.3, 0.1, 1.0], 0.4)   # placement(*EXAMPLE): the contract test's instance
 OBJECT_BOUNDS = np.array([-1.0, -1.0, 0.0, 1.0, 1.0, 0.0])
 
 

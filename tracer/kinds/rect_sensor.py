@@ -18,6 +18,7 @@ from tracer.kinds.base import vec3
 KIND = 2
 SENSOR = True
 GEOMETRY = "sensor:rect"   # what `tracer.Scene.instance_geometry` reports
+EXAMPLE = ([-0.3, -0.2, 0.5], [0.8, 0.1, 0.0], [0.0, 0.6, 0.2])   # placement(*EXAMPLE): the contract test's instance
 OBJECT_BOUNDS = np.array([0.0, 0.0, 0.0, 1.0, 1.0, 0.0])
 
 

@@ -112,7 +112,8 @@ def test_bad_spectra_are_rejected_naming_the_field(body, match):
 
 
 @pytest.mark.parametrize(("light", "match"), [
-    ({"type": "point", "position": [0, 0, 0], "flux_w": 1, "flux_lm": 1}, "exactly one of 'intensity_cd', 'flux_lm' and 'flux_w'"),
+    ({"type": "point", "position": [0, 0, 0], "flux_w": 1, "flux_lm": 1},
+     "exactly one of 'intensity_cd', 'flux_lm' and 'flux_w'"),
     ({"type": "point", "position": [0, 0, 0], "flux_w": -1}, "'flux_w' must be a number of watts"),
     ({"type": "point", "position": [0, 0, 0], "flux_w": math.inf}, "'flux_w'"),
     ({"type": "collimated", "origin": [0, 0, 0], "direction": [0, 0, -1], "radius": 1, "flux_w": 1,
