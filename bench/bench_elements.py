@@ -119,6 +119,9 @@ def guide_photons(rounds: int, photons: int) -> dict:
 
 
 def beside_meshed(rounds: int) -> dict:
+    from bench.bench_spectral import ROOT
+
+    sys.path.insert(0, str(ROOT))   # the meshed reference lives beside the tests that check the element against it
     from tests.tracer.elements.meshed_relief import domed_plate
     from tracer.elements import prepare
     from tracer.scene import Scene
