@@ -74,6 +74,7 @@ from tracer.transport.rounds import (
     budget,
     compile_seconds,
     forward,
+    radiance,
 )
 from tracer.transport.tessellation_error import grid_cells, lux_budget, scene_surfaces
 
@@ -86,6 +87,7 @@ __all__ = ["BACKWARD_BATCH", "DEFAULT_MAX_SECONDS", "DEFAULT_RADIUS", "ESTIMATOR
 log = logging.getLogger(__name__)
 
 ESTIMATORS = ("auto", "forward", "backward")
+VIEW_EFFECTS = ("lambertian", "specular", "fresnel")   # what paths from the eye follow (`tracer.transport.radiance`)
 OBSERVABLES = ("spectrum", "stokes")
 
 class Simulation:
@@ -138,6 +140,7 @@ class Simulation:
         default_spec = material_spec(default_material, "default_material") if default_material is not None else None
         self._mats = pack_materials(mats, default_spec, ids, self.sensor_ids)
         self._lights = pack_lights(list(lights), scene, frozenset(self.sensor_ids))
+        self.light_bodies: list[dict] = [dict(b) for b in lights]   # validated: what the luminance kernel reads
         self._lights_spectral = spectral_lights(self._lights)   # the same lights for photons with a wavelength
         geometry_ids = [i for i in ids if i not in self.sensor_ids]
         # the distinct specs in use (a scene of 100k instances has a handful of materials)
@@ -297,6 +300,8 @@ class Simulation:
             effects = with_forced(self.effects, force_effects)
         except EffectError as exc:
             raise SimulationError(f"{exc} (in force_effects)") from None
+        if probe.view is not None:
+            return self._run_views(probe, stop, int(seed), estimator, effects, progress, cancel)
         which = self._choose(estimator, effects, probe.is_grid)
         if (probe.surface is not None or probe.far is not None) and which != "forward":
             raise SimulationError("the surface and far-field tallies are forward only")
@@ -318,6 +323,24 @@ class Simulation:
             else:
                 budget_lux = lux_budget(res.lux, probe.centers, self._curved, radius=probe.radius)
             res.error_budget = {"tessellation": budget_lux}
+        res.backend = backend.describe()
+        return res
+
+    def _run_views(self, probe: Probe, stop, seed: int, estimator: str, effects: list[str], progress,
+                   cancel) -> IlluminanceResult:
+        """A luminance meter's or a camera's views, by paths from the eye (`tracer.transport.radiance`)."""
+        if estimator not in ("auto", "backward"):
+            raise SimulationError(f"a luminance or camera sensor is answered by paths from the eye: estimator must be "
+                                  f"'auto' or 'backward', got {estimator!r}")
+        beyond = sorted(set(effects) - set(VIEW_EFFECTS))
+        if beyond:
+            raise SimulationError(f"the luminance estimator follows {list(VIEW_EFFECTS)} only; this scene (or "
+                                  f"force_effects) needs {beyond}")
+        t0 = time.perf_counter()
+        backend = QueryBackend(self.backend)
+        res = radiance(self, probe, stop, seed, [e for e in effects if e in VIEW_EFFECTS], progress, cancel, t0,
+                       backend)
+        res.cost = cost_of(res.lux, res.stderr, res.photons, res.seconds - res.compile_seconds)
         res.backend = backend.describe()
         return res
 
