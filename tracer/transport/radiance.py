@@ -46,7 +46,7 @@ from tracer.optics.lights.base import P_I0
 from tracer.optics.lights.dispatch import AREA
 from tracer.optics.polarization import N_POL
 from tracer.optics.surfaces.base import CONTINUES, STACK_FULL, arrival_normal, reflect_specular
-from tracer.optics.surfaces.dispatch import LAMBERTIAN, albedo, scatter
+from tracer.optics.surfaces.dispatch import BLACK, LAMBERTIAN, albedo, scatter
 from tracer.rng import path_key, uniform
 
 RR_DEPTH = 3            # diffuse bounces before Russian roulette (as `tracer.transport.backward`)
@@ -184,7 +184,7 @@ def seen_point_lights(sa, L, V, q, stack, tstack):
 @njit(cache=True, error_model="numpy", _nrt=False)
 def trace_view(sa, M, L, V, E, q, key, counters, med, pol, stack, tstack):
     """One path from the eye of view q: (an unbiased estimate of the luminance the paths find, cd/m²; 1.0 where
-    the view ray went on through a specular surface before any diffuse one, else 0.0)."""
+    the view ray met a specular surface (or took a specular lobe) before any diffuse one, else 0.0)."""
     dx, dy, dz = view_direction(V, q, uniform(key, 0), uniform(key, 1))
     x, y, z = V.o[q, 0], V.o[q, 1], V.o[q, 2]
     dim = 2
@@ -241,6 +241,11 @@ def trace_view(sa, M, L, V, E, q, key, counters, med, pol, stack, tstack):
                 dim += 1
                 w /= survive
             continue
+        if rho == 0.0 and M.kind[inst] != BLACK:   # a specular surface (met, whether it reflects or absorbs)
+            if from_eye:
+                through_specular = 1.0
+            else:
+                caustic = True
         status, ox, oy, oz, f, depth, dim = scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth,
                                                     key, dim, 0.0, pol)
         if status == STACK_FULL:
@@ -259,10 +264,11 @@ def trace_view(sa, M, L, V, E, q, key, counters, med, pol, stack, tstack):
             from_eye = False
         else:
             pb_scale = 0.0
-            if from_eye:
-                through_specular = 1.0
-            else:
-                caustic = True
+            if rho > 0.0:   # the specular lobe of a surface that also has a diffuse one
+                if from_eye:
+                    through_specular = 1.0
+                else:
+                    caustic = True
         dx, dy, dz = ox, oy, oz
         x, y, z = offset_ray_origin(px, py, pz, ngx, ngy, ngz, dx, dy, dz)
     if truncated:
