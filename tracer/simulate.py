@@ -87,7 +87,6 @@ __all__ = ["BACKWARD_BATCH", "DEFAULT_MAX_SECONDS", "DEFAULT_RADIUS", "ESTIMATOR
 log = logging.getLogger(__name__)
 
 ESTIMATORS = ("auto", "forward", "backward")
-VIEW_EFFECTS = ("lambertian", "specular", "fresnel")   # what paths from the eye follow (`tracer.transport.radiance`)
 OBSERVABLES = ("spectrum", "stokes")
 
 class Simulation:
@@ -300,8 +299,9 @@ class Simulation:
             effects = with_forced(self.effects, force_effects)
         except EffectError as exc:
             raise SimulationError(f"{exc} (in force_effects)") from None
-        if probe.view is not None:
-            return self._run_views(probe, stop, int(seed), estimator, effects, progress, cancel)
+        if probe.view is not None:   # a luminance meter or a camera: paths from the eye
+            return radiance(self, probe, stop, int(seed), estimator, effects, progress, cancel,
+                            QueryBackend(self.backend))
         which = self._choose(estimator, effects, probe.is_grid)
         if (probe.surface is not None or probe.far is not None) and which != "forward":
             raise SimulationError("the surface and far-field tallies are forward only")
@@ -323,24 +323,6 @@ class Simulation:
             else:
                 budget_lux = lux_budget(res.lux, probe.centers, self._curved, radius=probe.radius)
             res.error_budget = {"tessellation": budget_lux}
-        res.backend = backend.describe()
-        return res
-
-    def _run_views(self, probe: Probe, stop, seed: int, estimator: str, effects: list[str], progress,
-                   cancel) -> IlluminanceResult:
-        """A luminance meter's or a camera's views, by paths from the eye (`tracer.transport.radiance`)."""
-        if estimator not in ("auto", "backward"):
-            raise SimulationError(f"a luminance or camera sensor is answered by paths from the eye: estimator must be "
-                                  f"'auto' or 'backward', got {estimator!r}")
-        beyond = sorted(set(effects) - set(VIEW_EFFECTS))
-        if beyond:
-            raise SimulationError(f"the luminance estimator follows {list(VIEW_EFFECTS)} only; this scene (or "
-                                  f"force_effects) needs {beyond}")
-        t0 = time.perf_counter()
-        backend = QueryBackend(self.backend)
-        res = radiance(self, probe, stop, seed, [e for e in effects if e in VIEW_EFFECTS], progress, cancel, t0,
-                       backend)
-        res.cost = cost_of(res.lux, res.stderr, res.photons, res.seconds - res.compile_seconds)
         res.backend = backend.describe()
         return res
 

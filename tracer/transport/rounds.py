@@ -25,7 +25,7 @@ from tracer.optics import spectra
 from tracer.scene import Scene
 from tracer.sensors.base import IlluminanceResult, Probe
 from tracer.transport.backward import QueryArrays, disk_queries
-from tracer.transport.estimate import Estimate
+from tracer.transport.estimate import Estimate, cost_of
 from tracer.transport.forward import COUNTERS, SensorArrays, tally_columns
 from tracer.transport.radiance import COUNTERS as RADIANCE_COUNTERS
 from tracer.transport.radiance import emitters
@@ -313,13 +313,24 @@ class ViewBins(IlluminanceResult):
 
 
 VIEW_PATHS = 4096   # paths per batch over all the views together, at least one per view (a camera: one a pixel)
+VIEW_EFFECTS = ("lambertian", "specular", "fresnel")   # what paths from the eye follow (`tracer.transport.radiance`)
 
 
-def radiance(sim, probe: Probe, budget: Budget, seed: int, effects: list[str], progress, cancel, t0: float,
+def radiance(sim, probe: Probe, budget: Budget, seed: int, estimator: str, effects: list[str], progress, cancel,
              backend: QueryBackend) -> ViewBins:
     """Paths from the eye of each of the probe's views (`Probe.view`), round by round: their luminance (cd/m²) and
-    standard errors. The kernel has no GPU variant: on a card's backend it runs on this process's threads, and the
-    answer's backend says so."""
+    standard errors, with the cost of tighter errors and the backend. Only "auto" or "backward" answers, and only
+    scenes whose effects are in `VIEW_EFFECTS` (`SimulationError` otherwise). The kernel has no GPU variant: on a
+    card's backend it runs on this process's threads, and the answer's backend says so."""
+    if estimator not in ("auto", "backward"):
+        raise SimulationError(f"a luminance or camera sensor is answered by paths from the eye: estimator must be "
+                              f"'auto' or 'backward', got {estimator!r}")
+    beyond = sorted(set(effects) - set(VIEW_EFFECTS))
+    if beyond:
+        raise SimulationError(f"the luminance estimator follows {list(VIEW_EFFECTS)} only; this scene (or "
+                              f"force_effects) needs {beyond}")
+    effects = [e for e in effects if e in VIEW_EFFECTS]
+    t0 = time.perf_counter()
     views: Any = probe.view
     k = len(views.kind)
     shape = backend.shape
@@ -339,10 +350,13 @@ def radiance(sim, probe: Probe, budget: Budget, seed: int, effects: list[str], p
 
     est, batches, stop, counters = loop(run_round, 2 * k, per_batch, budget, progress, cancel, t0, shape, k)
     cdict = {name: int(c) for name, c in zip(RADIANCE_COUNTERS, counters, strict=True)}
-    return ViewBins(est.mean[:k], est.stderr[:k], photons=batches * per_batch, seconds=time.perf_counter() - t0,
-                    effects=effects, estimator="backward", stop_reason=stop, batches=batches,
-                    rejected=cdict["rejected"], counters=cdict, compile_seconds=compile_s,
-                    through_specular=est.mean[k:])
+    res = ViewBins(est.mean[:k], est.stderr[:k], photons=batches * per_batch, seconds=time.perf_counter() - t0,
+                   effects=effects, estimator="backward", stop_reason=stop, batches=batches,
+                   rejected=cdict["rejected"], counters=cdict, compile_seconds=compile_s,
+                   through_specular=est.mean[k:])
+    res.cost = cost_of(res.lux, res.stderr, res.photons, res.seconds - res.compile_seconds)
+    res.backend = backend.describe()
+    return res
 
 
 def compile_seconds() -> dict[str, float]:
