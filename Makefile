@@ -8,7 +8,7 @@ BENCH_STAMP := $(VENV)/.installed-bench
 WEB    := service/web
 WEB_STAMP := $(WEB)/node_modules/.installed
 
-.PHONY: demo serve test lint typecheck bench clean postgres chromium web
+.PHONY: demo demo-guide serve test lint typecheck bench clean postgres chromium web
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -22,6 +22,9 @@ $(BENCH_STAMP): $(STAMP)
 
 demo: $(STAMP) $(WEB_STAMP)
 	$(BIN)/lumenlink demo
+
+demo-guide: $(STAMP)
+	$(BIN)/lumenlink demo-guide
 
 serve: $(STAMP) $(WEB_STAMP)
 	$(BIN)/lumenlink serve

@@ -137,6 +137,33 @@ def assign(
                            server=server, create=create) or 0)
 
 
+@app.command("demo-guide")
+def demo_guide(
+    out_dir: Annotated[Path, typer.Option(help="Where the two maps go.")] = Path("demo-output"),
+    photons: Annotated[int, typer.Option(help="Photons per pattern.")] = 400_000,
+) -> None:
+    """An edge-lit light guide with its extraction dots as an optical element: uniform against graded dots."""
+    raise typer.Exit(_call("lumenlink.guide_demo", "run", 36, out_dir=out_dir, photons=photons) or 0)
+
+
+@app.command()
+def element(
+    body: Annotated[str | None, typer.Option(help="Element JSON (DESIGN.md), e.g. a microstructure of domes on a "
+                                                  "grid.")] = None,
+    file: Annotated[Path | None, typer.Option(help="Read the element JSON from this file.")] = None,
+    element_id: Annotated[str | None, typer.Option("--id", help="A library element's id (instead of a body).")] = None,
+    scene: Annotated[str | None, typer.Option(help="Scene name or id (with --node).")] = None,
+    node: Annotated[str | None, typer.Option(help="Put the element onto this node (path or UUID).")] = None,
+    facing: Annotated[str | None, typer.Option(help="The node's faces that carry it: those facing X,Y,Z in its "
+                                                    "frame.")] = None,
+    server: Server = "http://127.0.0.1:8000",
+    create: Create = False,
+) -> None:
+    """Prepare an optical element with an inside into the library, put it onto a part, or list the library."""
+    raise typer.Exit(_call("lumenlink.commands", "element", 36, scene=scene, server=server, body=body, file=file,
+                           node=node, facing=facing, element_id=element_id, create=create) or 0)
+
+
 @app.command()
 def light(
     scene: SceneOpt,

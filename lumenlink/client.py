@@ -222,6 +222,40 @@ class Client(ServiceClient):
             body["name"] = name
         return dict(self._call("POST", f"/scenes/{self._sid(scene)}/lights", "adding a light", json=body))
 
+    # ------------------------------------------------------------ elements with an inside
+
+    def add_element(self, body: dict[str, Any]) -> dict[str, Any]:
+        """Prepare an element into the library (DESIGN.md "Optical elements with an inside"): answers ``{id,
+        features, bytes, prepare_seconds}``; the same body answers the same id, preparing nothing."""
+        if not isinstance(body, dict):
+            raise LumenLinkError("an element is a JSON object {\"type\": \"microstructure\", \"feature\", "
+                                 "\"layout\"}", usage=True)
+        return dict(self._call("POST", "/elements", "preparing an element", json=body))
+
+    def elements(self) -> list[dict[str, Any]]:
+        """The library: every prepared element with its size and preparation time."""
+        return list(self._call("GET", "/elements", "listing the element library"))
+
+    def put_element(self, scene: str | dict, path_or_uuid: str, element: str | dict[str, Any], *,
+                    facing: Sequence[float] | None = None, faces: Sequence[int] | None = None) -> dict[str, Any]:
+        """Put an element (its library id, or a body, prepared first) onto the faces of a node that face `facing`
+        (its own frame), or onto its B-rep `faces`. Answers ``{id, body, orphaned, applied, problem, model}``."""
+        eid = element if isinstance(element, str) else self.add_element(element)["id"]
+        body: dict[str, Any] = {"element": eid, "node": path_or_uuid}
+        if facing is not None:
+            body["facing"] = triples([list(facing)], "facing")[0]
+        if faces is not None:
+            body["faces"] = [int(f) for f in faces]
+        return dict(self._call("POST", f"/scenes/{self._sid(scene)}/elements", f"putting an element on "
+                                                                              f"{path_or_uuid!r}", json=body))
+
+    def scene_elements(self, scene: str | dict) -> list[dict[str, Any]]:
+        return list(self._call("GET", f"/scenes/{self._sid(scene)}/elements", "listing the scene's elements"))
+
+    def remove_element(self, scene: str | dict, assignment: str) -> None:
+        """Take an element off its part (the part's faces are plain again)."""
+        self._call("DELETE", f"/scenes/{self._sid(scene)}/elements/{assignment}", "taking an element off")
+
     def add_sensor(self, scene: str | dict, body: dict[str, Any], *, attach: str | None = None) -> dict[str, Any]:
         """Add a sensor: ``{"type": "grid", "origin", "u", "v", "nu", "nv"}`` (front side u × v, metres) or
         ``{"type": "disk", "center", "normal", "radius"}``. Answers ``{id, body, orphaned}``."""

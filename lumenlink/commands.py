@@ -194,6 +194,30 @@ def light(scene: str, server: str, ies: Path | None = None, at: str | None = Non
     return _run(work)
 
 
+def element(scene: str | None, server: str, body: str | None = None, file: Path | None = None,
+            node: str | None = None, facing: str | None = None, element_id: str | None = None,
+            create: bool = False) -> int:
+    """Prepare an element into the library (--body JSON or --file), and with --node put it onto the node's faces
+    that face --facing X,Y,Z (its frame); with neither body nor file, list the library."""
+    def work(console: Console) -> int:
+        with Client(server) as ll:
+            if body is None and file is None and element_id is None:
+                for e in ll.elements():
+                    print(f"{e['id']}  features {e['features'] if e['features'] is not None else 'periodic'}  "
+                          f"{e['bytes']} bytes  prepared in {e['prepare_seconds']:.3f} s")
+                return EXIT_OK
+            eid = element_id or ll.add_element(_json_arg(body, file, "element"))["id"]
+            print(f"element {eid}")
+            if node is not None:
+                if scene is None or facing is None:
+                    raise LumenLinkError("--node needs --scene and --facing X,Y,Z", usage=True)
+                answer = ll.put_element(ll.scene(scene, create=create), node, eid, facing=vec3(facing, "--facing"))
+                state = "applied" if answer["applied"] else f"not applied: {answer['problem']}"
+                print(f"on {node} ({answer['body']['node']}): assignment {answer['id']}, {state}")
+        return EXIT_OK
+    return _run(work)
+
+
 def sensor(scene: str, server: str, grid: tuple[str, str, str, int, int] | None = None, body: str | None = None,
            attach: str | None = None, name: str | None = None, create: bool = False) -> int:
     """Add a grid sensor (--grid ORIGIN U V NU NV, vectors X,Y,Z in metres) or any sensor from a JSON body."""

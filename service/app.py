@@ -20,7 +20,7 @@ from service.db import open_engine
 from service.errors import install_handlers
 from service.meshes import MeshStore
 from service.middleware import BearerToken, BodyLimit, RequestLog
-from service.routes import assignments, geometries, pages, scenes
+from service.routes import assignments, elements, geometries, pages, scenes
 from service.state import SceneManager
 
 log = logging.getLogger("lumenlink.service")
@@ -68,6 +68,7 @@ def create_app(settings: Settings | None = None, scene_factory: Callable[[], Any
     app.include_router(scenes.router, responses=PROBLEM_RESPONSES)
     app.include_router(geometries.router, responses=PROBLEM_RESPONSES)
     app.include_router(assignments.router, responses=PROBLEM_RESPONSES)
+    app.include_router(elements.router, responses=PROBLEM_RESPONSES)
     if importlib.util.find_spec("service.routes.simulation") is not None:
         from service.routes import simulation
 

@@ -17,11 +17,16 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel, TypeAdapter
 
+from service import kind_wire
+from service.elements import check_assignment
+from service.elements import public as element_public
+from service.elements import sync as element_sync
 from service.errors import Conflict, Invalid, NotFound
 from service.scenes import Scenes, SceneState
 from service.schemas import Light, Material, ObjectCreate, Sensor
 from service.store import TABLES, Raced
 from service.tree import Tree, TreeError
+from tracer.optics.fields import node_field
 
 material_adapter: TypeAdapter = TypeAdapter(Material)
 light_adapter: TypeAdapter = TypeAdapter(Light)
@@ -96,13 +101,11 @@ class Assignments:
         """Add a light, sensor or sim-owned object (validated body); answers its public form."""
         body = dict(body)  # a retry (`_retried`) starts again from the body as given
         with self.scenes.current(scene_id) as state:
-            self._check_anchor(state, state.anchor_of(body), kind)
-            if kind == "sensor" and body["type"] == "surface" and not any(
-                    u in state.instances for u in state.tree.subtree(body["node"])):
-                raise Invalid(f"surface sensor: node {body['node']} and its descendants have no geometry: nothing to "
-                              f"tally", node=body["node"])
-            if kind == "light" and body["type"] == "goniometric":
-                _validate_photometry(body["format"], body["data"])
+            self._check_anchor(state, state.anchor_of(kind, body), kind)
+            field = node_field(kind_wire.fields_of(kind, body)) if kind == "sensor" else None
+            if field is not None and not any(u in state.instances for u in state.tree.subtree(body[field])):
+                raise Invalid(f"{body['type']} sensor: node {body[field]} and its descendants have no geometry: "
+                              f"nothing to tally", node=body[field])
             if kind == "object" and self.scenes.missing_geometries([body["geometry"]]):
                 raise Invalid(f"geometry {body['geometry']} is not uploaded (PUT /geometries/{{id}} first)",
                               missing=[body["geometry"]])
@@ -128,7 +131,7 @@ class Assignments:
         with state.lock:
             out = []
             for aid, body in getattr(state, TABLES[kind][1]).items():
-                anchor = state.anchor_of(body)
+                anchor = state.anchor_of(kind, body)
                 out.append({"id": aid, "body": body, "orphaned": anchor is not None and not state.has_node(anchor)})
             return out
 
@@ -159,6 +162,67 @@ class Assignments:
                 state.materials.pop(aid, None)
             self.scenes.changed(state)
 
+    # ------------------------------------------------------------ elements with an inside
+
+    @_retried
+    def add_element(self, scene_id: str, body: dict) -> dict[str, Any]:
+        """Put a library element onto a node's support faces (`service.elements`); 422 where it cannot go, with
+        nothing changed."""
+        body = dict(body)
+        with self.scenes.current(scene_id) as state:
+            check_assignment(body, self.scenes.elements, state)
+            for aid, other in state.elements.items():
+                if other["node"] == body["node"]:
+                    raise Conflict(f"node {body['node']} already carries element assignment {aid}: delete it first",
+                                   node=body["node"])
+            aid = str(uuidlib.uuid4())
+            state.elements[aid] = body
+            try:
+                element_sync(state, self.scenes.elements)
+            except Exception:
+                self.scenes.forget(scene_id)
+                raise
+            problem = state.element_problems.pop(aid, None)
+            if problem is not None:   # the tracer refused it before changing anything
+                del state.elements[aid]
+                raise Invalid(f"the element cannot go onto node {body['node']}: {problem}", node=body["node"])
+            try:
+                state.last_commit = self.scenes.commit(state)
+                self.store.add_assignment(scene_id, state.version, "element", aid, body)
+            except Exception:
+                self.scenes.forget(scene_id)
+                raise
+            self.scenes.changed(state)
+            return element_public(state, aid, body)
+
+    def list_elements(self, scene_id: str) -> list[dict[str, Any]]:
+        state = self.scenes.state(scene_id)
+        with state.lock:
+            return [element_public(state, aid, body) for aid, body in state.elements.items()]
+
+    def get_element(self, scene_id: str, aid: str) -> dict[str, Any]:
+        state = self.scenes.state(scene_id)
+        with state.lock:
+            if aid not in state.elements:
+                raise NotFound(f"no element assignment {aid} in scene {scene_id}")
+            return element_public(state, aid, state.elements[aid])
+
+    @_retried
+    def delete_element(self, scene_id: str, aid: str) -> None:
+        """Take an element off its part (the part is plain again: its own faces, instance and material)."""
+        with self.scenes.current(scene_id) as state:
+            if aid not in state.elements:
+                raise NotFound(f"no element assignment {aid} in scene {scene_id}")
+            try:
+                del state.elements[aid]
+                element_sync(state, self.scenes.elements)
+                state.last_commit = self.scenes.commit(state)
+                self.store.delete_assignment(scene_id, state.version, "element", aid)
+            except Exception:
+                self.scenes.forget(scene_id)
+                raise
+            self.scenes.changed(state)
+
     def purge_orphans(self, scene_id: str) -> list[dict[str, str]]:
         """Delete every orphaned assignment of the scene; answers what was deleted."""
         with self.scenes.current(scene_id) as state:
@@ -166,21 +230,11 @@ class Assignments:
             for o in gone:
                 if o["kind"] == "material":
                     self.delete_material(scene_id, o["id"])
+                elif o["kind"] == "element":
+                    self.delete_element(scene_id, o["id"])
                 else:
                     self.delete_assignment(scene_id, o["kind"], o["id"])
             return gone
-
-
-def _validate_photometry(fmt: str, text: str) -> None:
-    """Parse a goniometric file with the tracer's parser (422 naming the problem if it is wrong)."""
-    try:
-        from tracer.photometry.files import parse_photometry
-    except ImportError:  # the parser is not built yet: accept, it is parsed again at simulation time
-        return
-    try:
-        parse_photometry(fmt, text)
-    except ValueError as exc:
-        raise Invalid(f"invalid {fmt} photometry file: {exc}") from exc
 
 
 def validate_body(kind: str, body: Any) -> dict:
@@ -201,7 +255,4 @@ def validate_body(kind: str, body: Any) -> dict:
             Tree.build(["00000000-0000-0000-0000-000000000000"], [None], [""], t.reshape(1, 16), [None], None, "m")
         except TreeError as exc:
             raise Invalid(f"object transform: {str(exc).split(': ', 1)[-1]}") from exc
-    for key in ("position", "origin", "center", "direction", "normal", "u", "v", "up"):
-        if key in out:
-            out[key] = list(out[key])
-    return out
+    return {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}   # [x, y, z] as JSON keeps it

@@ -20,6 +20,9 @@ Tables (one row per thing, keyed by scene):
   little-endian float64 bytes; they outlive the sensor, not the scene.
 - ``far_field_results``: the latest result of each far-field sensor (cd on its C-γ grid, as the answer gives it),
   what its IES / EULUMDAT export reads (``service.results.ResultStore.keep_far``); it outlives a restart.
+- ``elements``: the library of prepared optical elements with an inside, shared by every scene (the body, its
+  summary; the prepared arrays live in a file per element under the data dir, `service.elements`).
+- ``element_assignments``: an element put onto a node's support faces (by node uuid, orphaned like the others).
 
 `open_engine` creates the engine and brings the schema to the latest migration
 (``alembic upgrade head``, run programmatically from the packaged ``service/migrations``).
@@ -156,6 +159,24 @@ far_field_results = Table(
     Column("sensor_id", String(36), primary_key=True),
     Column("created_at", DateTime(timezone=True), nullable=False),
     Column("payload", JSON, nullable=False),        # the far-field answer: candela, stderr, grid, flux, revision
+)
+
+elements = Table(
+    "elements", metadata,
+    Column("id", String(64), primary_key=True),     # SHA-256 of the checked body: the same body, the same id
+    Column("body", JSON, nullable=False),
+    Column("features", BigInteger, nullable=True),  # null: a periodic layout, as many as its support holds
+    Column("bytes", BigInteger, nullable=False),
+    Column("prepare_seconds", Float, nullable=False),
+    Column("created_at", DateTime(timezone=True), nullable=False, server_default=func.now()),
+)
+
+element_assignments = Table(
+    "element_assignments", metadata,
+    Column("id", String(36), primary_key=True),
+    Column("scene_id", String(36), ForeignKey("scenes.id", ondelete="CASCADE"), nullable=False, index=True),
+    Column("body", JSON, nullable=False),           # {"element", "node", "facing" | "faces"}
+    Column("created_at", DateTime(timezone=True), nullable=False, server_default=func.now()),
 )
 
 MIGRATIONS = Path(__file__).resolve().parent / "migrations"

@@ -67,8 +67,10 @@ class LiveScene:
         (a snapshot is never changed after it is made: a change makes a new one). The simulation hub rebuilds on
         every notification anyway; the fingerprint guards a change that did not notify (a snapshot rebuilt from
         the database after a restart, say)."""
+        elements = self.extras.get("elements")   # what carries an element with an inside, where anything does
         payload = json.dumps([self.revision, sorted((int(k), v) for k, v in self.materials.items()),
-                              self.default_material, self.lights], sort_keys=True, default=str)
+                              self.default_material, self.lights] + ([elements] if elements else []), sort_keys=True,
+                             default=str)
         return hashlib.sha256(payload.encode()).hexdigest()
 
 

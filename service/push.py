@@ -28,6 +28,7 @@ from typing import Any
 
 from service.config import Settings
 from service.document import count_nodes, decode_document, decode_incremental, remember, same_nodes
+from service.elements import sync as element_sync
 from service.errors import Conflict, Invalid, TooLarge
 from service.scenes import Scenes, SceneState
 from service.schemas import DocumentPush, IdentityIn
@@ -199,6 +200,10 @@ class Pushes:
                 node = body.get("attached_to")
                 if node is not None and (node in moved or node in removed or node in added):
                     self.scenes.place_object(state, oid, body)
+            if state.elements:
+                if diff.length_unit_changed:   # the parts' millimetres per object unit changed: put them on anew
+                    state.element_instances.clear()
+                element_sync(state, self.scenes.elements)
             t_applied = time.perf_counter()
             commit = self.scenes.commit(state)
             t_commit = time.perf_counter()

@@ -29,8 +29,12 @@ from typing import Any
 
 import numpy as np
 
+from service import kind_wire
 from service.config import Settings
 from service.document import NodeBytes
+from service.elements import ElementLibrary
+from service.elements import describe as element_describe
+from service.elements import sync as element_sync
 from service.errors import NotFound
 from service.live import DEFAULT_MATERIAL, DELETED, LiveRegistry, LiveScene
 from service.meshes import MeshStore
@@ -62,6 +66,9 @@ class SceneState:
     lights: dict[str, dict] = field(default_factory=dict)  # id -> body as given
     sensors: dict[str, dict] = field(default_factory=dict)
     objects: dict[str, dict] = field(default_factory=dict)
+    elements: dict[str, dict] = field(default_factory=dict)  # element assignment id -> body
+    element_instances: dict[str, int] = field(default_factory=dict)  # element assignment id -> instance carrying it
+    element_problems: dict[str, str] = field(default_factory=dict)  # element assignment id -> why it is not applied
     last_commit: dict[str, Any] = field(default_factory=dict)
     node_bytes: NodeBytes | None = None  # where each node sits in the body that made `tree` (row i = chunk i)
     identity: dict[str, IdentityIn] = field(default_factory=dict)  # node uuid -> its identity record, as stored
@@ -78,9 +85,9 @@ class SceneState:
     def has_node(self, key: str) -> bool:
         return key in self.tree.index
 
-    def anchor_of(self, body: dict) -> str | None:
+    def anchor_of(self, kind: str, body: dict) -> str | None:
         """The node a light/sensor/object body depends on (attached_to, or an area light's node)."""
-        return body.get("attached_to") or (body.get("node") if body.get("type") in ("area", "surface") else None)
+        return kind_wire.anchor_of(kind, body)
 
     def orphans(self, only_nodes: set[str] | None = None) -> list[dict[str, str]]:
         """Assignments whose node is not in the tree (optionally only those naming `only_nodes`)."""
@@ -96,9 +103,10 @@ class SceneState:
         for key in self.materials:
             if missing(key) and key not in self.objects:
                 out.append({"kind": "material", "id": key, "node": key})
-        for kind, table in (("light", self.lights), ("sensor", self.sensors), ("object", self.objects)):
+        for kind, table in (("light", self.lights), ("sensor", self.sensors), ("object", self.objects),
+                            ("element", self.elements)):
             for aid, body in table.items():
-                node = self.anchor_of(body)
+                node = body["node"] if kind == "element" else self.anchor_of(kind, body)
                 if missing(node):
                     out.append({"kind": kind, "id": aid, "node": node})  # type: ignore[dict-item]
         return out
@@ -118,6 +126,7 @@ class Scenes(SceneGeometries, SceneViews):
         self._scene_locks: dict[str, threading.RLock] = {}
         self.live = LiveRegistry(self.live_scene, self.revision, lambda scene_id: self.state(scene_id).lock)
         self.known_geometries: set[str] = store.geometry_ids()
+        self.elements = ElementLibrary(store.engine, settings.data_dir / "elements")   # shared by every scene
 
     def new_tracer_scene(self) -> Any:
         if self._scene_factory is not None:
@@ -217,12 +226,14 @@ class Scenes(SceneGeometries, SceneViews):
         state = SceneState(scene_id, row.name, row.revision, row.length_unit, Tree.empty(unit),
                            self.new_tracer_scene(), assign_revision=row.assign_revision,
                            materials=stored["materials"], lights=stored["lights"], sensors=stored["sensors"],
-                           objects=stored["objects"], lock=lock, identity=stored["identity"])
+                           objects=stored["objects"], elements=stored["elements"], lock=lock,
+                           identity=stored["identity"])
         diff = diff_trees(state.tree, tree)
         state.tree = tree
         apply_to_scene(state.tracer, state.instances, tree, diff, lambda g: self.ensure_geometry(state, g))
         for oid, body in state.objects.items():
             self.place_object(state, oid, body)
+        element_sync(state, self.elements)
         state.last_commit = self.commit(state)
         log.info("loaded scene %s (revision %d, %d nodes): %s", scene_id, state.revision, len(tree),
                  state.last_commit)
@@ -243,6 +254,10 @@ class Scenes(SceneGeometries, SceneViews):
             if oid not in state.object_instances:
                 self.place_object(state, oid, body)
                 moved = moved or oid in state.object_instances
+        if stored["elements"] != state.elements:
+            state.elements = stored["elements"]
+            element_sync(state, self.elements)
+            moved = True
         if moved:
             state.last_commit = self.commit(state)
         state.materials, state.lights, state.sensors = stored["materials"], stored["lights"], stored["sensors"]
@@ -322,47 +337,26 @@ class Scenes(SceneGeometries, SceneViews):
                 materials[inst] = copy.deepcopy(state.materials[oid])
         instance_of_node = dict(state.instances)
         instance_of_node.update(state.object_instances)
-        lights = [r for r in (_resolve(state, lid, body) for lid, body in state.lights.items()) if r is not None]
-        sensors = [r for r in (_resolve(state, sid, body) for sid, body in state.sensors.items()) if r is not None]
+        lights = [r for r in (_resolve(state, "light", i, body) for i, body in state.lights.items()) if r is not None]
+        sensors = [r for r in (_resolve(state, "sensor", i, body) for i, body in state.sensors.items())
+                   if r is not None]
         state.live = LiveScene(state.id, state.revision, state.tracer, instance_of_node, node_world, materials,
                                dict(DEFAULT_MATERIAL), lights, sensors,
-                               extras={"length_unit": state.length_unit, "objects": dict(state.objects)})
+                               extras={"length_unit": state.length_unit, "objects": dict(state.objects),
+                                       "elements": element_describe(state)})
         return state.live
 
 
-def _resolve(state: SceneState, aid: str, body: dict) -> dict | None:
-    """A light/sensor body in world metres (None while its node is missing); an area light and a surface sensor
-    carry "instances": the instance ids of their node's subtree."""
-    out = {k: copy.deepcopy(v) for k, v in body.items() if k not in ("attached_to", "name")}
-    out["id"] = aid
-    if body.get("type") in ("area", "surface"):   # a surface sensor keeps its node (the answer names it)
-        node = body["node"]
+def _resolve(state: SceneState, family: str, aid: str, body: dict) -> dict | None:
+    """A light/sensor body in world metres (None while its node is missing); a body with a node field (an area
+    light, a surface sensor) carries "instances": the instance ids of that node's subtree (`kind_wire.follow_node`)."""
+    node = kind_wire.anchor_of(family, body)
+    world, instances = None, None
+    if node is not None:
         if not state.has_node(node):
             return None
-        if body.get("type") == "area":
-            out.pop("node")
-        out["instances"] = [state.instances[u] for u in state.tree.subtree(node) if u in state.instances]
-        return out
-    node = body.get("attached_to")
-    if node is None:
-        return out
-    row = state.tree.index.get(node)
-    if row is None:
-        return None
-    w = state.tree.world[row]
-    lin = w[:3, :3]
-    for key in ("position", "origin", "center"):
-        if key in out:
-            out[key] = (lin @ np.asarray(out[key], dtype=float) + w[:3, 3]).tolist()
-    for key in ("direction", "normal", "up", "c0"):
-        if key in out:
-            d = lin @ np.asarray(out[key], dtype=float)
-            out[key] = (d / np.linalg.norm(d)).tolist()
-    for key in ("u", "v"):
-        if key in out:
-            out[key] = (lin @ np.asarray(out[key], dtype=float)).tolist()
-    pol = out.get("polarization")
-    if isinstance(pol, dict) and pol.get("type") == "linear":   # the field's axis turns with the node
-        a = lin @ np.asarray(pol["axis"], dtype=float)
-        out["polarization"] = {**pol, "axis": (a / np.linalg.norm(a)).tolist()}
-    return out
+        if body.get("attached_to") is not None:
+            world = state.tree.world[state.tree.index[node]]
+        else:
+            instances = [state.instances[u] for u in state.tree.subtree(node) if u in state.instances]
+    return {**kind_wire.follow_node(family, body, world, instances), "id": aid}

@@ -3,19 +3,17 @@
 Every model forbids unknown fields (a misspelt field is an error, never silently ignored) and
 accepts finite numbers only. Lengths are metres unless a field says otherwise; a document's
 node transforms are in the document's own ``length_unit``. Checks that need more than one
-field (non-zero directions, reflectance ≤ 1, …) live in validators here; checks that need
-the whole tree (cycles, parents, invertibility) live in `service.tree`.
+field live in the tracer and run in the models' validators (materials: `service.optics`; lights and
+sensors: `service.kind_wire`); checks that need the whole tree (cycles, parents, invertibility) live in `service.tree`.
 """
 
 from __future__ import annotations
 
-import math
 from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, Strict, StringConstraints, model_validator
 
-from service import optics
-from service.sensor_wire import DISK_SENSOR_EXAMPLE, GRID_SENSOR_EXAMPLE, Sensor, SensorCreate  # noqa: F401 (the wire's names)
+from service import kind_wire, optics
 from service.wire import (  # noqa: F401 (the wire's names, here as before)
     GEOMETRY_PATTERN,
     LENGTH_UNITS,
@@ -38,7 +36,8 @@ from service.wire import (  # noqa: F401 (the wire's names, here as before)
     Wire,
     nonzero,
 )
-from tracer.optics.lights import spot
+from tracer.sensors import disk as sensor_disk
+from tracer.sensors import grid as sensor_grid
 
 # ---------------------------------------------------------------- examples shown by /docs and /redoc
 
@@ -56,22 +55,9 @@ DOCUMENT_EXAMPLE: dict[str, Any] = {
          "name": "floor", "transform": [1.0, 0.0, 0.0, -2.0, 0.0, 1.0, 0.0, -2.0, 0.0, 0.0, 1.0, 0.0,
                                         0.0, 0.0, 0.0, 1.0],
          "geometry": EXAMPLE_FLOOR_GEOMETRY, "color": [0.6, 0.6, 0.6]}]}
-POINT_LIGHT_EXAMPLE: dict[str, Any] = {"type": "point", "name": "bulb", "position": [0.0, 0.0, 2.0],
-                                       "intensity_cd": 100.0}
-SPOT_LIGHT_EXAMPLE: dict[str, Any] = {"type": "spot", "name": "downlight", "position": [1.0, 0.0, 2.5],
-                                      "direction": [0.0, 0.0, -1.0], "cone_deg": 30.0, "falloff_deg": 25.0,
-                                      "flux_lm": 800.0, "spectrum": {"type": "blackbody", "kelvin": 3000.0}}
-COLLIMATED_LIGHT_EXAMPLE: dict[str, Any] = {
-    "type": "collimated", "name": "sun", "origin": [0.0, 0.0, 3.0], "direction": [0.3, 0.2, -1.0], "width": 4.0,
-    "height": 4.0, "up": [0.0, 1.0, 0.0], "illuminance_lx": 100000.0,
-    "spectrum": {"type": "blackbody", "kelvin": 5778.0}}
-AREA_LIGHT_EXAMPLE: dict[str, Any] = {"type": "area", "name": "ceiling panel", "node": "room/ceiling_panel",
-                                      "exitance_lm_m2": 2000.0}
-#: a small type-C downlight (IES LM-63-2002): 1000 lm, intensities in cd per 1000 lm, rotationally symmetric
-IES_EXAMPLE = ("IESNA:LM-63-2002\n[TEST]LumenLink example\n[MANUFAC]LumenLink\n[LUMINAIRE]recessed downlight\n"
-               "TILT=NONE\n1 1000 1 5 1 1 2 0.2 0.2 0\n1.0 1.0 12\n0 22.5 45 67.5 90\n0\n400 350 220 60 0\n")
-GONIOMETRIC_LIGHT_EXAMPLE: dict[str, Any] = {"type": "goniometric", "name": "downlight", "position": [0.0, 0.0, 2.8],
-                                             "format": "ies", "data": IES_EXAMPLE}
+# the kinds' own examples (`EXAMPLE` in each tracer kind module), by the names the tests and docs use
+GRID_SENSOR_EXAMPLE: dict[str, Any] = sensor_grid.EXAMPLE
+DISK_SENSOR_EXAMPLE: dict[str, Any] = sensor_disk.EXAMPLE
 
 
 # ---------------------------------------------------------------- scenes
@@ -341,121 +327,13 @@ class MaterialPublic(Wire):
     orphaned: bool = Field(description="True while a push has removed the node.")
 
 
-# ---------------------------------------------------------------- lights (DESIGN.md bodies)
+# ---------------------------------------------------------------- lights and sensors (DESIGN.md bodies)
 
-class _Intensity(Attachable):
-    intensity_cd: Photometric | None = Field(None, description="Luminous intensity, cd (isotropic: in every "
-                                                               "direction of its cone).")
-    flux_lm: Photometric | None = Field(None, description="Luminous flux, lm (instead of intensity_cd).")
-    flux_w: Annotated[float, Field(ge=0.0, le=1e13)] | None = Field(None, description=(
-        "Radiant flux, W (instead of a photometric quantity; lm = W × the spectrum's efficacy)."))
-
-    @model_validator(mode="after")
-    def _one_of(self) -> _Intensity:
-        if sum(v is not None for v in (self.intensity_cd, self.flux_lm, self.flux_w)) != 1:
-            raise ValueError("give exactly one of intensity_cd, flux_lm and flux_w")
-        return self
-
-
-class PointLight(_Intensity):
-    type: Literal["point"] = Field(description="An isotropic point source.")
-    position: Vec3 = Field(description="[x, y, z], m (world, or the attached node's frame).")
-
-    model_config = ConfigDict(json_schema_extra={"examples": [POINT_LIGHT_EXAMPLE]})
-
-
-class SpotLight(_Intensity):
-    type: Literal["spot"] = Field(description="A point source emitting into a cone.")
-    position: Vec3 = Field(description="[x, y, z], m (world, or the attached node's frame).")
-    direction: Vec3 = Field(description="The cone's axis (any length, not zero; dimensionless).")
-    cone_deg: Annotated[float, Field(gt=0.0, le=180.0)] = Field(description="Half-angle of the cone, degrees.")
-    falloff_deg: Annotated[float, Field(ge=0.0, le=180.0)] = Field(
-        0.0, description="Half-angle, degrees, beyond which the intensity falls to 0 at cone_deg (0: a hard edge).")
-
-    model_config = ConfigDict(json_schema_extra={"examples": [SPOT_LIGHT_EXAMPLE]})
-
-    @model_validator(mode="after")
-    def _check(self) -> SpotLight:
-        nonzero("direction", self.direction)
-        problem = spot.falloff_problem(self.cone_deg, self.falloff_deg)   # the tracer's rule, stated once
-        if problem:
-            raise ValueError(problem)
-        return self
-
-
-class CollimatedLight(Attachable):
-    """A parallel beam from an aperture centred on `origin`: a disk (`radius`) or a rectangle
-    (`width` × `height`, its height along `up` projected off the direction)."""
-
-    type: Literal["collimated"] = Field(description="A parallel beam.")
-    origin: Vec3 = Field(description="Centre of the aperture [x, y, z], m.")
-    direction: Vec3 = Field(description="Direction of travel (any length, not zero; dimensionless).")
-    radius: Positive | None = Field(None, description="Radius of a disk aperture, m.")
-    width: Positive | None = Field(None, description="Width of a rectangular aperture, m.")
-    height: Positive | None = Field(None, description="Height of a rectangular aperture (along `up`), m.")
-    up: Vec3 | None = Field(None, description="Orients a rectangle's height (dimensionless; not along direction).")
-    illuminance_lx: Photometric = Field(description="Illuminance on a plane across the beam, lx.")
-
-    model_config = ConfigDict(json_schema_extra={"examples": [COLLIMATED_LIGHT_EXAMPLE]})
-
-    @model_validator(mode="after")
-    def _check(self) -> CollimatedLight:
-        nonzero("direction", self.direction)
-        rect = self.width is not None or self.height is not None
-        if (self.radius is None) == (not rect) or (rect and (self.width is None or self.height is None)):
-            raise ValueError("give either radius (a disk aperture) or width and height (a rectangle)")
-        if self.up is not None:
-            if not rect:
-                raise ValueError("up orients a rectangular aperture; a disk has none")
-            nonzero("up", self.up)
-            dx, dy, dz = self.direction
-            ux, uy, uz = self.up
-            cross = math.hypot(dy * uz - dz * uy, dz * ux - dx * uz, dx * uy - dy * ux)
-            if cross <= 1e-9 * math.hypot(*self.direction) * math.hypot(*self.up):
-                raise ValueError("up must not be parallel to direction")
-        return self
-
-
-class AreaLight(Spectral):
-    type: Literal["area"] = Field(description="A node's surfaces emitting (Lambertian).")
-    name: Annotated[str, StringConstraints(max_length=200)] | None = Field(None, description="A name for people.")
-    node: NodeRef = Field(description="The node (UUID or path) whose surfaces, with its descendants', emit.")
-    exitance_lm_m2: Photometric = Field(description="Luminous exitance of the surfaces, lm/m².")
-
-    model_config = ConfigDict(json_schema_extra={"examples": [AREA_LIGHT_EXAMPLE]})
-
-
-class GoniometricLight(Attachable):
-    """A type-C photometric file; `direction` is its γ = 0 axis (default straight down, −z) and `c0`
-    its C = 0 half-plane (default +x); both turn with the node the light is attached to."""
-
-    type: Literal["goniometric"] = Field(description="A luminaire from its photometric file.")
-    position: Vec3 = Field(description="The photometric centre [x, y, z], m.")
-    format: Literal["ies", "ldt"] = Field(description="`ies` (IES LM-63) or `ldt` (EULUMDAT).")
-    data: Annotated[str, StringConstraints(min_length=1, max_length=10_000_000)] = Field(
-        description="The file's text (intensities in cd, or cd/klm scaled by its lumens).")
-    direction: Vec3 | None = Field(None, description="The γ = 0 axis (dimensionless); default −z, straight down.")
-    c0: Vec3 | None = Field(None, description="The C = 0 half-plane's direction (dimensionless); default +x.")
-
-    model_config = ConfigDict(json_schema_extra={"examples": [GONIOMETRIC_LIGHT_EXAMPLE]})
-
-    @model_validator(mode="after")
-    def _check(self) -> GoniometricLight:
-        nonzero("direction", self.direction)
-        nonzero("c0", self.c0)
-        if self.direction is not None and self.c0 is not None:
-            (ax, ay, az), (bx, by, bz) = self.direction, self.c0
-            cross = math.hypot(ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx)
-            if cross <= 1e-9 * math.hypot(ax, ay, az) * math.hypot(bx, by, bz):
-                raise ValueError("c0 must not be parallel to direction")
-        return self
-
-
-Light = Annotated[PointLight | SpotLight | CollimatedLight | AreaLight | GoniometricLight, Field(discriminator="type")]
-
-
-class LightCreate(Wire):
-    light: Light = Field(description="A light body.")
+# Light and sensor bodies are made from the tracer's kinds' typed fields, in one place: `service.kind_wire`.
+Light = kind_wire.Light
+Sensor = kind_wire.Sensor
+LightCreate = kind_wire.LightCreate
+SensorCreate = kind_wire.SensorCreate
 
 
 # ---------------------------------------------------------------- simulation-owned objects

@@ -1,7 +1,9 @@
 """The service's side of each sensor kind: one class per kind, one registry (`KINDS`), no switch on a kind elsewhere
 in `service.simulation`.
 
-A kind says what the service needs beyond the tracer's sensor kind (`tracer.sensors`):
+A kind here says what the service needs beyond the tracer's sensor kind (`tracer.sensors`); a tracer kind with no
+class here is answered by `Measured` (its body from its declared fields, its lux summarised, kept in the result
+store), so a new sensor kind needs a class only where it stores or renders something of its own:
 
 - ``TYPE``: the wire's ``type``, the same as the tracer kind it runs;
 - ``KEEP``: where its latest result is kept: ``"map"`` (in memory while the scene is unchanged, for ``map.png`` and
@@ -22,6 +24,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
+from service import kind_wire
 from service.errors import Invalid, TooLarge
 from service.jobs import Budget
 from service.payloads import finite_list, result_payload
@@ -99,10 +102,12 @@ class Grid:
         return summary(payload, np.asarray(payload["lux"], float))
 
 
-class Disk:
-    """One disk answering its mean illuminance (lx)."""
+class Measured:
+    """Any sensor kind the service has no class of its own for (the disk among them): its tracer body made from its
+    declared fields (`tracer.optics.fields`), its answer the tracer's lux with ``min_lux``/``mean_lux``/``max_lux``,
+    kept in the result store."""
 
-    TYPE = "disk"
+    TYPE = ""   # every wire sensor kind not in `KINDS`
     KEEP = "store"
 
     @staticmethod
@@ -111,16 +116,28 @@ class Disk:
 
     @staticmethod
     def body(sensor: dict, live: Any) -> dict:
-        # the normal is made unit here and again by the tracer, as the service always did: one rounding fewer
-        # would move the answer's last bits
-        normal = np.asarray(sensor["normal"], float)
-        return {"type": "disk", "center": np.asarray(sensor["center"], float),
-                "normal": normal / np.linalg.norm(normal), "radius": float(sensor["radius"])}
+        out: dict[str, Any] = {"type": sensor["type"]}
+        for f in kind_wire.fields_of("sensor", sensor).values():
+            v = sensor.get(f.name)
+            if f.value == "node":
+                out["instances"] = [int(i) for i in sensor.get("instances", [])]
+            elif v is None:
+                continue
+            elif f.value == "direction":
+                # made unit here and again by the tracer, as the service always did for a disk's normal: one
+                # rounding fewer would move the answer's last bits
+                d = np.asarray(v, float)
+                out[f.name] = d / np.linalg.norm(d)
+            elif f.value in ("point", "vector"):
+                out[f.name] = np.asarray(v, float)
+            else:
+                out[f.name] = {"number": float, "count": int}.get(f.value, lambda x: x)(v)
+        return out
 
     @staticmethod
     def payload(result: Any, sensor: dict, live: Any) -> dict:
         payload = result_payload(result, live.revision)
-        payload.update(sensor=str(sensor["id"]), type="disk")
+        payload.update(sensor=str(sensor["id"]), type=str(sensor["type"]))
         return summary(payload, np.asarray(payload["lux"], float))
 
 
@@ -198,13 +215,15 @@ class FarField:
         return payload
 
 
-#: every sensor kind the service answers, by its wire ``type``
-KINDS: dict[str, Any] = {k.TYPE: k for k in (Grid, Disk, Surface, FarField)}
+#: the sensor kinds that store or render something of their own, by their wire ``type``; every other sensor kind of
+#: the wire (`service.kind_wire`, from the tracer's kinds) is `Measured`
+KINDS: dict[str, Any] = {k.TYPE: k for k in (Grid, Surface, FarField)}
 
 
 def kind_of(sensor: dict) -> Any:
     """The service kind of a stored sensor; 422 for a type no kind answers."""
-    kind = KINDS.get(str(sensor.get("type")))
+    t = str(sensor.get("type"))
+    kind = KINDS.get(t) or (Measured if t in kind_wire.FIELDS["sensor"] else None)
     if kind is None:
         raise Invalid(f"sensor {sensor.get('id')!r} has type {sensor.get('type')!r}, which cannot be simulated")
     return kind
@@ -212,4 +231,4 @@ def kind_of(sensor: dict) -> Any:
 if TYPE_CHECKING:   # made from the registry at import: to a type checker it is a string
     SensorType = str
 else:
-    SensorType = Literal[tuple(KINDS)]   # the wire's sensor types, from the registry
+    SensorType = Literal[tuple(kind_wire.FIELDS["sensor"])]   # the wire's sensor types, from the tracer's kinds

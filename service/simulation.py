@@ -40,12 +40,13 @@ from typing import Any
 
 import numpy as np
 
-from service import sensor_kinds
+from service import kind_wire, sensor_kinds
 from service.errors import Invalid, NotFound, ServiceError, Unavailable
 from service.jobs import Budget, JobRunner
 from service.live import DELETED, LiveRegistry, LiveScene
 from service.optics import to_spec
 from service.payloads import result_payload
+from tracer.optics.fields import node_field
 
 log = logging.getLogger(__name__)
 #: Async jobs: worker threads and how many may wait.
@@ -77,11 +78,12 @@ def transport_lights(live: LiveScene) -> list[dict]:
     lights = []
     for light in live.lights:
         body = {k: v for k, v in light.items() if k not in ("attached_to", "name")}
-        if body.get("type") == "area" and "instances" not in body:
-            node = body.pop("node", None)
+        field = node_field(kind_wire.fields_of("light", body))
+        if field is not None and "instances" not in body:   # a snapshot made without the scene's tree
+            node = body.get(field)
             if node not in live.instance_of_node:
-                raise Invalid(f"area light {light.get('id')!r} is on node {node!r}, which has no geometry in "
-                              f"revision {live.revision}", light=light.get("id"))
+                raise Invalid(f"{body['type']} light {light.get('id')!r} is on node {node!r}, which has no geometry "
+                              f"in revision {live.revision}", light=light.get("id"))
             body["instances"] = [live.instance_of_node[node]]
         lights.append(body)
     return lights
@@ -337,6 +339,8 @@ class SimulationHub:
                 seed=seed, estimator=estimator, force_effects=force_effects, progress=progress, cancel=cancel,
                 observe=observe, reference=reference, physics_left_out=physics_left_out)
         payload = kind.payload(result, sensor, prepared.live)
+        if prepared.live.extras.get("elements"):   # the elements with an inside it traced, and their model
+            payload["elements"] = prepared.live.extras["elements"]
         if kind.KEEP == "far":
             if not cancel or not cancel():
                 with self._lock:

@@ -262,6 +262,9 @@ class SensorPublic(BaseModel):
     cie_xy: list[Any] | None = Field(None, description="With observe spectrum: CIE 1931 (x, y) per cell "
                                                        "(dimensionless); null where no light arrived.")
     cost: Cost | None = Field(None, description="What tighter errors would cost (seconds and photons per target).")
+    elements: list[dict[str, Any]] | None = Field(None, description=(
+        "The optical elements with an inside the scene carries (assignment `id`, `element`, `node`, `model`: "
+        "`exact`, its micro-geometry traced); absent where it carries none."))
     backend: Backend | None = Field(None, description="Where the photon batches ran.")
     device: str | None = Field(None, description="The processor the photon batches ran on: `cuda:0 <card>`, "
                                                  "`cpu:<threads> threads` (… `on <n> dask workers`); where CUDA was "

@@ -25,7 +25,8 @@ from service.schemas import IdentityIn
 IdentityChanges = tuple[dict[str, IdentityIn], list[str], bool]
 
 #: The table of each kind of assignment, and the `SceneState` attribute that holds it in memory.
-TABLES = {"light": (db.lights, "lights"), "sensor": (db.sensors, "sensors"), "object": (db.sim_objects, "objects")}
+TABLES = {"light": (db.lights, "lights"), "sensor": (db.sensors, "sensors"), "object": (db.sim_objects, "objects"),
+          "element": (db.element_assignments, "elements")}
 
 
 class Raced(Conflict):
@@ -112,7 +113,7 @@ class SceneStore:
             "identity": {r.uuid: IdentityIn.model_validate({"product": r.product, "signature": r.signature})
                          for r in conn.execute(select(db.node_identity)
                                                .where(db.node_identity.c.scene_id == scene_id))}}
-        for name, table in (("lights", db.lights), ("sensors", db.sensors), ("objects", db.sim_objects)):
+        for table, name in TABLES.values():
             out[name] = {r.id: r.body for r in conn.execute(
                 select(table).where(table.c.scene_id == scene_id).order_by(table.c.created_at, table.c.id))}
         return out

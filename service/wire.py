@@ -1,6 +1,7 @@
 """The wire's building blocks: value types (vectors, ids, node references, bounded numbers), the `Wire` base that
 forbids unknown fields and non-finite numbers, and the placed-and-spectral bases of lights and sensors.
-`service.schemas` and the per-family wire modules (`service.sensor_wire`) build on these.
+`service.schemas` and the wire models made from the tracer's kinds (`service.optics`, `service.kind_wire`) build on
+these.
 """
 
 from __future__ import annotations
@@ -8,12 +9,10 @@ from __future__ import annotations
 import math
 from typing import Annotated, Literal
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, Strict, StringConstraints, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, Strict, StringConstraints
 
 from service import optics
 from service.paths import NODE_REF_PATTERN, is_uuid
-from tracer.optics import spectra
-from tracer.optics.polarization import PolarizationError, light_polarization
 
 UUID_PATTERN = r"^[0-9a-fA-F]{8}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{12}$"
 GEOMETRY_PATTERN = r"^[0-9a-f]{64}$"
@@ -65,26 +64,13 @@ class CircularPolarization(Wire):
 
 
 class Spectral(Wire):
-    """A light's (or a light-like sensor's) spectrum and polarization."""
+    """A light's spectrum and polarization (their rules beyond the schema, increasing nm, some power, a non-zero
+    axis, are the tracer's: `tracer.optics.lights.dispatch.light_spec` runs them in each light model's check)."""
 
     spectrum: optics.Spectrum | None = Field(
         default=None, description="The light's relative spectral power; default equal energy over 380–780 nm.")
     polarization: Annotated[LinearPolarization | CircularPolarization, Field(discriminator="type")] | None = Field(
         default=None, description="The light's polarization (`tracer.optics.polarization`); default unpolarized.")
-
-    @model_validator(mode="after")
-    def _spectrum(self) -> Spectral:
-        if self.spectrum is not None:   # the tracer's rules beyond the schema: increasing nm, some power
-            try:
-                spectra.spectrum(self.spectrum.model_dump(), "spectrum")
-            except spectra.SpectrumError as exc:
-                raise ValueError(str(exc)) from None
-        if self.polarization is not None:   # the tracer's rules beyond the schema: a non-zero axis
-            try:
-                light_polarization(self.polarization.model_dump(), "light")
-            except PolarizationError as exc:
-                raise ValueError(str(exc).removeprefix("light: ")) from None
-        return self
 
 
 class Attachable(Spectral):

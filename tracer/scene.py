@@ -16,26 +16,26 @@ unchanged. Units: metres in the world (the tracer itself is unit-free).
 
 from __future__ import annotations
 
-import math
 import time
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-import numba
 import numpy as np
 
-from tracer.accel.lanes import batch
+from tracer.accel.queries import Hits, SceneQueries  # noqa: F401 - Hits is tracer.scene.Hits too (DESIGN.md)
 from tracer.accel.store import CACHE_MIN_TRIANGLES, Geometry, GeometryStore
 from tracer.accel.tlas import TopLevel, world_boxes
 from tracer.accel.top_levels import TopLevels
 from tracer.accel.traverse import SceneArrays
+from tracer.elements.microstructure import ElementError, Microstructure
+from tracer.elements.table import Reliefs
 from tracer.errors import NotCommittedError, TracerError, UnknownIdError
 from tracer.geometry_id import canonical_arrays, hash_canonical, is_geometry_id
 from tracer.jit import njit
-from tracer.kinds import SENSOR_KINDS, disk_sensor, mesh, rect_sensor
+from tracer.kinds import REGISTRY, SENSOR_KINDS, mesh, relief
 
-SENSOR_GEOMETRY = {disk_sensor.KIND: "sensor:disk", rect_sensor.KIND: "sensor:rect"}
+#: the kinds that have a placement of their own (sensor shapes), by name, for `Scene.add_shape`
+SHAPES = {m.__name__.rsplit(".", 1)[-1]: m for m in REGISTRY.values() if hasattr(m, "placement")}
 
 
 @dataclass(frozen=True)
@@ -61,32 +61,6 @@ class UpdateStats:
     blas_seconds: float
     tlas_seconds: float
     tlas_mode: str = "none"
-
-
-@dataclass(frozen=True)
-class Hits:
-    """Closest hits of a batch of k rays.
-
-    Attributes
-    ----------
-    t : (k,) float64
-        Ray parameter of the hit (``inf`` on a miss), in units of ``|d|``.
-    instance : (k,) int64
-        Instance id (-1 on a miss).
-    primitive : (k,) int64
-        Triangle index in the geometry's ``triangles`` (-1 on a miss).
-    u, v : (k,) float64
-        Barycentrics: ``p = (1-u-v) v0 + u v1 + v v2``.
-    normal : (k, 3) float64
-        Unit world-space geometric normal (zeros on a miss).
-    """
-
-    t: np.ndarray
-    instance: np.ndarray
-    primitive: np.ndarray
-    u: np.ndarray
-    v: np.ndarray
-    normal: np.ndarray
 
 
 @njit(cache=True, error_model="numpy")
@@ -161,7 +135,7 @@ def _check_matrix(transform: Any, what: str) -> tuple[np.ndarray, np.ndarray]:
     return m[:3].copy(), ofw
 
 
-class Scene:
+class Scene(SceneQueries):
     """A two-level ray tracing scene (DESIGN.md, "The tracer's Python API").
 
     Parameters
@@ -191,6 +165,7 @@ class Scene:
         self._wbox = np.zeros((cap, 6))
         self._dirty_ids: set[int] = set()
         self._top = TopLevels(self._wbox, self.tlas_refit)   # the solid and the sensor top level
+        self._reliefs = Reliefs()   # the instances that carry an element with an inside
         self._inst_changed = True
         self._arrays: SceneArrays | None = None
         self._changed = True
@@ -290,6 +265,7 @@ class Scene:
         i = self._instance(i)
         self._touch(i, structural=True)
         self._kind[i] = -1
+        self._reliefs.rows.pop(i, None)
 
     def instances(self) -> list[int]:
         """Ids of the live instances (meshes and sensors), ascending."""
@@ -298,10 +274,7 @@ class Scene:
     def instance_geometry(self, i: int) -> str:
         """Geometry id of instance ``i`` (``"sensor:disk"`` / ``"sensor:rect"`` for sensors)."""
         i = self._instance(i)
-        k = int(self._kind[i])
-        if k in SENSOR_GEOMETRY:
-            return SENSOR_GEOMETRY[k]
-        return self._blas.ids[int(self._igeom[i])]
+        return REGISTRY[int(self._kind[i])].GEOMETRY or self._reliefs.full_of(i, self._blas.ids[int(self._igeom[i])])
 
     def instance_transform(self, i: int) -> np.ndarray:
         """4x4 world_from_object of instance ``i`` (a copy)."""
@@ -326,19 +299,37 @@ class Scene:
         """True when instance ``i`` is a sensor."""
         return int(self._kind[self._instance(i)]) in SENSOR_KINDS
 
-    # ---------------------------------------------------------------- sensors
-    def add_disk_sensor(self, center: Any, normal: Any, radius: float) -> int:
-        """A disk sensor (front side: ``normal``); returns its instance id.
+    def set_element(self, i: int, element: Microstructure | None, *, facing: Any = None, faces: Any = None,
+                    face_ids: Any = None, mm_per_unit: float = 1000.0) -> None:
+        """Put `element` onto the planar support of mesh instance `i` (`tracer.elements.support.select`: the triangles
+        `facing` a direction of its frame, or the B-rep `faces` given each triangle's `face_ids`), or take it off
+        (None). Its instance id, transform and material stay; `mm_per_unit`: millimetres per object unit."""
+        i = self._instance(i)
+        if int(self._kind[i]) not in (mesh.KIND, relief.KIND):
+            raise ElementError(f"instance {i} is not a part (a sensor cannot carry an element)")
+        full = self._reliefs.full_of(i, self._blas.ids[int(self._igeom[i])])
+        kind, rest, box = self._reliefs.put(i, element, full, self._geometry(full), self.add_geometry, facing=facing,
+                                            faces=faces, face_ids=face_ids, mm_per_unit=mm_per_unit)
+        self._kind[i], self._igeom[i], self._obox[i] = kind, self._geometry(rest).index, box
+        self._touch(i, structural=True)
 
-        Crossings report ``(u, v)`` in the unit disk along an orthonormal basis of the disk plane.
-        """
-        wfo, ofw = _check_matrix(disk_sensor.placement(center, normal, radius), "disk sensor")
-        return self._new_instance(disk_sensor.KIND, -1, wfo, ofw, disk_sensor.OBJECT_BOUNDS)
+    # ---------------------------------------------------------------- shapes (sensors)
+    def add_shape(self, kind: str, *placement: Any) -> int:
+        """An instance of a kind with a placement of its own (`SHAPES`: a sensor shape), placed by the kind's
+        ``placement(*placement)``, which checks its arguments; returns its instance id."""
+        if kind not in SHAPES:
+            raise TracerError(f"add_shape: unknown shape kind {kind!r}; known: {sorted(SHAPES)}")
+        m = SHAPES[kind]
+        wfo, ofw = _check_matrix(m.placement(*placement), kind.replace("_", " "))
+        return self._new_instance(m.KIND, -1, wfo, ofw, m.OBJECT_BOUNDS)
+
+    def add_disk_sensor(self, center: Any, normal: Any, radius: float) -> int:
+        """A disk sensor (front side: ``normal``); crossings report ``(u, v)`` in the unit disk."""
+        return self.add_shape("disk_sensor", center, normal, radius)
 
     def add_rect_sensor(self, origin: Any, u: Any, v: Any) -> int:
         """A parallelogram sensor ``origin + a u + b v``, ``a, b`` in [0, 1]; front side ``u x v``."""
-        wfo, ofw = _check_matrix(rect_sensor.placement(origin, u, v), "rect sensor")
-        return self._new_instance(rect_sensor.KIND, -1, wfo, ofw, rect_sensor.OBJECT_BOUNDS)
+        return self.add_shape("rect_sensor", origin, u, v)
 
     # ---------------------------------------------------------------- commit
     def commit(self) -> UpdateStats:
@@ -367,7 +358,8 @@ class Scene:
             s["bvh"].ravel(), s["bvh"].view(np.int32).ravel(), s["tri_v"].ravel(),
             s["tri_prim"], s["prim_slot"], s["tri_n"],
             self._blas.node0, self._blas.tri0, self._blas.ntri, self._blas.hasn,
-            *inst, *_flat(self._top.levels["top"]), self._top.top_rec, *_flat(self._top.levels["sen"]))
+            *inst, *_flat(self._top.levels["top"]), self._top.top_rec, *_flat(self._top.levels["sen"]),
+            *self._reliefs.pack(n, lambda gid: self._geometry(gid).index))
         self._inst_changed = False
         self._changed = False
         t2 = time.perf_counter()
@@ -387,93 +379,7 @@ class Scene:
         """True when there are changes that :meth:`commit` has not yet published."""
         return self._changed
 
-    def intersect(self, origins: Any, directions: Any, t_max: Any = np.inf, *, threads: int | None = None) -> Hits:
-        """Closest hits of rays ``origins[i] + t directions[i]``, ``0 < t < t_max`` (sensors ignored).
-
-        origins, directions : (k, 3) float, world; directions need not be unit (``t`` is in units of ``|d|``).
-        t_max : float or (k,) float. threads : int or None — None: numba's setting; 1 for per-core measurements.
-        """
-        return self._trace(origins, directions, t_max, threads, any_hit=False)
-
-    def occluded(self, origins: Any, directions: Any, t_max: Any = np.inf, *, threads: int | None = None) -> np.ndarray:
-        """(k,) bool: does any solid lie on ``origins[i] + t directions[i]``, ``0 < t < t_max``?"""
-        return self._trace(origins, directions, t_max, threads, any_hit=True).instance >= 0
-
-    def _trace(self, origins: Any, directions: Any, t_max: Any, threads: int | None, any_hit: bool) -> Hits:
-        sa = self.arrays()
-        o, d, tm = _check_rays(origins, directions, t_max)
-        k = len(o)
-        h = Hits(np.empty(k), np.empty(k, np.int64), np.empty(k, np.int64), np.empty(k), np.empty(k), np.empty((k, 3)))
-        _run_threads(threads, lambda: batch(sa, o, d, tm, any_hit, h.t, h.instance, h.primitive, h.u, h.v, h.normal))
-        return h
-
 
 def _flat(level: TopLevel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     rows = level.binary if level.rows8 is None else level.rows8
     return rows.ravel(), rows.view(np.int32).ravel(), level.items
-
-
-def _run_threads(threads: int | None, fn: Callable[[], None]) -> None:
-    if threads is None:
-        fn()
-        return
-    if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) \
-            or not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
-        raise TracerError(f"threads must be an int in [1, {numba.config.NUMBA_NUM_THREADS}], got {threads!r}")
-    old = numba.get_num_threads()
-    numba.set_num_threads(int(threads))
-    try:
-        fn()
-    finally:
-        numba.set_num_threads(old)
-
-
-def _check_rays(origins: Any, directions: Any, t_max: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Validate a ray batch; return contiguous float64 (k,3), (k,3), (k,)."""
-    arrs = []
-    for name, a in (("origins", origins), ("directions", directions)):
-        x = np.asarray(a)
-        if x.ndim != 2 or x.shape[1] != 3:
-            raise TracerError(f"{name} must have shape (k, 3), got {x.shape}")
-        if not (np.issubdtype(x.dtype, np.floating) or np.issubdtype(x.dtype, np.integer)):
-            raise TracerError(f"{name} must be real numbers, got dtype {x.dtype}")
-        arrs.append(np.ascontiguousarray(x, dtype=np.float64))
-    o, d = arrs
-    if len(o) != len(d):
-        raise TracerError(f"origins and directions differ in length: {len(o)} vs {len(d)}")
-    try:
-        tm = np.asarray(t_max, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise TracerError(f"t_max must be a number or (k,) numbers, got {t_max!r}") from None
-    if tm.ndim == 0:
-        tm = np.full(len(o), float(tm))
-    elif tm.shape != (len(o),):
-        raise TracerError(f"t_max must be a scalar or have shape ({len(o)},), got {tm.shape}")
-    tm = np.ascontiguousarray(tm)
-    i, what = _first_bad_ray(o, d, tm)
-    if what == 1:
-        raise TracerError(f"ray {i}: origin is not finite: {o[i].tolist()}")
-    if what == 2:
-        raise TracerError(f"ray {i}: direction is not finite: {d[i].tolist()}")
-    if what == 3:
-        raise TracerError(f"ray {i}: direction is zero")
-    if what == 4:
-        raise TracerError(f"ray {i}: t_max must be >= 0 (inf allowed), got {tm[i]}")
-    return o, d, tm
-
-
-@njit(cache=True, error_model="numpy")
-def _first_bad_ray(o, d, tm):
-    """``(i, what)`` of the first bad ray (what: 1 origin not finite, 2 direction not finite, 3 zero
-    direction, 4 t_max NaN or negative), ``(-1, 0)`` when all are good: one pass, where the numpy
-    masks took four and cost as much as tracing a simple scene."""
-    for i in range(o.shape[0]):
-        if not (math.isfinite(o[i, 0]) and math.isfinite(o[i, 1]) and math.isfinite(o[i, 2])):
-            return i, 1
-        if not (math.isfinite(d[i, 0]) and math.isfinite(d[i, 1]) and math.isfinite(d[i, 2])):
-            return i, 2
-        if d[i, 0] == 0.0 and d[i, 1] == 0.0 and d[i, 2] == 0.0:
-            return i, 3
-        if not (tm[i] >= 0.0):
-            return i, 4
-    return -1, 0

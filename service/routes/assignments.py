@@ -12,11 +12,12 @@ from typing import Any
 from fastapi import APIRouter, Request, Response
 from pydantic import Field
 
-from service import paths, units
+from service import kind_wire, paths, units
 from service.errors import ServiceError
 from service.routes.deps import ItemId, Manager, NodeRef, SceneId
 from service.schemas import AssignmentPublic, Light, Material, MaterialPublic, ObjectCreate, OrphanPublic, Sensor
 from service.state import validate_body
+from tracer.optics.fields import node_field
 
 router = APIRouter(tags=["assignments"])
 
@@ -46,11 +47,11 @@ def _node_key(manager: Manager, scene_id: str, ref: str) -> str:
     return paths.resolve(manager.nodes(scene_id), ref, scene_id)
 
 
-def _resolve_anchors(manager: Manager, scene_id: str, body: dict[str, Any]) -> dict[str, Any]:
-    """The body with a path in `attached_to` (or an area light's or a surface sensor's `node`) replaced by that
-    node's uuid."""
-    keys = ["attached_to"] + (["node"] if body.get("type") in ("area", "surface") else [])
-    refs = {k: body[k] for k in keys if isinstance(body.get(k), str)}
+def _resolve_anchors(manager: Manager, scene_id: str, kind: str, body: dict[str, Any]) -> dict[str, Any]:
+    """The body with a path in `attached_to` (or in its kind's node field: an area light's or a surface sensor's
+    `node`) replaced by that node's uuid."""
+    keys = ["attached_to", node_field(kind_wire.fields_of(kind, body))]
+    refs = {k: body[k] for k in keys if k is not None and isinstance(body.get(k), str)}
     if paths.needs_nodes(*refs.values()):
         nodes = manager.nodes(scene_id)
         for k, ref in refs.items():
@@ -88,7 +89,8 @@ def _routes(kind: str, plural: str, schema: Any) -> None:
                  name=f"add_{kind}")
     def add(scene_id: SceneId, body: schema, manager: Manager,  # type: ignore[valid-type]
             request: Request) -> dict[str, Any]:
-        added = manager.add_assignment(scene_id, kind, _resolve_anchors(manager, scene_id, validate_body(kind, body)))
+        clean = _resolve_anchors(manager, scene_id, kind, validate_body(kind, body))
+        added = manager.add_assignment(scene_id, kind, clean)
         if kind in ("light", "sensor") and not added.get("orphaned"):
             added = {**added, "warnings": _far(request, scene_id, kind, str(added["id"]))}
         return added

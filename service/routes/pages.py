@@ -175,7 +175,8 @@ def view(scene_id: SceneId, request: Request) -> HTMLResponse:
     "node, path, geometry, `lux` and `stderr` per triangle, lx — or null); `last_push` (the changes of the last push "
     "through this process: UUID lists `added`, `moved`, `geometry_changed`, `removed`, `renamed`, capped at "
     "10,000 each, and their exact `counts`; null if none); `jobs` (running and recent jobs of the scene, without "
-    "results).")}})
+    "results); `elements` (the optical elements with an inside on its parts: assignment id, element id, node, "
+    "model, and whether it is applied, or why not).")}})
 def view_state(scene_id: SceneId, request: Request) -> dict[str, Any]:
     """Everything the 3D view of a scene draws, in one answer (see the 200 response)."""
     app = request.app
@@ -222,7 +223,7 @@ def view_state(scene_id: SceneId, request: Request) -> dict[str, Any]:
     return {"scene": scene, "instances": instances, "objects": list(objects.values()),
             "nodes": [{k: n[k] for k in ("uuid", "parent", "name", "path", "color")} for n in nodes],
             "lights": lights, "sensors": sensors, "last_push": app.state.events.last_push(scene_id),
-            "jobs": running + finished, "time": time.time()}
+            "jobs": running + finished, "elements": manager.assignments.list_elements(scene_id), "time": time.time()}
 
 
 @router.get("/scenes/{scene_id}/events", response_class=StreamingResponse, responses={

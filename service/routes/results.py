@@ -23,6 +23,7 @@ from service.errors import NotFound
 from service.maps import difference_map_png, illuminance_map_png
 from service.results import KEY_PATTERN, ResultStore, difference, difference_csv, result_csv
 from service.routes.deps import ItemId, SceneId
+from service.sensor_kinds import SensorType
 from service.simulation import SimulationHub, Unavailable, hub_for
 
 router = APIRouter(tags=["results"])
@@ -49,7 +50,7 @@ class ResultSummary(BaseModel):
     min_lux: float = Field(description="The smallest value, lx.")
     mean_lux: float = Field(description="The mean value, lx.")
     max_lux: float = Field(description="The largest value, lx.")
-    type: Literal["grid", "disk"] | None = Field(None, description="The sensor's kind.")
+    type: SensorType | None = Field(None, description="The sensor's kind.")
     estimator: str | None = Field(None, description="The estimator that ran: `forward` or `backward`.")
     stop_reason: str | None = Field(None, description="Which rule stopped the run.")
     effects: list[str] | None = Field(None, description="The effect set the simulation ran with.")

@@ -7,7 +7,8 @@ import pytest
 from service_helpers import car_document, glb, grid_mesh, make_client, uid
 
 import service.optics
-import service.schemas
+import tracer.optics.lights.dispatch
+import tracer.optics.lights.goniometric
 
 IES = """IESNA:LM-63-2002
 TILT=NONE
@@ -56,15 +57,17 @@ def test_a_material_body_is_validated_once(scene, monkeypatch) -> None:
 
 
 def test_a_light_body_is_validated_once(scene, monkeypatch) -> None:
-    """A goniometric light's model validator checks `direction` and `c0` (two `nonzero` calls) once."""
+    """A goniometric light's model validator asks the tracer (`light_spec`: its axes, and its file parsed) once;
+    nothing parses the file again when it is added."""
     client, sid = scene
-    checks = counted(monkeypatch, service.schemas, "nonzero")
+    checks = counted(monkeypatch, tracer.optics.lights.dispatch, "light_spec")
+    parses = counted(monkeypatch, tracer.optics.lights.goniometric, "parse_photometry")
     body = {"type": "goniometric", "position": [0, 0, 2], "format": "ies", "data": IES,
             "direction": [0, 0, -1], "c0": [1, 0, 0]}
     r = client.post(f"/scenes/{sid}/lights", json=body)
     assert r.status_code == 201, r.text
     assert r.json()["body"]["c0"] == [1.0, 0.0, 0.0]
-    assert len(checks) == 2
+    assert len(checks) == 1 and len(parses) == 1
     bad = client.post(f"/scenes/{sid}/lights", json={**body, "c0": [0, 0, -2]})   # parallel to direction
     assert bad.status_code == 422 and "parallel" in bad.text
     assert len(client.get(f"/scenes/{sid}/lights").json()) == 1   # the bad one changed nothing

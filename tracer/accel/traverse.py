@@ -61,6 +61,11 @@ class SceneArrays(NamedTuple):
     (:mod:`tracer.accel.rows8`), sensors ``sen_f, sen_i, sen_items`` in binary child-box rows
     (:func:`tracer.accel.rows4.pack_rows`); leaves index ``*_items``. ``top_rec`` (4 n,) i8: the solid items'
     :func:`tracer.accel.tlas.instance_records` (what entering each one needs, in leaf order).
+
+    Elements with an inside (:mod:`tracer.kinds.relief`, packed by :mod:`tracer.elements.support`): ``inst_aux``
+    (I,) i4 — an instance's row in them (-1: none); per row ``el_f`` (R, NF) f8 and ``el_i`` (R, NI) i8 (the columns
+    of :mod:`tracer.elements.features`); shared tables ``el_prim`` i4 (triangle maps), ``el_bits`` u1 (kept lattice
+    sites), ``el_uv`` (P, 2) f4 (listed feature centres, mm), ``el_bin`` i4 and ``el_item`` i4 (their cells).
     """
 
     bvh_f: np.ndarray
@@ -84,6 +89,14 @@ class SceneArrays(NamedTuple):
     sen_f: np.ndarray
     sen_i: np.ndarray
     sen_items: np.ndarray
+    inst_aux: np.ndarray
+    el_f: np.ndarray
+    el_i: np.ndarray
+    el_prim: np.ndarray
+    el_bits: np.ndarray
+    el_uv: np.ndarray
+    el_bin: np.ndarray
+    el_item: np.ndarray
 
 
 #: dtype and dimensions of each :class:`SceneArrays` field, as :class:`tracer.Scene` packs them
@@ -93,7 +106,9 @@ SCENE_ARRAY_TYPES = {"bvh_f": ("f4", 1), "bvh_i": ("i4", 1), "tri_v": ("f4", 1),
                      "geom_ntri": ("i8", 1), "geom_has_normals": ("?", 1), "inst_kind": ("i4", 1),
                      "inst_geom": ("i4", 1), "world_from_object": ("f8", 3), "object_from_world": ("f8", 3),
                      "top_f": ("f4", 1), "top_i": ("i4", 1), "top_items": ("i4", 1), "top_rec": ("i8", 1),
-                     "sen_f": ("f4", 1), "sen_i": ("i4", 1), "sen_items": ("i4", 1)}
+                     "sen_f": ("f4", 1), "sen_i": ("i4", 1), "sen_items": ("i4", 1), "inst_aux": ("i4", 1),
+                     "el_f": ("f8", 2), "el_i": ("i8", 2), "el_prim": ("i4", 1), "el_bits": ("u1", 1),
+                     "el_uv": ("f4", 2), "el_bin": ("i4", 1), "el_item": ("i4", 1)}
 
 
 def empty_scene_arrays() -> SceneArrays:
@@ -242,7 +257,7 @@ def public_hit(sa, t, inst, slot, u, v):
     if inst < 0:
         return np.inf, -1, -1, 0.0, 0.0, 0.0, 0.0, 0.0
     prim = dispatch.primitive_solid(sa, inst, slot)
-    nx, ny, nz = dispatch.normal_solid(sa, inst, slot)
+    nx, ny, nz = dispatch.normal_solid(sa, inst, slot, u, v)
     wx, wy, wz = normal_to_world(sa, inst, nx, ny, nz)
     return t, inst, prim, u, v, wx, wy, wz
 

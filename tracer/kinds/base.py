@@ -1,17 +1,21 @@
 """The contract of a bottom-level kind: what an instance of the top level can be.
 
-A kind is one module of `tracer.kinds`, registered in `tracer.kinds.REGISTRY` and switched on in
-`tracer.kinds.dispatch` (the only place that tests the tag), holding:
+A kind is one module of `tracer.kinds`, registered by its entry in `tracer.kinds.REGISTRY`; `tracer.kinds.dispatch`
+(the only place that tests the tag) is written out from the registry. A kind holds:
 
 - ``KIND`` : int — its tag in `SceneArrays.inst_kind`;
 - ``SENSOR`` : bool — a sensor is recorded by `tracer.accel.traverse.sensor_crossings` and invisible to closest-hit
   and any-hit queries; a solid is hit;
+- ``GEOMETRY`` : str or None — what `tracer.Scene.instance_geometry` reports for it (None: its geometry's id);
 - ``OBJECT_BOUNDS`` : (6,) float64 object-space box, where it is fixed (a mesh's comes from its vertices);
-- its jitted routines in object space (rays arrive in object space, results are object-space): a solid's
-  intersection (``(hit, t, slot, u, v)``), primitive id, geometric and shading normals and surface point; a sensor's
-  ``cross(o, d, t_max) -> (hit, t, u, v)``;
+- its jitted routines in object space (rays arrive in object space, results are object-space), each taking the
+  scene arrays and the instance id first, as the dispatch calls them:
+  a solid's ``intersect(sa, inst, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack) -> (hit, t, slot, u, v)``,
+  ``primitive(sa, inst, slot) -> prim``, ``normal(sa, inst, slot, u, v) -> (nx, ny, nz)`` (geometric, any length),
+  ``shading_normal(sa, inst, prim, u, v) -> (nx, ny, nz, interpolated)`` and ``point(sa, inst, prim, u, v)``;
+  a sensor's ``cross(sa, inst, ox, oy, oz, dx, dy, dz, t_max) -> (hit, t, u, v)`` and ``point``;
 - a sensor's ``placement(...) -> (4, 4) world_from_object``: its arguments checked (`TracerError` naming what is
-  wrong), used by `tracer.Scene.add_disk_sensor` / ``add_rect_sensor``.
+  wrong), used by `tracer.Scene.add_shape`.
 
 The helpers below check the vectors a placement takes.
 """

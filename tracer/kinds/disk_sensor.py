@@ -19,6 +19,7 @@ from tracer.kinds.base import orthonormal_basis, vec3
 
 KIND = 1
 SENSOR = True
+GEOMETRY = "sensor:disk"   # what `tracer.Scene.instance_geometry` reports
 OBJECT_BOUNDS = np.array([-1.0, -1.0, 0.0, 1.0, 1.0, 0.0])
 
 
@@ -47,7 +48,7 @@ def placement(center: Any, normal: Any, radius: Any) -> np.ndarray:
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def cross(ox, oy, oz, dx, dy, dz, t_max):
+def cross(sa, inst, ox, oy, oz, dx, dy, dz, t_max):
     """``(hit, t, u, v)`` of the object-space segment ``0 < t < t_max`` with the unit disk."""
     if dz == 0.0:
         return False, 0.0, 0.0, 0.0
@@ -59,3 +60,9 @@ def cross(ox, oy, oz, dx, dy, dz, t_max):
     if u * u + v * v > 1.0:
         return False, 0.0, 0.0, 0.0
     return True, t, u, v
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def point(sa, inst, prim, u, v):
+    """Object-space point of a crossing at ``(u, v)``: in the plane ``z = 0``."""
+    return u, v, 0.0

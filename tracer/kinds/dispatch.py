@@ -1,69 +1,45 @@
-"""The one place that switches on a bottom-level kind (see :mod:`tracer.kinds`).
+"""The one place that switches on a bottom-level kind (see :mod:`tracer.kinds`), written out from
+:data:`tracer.kinds.REGISTRY` by :func:`tracer.jit.kind_switch`: a new kind adds no branch here.
 
-To register a new kind: import its module here and add one branch to each function below that
-applies to it (a solid kind to the ``*_solid`` functions, a sensor kind to :func:`cross_sensor`).
-Rays arrive in object space; results are object-space.
+Rays arrive in object space; results are object-space. A solid kind answers the ``*_solid`` functions and
+`point_object`; a sensor kind `cross_sensor` and `point_object`.
 """
 
 from __future__ import annotations
 
-from tracer.jit import njit
-from tracer.kinds import disk_sensor, mesh, rect_sensor
+from tracer.jit import kind_switch
+from tracer.kinds import REGISTRY
 
+SOLIDS = {k: m for k, m in REGISTRY.items() if not m.SENSOR}
+SENSORS = {k: m for k, m in REGISTRY.items() if m.SENSOR}
+TAG = "sa.inst_kind[inst]"
+INLINE = {"cache": True, "error_model": "numpy", "inline": "always"}
+CALL = {"cache": True, "error_model": "numpy", "_nrt": False}
 
-@njit(cache=True, error_model="numpy", inline="always")
-def intersect_solid(sa, inst, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
-    """``(hit, t, slot, u, v)`` of the ray with solid instance ``inst`` (closest, or any with ``any_hit``)."""
-    kind = sa.inst_kind[inst]
-    if kind == mesh.KIND:
-        return mesh.traverse(sa, sa.inst_geom[inst], ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack)
-    return False, 0.0, -1, 0.0, 0.0
+intersect_solid = kind_switch(
+    "intersect_solid", "sa, inst, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack", TAG,
+    {k: m.intersect for k, m in SOLIDS.items()}, "(False, 0.0, -1, 0.0, 0.0)",
+    doc="``(hit, t, slot, u, v)`` of the ray with solid instance ``inst`` (closest, or any with ``any_hit``).",
+    **INLINE)
 
+primitive_solid = kind_switch(
+    "primitive_solid", "sa, inst, slot", TAG, {k: m.primitive for k, m in SOLIDS.items()}, "-1",
+    doc="Primitive id reported for a hit at ``slot`` of solid instance ``inst``.", **INLINE)
 
-@njit(cache=True, error_model="numpy", inline="always")
-def primitive_solid(sa, inst, slot):
-    """Primitive id reported for a hit at ``slot`` of solid instance ``inst``."""
-    kind = sa.inst_kind[inst]
-    if kind == mesh.KIND:
-        return mesh.primitive_id(sa, sa.inst_geom[inst], slot)
-    return -1
+normal_solid = kind_switch(
+    "normal_solid", "sa, inst, slot, u, v", TAG, {k: m.normal for k, m in SOLIDS.items()}, "(0.0, 0.0, 1.0)",
+    doc="Unnormalised object-space geometric normal of the hit ``(slot, u, v)`` of solid instance ``inst``.",
+    **INLINE)
 
+shading_normal_object = kind_switch(
+    "shading_normal_object", "sa, inst, prim, u, v", TAG, {k: m.shading_normal for k, m in SOLIDS.items()},
+    "(0.0, 0.0, 1.0, False)",
+    doc="Object-space shading normal ``(nx, ny, nz, interpolated)`` of primitive ``prim`` at ``(u, v)``.", **CALL)
 
-@njit(cache=True, error_model="numpy", inline="always")
-def normal_solid(sa, inst, slot):
-    """Unnormalised object-space geometric normal at ``slot`` of solid instance ``inst``."""
-    kind = sa.inst_kind[inst]
-    if kind == mesh.KIND:
-        return mesh.object_normal(sa, sa.inst_geom[inst], slot)
-    return 0.0, 0.0, 1.0
+point_object = kind_switch(
+    "point_object", "sa, inst, prim, u, v", TAG, {k: m.point for k, m in REGISTRY.items()}, "(0.0, 0.0, 0.0)",
+    doc="Object-space surface point of primitive ``prim`` at ``(u, v)``.", **CALL)
 
-
-@njit(cache=True, error_model="numpy", _nrt=False)
-def shading_normal_object(sa, inst, prim, u, v):
-    """Object-space shading normal ``(nx, ny, nz, interpolated)`` of primitive ``prim`` at ``(u, v)``."""
-    kind = sa.inst_kind[inst]
-    if kind == mesh.KIND:
-        return mesh.object_shading_normal(sa, sa.inst_geom[inst], prim, u, v)
-    return 0.0, 0.0, 1.0, False
-
-
-@njit(cache=True, error_model="numpy", _nrt=False)
-def point_object(sa, inst, prim, u, v):
-    """Object-space surface point of primitive ``prim`` at ``(u, v)``."""
-    kind = sa.inst_kind[inst]
-    if kind == mesh.KIND:
-        return mesh.object_point(sa, sa.inst_geom[inst], prim, u, v)
-    if kind == disk_sensor.KIND or kind == rect_sensor.KIND:
-        return u, v, 0.0
-    return 0.0, 0.0, 0.0
-
-
-@njit(cache=True, error_model="numpy", _nrt=False)
-def cross_sensor(sa, inst, ox, oy, oz, dx, dy, dz, t_max):
-    """``(hit, t, u, v)`` of the segment with sensor instance ``inst``."""
-    kind = sa.inst_kind[inst]
-    if kind == disk_sensor.KIND:
-        return disk_sensor.cross(ox, oy, oz, dx, dy, dz, t_max)
-    if kind == rect_sensor.KIND:
-        return rect_sensor.cross(ox, oy, oz, dx, dy, dz, t_max)
-    return False, 0.0, 0.0, 0.0
+cross_sensor = kind_switch(
+    "cross_sensor", "sa, inst, ox, oy, oz, dx, dy, dz, t_max", TAG, {k: m.cross for k, m in SENSORS.items()},
+    "(False, 0.0, 0.0, 0.0)", doc="``(hit, t, u, v)`` of the segment with sensor instance ``inst``.", **CALL)

@@ -14,6 +14,37 @@ from tracer.jit import njit
 
 KIND = 0
 SENSOR = False
+GEOMETRY = None   # an instance reports its geometry's id
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def intersect(sa, inst, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
+    """The kind's entry (`tracer.kinds.base`): :func:`traverse` in the instance's geometry."""
+    return traverse(sa, sa.inst_geom[inst], ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def primitive(sa, inst, slot):
+    """The caller's triangle index of row ``slot``."""
+    return sa.tri_prim[slot]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def normal(sa, inst, slot, u, v):
+    """Unnormalised object-space geometric normal of row ``slot`` (flat: ``u, v`` do not change it)."""
+    return object_normal(sa, sa.inst_geom[inst], slot)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def shading_normal(sa, inst, prim, u, v):
+    """Object-space shading normal ``(nx, ny, nz, interpolated)`` of triangle ``prim`` at ``(u, v)``."""
+    return object_shading_normal(sa, sa.inst_geom[inst], prim, u, v)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def point(sa, inst, prim, u, v):
+    """Object-space point of triangle ``prim`` at barycentrics ``(u, v)``."""
+    return object_point(sa, sa.inst_geom[inst], prim, u, v)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -28,12 +59,6 @@ def traverse(sa, g, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
         return False, 0.0, -1, 0.0, 0.0
     return traverse_rows(sa.bvh_f, sa.bvh_i, sa.tri_v, sa.geom_node0[g], sa.geom_tri0[g], ox, oy, oz, dx, dy, dz,
                          t_max, any_hit, stack, tstack)
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def primitive_id(sa, g, slot):
-    """The caller's triangle index (position in the geometry's ``triangles``) of row ``slot``."""
-    return sa.tri_prim[slot]
 
 
 @njit(cache=True, error_model="numpy", inline="always")

@@ -17,6 +17,7 @@ from tracer.kinds.base import vec3
 
 KIND = 2
 SENSOR = True
+GEOMETRY = "sensor:rect"   # what `tracer.Scene.instance_geometry` reports
 OBJECT_BOUNDS = np.array([0.0, 0.0, 0.0, 1.0, 1.0, 0.0])
 
 
@@ -39,7 +40,7 @@ def placement(origin: Any, u: Any, v: Any) -> np.ndarray:
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def cross(ox, oy, oz, dx, dy, dz, t_max):
+def cross(sa, inst, ox, oy, oz, dx, dy, dz, t_max):
     """``(hit, t, u, v)`` of the object-space segment ``0 < t < t_max`` with the unit square."""
     if dz == 0.0:
         return False, 0.0, 0.0, 0.0
@@ -51,3 +52,9 @@ def cross(ox, oy, oz, dx, dy, dz, t_max):
     if u < 0.0 or u > 1.0 or v < 0.0 or v > 1.0:
         return False, 0.0, 0.0, 0.0
     return True, t, u, v
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def point(sa, inst, prim, u, v):
+    """Object-space point of a crossing at ``(u, v)``: in the plane ``z = 0``."""
+    return u, v, 0.0

@@ -5,8 +5,14 @@ A sensor kind is one module of this folder, registered by one line in `tracer.se
 - ``TYPE`` : str — its name in a sensor body (``{"type": TYPE, ...}``), as on the wire (DESIGN.md);
 - ``FORWARD_ONLY`` : bool — only photons from the sources reach its bins (no backward path ends there);
 - ``OBSERVES`` : bool — it can answer ``observe`` (spectrum, Stokes) and ``physics_left_out``;
-- ``probe(sim, body) -> Probe`` — the body checked (`tracer.errors.SimulationError` saying which field is wrong
-  and why, before anything runs) and turned into receivers in the scene's world (metres);
+- ``FIELDS`` — its body fields, typed (`tracer.optics.fields`), for a kind a scene keeps as a sensor: the service
+  makes the kind's wire model from them (a ``node`` field: the tracer's body holds ``instances``, the ids of the
+  node's instances, instead); None for a kind only a query's body asks for (``points``). ``EXAMPLE`` (optional): a
+  body the API docs show;
+- ``check(body)`` — the body checked without a scene (`tracer.errors.SimulationError` saying which field is wrong
+  and why), reading its bounds from ``FIELDS``; the service's wire model runs it too, so both sides refuse alike;
+- ``probe(sim, body) -> Probe`` — the body checked (``check``, then what only the scene can tell, before anything
+  runs) and turned into receivers in the scene's world (metres);
 - ``answer(sim, probe, res) -> result`` — the raw bins (`IlluminanceResult`: one value per bin, in bin order) put
   in the kind's shape and units, with the run's photons, seconds, effects, estimator, stop reason, cost and backend.
 

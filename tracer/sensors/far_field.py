@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from tracer.errors import SimulationError
+from tracer.optics.fields import BodyField, fields
 from tracer.sensors.base import IlluminanceResult, Probe, Readout, vec3
 from tracer.transport.rounds import MAX_SPECTRAL_TALLIES
 
@@ -65,22 +66,35 @@ def far_field_bins(nc: int, ngamma: int) -> tuple[np.ndarray, np.ndarray, np.nda
     return c_deg, gamma_deg, omega
 
 
-def probe(sim, body: dict) -> Probe:
+FIELDS = fields(
+    BodyField("nc", "count", "C samples (dimensionless count): C_i = i·360°/nc, each owning ±180°/nc around it; 1 for "
+              "an axially symmetric distribution.", lo=1, hi=3600),
+    BodyField("ngamma", "count", "γ samples (dimensionless count): γ_j = j·180°/(ngamma−1) from 0° to 180°, each "
+              "owning ±half a step (the two polar caps are one bin each).", lo=2, hi=1801),
+    BodyField("direction", "direction", "The γ = 0 axis (dimensionless, any length); default −z, straight down.",
+              required=False),
+    BodyField("c0", "direction", "The C = 0 half-plane's direction (dimensionless; its part across `direction` "
+              "counts); default +x. C = 90° lies along c0 × direction.", required=False))
+EXAMPLE = {"type": "far_field", "name": "downlight far field", "nc": 24, "ngamma": 37, "direction": [0.0, 0.0, -1.0],
+           "c0": [1.0, 0.0, 0.0]}
+
+
+def check(body: dict) -> tuple:
+    """The body checked: (nc, ngamma, the unit γ = 0 axis, the unit C = 0 and C = 90° axes)."""
     nc: Any = body.get("nc")
     ngamma: Any = body.get("ngamma")
     direction: Any = body.get("direction", (0.0, 0.0, -1.0))
     c0: Any = body.get("c0")
-    for name, val, lo, hi in (("nc", nc, 1, 3600), ("ngamma", ngamma, 2, 1801)):
+    for name, val in (("nc", nc), ("ngamma", ngamma)):
+        lo, hi = int(FIELDS[name].lo), int(FIELDS[name].hi)
         if isinstance(val, bool) or not isinstance(val, int | np.integer) or not lo <= val <= hi:
             raise SimulationError(f"{name} must be an integer in [{lo}, {hi}], got {val!r}")
     nc, ngamma = int(nc), int(ngamma)
-    if nc * ngamma > MAX_SPECTRAL_TALLIES:
-        raise SimulationError(f"nc × ngamma = {nc * ngamma} bins: at most {MAX_SPECTRAL_TALLIES}")
     axis = vec3(direction, "direction")
     given = c0 is not None
     t = vec3(c0 if given else (1.0, 0.0, 0.0), "c0")
     if not np.linalg.norm(axis) > 0:
-        raise SimulationError("direction must not be the zero vector")
+        raise SimulationError("direction must be a non-zero vector")
     axis = axis / np.linalg.norm(axis)
     t = t - axis * float(t @ axis)
     if not given and not np.linalg.norm(t) > 1e-9:
@@ -90,6 +104,13 @@ def probe(sim, body: dict) -> Probe:
                               f"{list(map(float, direction))}")
     t = t / np.linalg.norm(t)
     b = np.cross(t, axis)   # C = 90°: c0 × direction (+y for the defaults)
+    return nc, ngamma, axis, t, b
+
+
+def probe(sim, body: dict) -> Probe:
+    nc, ngamma, axis, t, b = check(body)
+    if nc * ngamma > MAX_SPECTRAL_TALLIES:   # what a run can tally: the query's limit, not the body's
+        raise SimulationError(f"nc × ngamma = {nc * ngamma} bins: at most {MAX_SPECTRAL_TALLIES}")
     c_deg, gamma_deg, omega = far_field_bins(nc, ngamma)
     return Probe(np.empty((0, 3)), np.empty((0, 3)), far=((nc, ngamma, *axis, *t, *b), omega.ravel()),
                  keep={"nc": nc, "ngamma": ngamma, "axis": axis, "c0": t, "c_deg": c_deg, "gamma_deg": gamma_deg,

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from tracer.errors import SimulationError
+from tracer.optics.fields import BodyField, fields
 from tracer.sensors.base import IlluminanceResult, Probe, vec3
 from tracer.sensors.placement import place_receivers
 
@@ -27,22 +28,38 @@ class GridResult(IlluminanceResult):
     """Illuminance of a grid sensor: `lux` and `stderr` have shape (nv, nu); row j is v-cell j."""
 
 
-def probe(sim, body: dict) -> Probe:
+FIELDS = fields(
+    BodyField("origin", "point", "A corner of the rectangle [x, y, z], m."),
+    BodyField("u", "vector", "The edge along which the nu cells lie, m (its length is the width)."),
+    BodyField("v", "vector", "The edge along which the nv cells lie, m; u × v is the side facing the light."),
+    BodyField("nu", "count", "Cells along u.", lo=1, hi=MAX_CELLS_PER_SIDE),
+    BodyField("nv", "count", "Cells along v.", lo=1, hi=MAX_CELLS_PER_SIDE))
+EXAMPLE = {"type": "grid", "name": "floor grid", "origin": [-2.0, -2.0, 0.01], "u": [4.0, 0.0, 0.0],
+           "v": [0.0, 4.0, 0.0], "nu": 20, "nv": 20}
+
+
+def check(body: dict) -> tuple:
+    """The body checked: (origin, u, v, nu, nv, the unit normal u × v)."""
     o, uu, vv = vec3(body.get("origin"), "origin"), vec3(body.get("u"), "u"), vec3(body.get("v"), "v")
     nu: Any = body.get("nu")
     nv: Any = body.get("nv")
     for name, val in (("nu", nu), ("nv", nv)):
-        if isinstance(val, bool) or not isinstance(val, int | np.integer) or not 1 <= val <= MAX_CELLS_PER_SIDE:
-            raise SimulationError(f"{name} must be an integer in [1, {MAX_CELLS_PER_SIDE}], got {val!r}")
+        lo, hi = int(FIELDS[name].lo), int(FIELDS[name].hi)
+        if isinstance(val, bool) or not isinstance(val, int | np.integer) or not lo <= val <= hi:
+            raise SimulationError(f"{name} must be an integer in [{lo}, {hi}], got {val!r}")
     nrm = np.cross(uu, vv)
     ln = float(np.linalg.norm(nrm))
     if not ln > 1e-12 * float(np.linalg.norm(uu) * np.linalg.norm(vv)) or ln == 0.0:
         raise SimulationError("u and v must be non-zero and not parallel")
-    nrm = nrm / ln
+    return o, uu, vv, int(nu), int(nv), nrm / ln
+
+
+def probe(sim, body: dict) -> Probe:
+    o, uu, vv, nu, nv, nrm = check(body)
     centre = o + 0.5 * (uu + vv)
     half_diagonal = 0.5 * float(np.linalg.norm(uu + vv))
     o = o + (place_receivers(sim.arrays, centre[None, :], nrm[None, :], half_diagonal)[0] - centre) @ nrm * nrm
-    return Probe(o, nrm, 0.0, (uu, vv, int(nu), int(nv)))
+    return Probe(o, nrm, 0.0, (uu, vv, nu, nv))
 
 
 def answer(sim, probe: Probe, res: IlluminanceResult) -> GridResult:

@@ -21,7 +21,11 @@ OBSERVES = True
 DEFAULT_RADIUS = 0.05          # m: disk receiver radius when the query gives none
 
 
-def probe(sim, body: dict) -> Probe:
+FIELDS = None                  # not a stored sensor: the body of an illuminance query
+
+
+def check(body: dict) -> tuple[np.ndarray, np.ndarray, float]:
+    """The body checked: (points (k, 3) m, unit normals (k, 3), radius m)."""
     pts = vectors(body.get("points"), "points")
     k = len(pts)
     if k == 0:
@@ -35,7 +39,11 @@ def probe(sim, body: dict) -> Probe:
     r = DEFAULT_RADIUS if radius is None else radius
     if isinstance(r, bool) or not isinstance(r, int | float) or not (0 < r < math.inf):
         raise SimulationError(f"radius must be a positive finite number of metres, got {radius!r}")
-    r = float(r)
+    return pts, nrm, float(r)
+
+
+def probe(sim, body: dict) -> Probe:
+    pts, nrm, r = check(body)
     return Probe(place_receivers(sim.arrays, pts, nrm, r), nrm, r)
 
 

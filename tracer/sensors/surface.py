@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from tracer.errors import SimulationError
+from tracer.optics.fields import BodyField, fields
 from tracer.sensors.base import IlluminanceResult, Probe, Readout
 from tracer.transport.rounds import MAX_SPECTRAL_TALLIES
 
@@ -42,7 +43,13 @@ class SurfaceResult(Readout):
     area: list[np.ndarray]
 
 
-def probe(sim, body: dict) -> Probe:
+FIELDS = fields(BodyField("node", "node", "The node (UUID or path) whose surfaces, with its descendants', are "
+                                          "tallied; it or a descendant must have geometry."))
+EXAMPLE = {"type": "surface", "node": "room/floor", "name": "the floor in lux"}
+
+
+def check(body: dict) -> list[int]:
+    """The body checked: the instance ids, each once (whether the scene holds them is `probe`'s)."""
     instances: Any = body.get("instances")
     if isinstance(instances, str | bytes) or not hasattr(instances, "__iter__"):
         raise SimulationError(f"instances must be a list of instance ids, got {instances!r}")
@@ -55,6 +62,11 @@ def probe(sim, body: dict) -> Probe:
         ids.append(int(i))
     if not ids:
         raise SimulationError("instances: at least one instance is needed")
+    return ids
+
+
+def probe(sim, body: dict) -> Probe:
+    ids = check(body)
     scene = sim.scene
     known = {int(i) for i in scene.instances()}
     n_inst = max(known) + 1 if known else 0

@@ -208,7 +208,8 @@ def trace_photons(sa, ra, M, L, S, n_bins, seed, batch, photons, w0, tally, coun
                 py = oy + t * dy
                 pz = oz + t * dz
                 # the surface tally (`SensorArrays.surf`): the weight arriving on the front side, before it scatters
-                if inst < S.surf.shape[0] and S.surf[inst] >= 0 and dx * ngx + dy * ngy + dz * ngz < 0.0:
+                # (on a triangle: a feature of an element with an inside has prim < -1 and no bin)
+                if inst < S.surf.shape[0] and S.surf[inst] >= 0 and prim >= 0 and dx * ngx + dy * ngy + dz * ngz < 0.0:
                     sw = w
                     if lam > 0.0:
                         sw = w * luminous(lam)

@@ -90,6 +90,26 @@ async function draw(state) {
   viewer.setLights(state.lights);
   listChanges(state.last_push);
   listJobs(state.jobs);
+  listElements(state.elements ?? [], state.nodes ?? []);
+}
+
+/** The optical elements with an inside on the scene's parts: which part, which library element, applied or why not. */
+function listElements(elements, nodes) {
+  const pathOf = new Map(nodes.map((n) => [n.uuid, n.path]));
+  if (!elements.length) {
+    const li = document.createElement("li");
+    li.className = "muted";
+    li.textContent = "none";
+    $("elements").replaceChildren(li);
+    return;
+  }
+  $("elements").replaceChildren(...elements.map((e) => {
+    const li = document.createElement("li");
+    const where = pathOf.get(e.body.node) ?? e.body.node;
+    li.textContent = `${where}: element ${e.body.element.slice(0, 12)} (${e.model})` +
+      (e.applied ? "" : ` — not applied: ${e.problem ?? "its node is gone"}`);
+    return li;
+  }));
 }
 
 function drawSensors() {

@@ -8,7 +8,7 @@ Field           Type                Unit   Default
 ==============  ==================  =====  ====================================
 instances       non-empty int list  —      required (instance ids, not sensors)
 exitance_lm_m2  float ≥ 0           lm/m²  required
-node            any                 —      ignored
+node            any                 —      ignored (the service's: its FIELDS value "node" gives `instances`)
 ==============  ==================  =====  ====================================
 
 Parameter row: P_I0 exitance M (lm/m²), P_FLUX flux (lm). Tables: tri, tri_n, tri_cdf, found through
@@ -23,11 +23,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from tracer.jit import njit
+from tracer.optics.fields import BodyField, fields
 from tracer.optics.frames import find_in_cdf, sample_cosine
-from tracer.optics.lights.base import P_FLUX, P_I0, SHADOW_SHORTEN, LightError, Packing, check_fields, number_field
+from tracer.optics.lights.base import P_FLUX, P_I0, SHADOW_SHORTEN, LightError, Packing, check_fields, field_value
 
 NAME = "area"
-FIELDS = frozenset({"instances", "exitance_lm_m2", "node"})
+FIELDS = fields(
+    BodyField("node", "node", "The node (UUID or path) whose surfaces, with its descendants', emit."),
+    BodyField("exitance_lm_m2", "number", "Luminous exitance of the surfaces, lm/m².", lo=0.0, hi=1e15))
+EXAMPLE = {"type": "area", "name": "ceiling panel", "node": "room/ceiling_panel", "exitance_lm_m2": 2000.0}
 EFFECTS = ()
 CONNECTABLE = True
 
@@ -42,7 +46,7 @@ class Spec:
     @classmethod
     def from_body(cls, body: dict, where: str) -> Spec:
         check_fields(body, where, NAME, FIELDS)
-        m_exit = number_field(body, "exitance_lm_m2", where)
+        m_exit = field_value(body, FIELDS["exitance_lm_m2"], where)
         ids = body.get("instances")
         if not isinstance(ids, list | tuple) or not ids:
             raise LightError(f"{where}: an area light needs 'instances', a non-empty list of instance ids")

@@ -5,7 +5,10 @@ Units: positions and lengths in m, flux in lm, intensity in cd, illuminance in l
 A kind is one module of this folder (`point`, `spot`, `collimated`, `goniometric`, `area`), listed
 once in `dispatch.KINDS` (its kind id is its position there). Each module holds:
 
-- ``NAME``: the body's ``"type"``. ``FIELDS``: the body fields it accepts besides `COMMON_FIELDS`.
+- ``NAME``: the body's ``"type"``. ``FIELDS``: the body fields it accepts besides `COMMON_FIELDS` and the spectral
+  ones, typed (`tracer.optics.fields`): its ``from_body`` reads their bounds there, and the service makes its wire
+  model from them (a kind whose fields include ``flux_lm`` also takes `FLUX_W`, see `dispatch.body_fields`).
+- ``EXAMPLE`` (optional): a body the API docs show.
 - ``EFFECTS``: the effects (`tracer.effects`) the light needs beyond the baseline: ``()`` for every
   current kind.
 - ``CONNECTABLE``: whether a shadow ray can reach the light, so that next-event estimation
@@ -44,6 +47,7 @@ import numpy as np
 
 from tracer.errors import TracerError
 from tracer.jit import njit
+from tracer.optics.fields import BodyField, node_field
 from tracer.optics.frames import find_in_cdf
 
 N_LPAR = 20
@@ -55,6 +59,13 @@ SHADOW_SHORTEN = 1e-6  # a shadow ray toward a point on an emitting surface stop
 
 COMMON_FIELDS = frozenset({"id", "name", "attached_to", "type"})  # kept by the service, ignored here
 SPECTRAL_FIELDS = frozenset({"spectrum", "flux_w", "polarization"})  # any kind's; `dispatch.pack_lights` reads them
+# the photometric magnitudes of a light given by its intensity or its flux: beyond 1e15 it is a unit mistake
+INTENSITY_CD = BodyField("intensity_cd", "number", "Luminous intensity, cd (isotropic: in every direction of its "
+                         "cone).", required=False, lo=0.0, hi=1e15)
+FLUX_LM = BodyField("flux_lm", "number", "Luminous flux, lm (instead of intensity_cd).", required=False, lo=0.0,
+                    hi=1e15)
+FLUX_W = BodyField("flux_w", "number", "Radiant flux, W (instead of a photometric quantity; lm = W × the spectrum's "
+                   "efficacy).", required=False, lo=0.0, hi=1e13)
 
 
 class LightError(TracerError):
@@ -136,9 +147,10 @@ class Packing:
 # ------------------------------------------------------------------------------------------------- validation
 
 
-def check_fields(body: dict, where: str, name: str, fields: frozenset) -> None:
-    """Reject any field of `body` that a `name` light does not accept."""
-    extra = set(body) - fields - COMMON_FIELDS - SPECTRAL_FIELDS
+def check_fields(body: dict, where: str, name: str, fields: dict[str, BodyField]) -> None:
+    """Reject any field of `body` that a `name` light does not accept (a kind with a node field takes its
+    ``instances``)."""
+    extra = set(body) - set(fields) - ({"instances"} if node_field(fields) else set()) - COMMON_FIELDS - SPECTRAL_FIELDS
     if extra:
         raise LightError(f"{where}: unknown field(s) {sorted(extra)} for a {name!r} light")
 
@@ -156,7 +168,7 @@ def vector_field(body: dict, key: str, where: str, unit: bool = False) -> np.nda
     if unit:
         n = float(np.linalg.norm(v))
         if not n > 0:
-            raise LightError(f"{where}: {key!r} must not be the zero vector")
+            raise LightError(f"{where}: {key!r} must be a non-zero vector")
         v = v / n
     return v
 
@@ -177,6 +189,11 @@ def number_field(body: dict, key: str, where: str, lo: float = 0.0, hi: float = 
     return v
 
 
+def field_value(body: dict, f: BodyField, where: str, default: float | None = None) -> float:
+    """The number field `f` of `body`, within its declared bounds (`number_field`)."""
+    return number_field(body, f.name, where, **f.limits(), default=default)
+
+
 def intensity_and_flux(body: dict, where: str, solid_angle: float) -> tuple[float, float]:
     """(I0 in cd, Φ in lm) from exactly one of `intensity_cd` and `flux_lm`; Φ = I0 × solid_angle (sr)."""
     has_i = body.get("intensity_cd") is not None
@@ -184,9 +201,9 @@ def intensity_and_flux(body: dict, where: str, solid_angle: float) -> tuple[floa
     if has_i == has_f:
         raise LightError(f"{where}: give exactly one of 'intensity_cd' and 'flux_lm'")
     if has_i:
-        i0 = number_field(body, "intensity_cd", where)
+        i0 = field_value(body, INTENSITY_CD, where)
         return i0, i0 * solid_angle
-    flux = number_field(body, "flux_lm", where)
+    flux = field_value(body, FLUX_LM, where)
     return flux / solid_angle, flux
 
 

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tracer.jit import njit
+from tracer.optics.fields import BodyField, fields
 from tracer.optics.frames import onb
 from tracer.optics.lights.base import (
     P_AXIS,
@@ -42,12 +43,24 @@ from tracer.optics.lights.base import (
     LightError,
     Packing,
     check_fields,
-    number_field,
+    field_value,
     vector_field,
 )
 
 NAME = "collimated"
-FIELDS = frozenset({"origin", "direction", "radius", "width", "height", "up", "illuminance_lx"})
+FIELDS = fields(
+    BodyField("origin", "point", "Centre of the aperture [x, y, z], m."),
+    BodyField("direction", "direction", "Direction of travel (any length, not zero; dimensionless)."),
+    BodyField("radius", "number", "Radius of a disk aperture, m.", required=False, lo=0.0, lo_open=True),
+    BodyField("width", "number", "Width of a rectangular aperture, m.", required=False, lo=0.0, lo_open=True),
+    BodyField("height", "number", "Height of a rectangular aperture (along `up`), m.", required=False, lo=0.0,
+              lo_open=True),
+    BodyField("up", "direction", "Orients a rectangle's height (dimensionless; not along direction).",
+              required=False),
+    BodyField("illuminance_lx", "number", "Illuminance on a plane across the beam, lx.", lo=0.0, hi=1e15))
+EXAMPLE = {"type": "collimated", "name": "sun", "origin": [0.0, 0.0, 3.0], "direction": [0.3, 0.2, -1.0], "width": 4.0,
+           "height": 4.0, "up": [0.0, 1.0, 0.0], "illuminance_lx": 100000.0,
+           "spectrum": {"type": "blackbody", "kelvin": 5778.0}}
 EFFECTS = ()
 CONNECTABLE = False
 WHY_NOT_CONNECTABLE = "a collimated beam cannot be reached by shadow rays"
@@ -74,14 +87,17 @@ class Spec:
         check_fields(body, where, NAME, FIELDS)
         origin = vector_field(body, "origin", where)
         a = vector_field(body, "direction", where, unit=True)
-        e = number_field(body, "illuminance_lx", where)
+        e = field_value(body, FIELDS["illuminance_lx"], where)
         tt, bb = (np.array(v) for v in onb(a[0], a[1], a[2]))
-        if "radius" in body and ("width" in body or "height" in body):
-            raise LightError(f"{where}: give either 'radius' (disk) or 'width' and 'height' (rectangle)")
+        rect = "width" in body or "height" in body
+        if ("radius" in body) == rect or (rect and not ("width" in body and "height" in body)):
+            raise LightError(f"{where}: give either 'radius' (a disk aperture) or 'width' and 'height' (a rectangle)")
         if "radius" in body:
-            return cls(origin, a, tt, bb, e, DISK, number_field(body, "radius", where, lo_open=True), 0.0, 0.0)
-        w = number_field(body, "width", where, lo_open=True)
-        h = number_field(body, "height", where, lo_open=True)
+            if "up" in body:
+                raise LightError(f"{where}: 'up' orients a rectangular aperture; a disk has none")
+            return cls(origin, a, tt, bb, e, DISK, field_value(body, FIELDS["radius"], where), 0.0, 0.0)
+        w = field_value(body, FIELDS["width"], where)
+        h = field_value(body, FIELDS["height"], where)
         if "up" in body:
             up = vector_field(body, "up", where, unit=True)
             bb = up - a * float(up @ a)

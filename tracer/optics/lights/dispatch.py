@@ -12,8 +12,9 @@ import numpy as np
 
 from tracer.jit import kind_switch, njit
 from tracer.optics import spectra
+from tracer.optics.fields import BodyField
 from tracer.optics.lights import area, collimated, goniometric, point, spot
-from tracer.optics.lights.base import P_FLUX, LightArrays, LightError, Packing
+from tracer.optics.lights.base import FLUX_W, P_FLUX, LightArrays, LightError, Packing
 from tracer.optics.polarization import PolarizationError, light_polarization
 from tracer.optics.spectra import sample_grid
 
@@ -51,21 +52,12 @@ def pack_lights(lights: list[dict], scene=None, sensor_ids: frozenset = frozense
         where = f"light {j}" + (f" ({body.get('id')})" if isinstance(body, dict) and body.get("id") else "")
         if not isinstance(body, dict):
             raise LightError(f"{where}: expected a light body (dict), got {type(body).__name__}")
-        t = body.get("type")
-        k = KIND_OF_NAME.get(t, -1) if isinstance(t, str) else -1
-        if k < 0:
-            raise LightError(f"{where}: unknown light type {t!r}; known: {sorted(KIND_OF_NAME)}")
-        module = KINDS[k]
-        kind[j] = k
-        s = light_spectrum(body, where)
+        module, spec, s, pol[j] = light_spec(body, where)
+        kind[j] = KIND_OF_NAME[module.NAME]
         efficacy[j] = spectra.efficacy(s)
         mono[j] = s.mono_nm
         spd_cdf[j], spd_f[j] = spectra.sampling_table(s)
-        try:
-            pol[j] = light_polarization(body.get("polarization"), where)
-        except PolarizationError as exc:
-            raise LightError(str(exc)) from None
-        module.pack(module.Spec.from_body(_photometric(body, module, efficacy[j], where), where), j, out, where)
+        module.pack(spec, j, out, where)
         if not out.par[j, P_FLUX] <= MAX_FLUX_LM:
             raise LightError(f"{where}: its luminous flux {out.par[j, P_FLUX]:.3g} lm is beyond {MAX_FLUX_LM:g} lm (or "
                              f"not finite): check the magnitude and the unit of its intensity, flux or illuminance")
@@ -78,6 +70,28 @@ def pack_lights(lights: list[dict], scene=None, sensor_ids: frozenset = frozense
                        out.table("g_gamma", (0,)), out.table("g_cd", (0,)), out.table("g_cell_cdf", (0,)),
                        out.table("tri", (0, 9)), out.table("tri_n", (0, 3)), out.table("tri_cdf", (0,)), out.a_off,
                        out.a_area, np.zeros(1, np.int64), mono, spd_cdf, spd_f, efficacy, pol, np.zeros(1, np.int64))
+
+
+def body_fields(module) -> dict[str, BodyField]:
+    """A light kind's typed body fields (`tracer.optics.fields`) besides `base.COMMON_FIELDS`, the spectrum and the
+    polarization: its ``FIELDS``, and ``flux_w`` where it takes a ``flux_lm`` (`_photometric`)."""
+    return {**module.FIELDS, **({FLUX_W.name: FLUX_W} if "flux_lm" in module.FIELDS else {})}
+
+
+def light_spec(body: dict, where: str) -> tuple:
+    """One light body validated, as the transport and the service's wire model take it: ``(kind module, its Spec,
+    its tabulated spectrum, its packed polarization (4,))``; `LightError` naming the light and the field."""
+    t = body.get("type")
+    k = KIND_OF_NAME.get(t, -1) if isinstance(t, str) else -1
+    if k < 0:
+        raise LightError(f"{where}: unknown light type {t!r}; known: {sorted(KIND_OF_NAME)}")
+    module = KINDS[k]
+    s = light_spectrum(body, where)
+    try:
+        pol = light_polarization(body.get("polarization"), where)
+    except PolarizationError as exc:
+        raise LightError(str(exc)) from None
+    return module, module.Spec.from_body(_photometric(body, module, spectra.efficacy(s), where), where), s, pol
 
 
 def light_spectrum(body: dict, where: str) -> spectra.Spectrum:
@@ -96,10 +110,11 @@ def _photometric(body: dict, module, efficacy: float, where: str) -> dict:
         raise LightError(f"{where}: 'flux_w' is for lights given by their flux (point, spot); a {module.NAME!r} "
                          f"light takes its photometric quantity")
     if body.get("flux_lm") is not None or body.get("intensity_cd") is not None:
-        raise LightError(f"{where}: give one of 'flux_w', 'flux_lm' and 'intensity_cd'")
+        raise LightError(f"{where}: give exactly one of 'intensity_cd', 'flux_lm' and 'flux_w'")
     v = body["flux_w"]
-    if isinstance(v, bool) or not isinstance(v, int | float) or not 0.0 <= v <= 1e13:
-        raise LightError(f"{where}: 'flux_w' must be a number of watts in [0, 1e13], got {v!r}"[:300])
+    if isinstance(v, bool) or not isinstance(v, int | float) or not FLUX_W.lo <= v <= FLUX_W.hi:
+        raise LightError(f"{where}: 'flux_w' must be a number of watts in [{FLUX_W.lo:g}, {FLUX_W.hi:g}], "
+                         f"got {v!r}"[:300])
     return {**{k: x for k, x in body.items() if k != "flux_w"}, "flux_lm": float(v) * efficacy}
 
 

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tracer.jit import njit
+from tracer.optics.fields import BodyField, fields
 from tracer.optics.frames import find_in_cdf
 from tracer.optics.lights.base import (
     P_AXIS,
@@ -47,7 +48,18 @@ from tracer.optics.lights.base import (
 from tracer.photometry.files import Photometry, parse_photometry
 
 NAME = "goniometric"
-FIELDS = frozenset({"position", "format", "data", "direction", "c0"})
+FIELDS = fields(
+    BodyField("position", "point", "The photometric centre [x, y, z], m."),
+    BodyField("format", "choice", "`ies` (IES LM-63) or `ldt` (EULUMDAT).", choices=("ies", "ldt")),
+    BodyField("data", "text", "The file's text (intensities in cd, or cd/klm scaled by its lumens).",
+              max_length=10_000_000),
+    BodyField("direction", "direction", "The γ = 0 axis (dimensionless); default −z, straight down.", required=False),
+    BodyField("c0", "direction", "The C = 0 half-plane's direction (dimensionless); default +x.", required=False))
+#: a small type-C downlight (IES LM-63-2002): 1000 lm, intensities in cd per 1000 lm, rotationally symmetric
+IES_EXAMPLE = ("IESNA:LM-63-2002\n[TEST]LumenLink example\n[MANUFAC]LumenLink\n[LUMINAIRE]recessed downlight\n"
+               "TILT=NONE\n1 1000 1 5 1 1 2 0.2 0.2 0\n1.0 1.0 12\n0 22.5 45 67.5 90\n0\n400 350 220 60 0\n")
+EXAMPLE = {"type": "goniometric", "name": "downlight", "position": [0.0, 0.0, 2.8], "format": "ies",
+           "data": IES_EXAMPLE}
 EFFECTS = ()
 CONNECTABLE = True
 
@@ -82,14 +94,14 @@ class Spec:
         gamma0, c0, c90 = _frame(body, where)
         fmt = body.get("format")
         data = body.get("data")
-        if fmt not in ("ies", "ldt"):
+        if fmt not in FIELDS["format"].choices:
             raise LightError(f"{where}: 'format' must be 'ies' or 'ldt', got {fmt!r}")
         if not isinstance(data, str):
             raise LightError(f"{where}: 'data' must be the file text")
         try:
             ph = parse_photometry(fmt, data)
         except ValueError as exc:
-            raise LightError(f"{where}: {exc}") from None
+            raise LightError(f"{where}: invalid {fmt} photometry file: {exc}") from None
         return cls(position, gamma0, c0, c90, ph)
 
 

@@ -19,7 +19,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from tracer.jit import njit
+from tracer.optics.fields import BodyField, fields
 from tracer.optics.lights.base import (
+    FLUX_LM,
+    INTENSITY_CD,
     P_FLUX,
     P_I0,
     P_POS,
@@ -32,7 +35,9 @@ from tracer.optics.lights.base import (
 )
 
 NAME = "point"
-FIELDS = frozenset({"position", "intensity_cd", "flux_lm"})
+FIELDS = fields(BodyField("position", "point", "[x, y, z], m (world, or the attached node's frame)."),
+                INTENSITY_CD, FLUX_LM)
+EXAMPLE = {"type": "point", "name": "bulb", "position": [0.0, 0.0, 2.0], "intensity_cd": 100.0}
 EFFECTS = ()
 CONNECTABLE = True
 

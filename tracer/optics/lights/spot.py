@@ -26,8 +26,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from tracer.jit import njit
+from tracer.optics.fields import BodyField, fields
 from tracer.optics.frames import onb
 from tracer.optics.lights.base import (
+    FLUX_LM,
+    INTENSITY_CD,
     P_AXIS,
     P_B,
     P_COS_IN,
@@ -40,15 +43,23 @@ from tracer.optics.lights.base import (
     LightError,
     Packing,
     check_fields,
+    field_value,
     in_light_frame,
     intensity_and_flux,
-    number_field,
     toward_point,
     vector_field,
 )
 
 NAME = "spot"
-FIELDS = frozenset({"position", "direction", "cone_deg", "falloff_deg", "intensity_cd", "flux_lm"})
+FIELDS = fields(
+    BodyField("position", "point", "[x, y, z], m (world, or the attached node's frame)."),
+    BodyField("direction", "direction", "The cone's axis (any length, not zero; dimensionless)."),
+    BodyField("cone_deg", "number", "Half-angle of the cone, degrees.", lo=0.0, hi=180.0, lo_open=True),
+    BodyField("falloff_deg", "number", "Half-angle, degrees, beyond which the intensity falls to 0 at cone_deg (0: "
+              "a hard edge); default 0.", required=False, lo=0.0, hi=180.0),
+    INTENSITY_CD, FLUX_LM)
+EXAMPLE = {"type": "spot", "name": "downlight", "position": [1.0, 0.0, 2.5], "direction": [0.0, 0.0, -1.0],
+           "cone_deg": 30.0, "falloff_deg": 25.0, "flux_lm": 800.0, "spectrum": {"type": "blackbody", "kelvin": 3000.0}}
 EFFECTS = ()
 CONNECTABLE = True
 
@@ -74,8 +85,8 @@ class Spec:
         check_fields(body, where, NAME, FIELDS)
         position = vector_field(body, "position", where)
         axis = vector_field(body, "direction", where, unit=True)
-        cone = number_field(body, "cone_deg", where, 0.0, 180.0, lo_open=True)
-        fall = number_field(body, "falloff_deg", where, 0.0, 180.0, default=0.0)
+        cone = field_value(body, FIELDS["cone_deg"], where)
+        fall = field_value(body, FIELDS["falloff_deg"], where, default=0.0)
         problem = falloff_problem(cone, fall)
         if problem:
             raise LightError(f"{where}: {problem}")
@@ -86,7 +97,7 @@ class Spec:
 
 def falloff_problem(cone_deg: float, falloff_deg: float) -> str | None:
     """What is wrong with a spot's falloff against its cone (both degrees), or None: the one statement of the rule
-    (the service's wire model asks it too)."""
+    (`Spec.from_body` asks it, for the tracer and for the service's wire model alike)."""
     if falloff_deg > cone_deg:
         return f"'falloff_deg' ({falloff_deg:g}) must not exceed 'cone_deg' ({cone_deg:g})"
     return None

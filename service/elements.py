@@ -1,0 +1,165 @@
+"""Optical elements with an inside: the library of prepared models, and putting them onto a scene's parts.
+
+The library (``POST /elements``) is shared by every scene and outlives restarts: a row per element in the
+``elements`` table (its checked body and summary) and its prepared arrays in ``<data_dir>/elements/<id>.npz``,
+written before the row, so a row always has its file. The same body gives the same id, and preparing it again is
+never needed: a second scene, or a restarted service, loads the file (`ElementLibrary.get`).
+
+An assignment (``POST /scenes/{id}/elements``: ``{"element", "node", "facing" | "faces"}``) is stored like a light
+(`service.store.TABLES`, orphaned with its node) and applied to the tracer scene by `sync`, after every change of
+the tree or of the assignments: the node's instance becomes the tracer's relief kind (`tracer.Scene.set_element`),
+keeping its instance id, transform and material. A support that a push made unusable (no longer planar, say) is no
+failed push: the assignment stays, inactive, and says why (`problems`).
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from sqlalchemy import Engine, insert, select
+
+from service import db
+from service.errors import Invalid, NotFound
+
+
+class ElementLibrary:
+    """Prepared elements by id: in the database and their files, and in memory once used."""
+
+    def __init__(self, engine: Engine, directory: Path) -> None:
+        self.engine = engine
+        self.directory = directory
+        self._models: dict[str, Any] = {}
+        self._lock = threading.Lock()
+
+    def _file(self, eid: str) -> Path:
+        return self.directory / f"{eid}.npz"
+
+    def create(self, body: Any) -> tuple[dict[str, Any], bool]:
+        """Prepare `body` (422 naming the field where it cannot be) and keep it; answers its summary and whether
+        it is new (an element of the same body is answered as it is, prepared nothing)."""
+        from tracer.elements import ElementError, prepare
+
+        try:
+            model = prepare(body)
+        except ElementError as exc:
+            raise Invalid(str(exc)) from None
+        known = self._row(model.id)
+        if known is not None:
+            return _summary(known), False
+        self.directory.mkdir(parents=True, exist_ok=True)
+        tmp = self.directory / f".{model.id}.{os.getpid()}.{threading.get_ident()}.npz"
+        arrays: dict[str, Any] = model.arrays()
+        np.savez(tmp, **arrays)
+        os.replace(tmp, self._file(model.id))
+        s = model.summary()
+        with self.engine.begin() as conn:
+            if conn.execute(select(db.elements.c.id).where(db.elements.c.id == model.id)).first() is None:
+                conn.execute(insert(db.elements).values(id=model.id, body=model.body, features=s["features"],
+                                                        bytes=s["bytes"], prepare_seconds=s["prepare_seconds"]))
+        with self._lock:
+            self._models[model.id] = model
+        return s, True
+
+    def _row(self, eid: str) -> Any:
+        with self.engine.connect() as conn:
+            return conn.execute(select(db.elements).where(db.elements.c.id == eid)).first()
+
+    def summary(self, eid: str) -> dict[str, Any]:
+        """The element's summary with its body; 404 where the library has none of that id."""
+        row = self._row(eid)
+        if row is None:
+            raise NotFound(f"no element {eid} in the library (POST /elements first)")
+        return {**_summary(row), "body": row.body}
+
+    def list(self) -> list[dict[str, Any]]:
+        with self.engine.connect() as conn:
+            return [_summary(r) for r in conn.execute(select(db.elements).order_by(db.elements.c.created_at,
+                                                                                   db.elements.c.id))]
+
+    def get(self, eid: str) -> Any:
+        """The prepared model (`tracer.elements.Microstructure`), from memory or its file: never prepared again."""
+        with self._lock:
+            if eid in self._models:
+                return self._models[eid]
+        if self._row(eid) is None:
+            raise NotFound(f"no element {eid} in the library (POST /elements first)")
+        from tracer.elements import Microstructure
+
+        with np.load(self._file(eid)) as arrays:
+            model = Microstructure.from_arrays(arrays)
+        with self._lock:
+            self._models[eid] = model
+        return model
+
+    def loaded(self) -> set[str]:
+        """Ids held in memory (what `get` will not read again)."""
+        with self._lock:
+            return set(self._models)
+
+
+def _summary(row: Any) -> dict[str, Any]:
+    return {"id": row.id, "type": "microstructure", "features": row.features, "bytes": int(row.bytes),
+            "prepare_seconds": float(row.prepare_seconds)}
+
+
+def check_assignment(body: dict, library: ElementLibrary, state: Any) -> None:
+    """422 for an assignment the scene cannot take: an element the library lacks, a node that is missing or has
+    no geometry of its own."""
+    try:
+        library.summary(body["element"])
+    except NotFound as exc:
+        raise Invalid(f"element: {exc.detail}") from None
+    if not state.has_node(body["node"]):
+        raise Invalid(f"node: no node {body['node']} in scene {state.id}", node=body["node"])
+    if body["node"] not in state.instances:
+        raise Invalid(f"node: {body['node']} has no geometry of its own: an element goes onto a part's faces",
+                      node=body["node"])
+
+
+def sync(state: Any, library: ElementLibrary) -> None:
+    """Make the tracer scene's elements those of ``state.elements`` on the nodes present (call before commit):
+    an element is put on where its node's instance does not carry it yet, taken off where it no longer applies.
+    Where a support cannot carry it, ``state.element_problems[aid]`` says why and the part stays plain."""
+    want = {}
+    for aid, body in state.elements.items():
+        inst = state.instances.get(body["node"])
+        if inst is not None:
+            want[aid] = inst
+    alive = set(state.instances.values())
+    for aid, inst in list(state.element_instances.items()):
+        if want.get(aid) != inst:
+            if inst in alive and inst not in want.values():
+                state.tracer.set_element(inst, None)
+            del state.element_instances[aid]
+    mm = state.tree.scale * 1000.0
+    from tracer.elements import ElementError
+
+    for aid, inst in want.items():
+        if state.element_instances.get(aid) == inst:
+            continue
+        body = state.elements[aid]
+        try:
+            state.tracer.set_element(inst, library.get(body["element"]), facing=body.get("facing"),
+                                     faces=body.get("faces"), mm_per_unit=mm)
+        except (ElementError, NotFound) as exc:
+            state.element_problems[aid] = str(getattr(exc, "detail", exc))
+            continue
+        state.element_instances[aid] = inst
+        state.element_problems.pop(aid, None)
+
+
+def public(state: Any, aid: str, body: dict) -> dict[str, Any]:
+    """An assignment as listed: its body, whether its node is gone, whether it is applied and if not why."""
+    return {"id": aid, "body": body, "orphaned": not state.has_node(body["node"]),
+            "applied": aid in state.element_instances, "problem": state.element_problems.get(aid),
+            "model": "exact"}
+
+
+def describe(state: Any) -> list[dict[str, Any]]:
+    """The elements applied in the scene, as an answer names them: assignment id, element id, node, model."""
+    return [{"id": aid, "element": state.elements[aid]["element"], "node": state.elements[aid]["node"],
+             "model": "exact"} for aid in sorted(state.element_instances)]

@@ -1,0 +1,133 @@
+"""Optical elements with an inside (DESIGN.md "Optical elements with an inside"): the library, shared by every
+scene, and their assignment to a part's support faces.
+
+``POST /elements`` prepares a body once (the same body answers the same id, 200, preparing nothing);
+``POST /scenes/{id}/elements`` puts one onto a node's triangles that face a direction (its frame), keeping the
+node's instance, transform and material; ``DELETE`` takes it off. Bad input is a 422 naming the field, with
+nothing changed: a pitch smaller than the feature, a fill outside [0, 1], an unknown element id, a support that
+is not planar.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Body, Path, Response
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from service import paths
+from service.routes.deps import ItemId, Manager, SceneId
+
+router = APIRouter(tags=["elements"])
+
+ELEMENT_ID = r"^[0-9a-f]{64}$"
+
+#: the examples /docs shows (the ceiling of the examples' room: its floor, dotted); tests/service/test_elements_api.py
+#: checks that the id is the body's
+DOTS_EXAMPLE = {"type": "microstructure", "feature": {"shape": "dome", "radius_mm": 0.25, "height_mm": 0.1},
+                "relief": "bump", "layout": {"type": "grid", "pitch_mm": [1.0, 1.0]}}
+DOTS_EXAMPLE_ID = "fed73e60f8cd2e2d004d1fe0e386581b233614a3bdd5c05733d00b083a36a5be"
+ELEMENT_EXAMPLES = {
+    "dots": {"summary": "domes 0.5 mm across on a 1 mm grid", "value": DOTS_EXAMPLE},
+    "density": {"summary": "dots whose fill grows along u (a light guide's extraction pattern)", "value": {
+        "type": "microstructure", "feature": {"shape": "dome", "radius_mm": 0.25, "height_mm": 0.1},
+        "layout": {"type": "density", "origin_mm": [0, 0], "size_mm": [120, 80], "fill": [[0.1, 0.3, 0.6, 0.9]],
+                   "seed": 1, "pitch_mm": 0.6}}},
+    "prism film": {"summary": "90-degree prisms 50 um wide", "value": {
+        "type": "microstructure", "feature": {"shape": "prism", "base_mm": 0.05, "apex_deg": 90},
+        "layout": {"type": "grid", "pitch_mm": [0.05, 0.05]}}},
+}
+ElementId = Annotated[str, Path(pattern=ELEMENT_ID, description="a library element's id: 64 lowercase hex digits")]
+ASSIGN_EXAMPLES = {"floor": {"summary": "the dots onto the floor's upward faces", "value": {
+    "element": DOTS_EXAMPLE_ID, "node": "room/floor", "facing": [0, 0, 1]}}}
+
+
+class ElementSummary(BaseModel):
+    id: str = Field(description="the element's id: SHA-256 of its checked body (the same body, the same id)")
+    type: str = Field("microstructure", description="the element's kind")
+    features: int | None = Field(description="features prepared; null for a periodic layout (grid, hex), which "
+                                             "holds as many as its support and takes no memory per feature")
+    bytes: int = Field(description="memory of the prepared features")
+    prepare_seconds: float = Field(description="seconds its preparation took (once, when it was first posted)")
+
+
+class ElementDetail(ElementSummary):
+    body: dict[str, Any] = Field(description="the checked body, with its defaults written out")
+
+
+class ElementAssign(BaseModel):
+    """An element onto a part: the triangles of `node` that face `facing` (its own frame), or its B-rep `faces`."""
+
+    model_config = ConfigDict(extra="forbid")
+    element: str = Field(pattern=ELEMENT_ID, description="a library element's id (POST /elements)")
+    node: str = Field(min_length=1, max_length=4096, description="the part's node: UUID or path")
+    facing: list[float] | None = Field(default=None, min_length=3, max_length=3,
+                                       description="a direction in the node's frame: its triangles facing it "
+                                                   "(within 1 degree) carry the element; they must be one plane")
+    faces: list[int] | None = Field(default=None, min_length=1, description=(
+        "B-rep face indices, where the part's mesh carries them (not yet pushed by the adapter: use facing)"))
+
+    @model_validator(mode="after")
+    def _one_support(self) -> ElementAssign:
+        if (self.facing is None) == (self.faces is None):
+            raise ValueError("give the support as 'facing' (a direction in the node's frame) or as 'faces', one "
+                             "of the two")
+        return self
+
+
+class ElementAssignment(BaseModel):
+    id: str = Field(description="the assignment's id, a UUID (DELETE takes the element off with it)")
+    body: dict[str, Any] = Field(description="what was asked, the node as its UUID")
+    orphaned: bool = Field(description="its node is not in the tree (it comes back with the node)")
+    applied: bool = Field(description="the part carries it now")
+    problem: str | None = Field(description="why it is not applied, where it is not (its node gone, or a push left "
+                                            "the support unusable)")
+    model: str = Field(description="the element's model answers use: 'exact' (its micro-geometry traced)")
+
+
+@router.post("/elements", status_code=201, response_model=ElementSummary,
+             responses={200: {"model": ElementSummary, "description": "the library already holds this body"}})
+def post_element(manager: Manager, response: Response, body: Annotated[dict[str, Any], Body(
+        description="an element body: {type: microstructure, feature, relief, material, layout} (DESIGN.md)",
+        openapi_examples=ELEMENT_EXAMPLES)]) -> dict[str, Any]:
+    summary, new = manager.scenes.elements.create(body)
+    if not new:
+        response.status_code = 200
+    return summary
+
+
+@router.get("/elements", response_model=list[ElementSummary])
+def list_elements(manager: Manager) -> list[dict[str, Any]]:
+    return manager.scenes.elements.list()
+
+
+@router.get("/elements/{element_id}", response_model=ElementDetail)
+def get_element(element_id: ElementId, manager: Manager) -> dict[str, Any]:
+    return manager.scenes.elements.summary(element_id)
+
+
+@router.post("/scenes/{scene_id}/elements", status_code=201, response_model=ElementAssignment)
+def assign_element(scene_id: SceneId, body: Annotated[ElementAssign, Body(openapi_examples=ASSIGN_EXAMPLES)],
+                   manager: Manager) -> dict[str, Any]:
+    clean = body.model_dump(exclude_none=True)
+    if not paths.is_uuid(clean["node"]):
+        clean["node"] = paths.resolve(manager.nodes(scene_id), clean["node"], scene_id)
+    else:
+        clean["node"] = clean["node"].lower()
+    return manager.assignments.add_element(scene_id, clean)
+
+
+@router.get("/scenes/{scene_id}/elements", response_model=list[ElementAssignment])
+def list_assigned(scene_id: SceneId, manager: Manager) -> list[dict[str, Any]]:
+    return manager.assignments.list_elements(scene_id)
+
+
+@router.get("/scenes/{scene_id}/elements/{item_id}", response_model=ElementAssignment)
+def get_assigned(scene_id: SceneId, item_id: ItemId, manager: Manager) -> dict[str, Any]:
+    return manager.assignments.get_element(scene_id, item_id)
+
+
+@router.delete("/scenes/{scene_id}/elements/{item_id}", status_code=204)
+def delete_assigned(scene_id: SceneId, item_id: ItemId, manager: Manager) -> Response:
+    manager.assignments.delete_element(scene_id, item_id)
+    return Response(status_code=204)

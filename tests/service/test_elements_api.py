@@ -1,0 +1,160 @@
+"""Optical elements with an inside through the REST API (issue 36): the library, an edge-lit light guide whose
+dots let the light out, taking them off again, a restart, and the 422s that change nothing."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from service_helpers import glb, make_client, node, uid
+
+from tests.tracer.transport_scenes import box
+
+DOTS = {"type": "microstructure", "feature": {"shape": "dome", "radius_mm": 0.3, "height_mm": 0.15},
+        "layout": {"type": "grid", "pitch_mm": [1.0, 1.0]}}
+PMMA = {"type": "dielectric", "ior": 1.49}
+# world metres: a beam into the guide's left edge, rising 0.3 per unit of x (trapped by total internal reflection),
+# and a grid over the middle of its top face, front side down
+BEAM = {"type": "collimated", "origin": [-0.002, 0.02, 0.001], "direction": [1.0, 0.0, 0.3], "radius": 0.0005,
+        "illuminance_lx": 1e6}
+ABOVE = {"type": "grid", "origin": [0.005, 0.005, 0.005], "u": [0.0, 0.03, 0.0], "v": [0.05, 0.0, 0.0], "nu": 2,
+         "nv": 3}
+
+
+@pytest.fixture
+def client(tmp_path: Path) -> Any:
+    with make_client(tmp_path) as c:
+        yield c
+
+
+def _guide(client: Any, steps: bool = False, name: str = "guide") -> str:
+    """A 60 x 40 x 3 mm PMMA light guide (document in mm) lit at its left edge; with `steps`, a second part whose
+    upward faces lie in two planes."""
+    sid = client.post("/scenes", json={"name": name}).json()["id"]
+    v, t = box([0, 0, 0], [60, 40, 3])
+    gid, data = glb(v.astype(np.float32), t)
+    assert client.put(f"/geometries/{gid}", content=data, headers={"content-type": "model/gltf-binary"}
+                      ).status_code in (200, 201)
+    nodes = [node(uid(0), None, "backlight"), node(uid(1), uid(0), "guide", geometry=gid)]
+    if steps:
+        v1, t1 = box([0, 0, 0], [10, 10, 1])
+        v2, t2 = box([10, 0, 0], [20, 10, 2])
+        sv, st = np.vstack([v1, v2]), np.vstack([t1, t2 + 8])
+        sgid, sdata = glb(sv.astype(np.float32), st)
+        client.put(f"/geometries/{sgid}", content=sdata, headers={"content-type": "model/gltf-binary"})
+        nodes.append(node(uid(2), uid(0), "steps", geometry=sgid))
+    r = client.put(f"/scenes/{sid}/document", json={"base_revision": 0, "length_unit": "mm", "nodes": nodes})
+    assert r.status_code == 200, r.text
+    assert client.put(f"/scenes/{sid}/materials/{uid(1)}", json=PMMA).status_code in (200, 201)
+    assert client.post(f"/scenes/{sid}/lights", json=BEAM).status_code == 201
+    return sid
+
+
+def _above(client: Any, sid: str, sensor: str, seed: int = 4) -> dict:
+    r = client.post(f"/scenes/{sid}/sensors/{sensor}/simulate", json={"max_photons": 60_000, "seed": seed,
+                                                                        "estimator": "forward"})
+    assert r.status_code == 200, r.text
+    return r.json()
+
+
+def test_the_library_answers_the_same_id_for_the_same_body_and_prepares_it_once(client: Any) -> None:
+    first = client.post("/elements", json=DOTS)
+    assert first.status_code == 201, first.text
+    again = client.post("/elements", json=DOTS)
+    assert again.status_code == 200 and again.json() == first.json()
+    other = client.post("/elements", json={**DOTS, "relief": "pit"})
+    assert other.status_code == 201 and other.json()["id"] != first.json()["id"]
+    listed = {e["id"] for e in client.get("/elements").json()}
+    assert listed == {first.json()["id"], other.json()["id"]}
+    detail = client.get(f"/elements/{first.json()['id']}").json()
+    assert detail["body"]["layout"] == {"type": "grid", "pitch_mm": [1.0, 1.0]} and detail["features"] is None
+
+
+def test_dots_on_an_edge_lit_guide_let_the_trapped_light_out_and_taking_them_off_restores_the_answer(
+        client: Any) -> None:
+    sid = _guide(client)
+    sensor = client.post(f"/scenes/{sid}/sensors", json=ABOVE).json()["id"]
+    plain = _above(client, sid, sensor)
+    assert max(plain["lux"][0] + plain["lux"][1] + plain["lux"][2]) == 0.0   # total internal reflection keeps it in
+    eid = client.post("/elements", json=DOTS).json()["id"]
+    added = client.post(f"/scenes/{sid}/elements", json={"element": eid, "node": "backlight/guide",
+                                                         "facing": [0, 0, -1]})
+    assert added.status_code == 201, added.text
+    assert added.json()["applied"] and added.json()["body"]["node"] == uid(1)
+    dotted = _above(client, sid, sensor)
+    lux, err = np.array(dotted["lux"]), np.array(dotted["stderr"])
+    assert lux.sum() > 10 * np.sqrt((err ** 2).sum()) > 0
+    assert client.delete(f"/scenes/{sid}/elements/{added.json()['id']}").status_code == 204
+    assert client.get(f"/scenes/{sid}/elements").json() == []
+    back = _above(client, sid, sensor)
+    assert back["lux"] == plain["lux"] and back["stderr"] == plain["stderr"]
+
+
+def test_an_element_outlives_a_restart_loaded_from_the_library_not_prepared_again(
+        tmp_path: Path, monkeypatch: Any) -> None:
+    with make_client(tmp_path) as c:
+        sid = _guide(c)
+        eid = c.post("/elements", json=DOTS).json()["id"]
+        aid = c.post(f"/scenes/{sid}/elements", json={"element": eid, "node": uid(1), "facing": [0, 0, -1]}
+                     ).json()["id"]
+        sensor = c.post(f"/scenes/{sid}/sensors", json=ABOVE).json()["id"]
+        before = _above(c, sid, sensor)
+
+    import tracer.elements
+
+    def no_preparing(body: Any) -> Any:
+        raise AssertionError("a restart prepared an element again")
+
+    monkeypatch.setattr(tracer.elements, "prepare", no_preparing)
+    with make_client(tmp_path) as c:
+        listed = c.get(f"/scenes/{sid}/elements").json()
+        assert [(x["id"], x["applied"]) for x in listed] == [(aid, True)]
+        assert _above(c, sid, sensor)["lux"] == before["lux"]
+        sid2 = _guide(c, name="second guide")   # a second scene takes the element from the library: nothing prepared
+        assert c.post(f"/scenes/{sid2}/elements", json={"element": eid, "node": uid(1), "facing": [0, 0, -1]}
+                      ).status_code == 201
+
+
+@pytest.mark.parametrize("body, words", [
+    ({**DOTS, "layout": {"type": "grid", "pitch_mm": [0.5, 1.0]}}, "smaller than the feature"),
+    ({**DOTS, "layout": {"type": "density", "origin_mm": [0, 0], "size_mm": [10, 10], "fill": [[0.2, -0.1]]}},
+     "outside [0, 1]"),
+    ({**DOTS, "feature": {"shape": "dome", "radius_mm": 0.3}}, "missing field(s) ['height_mm']"),
+    ([1, 2], "body: Input should be a valid dictionary"),
+])
+def test_a_bad_element_body_is_a_422_naming_the_field_and_the_library_is_unchanged(
+        client: Any, body: Any, words: str) -> None:
+    r = client.post("/elements", json=body)
+    assert r.status_code == 422, r.text
+    assert words in r.text
+    assert client.get("/elements").json() == []
+
+
+def test_an_assignment_that_cannot_go_is_a_422_and_nothing_changes(client: Any) -> None:
+    sid = _guide(client, steps=True)
+    eid = client.post("/elements", json=DOTS).json()["id"]
+    revision = client.get(f"/scenes/{sid}").json()
+    cases = [
+        ({"element": "0" * 64, "node": uid(1), "facing": [0, 0, -1]}, "no element"),
+        ({"element": eid, "node": uid(2), "facing": [0, 0, 1]}, "not planar"),
+        ({"element": eid, "node": uid(0), "facing": [0, 0, -1]}, "no geometry of its own"),
+        ({"element": eid, "node": uid(1), "facing": [0, 0, -1], "faces": [1]}, "one of the two"),
+        ({"element": eid, "node": uid(1)}, "one of the two"),
+        ({"element": eid, "node": uid(1), "facing": [1, 1, 1]}, "no triangle"),
+        ({"element": "xyz", "node": uid(1), "facing": [0, 0, -1]}, "element"),
+    ]
+    for body, words in cases:
+        r = client.post(f"/scenes/{sid}/elements", json=body)
+        assert r.status_code == 422, (body, r.text)
+        assert words in r.text, (body, r.text)
+    assert client.get(f"/scenes/{sid}/elements").json() == []
+    assert client.get(f"/scenes/{sid}").json() == revision
+
+
+def test_the_docs_example_names_its_element_by_the_id_its_body_gets() -> None:
+    from service.routes.elements import DOTS_EXAMPLE, DOTS_EXAMPLE_ID
+    from tracer.elements import prepare
+
+    assert prepare(DOTS_EXAMPLE).id == DOTS_EXAMPLE_ID

@@ -1,0 +1,302 @@
+"""The inner tracer of a micro-structured face: which feature a ray meets, where, and the surface there.
+
+Everything here works in the element's frame, in millimetres: ``u``, ``v`` on the support plane (from the support's
+corner of smallest u and v), ``w`` along the support's outward normal. A feature's solid ``K`` sits on the plane at
+its centre ``(cu, cv)``, in ``w' = sign * w`` (``sign`` +1 for a bump, raised out of the part; -1 for a pit, cut into
+it), between ``w' = 0`` and its height ``h``:
+
+- dome: the cap of the sphere of radius ``rs = (a^2 + h^2) / 2h`` centred at ``w' = h - rs`` (base radius ``a``);
+- pyramid: ``|u - cu| + slope w' <= a`` and ``|v - cv| + slope w' <= a`` (``slope = a / h``, square base ``2a``);
+- prism: ``|u - cu| + slope w' <= a``, a ridge along v across the whole support.
+
+The relief's surface is the support plane outside the features' bases plus each ``K``'s boundary above the plane;
+the base is no surface (the same material goes on across it for a bump, air for a pit). A ray meets a feature where
+it crosses ``K``'s boundary at ``w' > 0``: convex ``K``, so at most twice, found as the interval of the ray inside
+``K``'s half-spaces (or sphere) with the face that bounds it. Features are found from the layout by walking the
+ray's path over the layout's cells (Amanatides and Woo's 2D DDA), never from a mesh:
+
+- ``GRID``: one feature in each cell of the pitch, centred (``cells start at the face's smallest u and v``);
+- ``HEX``: rows ``pv = pitch sqrt(3) / 2`` apart, odd rows shifted by half a pitch (domes);
+- ``DENSITY``: a lattice of the pitch whose sites are kept or not (one bit each, `el_bits`);
+- ``POINTS``: listed centres (`el_uv`, float32 mm) binned by cell (`el_bin` starts, `el_item` ids).
+
+HEX and POINTS test the 3 x 3 cells around the walked one: their features may cross a cell's edge, by less than a
+cell. The row columns below index `SceneArrays.el_f` and `el_i` (packed by `tracer.elements.support`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from tracer.jit import njit
+
+DOME, PYRAMID, PRISM = 0, 1, 2
+GRID, HEX, DENSITY, POINTS = 0, 1, 2, 3
+
+# el_f columns (float64): the frame in object space, the scale, the support, the feature, the layout
+O_X, U_X, V_X, N_X = 0, 3, 6, 9          # frame origin and unit axes, object space (3 each)
+MM = 12                                   # millimetres per object unit
+LU, LV = 13, 14                           # the support's extent, mm
+A, H, RS, SLOPE = 15, 16, 17, 18          # half base (radius), height, sphere radius, a / h (mm, mm, mm, 1)
+CU, CV = 19, 20                           # the layout's cell size, mm
+ORG_U, ORG_V = 21, 22                     # the layout's first cell corner, mm
+SIGN = 23                                 # +1 bump, -1 pit
+NF = 24
+# el_i columns (int64)
+SHAPE, LAYOUT, NU, NV = 0, 1, 2, 3        # feature shape, layout kind, cells along u and v
+GEOM_S = 4                                # the support's own geometry (bottom level) in the store
+MAP_A, MAP_S, MAP_INV = 5, 6, 7           # offsets in el_prim: rest -> part, support -> part, part -> either
+BITS, UV, BINS = 8, 9, 10                 # offsets in el_bits (bytes), el_uv (rows), el_bin (starts)
+ITEMS = 11                                # offset in el_item
+NI = 12
+
+NEAR = 1.0e300
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _clip(o, d, lo_b, hi_b, lo, hi):
+    """The part of ``(lo, hi)`` where ``o + t d`` lies in ``[lo_b, hi_b]``."""
+    if d == 0.0:
+        if o < lo_b or o > hi_b:
+            return 1.0, 0.0
+        return lo, hi
+    t0 = (lo_b - o) / d
+    t1 = (hi_b - o) / d
+    if t0 > t1:
+        t0, t1 = t1, t0
+    return max(lo, t0), min(hi, t1)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _half(nu, nv, nw, c, ou, ov, ow, du, dv, dw, lo, hi):
+    """Bound ``(lo, hi)`` by the half-space ``n . p <= c`` along the ray; also whether each end moved."""
+    nd = nu * du + nv * dv + nw * dw
+    no = nu * ou + nv * ov + nw * ow
+    if nd == 0.0:
+        if no > c:
+            return 1.0, 0.0, False, False
+        return lo, hi, False, False
+    t = (c - no) / nd
+    if nd > 0.0:
+        if t < hi:
+            return lo, t, False, True
+        return lo, hi, False, False
+    if t > lo:
+        return t, hi, True, False
+    return lo, hi, False, False
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def cross_feature(shape, a, h, rs, slope, cu, cv, ou, ov, ow, du, dv, dw, t_lo, t_hi):
+    """The first ``t`` in ``(t_lo, t_hi)`` where the ray (in ``w'``) crosses the boundary of the feature centred at
+    ``(cu, cv)`` above its base; ``inf`` where it does not."""
+    lo = -math.inf
+    hi = math.inf
+    lo_base = False
+    hi_base = False
+    if shape == DOME:
+        pu = ou - cu
+        pv = ov - cv
+        pw = ow - (h - rs)
+        b = pu * du + pv * dv + pw * dw
+        dd = du * du + dv * dv + dw * dw
+        c = pu * pu + pv * pv + pw * pw - rs * rs
+        disc = b * b - dd * c
+        if disc < 0.0:
+            return math.inf
+        q = -b - math.copysign(math.sqrt(disc), b)   # the stable pair of roots
+        if q == 0.0:
+            return math.inf
+        r0 = q / dd
+        r1 = c / q
+        lo = min(r0, r1)
+        hi = max(r0, r1)
+    else:
+        lo, hi, a0, b0 = _half(1.0, 0.0, slope, a + cu, ou, ov, ow, du, dv, dw, lo, hi)
+        lo, hi, a1, b1 = _half(-1.0, 0.0, slope, a - cu, ou, ov, ow, du, dv, dw, lo, hi)
+        if shape == PYRAMID:
+            lo, hi, a2, b2 = _half(0.0, 1.0, slope, a + cv, ou, ov, ow, du, dv, dw, lo, hi)
+            lo, hi, a3, b3 = _half(0.0, -1.0, slope, a - cv, ou, ov, ow, du, dv, dw, lo, hi)
+    lo2, hi2, moved_lo, moved_hi = _half(0.0, 0.0, -1.0, 0.0, ou, ov, ow, du, dv, dw, lo, hi)   # w' >= 0
+    lo_base = moved_lo
+    hi_base = moved_hi
+    if not lo2 < hi2:
+        return math.inf
+    if not lo_base and t_lo < lo2 < t_hi:
+        return lo2
+    if not hi_base and t_lo < hi2 < t_hi:
+        return hi2
+    return math.inf
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def covers(shape, a, cu, cv, pu, pv):
+    """Whether the base of the feature centred at ``(cu, cv)`` covers the plane point ``(pu, pv)``."""
+    du = pu - cu
+    dv = pv - cv
+    if shape == DOME:
+        return du * du + dv * dv <= a * a
+    if shape == PYRAMID:
+        return abs(du) <= a and abs(dv) <= a
+    return abs(du) <= a
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def center(F, I, uv, f):
+    """Centre ``(cu, cv)`` (mm) of feature ``f`` (its index in the layout)."""
+    lay = I[LAYOUT]
+    if lay == POINTS:
+        q = I[UV] + f
+        return np.float64(uv[q, 0]), np.float64(uv[q, 1])
+    nu = I[NU]
+    j = f // nu
+    i = f - j * nu
+    if lay == HEX:
+        return (i + 0.5 + 0.5 * (j & 1)) * F[CU], (j + 0.5) * F[CV]
+    return F[ORG_U] + (i + 0.5) * F[CU], F[ORG_V] + (j + 0.5) * F[CV]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _kept(I, bits, i, j):
+    """Whether lattice site (i, j) holds a feature (the layouts without bits: always)."""
+    if I[LAYOUT] != DENSITY:
+        return True
+    s = I[BITS] * 8 + j * I[NU] + i
+    return (bits[s >> 3] >> (s & 7)) & 1 == 1
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _inside(F, cu, cv):
+    """Whether a HEX feature at (cu, cv) lies wholly on the support (its odd rows may run over the far edge)."""
+    a = F[A]
+    return cu - a >= 0.0 and cu + a <= F[LU] and cv - a >= 0.0 and cv + a <= F[LV]
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _cell(F, I, bits, uv, bins, items, i, j, ou, ov, ow, du, dv, dw, lo, best, bf, pu, pv, probe):
+    """Test the features of cell (i, j) (and its neighbours for HEX and POINTS): with ``probe``, whether one covers
+    the plane point (pu, pv) (returns its index as ``bf``); otherwise the nearest crossing in ``(lo, best)``."""
+    lay = I[LAYOUT]
+    nu = I[NU]
+    nv = I[NV]
+    shape = I[SHAPE]
+    reach = 1 if (lay == HEX or lay == POINTS) else 0
+    for jj in range(j - reach, j + reach + 1):
+        if jj < 0 or jj >= nv:
+            continue
+        for ii in range(i - reach, i + reach + 1):
+            if ii < 0 or ii >= nu:
+                continue
+            first = 0
+            last = 1
+            if lay == POINTS:
+                b = I[BINS] + jj * nu + ii
+                first = bins[b]
+                last = bins[b + 1]
+            elif not _kept(I, bits, ii, jj):
+                continue
+            for k in range(first, last):
+                f = items[I[ITEMS] + k] if lay == POINTS else jj * nu + ii
+                cu, cv = center(F, I, uv, f)
+                if lay == HEX and not _inside(F, cu, cv):
+                    continue
+                if probe:
+                    if covers(shape, F[A], cu, cv, pu, pv):
+                        return best, f
+                    continue
+                t = cross_feature(shape, F[A], F[H], F[RS], F[SLOPE], cu, cv, ou, ov, ow, du, dv, dw, lo, best)
+                if t < best:
+                    best = t
+                    bf = f
+    return best, bf
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def feature_at(F, I, bits, uv, bins, items, pu, pv):
+    """The feature whose base covers the plane point ``(pu, pv)`` (mm), -1 where none does."""
+    i = int(math.floor((pu - F[ORG_U]) / F[CU]))
+    j = int(math.floor((pv - F[ORG_V]) / F[CV]))
+    _, f = _cell(F, I, bits, uv, bins, items, i, j, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1, pu, pv, True)
+    return f
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def search(F, I, bits, uv, bins, items, ou, ov, ow, du, dv, dw, t_lo, t_hi):
+    """``(t, f)``: the nearest crossing in ``(t_lo, t_hi)`` of the ray (frame, mm; ``w``, not ``w'``) with a
+    feature, and the feature's index; ``(inf, -1)`` where it meets none. Walks the layout's cells along the ray from
+    where it enters the features' slab, and stops at the first cell that starts beyond the best crossing."""
+    sign = F[SIGN]
+    ow = sign * ow
+    dw = sign * dw
+    lo, hi = _clip(ow, dw, 0.0, F[H], t_lo, t_hi)
+    cu = F[CU]
+    cv = F[CV]
+    nu = I[NU]
+    nv = I[NV]
+    reach = 1.0 if (I[LAYOUT] == HEX or I[LAYOUT] == POINTS) else 0.0
+    lo, hi = _clip(ou, du, F[ORG_U] - reach * cu, F[ORG_U] + (nu + reach) * cu, lo, hi)
+    lo, hi = _clip(ov, dv, F[ORG_V] - reach * cv, F[ORG_V] + (nv + reach) * cv, lo, hi)
+    if not lo < hi:
+        return math.inf, -1
+    su = ou + lo * du - F[ORG_U]
+    sv = ov + lo * dv - F[ORG_V]
+    i = int(math.floor(su / cu))
+    j = int(math.floor(sv / cv))
+    step_i = 1 if du > 0.0 else -1
+    step_j = 1 if dv > 0.0 else -1
+    next_u = ((i + (1 if du > 0.0 else 0)) * cu - (ou - F[ORG_U])) / du if du != 0.0 else math.inf
+    next_v = ((j + (1 if dv > 0.0 else 0)) * cv - (ov - F[ORG_V])) / dv if dv != 0.0 else math.inf
+    delta_u = cu / abs(du) if du != 0.0 else math.inf
+    delta_v = cv / abs(dv) if dv != 0.0 else math.inf
+    best = hi
+    bf = -1
+    for _ in range(nu + nv + 4):
+        best, bf = _cell(F, I, bits, uv, bins, items, i, j, ou, ov, ow, du, dv, dw, t_lo, best, bf, 0.0, 0.0,
+                         False)
+        leave = min(next_u, next_v)
+        if leave >= best or leave >= hi:
+            break
+        if next_u < next_v:
+            i += step_i
+            next_u += delta_u
+        else:
+            j += step_j
+            next_v += delta_v
+    if bf < 0:
+        return math.inf, -1
+    return best, bf
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def surface(F, I, uv, f, hu, hv):
+    """``(w, nu, nv, nw)`` of feature ``f`` at plane point ``(hu, hv)`` (mm): the relief's height above the plane
+    there (``w``, mm, signed: negative in a pit) and its unit normal, outward of the part, in the frame."""
+    cu, cv = center(F, I, uv, f)
+    a = F[A]
+    h = F[H]
+    sign = F[SIGN]
+    du = hu - cu
+    dv = hv - cv
+    shape = I[SHAPE]
+    if shape == DOME:
+        rs = F[RS]
+        wk = (h - rs) + math.sqrt(max(rs * rs - du * du - dv * dv, 0.0))
+        ku = du / rs
+        kv = dv / rs
+        kw = (wk - (h - rs)) / rs
+    else:
+        slope = F[SLOPE]
+        norm = math.sqrt(1.0 + slope * slope)
+        if shape == PRISM or abs(du) >= abs(dv):
+            wk = (a - abs(du)) / slope
+            ku = math.copysign(1.0, du) / norm
+            kv = 0.0
+        else:
+            wk = (a - abs(dv)) / slope
+            ku = 0.0
+            kv = math.copysign(1.0, dv) / norm
+        kw = slope / norm
+    # K's outward normal in (u, v, w'); the part's outward normal is K's for a bump and the opposite for a pit
+    return sign * max(wk, 0.0), sign * ku, sign * kv, kw

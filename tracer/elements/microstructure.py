@@ -1,0 +1,323 @@
+"""A micro-structured face as a prepared model: its feature, its relief and its layout, checked and packed once.
+
+The body (DESIGN.md "Optical elements with an inside"; lengths in mm, on the support's u-v frame)::
+
+    {"type": "microstructure",
+     "feature": {"shape": "dome", "radius_mm": r, "height_mm": h}          (a spherical cap, h <= r)
+              | {"shape": "pyramid", "base_mm": b, "height_mm": h}         (square base, sides along u and v)
+              | {"shape": "prism", "base_mm": b, "apex_deg": 90},          (a ridge along v; layout grid only)
+     "relief": "bump" | "pit",  "material": null,
+     "layout": {"type": "grid", "pitch_mm": [pu, pv]} | {"type": "hex", "pitch_mm": p}         (domes)
+             | {"type": "density", "origin_mm": [u0, v0], "size_mm": [su, sv], "fill": [[...], ...], "seed": 1,
+                "pitch_mm": p}        (a lattice of pitch p, default the feature's base; each site kept with the
+                                       probability of its map cell's fill, rows along v from v0, columns along u)
+             | {"type": "points", "uv_mm": [[u, v], ...]}}
+
+`prepare` checks it (`ElementError` naming the field and what to do) and packs what the inner tracer
+(:mod:`tracer.elements.features`) walks: nothing per feature for the periodic layouts (their memory does not grow with
+the count), one bit per lattice site for a density map, 12 to 20 bytes per listed point. The same body gives the same
+`Microstructure.id` (a SHA-256 of its canonical JSON), so a library keeps one prepared model per body.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from tracer.elements import features as fx
+from tracer.errors import TracerError
+
+SHAPES = {"dome": fx.DOME, "pyramid": fx.PYRAMID, "prism": fx.PRISM}
+LAYOUTS = {"grid": fx.GRID, "hex": fx.HEX, "density": fx.DENSITY, "points": fx.POINTS}
+MAX_SITES = 4_000_000_000     # a density lattice's sites (one bit each: 500 MB)
+MAX_POINTS = 20_000_000       # listed features
+MAX_MAP_CELLS = 4_000_000     # cells of a density map
+
+
+class ElementError(TracerError):
+    """An element body that cannot be prepared; the message names the field and what to do."""
+
+
+@dataclass(frozen=True, eq=False)
+class Microstructure:
+    """A prepared micro-structured face. Lengths in mm.
+
+    ``a``: the feature's half base (a dome's base radius); ``h`` its height; ``rs`` a dome's sphere radius;
+    ``sign`` +1 for a bump, -1 for a pit; ``cell`` the layout's cell (mm, (2,)), ``origin`` its first corner (mm);
+    ``cells`` (nu, nv) for the listed layouts (zero: the periodic ones, counted on their support);
+    ``bits`` (uint8) the kept lattice sites of a density map; ``uv`` (P, 2) float32 listed centres with ``bins``
+    (int32 starts, nu nv + 1) and ``items`` (int32) their ids by cell.
+    """
+
+    id: str
+    body: dict
+    shape: int
+    a: float
+    h: float
+    rs: float
+    sign: float
+    layout: int
+    cell: tuple[float, float]
+    origin: tuple[float, float] = (0.0, 0.0)
+    cells: tuple[int, int] = (0, 0)
+    bits: np.ndarray = field(default_factory=lambda: np.zeros(0, np.uint8))
+    uv: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.float32))
+    bins: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int32))
+    items: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
+    features: int | None = None      # None: periodic, as many as its support holds
+    prepare_seconds: float = 0.0
+
+    @property
+    def nbytes(self) -> int:
+        """Memory the prepared features take (bytes); a periodic layout's is constant."""
+        return int(self.bits.nbytes + self.uv.nbytes + self.bins.nbytes + self.items.nbytes)
+
+    def summary(self) -> dict[str, Any]:
+        """What a library lists: id, type, features (None: periodic), bytes, prepare_seconds."""
+        return {"id": self.id, "type": "microstructure", "features": self.features, "bytes": self.nbytes,
+                "prepare_seconds": self.prepare_seconds}
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Its packed arrays and parameters, for a library file (`from_arrays` reads them back)."""
+        return {"body": np.frombuffer(json.dumps(self.body, sort_keys=True).encode(), np.uint8),
+                "bits": self.bits, "uv": self.uv, "bins": self.bins, "items": self.items,
+                "params": np.array([self.a, self.h, self.rs, self.sign, *self.cell, *self.origin,
+                                    self.prepare_seconds]),
+                "ints": np.array([self.shape, self.layout, *self.cells, -1 if self.features is None else self.features],
+                                 np.int64)}
+
+    @classmethod
+    def from_arrays(cls, arrays: Any) -> Microstructure:
+        """A model saved by `arrays` (an ``np.load`` of them), as it was: nothing is prepared again."""
+        body = json.loads(bytes(arrays["body"]).decode())
+        p = arrays["params"]
+        ints = [int(x) for x in arrays["ints"]]
+        return cls(element_id(body), body, ints[0], float(p[0]), float(p[1]), float(p[2]), float(p[3]), ints[1],
+                   (float(p[4]), float(p[5])), (float(p[6]), float(p[7])), (ints[2], ints[3]),
+                   np.asarray(arrays["bits"], np.uint8), np.asarray(arrays["uv"], np.float32),
+                   np.asarray(arrays["bins"], np.int32), np.asarray(arrays["items"], np.int32),
+                   None if ints[4] < 0 else ints[4], float(p[8]))
+
+
+def element_id(body: dict) -> str:
+    """The id of a checked body: SHA-256 of its canonical JSON (the same body, the same id)."""
+    return hashlib.sha256(json.dumps(body, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+
+def _number(x: Any, where: str, *, lo: float = 0.0, lo_open: bool = True, hi: float = math.inf) -> float:
+    if isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x):
+        raise ElementError(f"{where} must be a finite number, got {x!r}"[:300])
+    if (x <= lo if lo_open else x < lo) or x > hi:
+        bound = f"> {lo:g}" if lo_open else f">= {lo:g}"
+        raise ElementError(f"{where} must be {bound}" + (f" and <= {hi:g}" if hi < math.inf else "") + f", got {x!r}")
+    return float(x)
+
+
+def _pair(x: Any, where: str, **bounds: Any) -> tuple[float, float]:
+    if not isinstance(x, list | tuple) or len(x) != 2:
+        raise ElementError(f"{where} must be two numbers [u, v] in mm, got {x!r}"[:300])
+    return _number(x[0], f"{where}[0]", **bounds), _number(x[1], f"{where}[1]", **bounds)
+
+
+def _fields(body: dict, where: str, required: set[str], optional: set[str]) -> None:
+    unknown = sorted(set(body) - required - optional)
+    if unknown:
+        raise ElementError(f"{where}: unknown field(s) {unknown}; known: {sorted(required | optional)}")
+    missing = sorted(required - set(body))
+    if missing:
+        raise ElementError(f"{where}: missing field(s) {missing}")
+
+
+def _feature(f: Any) -> tuple[dict, int, float, float, float]:
+    """The checked feature: (canonical body, shape, a, h, rs) in mm."""
+    if not isinstance(f, dict):
+        raise ElementError(f"feature must be an object with a 'shape' ({sorted(SHAPES)}), got {f!r}"[:300])
+    shape = f.get("shape")
+    if shape not in SHAPES:
+        raise ElementError(f"feature.shape {shape!r} is unknown; known: {sorted(SHAPES)}")
+    if shape == "dome":
+        _fields(f, "feature", {"shape", "radius_mm", "height_mm"}, set())
+        a = _number(f["radius_mm"], "feature.radius_mm")
+        h = _number(f["height_mm"], "feature.height_mm")
+        if h > a:
+            raise ElementError(f"feature.height_mm ({h:g}) must not exceed feature.radius_mm ({a:g}): a dome is a "
+                               f"cap no taller than a hemisphere")
+        return {"shape": shape, "radius_mm": a, "height_mm": h}, fx.DOME, a, h, (a * a + h * h) / (2.0 * h)
+    if shape == "pyramid":
+        _fields(f, "feature", {"shape", "base_mm", "height_mm"}, set())
+        b = _number(f["base_mm"], "feature.base_mm")
+        h = _number(f["height_mm"], "feature.height_mm")
+        return {"shape": shape, "base_mm": b, "height_mm": h}, fx.PYRAMID, b / 2.0, h, 0.0
+    _fields(f, "feature", {"shape", "base_mm", "apex_deg"}, set())
+    b = _number(f["base_mm"], "feature.base_mm")
+    apex = _number(f["apex_deg"], "feature.apex_deg", hi=179.0)
+    if apex < 1.0:
+        raise ElementError(f"feature.apex_deg must be in [1, 179], got {apex!r}")
+    return ({"shape": shape, "base_mm": b, "apex_deg": apex}, fx.PRISM, b / 2.0,
+            b / 2.0 / math.tan(math.radians(apex) / 2.0), 0.0)
+
+
+def prepare(body: Any) -> Microstructure:
+    """Check an element body and prepare its model (see the module docstring).
+
+    Raises
+    ------
+    ElementError
+        Not an object, unknown or missing field, a value out of range, a pitch smaller than the feature, a fill
+        outside [0, 1], features of a point list that overlap; each message names the field.
+    """
+    t0 = time.perf_counter()
+    if not isinstance(body, dict):
+        raise ElementError(f"an element is an object {{'type': 'microstructure', ...}}, got {type(body).__name__}")
+    if body.get("type") != "microstructure":
+        raise ElementError(f"element type {body.get('type')!r} is unknown; known: ['microstructure']")
+    _fields(body, "element", {"type", "feature", "layout"}, {"relief", "material"})
+    if body.get("material") is not None:
+        raise ElementError("material: the features take the part's own material for now (give null or leave it "
+                           "out); a material of their own is not supported yet")
+    relief = body.get("relief", "bump")
+    if relief not in ("bump", "pit"):
+        raise ElementError(f"relief must be 'bump' (raised from the surface) or 'pit' (cut into it), got {relief!r}")
+    feature, shape, a, h, rs = _feature(body["feature"])
+    layout = body["layout"]
+    if not isinstance(layout, dict) or layout.get("type") not in LAYOUTS:
+        got = layout.get("type") if isinstance(layout, dict) else layout
+        raise ElementError(f"layout.type {got!r} is unknown; known: {sorted(LAYOUTS)}"[:300])
+    lay = LAYOUTS[layout["type"]]
+    if shape == fx.PRISM and lay != fx.GRID:
+        raise ElementError("layout: prisms are ridges across the support, laid out by a 'grid' (its pitch_mm[0] "
+                           "along u)")
+    if lay == fx.HEX and shape != fx.DOME:
+        raise ElementError("layout: a 'hex' layout takes domes; lay pyramids out on a 'grid'")
+    common = {"type": "microstructure", "relief": relief, "material": None, "feature": feature}
+    sign = 1.0 if relief == "bump" else -1.0
+    args = (shape, a, h, rs, sign)
+    if lay == fx.GRID:
+        return _grid(layout, common, args, t0)
+    if lay == fx.HEX:
+        _fields(layout, "layout", {"type", "pitch_mm"}, set())
+        p = _pitch(layout["pitch_mm"], "layout.pitch_mm", a)
+        canon = {**common, "layout": {"type": "hex", "pitch_mm": p}}
+        return _model(canon, args, fx.HEX, (p, p * math.sqrt(3.0) / 2.0), t0)
+    if lay == fx.DENSITY:
+        return _density(layout, common, args, t0)
+    return _points(layout, common, args, t0)
+
+
+def _pitch(x: Any, where: str, a: float) -> float:
+    p = _number(x, where)
+    if p < 2.0 * a:
+        raise ElementError(f"{where} ({p:g} mm) is smaller than the feature ({2 * a:g} mm across): features would "
+                           f"overlap; give a pitch of at least {2 * a:g} mm")
+    return p
+
+
+def _model(canon: dict, args: tuple, layout: int, cell: tuple[float, float], t0: float, **arrays: Any
+           ) -> Microstructure:
+    shape, a, h, rs, sign = args
+    return Microstructure(element_id(canon), canon, shape, a, h, rs, sign, layout, cell, **arrays,
+                          prepare_seconds=time.perf_counter() - t0)
+
+
+def _grid(layout: dict, common: dict, args: tuple, t0: float) -> Microstructure:
+    _fields(layout, "layout", {"type", "pitch_mm"}, set())
+    shape, a = args[0], args[1]
+    pitch = layout["pitch_mm"]
+    if shape == fx.PRISM and not isinstance(pitch, list | tuple):
+        pitch = [pitch, pitch]
+    if not isinstance(pitch, list | tuple) or len(pitch) != 2:
+        raise ElementError(f"layout.pitch_mm must be [pu, pv] in mm, got {pitch!r}"[:300])
+    pu = _pitch(pitch[0], "layout.pitch_mm[0]", a)
+    pv = _pitch(pitch[1], "layout.pitch_mm[1]", a) if shape != fx.PRISM else _number(pitch[1], "layout.pitch_mm[1]")
+    return _model({**common, "layout": {"type": "grid", "pitch_mm": [pu, pv]}}, args, fx.GRID, (pu, pv), t0)
+
+
+def _density(layout: dict, common: dict, args: tuple, t0: float) -> Microstructure:
+    _fields(layout, "layout", {"type", "origin_mm", "size_mm", "fill"}, {"seed", "pitch_mm"})
+    a = args[1]
+    u0, v0 = _pair(layout["origin_mm"], "layout.origin_mm", lo=-math.inf)
+    su, sv = _pair(layout["size_mm"], "layout.size_mm")
+    p = _pitch(layout.get("pitch_mm", 2.0 * a), "layout.pitch_mm", a)
+    seed = layout.get("seed", 1)
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2 ** 63:
+        raise ElementError(f"layout.seed must be an integer >= 0, got {seed!r}"[:300])
+    fill = _fill(layout["fill"])
+    nu, nv = int(su // p), int(sv // p)
+    if nu * nv == 0:
+        raise ElementError(f"layout.size_mm {[su, sv]} holds no site of pitch {p:g} mm: make it larger")
+    if nu * nv > MAX_SITES:
+        raise ElementError(f"layout: {nu * nv} lattice sites is more than {MAX_SITES}: a larger pitch_mm or a "
+                           f"smaller size_mm")
+    rows, cols = fill.shape
+    rng = np.random.default_rng(seed)
+    col_of = np.minimum(((np.arange(nu) + 0.5) * p / su * cols).astype(np.int64), cols - 1)
+    kept = np.zeros(nu * nv, bool)
+    chunk = max(1, 4_000_000 // nu)
+    for j0 in range(0, nv, chunk):
+        j = np.arange(j0, min(nv, j0 + chunk))
+        row_of = np.minimum(((j + 0.5) * p / sv * rows).astype(np.int64), rows - 1)
+        kept[j0 * nu:(j0 + len(j)) * nu] = (rng.random((len(j), nu)) < fill[row_of][:, col_of]).ravel()
+    bits = np.packbits(kept, bitorder="little")
+    canon = {**common, "layout": {"type": "density", "origin_mm": [u0, v0], "size_mm": [su, sv],
+                                  "fill": fill.tolist(), "seed": seed, "pitch_mm": p}}
+    return _model(canon, args, fx.DENSITY, (p, p), t0, origin=(u0, v0), cells=(nu, nv), bits=bits,
+                  features=int(kept.sum()))
+
+
+def _fill(fill: Any) -> np.ndarray:
+    try:
+        f = np.array(fill, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ElementError("layout.fill must be rows of numbers in [0, 1] (a rectangular table)") from None
+    if f.ndim != 2 or f.size == 0:
+        raise ElementError(f"layout.fill must be a non-empty table (rows along v, columns along u), got shape "
+                           f"{f.shape}")
+    if f.size > MAX_MAP_CELLS:
+        raise ElementError(f"layout.fill has {f.size} cells, more than {MAX_MAP_CELLS}")
+    bad = np.argwhere(~((f >= 0.0) & (f <= 1.0)))
+    if len(bad):
+        r, c = (int(x) for x in bad[0])
+        raise ElementError(f"layout.fill[{r}][{c}] = {float(f[r, c])!r} is outside [0, 1]: a fill is the fraction of "
+                           f"lattice sites that hold a feature")
+    return f
+
+
+def _points(layout: dict, common: dict, args: tuple, t0: float) -> Microstructure:
+    _fields(layout, "layout", {"type", "uv_mm"}, set())
+    shape, a = args[0], args[1]
+    try:
+        uv = np.array(layout["uv_mm"], dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ElementError("layout.uv_mm must be a list of [u, v] pairs in mm") from None
+    if uv.ndim != 2 or uv.shape[1:] != (2,) or len(uv) == 0:
+        raise ElementError(f"layout.uv_mm must be a non-empty list of [u, v] pairs in mm, got shape {uv.shape}")
+    if len(uv) > MAX_POINTS:
+        raise ElementError(f"layout.uv_mm lists {len(uv)} features, more than {MAX_POINTS}: use a density layout")
+    if not np.isfinite(uv).all():
+        raise ElementError(f"layout.uv_mm[{int(np.argwhere(~np.isfinite(uv))[0][0])}] is not finite")
+    from scipy.spatial import cKDTree
+
+    pairs = cKDTree(uv).query_pairs(2.0 * a * (1.0 - 1e-9), p=2.0 if shape == fx.DOME else np.inf,
+                                    output_type="ndarray")
+    if len(pairs):
+        i, j = (int(x) for x in pairs[0])
+        raise ElementError(f"layout.uv_mm[{i}] and [{j}] overlap ({uv[i].tolist()} and {uv[j].tolist()} mm): keep "
+                           f"centres at least {2 * a:g} mm apart")
+    lo = uv.min(axis=0) - a
+    span = uv.max(axis=0) + a - lo
+    size = max(2.0 * a, math.sqrt(float(span[0] * span[1]) / len(uv)))
+    nu, nv = (int(x) for x in np.maximum(1, np.ceil(span / size)))
+    cell = ((uv - lo) // size).astype(np.int64)
+    flat = np.minimum(cell[:, 1], nv - 1) * nu + np.minimum(cell[:, 0], nu - 1)
+    items = np.argsort(flat, kind="stable").astype(np.int32)
+    bins = np.zeros(nu * nv + 1, np.int32)
+    np.cumsum(np.bincount(flat, minlength=nu * nv), out=bins[1:])
+    canon = {**common, "layout": {"type": "points", "uv_mm": uv.tolist()}}
+    return _model(canon, args, fx.POINTS, (size, size), t0, origin=(float(lo[0]), float(lo[1])), cells=(nu, nv),
+                  uv=uv.astype(np.float32), bins=bins, items=items, features=len(uv))

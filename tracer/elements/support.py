@@ -1,0 +1,161 @@
+"""Where an element sits: its support faces on a part, their frame, and the scene's table of elements in use.
+
+An element goes onto the triangles of a part that face a direction (in the part's frame, within `FACING_DEG`) or
+onto named B-rep faces. They must be planar and, for now, a rectangle in their own u-v frame: u runs along the part's
+x axis projected onto the face (its y axis where x is normal to it), v = n x u, from the corner of smallest u and v
+(DESIGN.md). The part's mesh is split once per assignment into the support (its own bottom level, so a ray that
+misses every feature meets the same triangles with the same test as without the element: bit-exact) and the rest.
+
+`Reliefs` is the scene's table: one row per instance that carries an element, packed at commit into the
+`SceneArrays` ``el_*`` fields that :mod:`tracer.kinds.relief` reads.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from tracer.elements import features as fx
+from tracer.elements.microstructure import ElementError, Microstructure
+
+FACING_DEG = 1.0          # a triangle faces the asked direction within this angle
+PLANAR_REL = 1e-6         # support vertices within this fraction of its extent from its plane
+RECTANGLE_REL = 1e-4      # the support's area within this fraction of its u-v box's
+
+
+@dataclass(frozen=True)
+class Frame:
+    """The support's frame in object space: origin ``o`` (its corner of smallest u, v on the plane) and unit axes
+    ``u, v, n`` ((3,) each); its extent ``lu, lv`` in mm; ``mm`` millimetres per object unit."""
+
+    o: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    n: np.ndarray
+    lu: float
+    lv: float
+    mm: float
+
+
+def select(vertices: np.ndarray, triangles: np.ndarray, *, facing: Any = None, faces: Any = None,
+           face_ids: np.ndarray | None = None) -> np.ndarray:
+    """Indices of the triangles that carry the element: those facing `facing` (3 numbers, any length, the part's
+    frame) or those of the B-rep faces `faces` (ints; `face_ids` gives each triangle's face). One of the two."""
+    if (facing is None) == (faces is None):
+        raise ElementError("give the support as 'facing' (a direction in the part's frame) or as 'faces' (its B-rep "
+                           "face indices), one of the two")
+    if faces is not None:
+        if face_ids is None:
+            raise ElementError("faces: this part's mesh carries no B-rep face indices; select by 'facing'")
+        if len(face_ids) != len(triangles):
+            raise ElementError(f"face_ids: {len(face_ids)} given for {len(triangles)} triangles (one per triangle)")
+        if not isinstance(faces, list | tuple) or not faces or not all(
+                isinstance(f, int) and not isinstance(f, bool) for f in faces):
+            raise ElementError(f"faces must be a non-empty list of B-rep face indices (ints), got {faces!r}"[:300])
+        prims = np.flatnonzero(np.isin(face_ids, np.array(faces)))
+        what = f"faces {list(faces)}"
+    else:
+        try:
+            f = np.array(facing, dtype=np.float64)
+        except (TypeError, ValueError):
+            f = np.zeros(0)
+        if f.shape != (3,) or not np.isfinite(f).all() or not np.linalg.norm(f) > 0:
+            raise ElementError(f"facing must be a non-zero direction [x, y, z] in the part's frame, got {facing!r}"
+                               [:300])
+        n = _normals(vertices, triangles)
+        prims = np.flatnonzero(n @ (f / np.linalg.norm(f)) >= math.cos(math.radians(FACING_DEG)))
+        what = f"facing {f.tolist()}"
+    if len(prims) == 0:
+        raise ElementError(f"no triangle of the part is selected by {what}: check the direction (the part's own "
+                           f"frame) or the face indices")
+    return prims
+
+
+def _normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    v = np.asarray(vertices, np.float64)[np.asarray(triangles)]
+    n = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+    ln = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.divide(n, ln, out=np.zeros_like(n), where=ln > 0)
+
+
+def frame(vertices: np.ndarray, triangles: np.ndarray, prims: np.ndarray, mm_per_unit: float) -> Frame:
+    """The support's frame; `ElementError` where the selected triangles are not one plane or not a rectangle."""
+    if not (isinstance(mm_per_unit, int | float) and math.isfinite(mm_per_unit) and mm_per_unit > 0):
+        raise ElementError(f"mm_per_unit must be a positive number, got {mm_per_unit!r}")
+    tri = np.asarray(vertices, np.float64)[np.asarray(triangles)[prims]]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    area2 = np.linalg.norm(cross, axis=1)
+    if not area2.max() > 0:
+        raise ElementError("the selected support has no area")
+    n = cross[int(np.argmax(area2))] / area2.max()
+    pts = tri.reshape(-1, 3)
+    extent = float(np.ptp(pts, axis=0).max())
+    off = pts @ n
+    if float(np.ptp(off)) > PLANAR_REL * extent or (cross @ n < 0).any():
+        raise ElementError(f"the selected support is not planar (its points lie {float(np.ptp(off)):.3g} apart along "
+                           f"its normal): an element goes onto a planar face for now; select one plane")
+    x = np.array([1.0, 0.0, 0.0])
+    if abs(n @ x) > 0.9:
+        x = np.array([0.0, 1.0, 0.0])
+    u = x - (x @ n) * n
+    u /= np.linalg.norm(u)
+    v = np.cross(n, u)
+    pu, pv = pts @ u, pts @ v
+    box = float(np.ptp(pu) * np.ptp(pv))
+    if abs(0.5 * float(area2.sum()) - box) > RECTANGLE_REL * box:
+        raise ElementError("the selected support is not a rectangle in its u-v frame (its area differs from its "
+                           "bounding rectangle's): an element is laid over a rectangular face for now")
+    o = pu.min() * u + pv.min() * v + float(np.mean(off)) * n
+    return Frame(o, u, v, n, float(np.ptp(pu)) * mm_per_unit, float(np.ptp(pv)) * mm_per_unit, float(mm_per_unit))
+
+
+@dataclass(frozen=True)
+class Row:
+    """One instance's element: the model, its frame, the part's geometry split into the rest and the support,
+    and the maps between the split triangles and the part's own indices."""
+
+    element: Microstructure
+    frame: Frame
+    full: str                 # the part's geometry id
+    rest: str                 # the part without the support, its own geometry id
+    support: str              # the support's triangles, their own geometry id
+    rest_prims: np.ndarray    # rest triangle -> part triangle
+    support_prims: np.ndarray  # support triangle -> part triangle
+
+
+def row_params(row: Row, support_index: int) -> tuple[np.ndarray, np.ndarray]:
+    """The row's ``el_f`` (NF,) and ``el_i`` (NI,) (offsets left at zero for `Reliefs.pack` to fill)."""
+    e, fr = row.element, row.frame
+    f = np.zeros(fx.NF)
+    f[fx.O_X:fx.O_X + 3], f[fx.U_X:fx.U_X + 3], f[fx.V_X:fx.V_X + 3], f[fx.N_X:fx.N_X + 3] = fr.o, fr.u, fr.v, fr.n
+    f[fx.MM], f[fx.LU], f[fx.LV] = fr.mm, fr.lu, fr.lv
+    f[fx.A], f[fx.H], f[fx.RS], f[fx.SIGN] = e.a, e.h, e.rs, e.sign
+    f[fx.SLOPE] = e.a / e.h
+    f[fx.CU], f[fx.CV] = e.cell
+    f[fx.ORG_U], f[fx.ORG_V] = e.origin
+    i = np.zeros(fx.NI, np.int64)
+    i[fx.SHAPE], i[fx.LAYOUT], i[fx.GEOM_S] = e.shape, e.layout, support_index
+    if e.layout in (fx.GRID, fx.HEX):
+        nu = max(1, int(fr.lu // e.cell[0]) + (1 if e.layout == fx.HEX else 0))
+        nv = max(1, int(fr.lv // e.cell[1]))
+        if e.shape == fx.PRISM:   # one row of ridges across the whole support
+            nv = 1
+            f[fx.CV] = fr.lv
+        i[fx.NU], i[fx.NV] = nu, nv
+    else:
+        i[fx.NU], i[fx.NV] = e.cells
+    return f, i
+
+
+def box(row: Row, full_box: np.ndarray) -> np.ndarray:
+    """(6,) object-space box of a part with its element: the part's, and the support raised by the feature height on
+    its relief's side (a pit's stays inside the part's)."""
+    fr, e = row.frame, row.element
+    lift = e.sign * e.h / fr.mm * fr.n
+    corners = np.array([fr.o + a * fr.lu / fr.mm * fr.u + b * fr.lv / fr.mm * fr.v + c * lift
+                        for a in (0, 1) for b in (0, 1) for c in (0, 1)])
+    lo = np.minimum(full_box[:3], corners.min(axis=0))
+    return np.concatenate([lo, np.maximum(full_box[3:], corners.max(axis=0))])

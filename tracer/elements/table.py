@@ -1,0 +1,98 @@
+"""The scene's elements in use: one `Row` per instance that carries one, packed into `SceneArrays` at commit.
+
+Python owns the rows; :mod:`tracer.kinds.relief` reads the packed ``el_*`` arrays. A model used by several instances
+(the same element on many parts, in one scene) is packed once: its bits, points and cells are shared by id.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from tracer.accel.store import Geometry
+from tracer.elements import features as fx
+from tracer.elements import support
+from tracer.elements.microstructure import Microstructure
+from tracer.elements.support import Row
+from tracer.kinds import mesh, relief
+
+
+class Reliefs:
+    """Rows by instance id."""
+
+    def __init__(self) -> None:
+        self.rows: dict[int, Row] = {}
+
+    def full_of(self, i: int, own: str) -> str:
+        """The part's own geometry id of instance `i`: its row's where it carries an element, else `own`."""
+        return self.rows[i].full if i in self.rows else own
+
+    def put(self, i: int, element: Microstructure | None, full: str, g: Geometry, add_geometry: Callable, *,
+            facing: Any, faces: Any, face_ids: Any, mm_per_unit: float) -> tuple[int, str, np.ndarray]:
+        """Put `element` onto part `g` (geometry id `full`) of instance `i`, or take it off (None); answers what the
+        instance becomes: ``(kind, geometry id, object box)``. A support that cannot carry it raises `ElementError`
+        with nothing changed."""
+        if element is None:
+            self.rows.pop(i, None)
+            return mesh.KIND, full, g.box
+        ids = None if face_ids is None else np.asarray(face_ids)
+        prims = support.select(g.vertices, g.triangles, facing=facing, faces=faces, face_ids=ids)
+        row = self.make_row(add_geometry, element, full, g.vertices, g.triangles, g.normals, prims, mm_per_unit)
+        self.rows[i] = row
+        return relief.KIND, row.rest, support.box(row, g.box)
+
+    def make_row(self, add_geometry: Callable, element: Microstructure, full: str, vertices: np.ndarray,
+                 triangles: np.ndarray, normals: np.ndarray | None, prims: np.ndarray, mm_per_unit: float) -> Row:
+        """A row for `element` on the triangles `prims` of geometry `full` (checked: a planar rectangle), its mesh
+        split by `add_geometry` (`tracer.Scene.add_geometry`) into the rest and the support. Changes no row."""
+        fr = support.frame(vertices, triangles, prims, mm_per_unit)
+        on = np.zeros(len(triangles), bool)
+        on[prims] = True
+        rest_prims = np.flatnonzero(~on).astype(np.int32)
+        support_prims = np.flatnonzero(on).astype(np.int32)
+        rest = add_geometry(vertices, triangles[rest_prims], normals)
+        sup = add_geometry(vertices, triangles[support_prims], normals)
+        return Row(element, fr, full, rest, sup, rest_prims, support_prims)
+
+    def pack(self, n_ids: int, index_of: Callable[[str], int]) -> tuple[np.ndarray, ...]:
+        """``(inst_aux, el_f, el_i, el_prim, el_bits, el_uv, el_bin, el_item)`` for `n_ids` instance ids;
+        `index_of` gives a geometry's index in the store."""
+        aux = np.full(n_ids, -1, np.int32)
+        ef = np.zeros((len(self.rows), fx.NF))
+        ei = np.zeros((len(self.rows), fx.NI), np.int64)
+        prim: list[np.ndarray] = []
+        bits: list[np.ndarray] = []
+        uv: list[np.ndarray] = []
+        bins: list[np.ndarray] = []
+        items: list[np.ndarray] = []
+        shared: dict[str, tuple[int, int, int, int]] = {}
+        sizes = [0, 0, 0, 0, 0]   # el_prim, el_bits, el_uv, el_bin, el_item so far
+        for r, (i, row) in enumerate(sorted(self.rows.items())):
+            aux[i] = r
+            ef[r], ei[r] = support.row_params(row, index_of(row.support))
+            inverse = np.empty(len(row.rest_prims) + len(row.support_prims), np.int32)
+            inverse[row.rest_prims] = np.arange(len(row.rest_prims))
+            inverse[row.support_prims] = -1 - np.arange(len(row.support_prims))
+            ei[r, fx.MAP_A] = sizes[0]
+            ei[r, fx.MAP_S] = sizes[0] + len(row.rest_prims)
+            ei[r, fx.MAP_INV] = sizes[0] + len(row.rest_prims) + len(row.support_prims)
+            prim += [row.rest_prims, row.support_prims, inverse]
+            sizes[0] += 2 * len(inverse)
+            e = row.element
+            if e.id not in shared:
+                shared[e.id] = (sizes[1], sizes[2], sizes[3], sizes[4])
+                bits.append(e.bits)
+                uv.append(e.uv)
+                bins.append(e.bins)
+                items.append(e.items)
+                for k, a in enumerate((e.bits, e.uv, e.bins, e.items)):
+                    sizes[1 + k] += len(a)
+            ei[r, fx.BITS], ei[r, fx.UV], ei[r, fx.BINS], ei[r, fx.ITEMS] = shared[e.id]
+        return (aux, ef, ei, _cat(prim, np.int32), _cat(bits, np.uint8), _cat(uv, np.float32, (0, 2)),
+                _cat(bins, np.int32), _cat(items, np.int32))
+
+
+def _cat(parts: list[np.ndarray], dtype: type, empty: tuple[int, ...] = (0,)) -> np.ndarray:
+    return np.concatenate(parts).astype(dtype, copy=False) if parts else np.zeros(empty, dtype)
