@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from tracer.errors import SimulationError
+from tracer.optics.fields import BodyField, fields
 from tracer.sensors.base import IlluminanceResult, Probe, vec3
 from tracer.sensors.views import LuminanceResult, angle, check_fields, luminance_result, unit
 from tracer.transport.radiance import PIXEL, ViewArrays
@@ -31,8 +32,18 @@ from tracer.transport.radiance import PIXEL, ViewArrays
 TYPE = "camera"
 FORWARD_ONLY = False
 OBSERVES = False
-FIELDS = frozenset({"position", "look_at", "up", "fov_deg", "width", "height"})
 MAX_PIXELS_PER_SIDE = 4096
+FIELDS = fields(
+    BodyField("position", "point", "The eye (the pinhole) [x, y, z], m."),
+    BodyField("look_at", "point", "A point the view's centre passes through [x, y, z], m (not the position)."),
+    BodyField("up", "direction", "Which way is up in the image (any length, not along the view); default "
+              "[0, 0, 1].", required=False),
+    BodyField("fov_deg", "number", "The vertical field of view (three.js's `fov`), degrees.", lo=0.0, hi=179.0,
+              lo_open=True),
+    BodyField("width", "count", "Pixels across (columns).", lo=1, hi=MAX_PIXELS_PER_SIDE),
+    BodyField("height", "count", "Pixels down (rows; row 0 is the top).", lo=1, hi=MAX_PIXELS_PER_SIDE))
+EXAMPLE = {"type": "camera", "name": "room view", "position": [0.0, -3.0, 1.6], "look_at": [0.0, 0.0, 0.8],
+           "up": [0.0, 0.0, 1.0], "fov_deg": 40.0, "width": 160, "height": 120}
 
 
 def frame(body: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, int, int]:
@@ -47,7 +58,8 @@ def frame(body: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, f
         raise SimulationError("up must not lie along the view (look_at − position)")
     right = right / np.linalg.norm(right)
     true_up = np.cross(right, fwd)
-    half = math.tan(math.radians(angle(body, "fov_deg", 0.0, 179.0)) / 2.0)
+    fov = FIELDS["fov_deg"]
+    half = math.tan(math.radians(angle(body, "fov_deg", fov.lo, fov.hi)) / 2.0)
     size: dict[str, int] = {}
     for name in ("width", "height"):
         v: Any = body.get(name)
@@ -56,6 +68,11 @@ def frame(body: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, f
                                   f"got {v!r}")
         size[name] = int(v)
     return eye, fwd, right, true_up, half, size["width"], size["height"]
+
+
+def check(body: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, int, int]:
+    """The body checked without a scene (`frame`)."""
+    return frame(body)
 
 
 def probe(sim, body: dict) -> Probe:

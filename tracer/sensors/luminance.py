@@ -19,6 +19,7 @@ import math
 
 import numpy as np
 
+from tracer.optics.fields import BodyField, fields
 from tracer.optics.frames import onb
 from tracer.sensors.base import IlluminanceResult, Probe, vec3
 from tracer.sensors.views import LuminanceResult, angle, check_fields, luminance_result, unit
@@ -27,15 +28,28 @@ from tracer.transport.radiance import CONE, ViewArrays
 TYPE = "luminance"
 FORWARD_ONLY = False
 OBSERVES = False
-FIELDS = frozenset({"position", "direction", "aperture_deg"})
 DEFAULT_APERTURE_DEG = 1.0
+FIELDS = fields(
+    BodyField("position", "point", "Where the meter is (its eye) [x, y, z], m."),
+    BodyField("direction", "direction", "Where it looks: the cone's axis (any length, not zero; dimensionless)."),
+    BodyField("aperture_deg", "number", f"The cone's full angle (the meter's acceptance angle), degrees; default "
+              f"{DEFAULT_APERTURE_DEG:g}.", required=False, lo=0.0, hi=180.0, lo_open=True))
+EXAMPLE = {"type": "luminance", "name": "desk seen from the chair", "position": [0.0, -1.0, 1.2],
+           "direction": [0.0, 1.0, -0.6], "aperture_deg": 1.0}
 
 
-def probe(sim, body: dict) -> Probe:
+def check(body: dict) -> tuple[np.ndarray, np.ndarray, float]:
+    """The body checked without a scene: (position, unit direction, half aperture in radians); `SimulationError`
+    naming the field otherwise."""
     check_fields(body, TYPE, FIELDS)
     o = vec3(body.get("position"), "position")
     axis = unit(vec3(body.get("direction"), "direction"), "direction")
-    half = math.radians(angle(body, "aperture_deg", 0.0, 180.0, DEFAULT_APERTURE_DEG)) / 2.0
+    f = FIELDS["aperture_deg"]
+    return o, axis, math.radians(angle(body, "aperture_deg", f.lo, f.hi, DEFAULT_APERTURE_DEG)) / 2.0
+
+
+def probe(sim, body: dict) -> Probe:
+    o, axis, half = check(body)
     one_minus_cos = 2.0 * math.sin(half / 2.0) ** 2   # 1 − cos, exact for small apertures
     t, b = onb(*axis)
     view = ViewArrays(np.array([CONE], np.int64), o[None, :], axis[None, :], np.array([t]), np.array([b]),

@@ -20,7 +20,7 @@ STRATEGY = ("paths from the eye: next-event estimation to every light at diffuse
             "area, specular chains followed through mirrors and glass, Russian roulette after 3 diffuse bounces; "
             "point-like lights in view added exactly")
 POINT_LIKE = ("point", "spot", "goniometric")
-BODY_COMMON = frozenset({"type", "id", "name"})   # kept by the service, ignored here
+BODY_COMMON = frozenset({"type", "id", "name", "attached_to"})   # kept by the service, ignored here
 
 
 @dataclass
@@ -83,9 +83,9 @@ def luminance_result(sim, res: IlluminanceResult, shape: tuple[int, ...] | None)
                            unreachable=unreachable(sim, share, int(res.counters.get("caustic_paths", 0))))
 
 
-def check_fields(body: dict, kind: str, fields: frozenset) -> None:
-    """`SimulationError` naming any field of `body` a `kind` sensor does not take."""
-    extra = set(body) - fields - BODY_COMMON
+def check_fields(body: dict, kind: str, fields: Any) -> None:
+    """`SimulationError` naming any field of `body` a `kind` sensor does not take (`fields`: its names)."""
+    extra = set(body) - set(fields) - BODY_COMMON
     if extra:
         raise SimulationError(f"unknown field(s) {sorted(extra)} for a {kind!r} sensor; it takes {sorted(fields)}")
 
