@@ -426,14 +426,15 @@ def luminance_map_png(luminance: object, *, stderr: object | None = None, title:
     top = top if top > 0 else 1.0
     lit = lum[lum > 0]
     low = float(lit.min()) if lit.size else top
-    norm: Normalize = (LogNorm(max(low, top / 1e6), top) if top / low > LOG_SCALE_RATIO
-                       else Normalize(0.0, top))
+    floor = max(low, top / 1e6)
+    log = top / low > LOG_SCALE_RATIO
+    norm = LogNorm(floor, top) if log else Normalize(0.0, top)
     h, w = lum.shape
     fig, ax = _figure(h / w)
-    im = ax.imshow(np.where(lum > 0, lum, norm.vmin) if isinstance(norm, LogNorm) else lum, origin="upper",
+    im = ax.imshow(np.where(lum > 0, lum, floor) if log else lum, origin="upper",
                    cmap="turbo", norm=norm, interpolation="nearest", aspect="equal")
     bar = fig.colorbar(im, ax=ax, shrink=0.9)
-    bar.set_label("Luminance L (cd/m²)" + (", log scale" if isinstance(norm, LogNorm) else ""))
+    bar.set_label("Luminance L (cd/m²)" + (", log scale" if log else ""))
     ax.set_xticks([])
     ax.set_yticks([])
     caption = f"min {lum.min():.4g} · mean {lum.mean():.4g} · max {lum.max():.4g} cd/m²"

@@ -61,7 +61,7 @@ class Luminance:
 
     @staticmethod
     def body(sensor: dict, live: Any) -> dict:
-        out = {"type": "luminance", "position": np.asarray(sensor["position"], float),
+        out: dict[str, Any] = {"type": "luminance", "position": np.asarray(sensor["position"], float),
                "direction": np.asarray(sensor["direction"], float)}
         if sensor.get("aperture_deg") is not None:
             out["aperture_deg"] = float(sensor["aperture_deg"])

@@ -195,3 +195,21 @@ def test_forward_estimator_and_observables_are_refused_saying_why(client: Any, s
     assert client.get(f"/scenes/{sid}/sensors/{cid}/image.png").status_code == 404
     mid = _add(client, sid, METER)
     assert client.get(f"/scenes/{sid}/sensors/{mid}/image.exr").status_code == 422
+
+
+def test_map_of_a_wide_range_is_drawn_on_a_log_scale() -> None:
+    """A lamp in view beside a dark wall spans 1e6:1: the map still draws (log colour bar), one pixel black."""
+    from service.maps import luminance_map_png
+
+    png = luminance_map_png(np.array([[0.0, 0.01], [1.0, 1e4]]), stderr=np.full((2, 2), 1e-3))
+    assert min(png_size(png)) > 100
+
+
+def test_csv_of_a_meter_and_a_camera() -> None:
+    from lumenlink.client import sensor_csv
+
+    assert sensor_csv({"type": "luminance", "luminance": [12.5], "stderr": [0.25]}).splitlines() == [
+        "row,col,cd_m2,stderr_cd_m2", "0,0,12.5,0.25"]
+    rows = sensor_csv({"type": "camera", "luminance": [[1.0, 2.0], [3.0, 4.0]],
+                       "stderr": [[0.1, 0.2], [0.3, 0.4]]}).splitlines()
+    assert rows[1:] == ["0,0,1,0.1", "0,1,2,0.2", "1,0,3,0.3", "1,1,4,0.4"]
