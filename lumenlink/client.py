@@ -478,7 +478,7 @@ def sensor_csv(result: dict[str, Any]) -> str:
     if result.get("type") in ("luminance", "camera"):
         values = result["luminance"]
         grid = values if values and isinstance(values[0], list) else [values]
-        errs = result["stderr"] if grid is not values else [result["stderr"]]
+        errs = result["stderr"] if grid is values else [result["stderr"]]
         rows = ["row,col,cd_m2,stderr_cd_m2"]
         rows += [f"{j},{i},{_num(a)},{_num(b)}" for j, (line, line_err) in enumerate(zip(grid, errs, strict=True))
                  for i, (a, b) in enumerate(zip(line, line_err, strict=True))]
