@@ -350,6 +350,16 @@ class Client(ServiceClient):
         return self._bytes(f"/scenes/{self._sid(scene)}/sensors/{sensor_id}/map.png",
                            f"reading the map of sensor {sensor_id}", params)
 
+    def image(self, scene: str | dict, sensor_id: str, format: str = "exr") -> bytes:
+        """A camera's latest image (the scene as it is now): ``"exr"``, OpenEXR with the luminance (channel ``Y``,
+        cd/m²) and its standard error (``stderr.Y``); ``"png"``, tone-mapped (Reinhard on luminance), one pixel per
+        pixel; ``"map"``, the false-colour map with its cd/m² legend."""
+        names = {"exr": "image.exr", "png": "image.png", "map": "map.png"}
+        if format not in names:
+            raise LumenLinkError(f"format must be one of {sorted(names)}, got {format!r}", usage=True)
+        return self._bytes(f"/scenes/{self._sid(scene)}/sensors/{sensor_id}/{names[format]}",
+                           f"reading the image of sensor {sensor_id}", None)
+
     def export(self, scene: str | dict, sensor: str, format: str = "ies", *,
                out: str | Path | None = None) -> str:
         """A far-field sensor's (by id or name) latest result as photometric file text: `format` ``"ies"`` (IES
@@ -463,7 +473,16 @@ def sensor_csv(result: dict[str, Any]) -> str:
 
     Grid: ``i`` (along u, 0..nu-1), ``j`` (along v), the cell centre origin + (i+½)/nu·u + (j+½)/nv·v.
     Disk: one row (i = j = 0) at the disk's centre where the result names it, else blank coordinates.
-    Far field: ``i,j,c_deg,gamma_deg,cd,stderr_cd``, one row per bin (i along C, j along γ)."""
+    Far field: ``i,j,c_deg,gamma_deg,cd,stderr_cd``, one row per bin (i along C, j along γ).
+    Luminance meter, camera: ``row,col,cd_m2,stderr_cd_m2``, one row per pixel (row 0 the top; a meter: one row)."""
+    if result.get("type") in ("luminance", "camera"):
+        values = result["luminance"]
+        grid = values if values and isinstance(values[0], list) else [values]
+        errs = result["stderr"] if grid is values else [result["stderr"]]
+        rows = ["row,col,cd_m2,stderr_cd_m2"]
+        rows += [f"{j},{i},{_num(a)},{_num(b)}" for j, (line, line_err) in enumerate(zip(grid, errs, strict=True))
+                 for i, (a, b) in enumerate(zip(line, line_err, strict=True))]
+        return "\n".join(rows) + "\n"
     if result.get("type") == "far_field":
         rows = ["i,j,c_deg,gamma_deg,cd,stderr_cd"]
         for j, g in enumerate(result["gamma_deg"]):

@@ -255,9 +255,15 @@ def _file_stem(sensor: dict[str, Any], taken: set[str]) -> str:
     return stem
 
 
+def _flat(x: Any) -> list[Any]:
+    return [z for y in x for z in _flat(y)] if isinstance(x, list) else [x]
+
+
 def simulate(scene: str, server: str, out: Path, sensor: str = "all", target: float | None = None,
              max_seconds: float | None = None, max_photons: int | None = None, seed: int = 0) -> int:
-    """Simulate sensors as jobs (a progress bar per sensor); write <sensor>.csv and, for a grid, <sensor>.png."""
+    """Simulate sensors as jobs (a progress bar per sensor); write <sensor>.csv and, for a grid, <sensor>.png (its map);
+    for a camera <sensor>.exr (HDR, cd/m², with its standard error), <sensor>.png (tone-mapped) and
+    <sensor>_map.png."""
     def work(console: Console) -> int:
         out_dir = Path(out)
         if out_dir.exists() and not out_dir.is_dir():
@@ -291,6 +297,17 @@ def simulate(scene: str, server: str, out: Path, sensor: str = "all", target: fl
                         (out_dir / f"{stem}.png").write_bytes(png)
                         written.append(out_dir / f"{stem}.png")
                 _warn(console, result)
+                if result.get("type") in ("luminance", "camera"):
+                    if result["type"] == "camera":
+                        for name, fmt in ((f"{stem}.exr", "exr"), (f"{stem}.png", "png"), (f"{stem}_map.png", "map")):
+                            (out_dir / name).write_bytes(ll.image(info, s["id"], fmt))
+                            written.append(out_dir / name)
+                    lum = [float(x) for x in _flat(result["luminance"])]
+                    print(f"sensor {stem} ({s['id']}): luminance min {min(lum):.4g}, mean {sum(lum) / len(lum):.4g}, "
+                          f"max {max(lum):.4g} cd/m2; {result['photons']:,} paths in {result['seconds']:.2f} s "
+                          f"({result['stop_reason']}), revision {result['revision']} -> "
+                          + ", ".join(str(p) for p in written))
+                    continue
                 if result.get("type") == "far_field":
                     ies = out_dir / f"{stem}.ies"
                     ll.export(info, s["id"], "ies", out=ies)

@@ -389,3 +389,59 @@ def summarize_change(
         mean_before_lux=float(before.mean()),
         mean_after_lux=float(after.mean()),
     )
+
+
+#: a luminance map is drawn on a log scale where its lit pixels span more than this ratio
+LOG_SCALE_RATIO = 100.0
+
+
+def luminance_map_png(luminance: object, *, stderr: object | None = None, title: str | None = None,
+                      vmax: float | None = None) -> bytes:
+    """Render a camera's image as a false-colour map with a labelled cd/m² colour bar (log scale where the lit
+    pixels span more than `LOG_SCALE_RATIO`).
+
+    Parameters
+    ----------
+    luminance : (height, width) float
+        Luminance per pixel, cd/m², row 0 the top of the image.
+    stderr : (height, width) float, optional
+        Standard error per pixel, cd/m²; its median relative value (lit pixels) goes into the caption.
+    title : str, optional
+        Heading line.
+    vmax : float, optional
+        Top of the colour scale in cd/m²; default the maximum.
+
+    Returns
+    -------
+    bytes
+        A PNG image.
+    """
+    from matplotlib.colors import LogNorm
+
+    lum = _check_grid("luminance", luminance)
+    if np.any(lum < 0):
+        raise MapError("luminance must be non-negative")
+    se = None if stderr is None else _check_grid("stderr", stderr, lum.shape)
+    top = float(lum.max()) if vmax is None else float(vmax)
+    top = top if top > 0 else 1.0
+    lit = lum[lum > 0]
+    low = float(lit.min()) if lit.size else top
+    floor = max(low, top / 1e6)
+    log = top / low > LOG_SCALE_RATIO
+    norm = LogNorm(floor, top) if log else Normalize(0.0, top)
+    h, w = lum.shape
+    fig, ax = _figure(h / w)
+    im = ax.imshow(np.where(lum > 0, lum, floor) if log else lum, origin="upper",
+                   cmap="turbo", norm=norm, interpolation="nearest", aspect="equal")
+    bar = fig.colorbar(im, ax=ax, shrink=0.9)
+    bar.set_label("Luminance L (cd/m²)" + (", log scale" if log else ""))
+    ax.set_xticks([])
+    ax.set_yticks([])
+    caption = f"min {lum.min():.4g} · mean {lum.mean():.4g} · max {lum.max():.4g} cd/m²"
+    if se is not None:
+        rel = median_relative_error(lum, se)
+        if np.isfinite(rel):
+            caption += f" · median std. error {100 * rel:.2g} % (lit pixels)"
+    ax.set_title(f"{title or 'Luminance'}\n{caption}", fontsize=9)
+    fig.text(0.01, 0.005, f"camera {w}×{h} pixels", fontsize=7, color="0.35")
+    return _png(fig)

@@ -7,7 +7,8 @@ store), so a new sensor kind needs a class only where it stores or renders somet
 
 - ``TYPE``: the wire's ``type``, the same as the tracer kind it runs;
 - ``KEEP``: where its latest result is kept: ``"map"`` (in memory while the scene is unchanged, for ``map.png`` and
-  the page, and in the result store), ``"store"`` (the result store only), ``"far"`` (the far-field store: its
+  the page, and in the result store), ``"image"`` (in memory only, for a camera's images: `service.view_kinds`),
+  ``"store"`` (the result store only), ``"far"`` (the far-field store: its
   export outlives a restart and an edit);
 - ``check(sensor, query, limits, live)``: refuse (422 `Invalid`, 413 `TooLarge`) what it cannot answer, before anything
   runs;
@@ -28,6 +29,7 @@ from service import kind_wire
 from service.errors import Invalid, TooLarge
 from service.jobs import Budget
 from service.payloads import finite_list, result_payload
+from service.view_kinds import Camera, Luminance
 
 
 @dataclass(frozen=True)
@@ -217,7 +219,7 @@ class FarField:
 
 #: the sensor kinds that store or render something of their own, by their wire ``type``; every other sensor kind of
 #: the wire (`service.kind_wire`, from the tracer's kinds) is `Measured`
-KINDS: dict[str, Any] = {k.TYPE: k for k in (Grid, Surface, FarField)}
+KINDS: dict[str, Any] = {k.TYPE: k for k in (Grid, Surface, FarField, Luminance, Camera)}
 
 
 def kind_of(sensor: dict) -> Any:

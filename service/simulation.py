@@ -11,8 +11,8 @@ requests:
   that alters what a query sees (a push, or an assignment, which keeps the revision number); the
   hub then bumps the scene's *generation* and drops what it holds for that scene. Results carry
   the revision they were computed at and the hub tells whether they are still current.
-- the latest result of each grid sensor (for ``map.png``) and of each surface sensor (for the view), at the
-  generation it was computed at;
+- the latest result of each grid sensor (for ``map.png``), of each surface sensor (for the view) and of each
+  luminance meter and camera (for ``image.exr``, ``image.png``, ``map.png``), at the generation it was computed at;
 - the latest result of each far-field sensor (for ``export``: IES or EULUMDAT), whatever changed since (the file
   names the revision it describes); in memory: a restart forgets it;
 - the `JobRunner` of async queries.
@@ -357,9 +357,9 @@ class SimulationHub:
                     self.results.keep_far(scene_id, str(sensor["id"]), payload)
             return payload
         with self._lock:
-            if self._generation.get(scene_id, 0) == prepared.generation and kind.KEEP == "map":
+            if self._generation.get(scene_id, 0) == prepared.generation and kind.KEEP in ("map", "image"):
                 self._grids[(scene_id, str(sensor["id"]))] = (prepared.generation, payload)
-        if self.results is not None and self.is_current(scene_id, prepared.generation):
+        if kind.KEEP != "image" and self.results is not None and self.is_current(scene_id, prepared.generation):
             self.results.keep(prepared.live, sensor, payload)
         return payload
 

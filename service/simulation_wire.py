@@ -238,7 +238,8 @@ class SurfaceInstance(BaseModel):
 
 class SensorPublic(BaseModel):
     """Answer of a sensor simulation: for a grid, ``lux``/``stderr`` are nv rows of nu cells; for a far field
-    ``candela``/``stderr`` are nγ rows of nc values (no lux)."""
+    ``candela``/``stderr`` are nγ rows of nc values (no lux); for a luminance meter or a camera ``luminance``/``stderr``
+    are cd/m² (one value, or height rows of width pixels, top row first)."""
 
     model_config = ConfigDict(extra="forbid")
 
@@ -247,7 +248,8 @@ class SensorPublic(BaseModel):
     lux: list[Any] | None = Field(None, description=(
         "Illuminance, lx: nv rows of nu cells for a grid, one value for a disk, every triangle for a surface "
         "(instance after instance, as in `instances`); absent for a far field (see `candela`)."))
-    stderr: list[Any] = Field(description="Standard error of each value, lx (cd for a far field).")
+    stderr: list[Any] = Field(description="Standard error of each value, lx (cd for a far field, cd/m² for a "
+                                          "luminance meter or a camera).")
     photons: int = Field(description="Photons (forward) or paths (backward) traced.")
     seconds: float = Field(description="Wall time of the simulation, s.")
     effects: list[str] = Field(description="The effect set of the scene (and of any forced effects).")
@@ -285,7 +287,7 @@ class SensorPublic(BaseModel):
     origin: list[float] | None = Field(None, description="Grid: corner of the rectangle, world metres.")
     u: list[float] | None = Field(None, description="Grid: edge along which the nu cells lie, world metres.")
     v: list[float] | None = Field(None, description="Grid: edge along which the nv cells lie, world metres.")
-    map_url: str | None = Field(None, description="Grid: the false-colour PNG of this result.")
+    map_url: str | None = Field(None, description="Grid, camera: the false-colour PNG of this result.")
     warnings: list[str] | None = Field(None, description="The sensor or lights far outside the model (world metres).")
     node: str | None = Field(None, description="Surface: the sensor's node (UUID).")
     instances: list[SurfaceInstance] | None = Field(None, description=(
@@ -304,6 +306,26 @@ class SensorPublic(BaseModel):
     ngamma: int | None = Field(None, description="Far field: γ samples.")
     direction: list[float] | None = Field(None, description="Far field: the γ = 0 axis (unit, world).")
     c0: list[float] | None = Field(None, description="Far field: the C = 0 axis (unit, world, across `direction`).")
+    luminance: list[Any] | None = Field(None, description=(
+        "Luminance meter: [the mean luminance over its cone], cd/m²; camera: height rows of width pixels, top row "
+        "first, each the mean luminance over the pixel, cd/m²; `stderr` holds the standard errors."))
+    strategy: str | None = Field(None, description="Luminance meter, camera: the estimator that ran, in words (paths "
+                                                   "from the eye, next-event estimation, MIS, specular chains).")
+    unreachable: dict[str, Any] | None = Field(None, description=(
+        "Luminance meter, camera: the lights paths from the eye cannot find in this scene (`lights`: their indices, "
+        "`why`, `through_specular`, `caustic_paths`): the value lacks their light; null where nothing is missing."))
+    through_specular: list[Any] | None = Field(None, description=(
+        "Luminance meter, camera: per value, the share of its paths whose view ray went on through a mirror or "
+        "glass before any diffuse surface (a fraction)."))
+    width: int | None = Field(None, description="Camera: pixels across.")
+    height: int | None = Field(None, description="Camera: pixels down.")
+    position: list[float] | None = Field(None, description="Camera: the eye, world metres.")
+    look_at: list[float] | None = Field(None, description="Camera: the point the view's centre passes through, "
+                                                          "world metres.")
+    fov_deg: float | None = Field(None, description="Camera: the vertical field of view, degrees.")
+    image_url: str | None = Field(None, description="Camera: the HDR image of this result (OpenEXR, cd/m², its "
+                                                    "standard error as a second layer); `image.png` beside it is "
+                                                    "the tone-mapped view.")
 
 
 class JobAccepted(BaseModel):

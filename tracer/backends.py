@@ -123,7 +123,8 @@ def _digest(h: Any, obj: Any) -> None:
 def run_kernel(kernel_id: KernelId, scene: tuple, query: tuple, batch0: int, n_batches: int, size: int):
     """Run batches of the kernel `kernel_id` here: ``("forward", state)`` takes scene = (scene arrays,
     materials, lights) and query = (receiver arrays, sensor arrays, bins, seed); ``("backward",)`` takes
-    scene = (scene arrays, materials, lights) and query = (query arrays, seed). Module-level, so a Dask
+    scene = (scene arrays, materials, lights) and query = (query arrays, seed); ``("radiance",)`` takes the
+    same scene and query = (view arrays, emitters, seed) (`tracer.transport.radiance`). Module-level, so a Dask
     worker runs it by import; the kernel is compiled once per process (numba's dispatcher and disk cache)."""
     sa, mats, lights = scene
     if kernel_id[0] == "forward":
@@ -136,6 +137,11 @@ def run_kernel(kernel_id: KernelId, scene: tuple, query: tuple, batch0: int, n_b
 
         q, seed = query
         return backward_batches(sa, mats, lights, q, seed, batch0, n_batches, size)
+    if kernel_id[0] == "radiance":
+        from tracer.transport.radiance import radiance_batches
+
+        views, emit, seed = query
+        return radiance_batches(sa, mats, lights, views, emit, seed, batch0, n_batches, size)
     raise ValueError(f"unknown kernel {kernel_id!r}")
 
 

@@ -74,6 +74,7 @@ from tracer.transport.rounds import (
     budget,
     compile_seconds,
     forward,
+    radiance,
 )
 from tracer.transport.tessellation_error import grid_cells, lux_budget, scene_surfaces
 
@@ -138,6 +139,7 @@ class Simulation:
         default_spec = material_spec(default_material, "default_material") if default_material is not None else None
         self._mats = pack_materials(mats, default_spec, ids, self.sensor_ids)
         self._lights = pack_lights(list(lights), scene, frozenset(self.sensor_ids))
+        self.light_bodies: list[dict] = [dict(b) for b in lights]   # validated: what the luminance kernel reads
         self._lights_spectral = spectral_lights(self._lights)   # the same lights for photons with a wavelength
         geometry_ids = [i for i in ids if i not in self.sensor_ids]
         # the distinct specs in use (a scene of 100k instances has a handful of materials)
@@ -297,6 +299,9 @@ class Simulation:
             effects = with_forced(self.effects, force_effects)
         except EffectError as exc:
             raise SimulationError(f"{exc} (in force_effects)") from None
+        if probe.view is not None:   # a luminance meter or a camera: paths from the eye
+            return radiance(self, probe, stop, int(seed), estimator, effects, progress, cancel,
+                            QueryBackend(self.backend))
         which = self._choose(estimator, effects, probe.is_grid)
         if (probe.surface is not None or probe.far is not None) and which != "forward":
             raise SimulationError("the surface and far-field tallies are forward only")

@@ -29,7 +29,7 @@ from fastapi.responses import JSONResponse
 from service import units
 from service.errors import Invalid, NotFound, TooLarge
 from service.jobs import JobNotFound, QueueFull
-from service.maps import colour_map_png, illuminance_map_png
+from service.maps import colour_map_png, illuminance_map_png, luminance_map_png
 from service.routes.deps import ItemId, JobId, SceneId
 from service.simulation import SimulationHub, Unavailable, find_sensor, hub_for, resolve_budget
 from service.simulation_wire import (  # noqa: F401 (the route's models, named here too)
@@ -96,7 +96,7 @@ async def _answer(request: Request, mode: str, setup: Any, *args: Any) -> Any:
 def _targeted(payload: dict[str, Any], targets: list[float] | None) -> None:
     """The answer's `cost` for the query's own targets (the tracer's holds the default ones)."""
     if targets:
-        values = payload["lux"] if "lux" in payload else payload["candela"]
+        values = next(payload[k] for k in ("lux", "candela", "luminance") if k in payload)
         payload["cost"] = cost_of(values, payload["stderr"], payload["photons"],
                                   payload["seconds"] - payload["compile_seconds"], targets)
 
@@ -165,6 +165,7 @@ def _sensor_query(scene_id: str, sensor_id: str, query: SensorSimulate, request:
     prepared = hub.prepare(scene_id, sized)   # the one read of the scene's state
     sensor = find_sensor(prepared.live, sensor_id)  # the sensor in the snapshot the query runs on
     map_url = str(request.url_for("sensor_map", scene_id=scene_id, sensor_id=sensor_id).path)
+    image_url = str(request.url_for("sensor_image_exr", scene_id=scene_id, sensor_id=sensor_id).path)
     warnings = units.far_warnings(prepared.live, units.sensor_positions(prepared.live, [sensor_id])
                                   + units.light_positions(prepared.live))
     effects = tuple(query.force_effects)
@@ -180,8 +181,10 @@ def _sensor_query(scene_id: str, sensor_id: str, query: SensorSimulate, request:
         for part in payload.get("instances", ()):
             part["path"] = paths.get(part["node"])
         _targeted(payload, query.cost_targets)
-        if payload["type"] == "grid":
+        if payload["type"] in ("grid", "camera"):
             payload["map_url"] = map_url
+        if payload["type"] == "camera":
+            payload["image_url"] = image_url
         if warnings:
             payload["warnings"] = warnings
         return payload
@@ -193,17 +196,22 @@ def _sensor_query(scene_id: str, sensor_id: str, query: SensorSimulate, request:
             response_class=Response, responses={200: {"content": {"image/png": {}}}, 404: {}})
 def sensor_map(scene_id: SceneId, sensor_id: ItemId, request: Request,
                vmax: Annotated[float | None, Query(gt=0.0, allow_inf_nan=False,
-                                                   description="Top of the colour scale, lx.")] = None,
+                                                   description="Top of the colour scale, lx (cd/m² for a "
+                                                               "camera).")] = None,
                show: Annotated[Literal["lux", "colour"], Query(
                    description="`lux`: false colour by illuminance; `colour`: the light's own colour (CIE 1931 "
                                "chromaticity shown in sRGB, brightness by illuminance; needs a simulation that "
                                "observed the spectrum).")] = "lux") -> Response:
-    """False-colour PNG of the grid sensor's latest result at the scene's current state."""
+    """False-colour PNG of the grid sensor's latest result at the scene's current state (lx); of a camera's, its
+    luminance with a cd/m² legend (log scale where the lit pixels span more than 100:1)."""
     hub = _hub(request)
     live = hub.live.get(scene_id)
     sensor = find_sensor(live, sensor_id)
+    if sensor.get("type") == "camera":
+        return _camera_map(request, scene_id, sensor_id, vmax)
     if sensor.get("type") != "grid":
-        raise NotFound(f"sensor {sensor_id!r} is a {sensor.get('type')} sensor; maps exist for grid sensors")
+        raise NotFound(f"sensor {sensor_id!r} is a {sensor.get('type')} sensor; maps exist for grid and camera "
+                       f"sensors")
     result = hub.grid_result(scene_id, sensor_id)
     if result is None:
         raise NotFound(f"sensor {sensor_id!r} has no result for the scene as it is now (revision {live.revision}); "
@@ -221,6 +229,17 @@ def sensor_map(scene_id: SceneId, sensor_id: ItemId, request: Request,
     png = illuminance_map_png(result["lux"], result["origin"], result["u"], result["v"], stderr=result["stderr"],
                               title=f"{name} — scene revision {result['revision']}, {result['photons']:,} photons",
                               vmax=vmax)
+    return Response(content=png, media_type="image/png",
+                    headers={"X-Scene-Revision": str(result["revision"]), "Cache-Control": "no-store"})
+
+
+def _camera_map(request: Request, scene_id: str, sensor_id: str, vmax: float | None) -> Response:
+    from service.routes.images import camera_result
+
+    result = camera_result(request, scene_id, sensor_id)
+    name = _sensor_name(request, scene_id, sensor_id)
+    png = luminance_map_png(result["luminance"], stderr=result["stderr"], vmax=vmax,
+                            title=f"{name} — scene revision {result['revision']}, {result['photons']:,} paths")
     return Response(content=png, media_type="image/png",
                     headers={"X-Scene-Revision": str(result["revision"]), "Cache-Control": "no-store"})
 

@@ -43,6 +43,8 @@ class Probe:
     grid : (u, v, nu, nv) or None — a grid's edge vectors (m) and cells.
     surface : (surf (n_instances,) int64 first bin per tallied instance or -1, areas (n,) m²) or None.
     far : (far-field parameters, solid angles (nγ·nc,) sr) or None.
+    view : `tracer.transport.radiance.ViewArrays` or None — the directions a luminance meter or a camera looks
+        along (then the run traces paths from the eye, and its bins are luminances, cd/m²).
     keep : what `answer` needs back (instance ids, areas, the far field's frame), kind by kind.
     """
 
@@ -52,6 +54,7 @@ class Probe:
     grid: tuple | None = None
     surface: tuple | None = None
     far: tuple | None = None
+    view: Any = None
     keep: dict[str, Any] = field(default_factory=dict)
 
     @property

@@ -8,10 +8,10 @@ from __future__ import annotations
 from typing import Any
 
 from tracer.errors import SimulationError
-from tracer.sensors import disk, far_field, grid, points, surface
+from tracer.sensors import camera, disk, far_field, grid, luminance, points, surface
 
 #: every registered sensor kind, by its body's ``type``
-KINDS = {m.TYPE: m for m in (points, disk, grid, surface, far_field)}
+KINDS = {m.TYPE: m for m in (points, disk, grid, surface, far_field, luminance, camera)}
 
 
 def kind_of(body: Any):
@@ -30,7 +30,7 @@ def run(sim, body: dict, estimator: str = "auto", observe=(), physics_left_out=(
     does not observe refuses ``observe`` and ``physics_left_out``."""
     kind = kind_of(body)
     if not kind.OBSERVES and (observe or physics_left_out):
-        raise SimulationError(f"a {kind.TYPE} sensor answers lux or cd only: it takes no observe or physics_left_out")
+        raise SimulationError(f"a {kind.TYPE} sensor takes no observe or physics_left_out")
     if kind.FORWARD_ONLY and estimator == "auto":
         estimator = "forward"
     return kind.answer(sim, *sim.measure(kind.probe, body, estimator=estimator, observe=observe,

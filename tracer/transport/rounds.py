@@ -25,8 +25,10 @@ from tracer.optics import spectra
 from tracer.scene import Scene
 from tracer.sensors.base import IlluminanceResult, Probe
 from tracer.transport.backward import QueryArrays, disk_queries
-from tracer.transport.estimate import Estimate
+from tracer.transport.estimate import Estimate, cost_of
 from tracer.transport.forward import COUNTERS, SensorArrays, tally_columns
+from tracer.transport.radiance import COUNTERS as RADIANCE_COUNTERS
+from tracer.transport.radiance import emitters
 from tracer.warmup import wait_background
 
 log = logging.getLogger(__name__)
@@ -299,6 +301,62 @@ def backward(sim, probe: Probe, budget: Budget, seed: int, effects: list[str], p
     return IlluminanceResult(est.mean, est.stderr, photons=batches * per_batch, seconds=time.perf_counter() - t0,
                              effects=effects, estimator="backward", stop_reason=stop, batches=batches,
                              rejected=cdict["rejected"], counters=cdict, compile_seconds=compile_s)
+
+
+@dataclass
+class ViewBins(IlluminanceResult):
+    """The raw bins of views (`tracer.transport.radiance`): `lux` and `stderr` hold each view's luminance (cd/m²)
+    and its standard error; through_specular (k,): the share of each view's paths whose view ray went on through a
+    specular surface before any diffuse one."""
+
+    through_specular: np.ndarray | None = None
+
+
+VIEW_PATHS = 4096   # paths per batch over all the views together, at least one per view (a camera: one a pixel)
+VIEW_EFFECTS = ("lambertian", "specular", "fresnel")   # what paths from the eye follow (`tracer.transport.radiance`)
+
+
+def radiance(sim, probe: Probe, budget: Budget, seed: int, estimator: str, effects: list[str], progress, cancel,
+             backend: QueryBackend) -> ViewBins:
+    """Paths from the eye of each of the probe's views (`Probe.view`), round by round: their luminance (cd/m²) and
+    standard errors, with the cost of tighter errors and the backend. Only "auto" or "backward" answers, and only
+    scenes whose effects are in `VIEW_EFFECTS` (`SimulationError` otherwise). The kernel has no GPU variant: on a
+    card's backend it runs on this process's threads, and the answer's backend says so."""
+    if estimator not in ("auto", "backward"):
+        raise SimulationError(f"a luminance or camera sensor is answered by paths from the eye: estimator must be "
+                              f"'auto' or 'backward', got {estimator!r}")
+    beyond = sorted(set(effects) - set(VIEW_EFFECTS))
+    if beyond:
+        raise SimulationError(f"the luminance estimator follows {list(VIEW_EFFECTS)} only; this scene (or "
+                              f"force_effects) needs {beyond}")
+    effects = [e for e in effects if e in VIEW_EFFECTS]
+    t0 = time.perf_counter()
+    views: Any = probe.view
+    k = len(views.kind)
+    shape = backend.shape
+    if getattr(backend.backend, "name", "") not in ("in-process", "dask"):
+        backend.fallback = "ran on the CPU because the luminance kernel has no GPU variant"
+        shape = CPU_SHAPE
+    paths = int(min(shape.backward_paths, max(1, -(-VIEW_PATHS // k))))
+    if budget.max_photons is not None:
+        paths = int(min(paths, max(1, budget.max_photons // (4 * shape.first_round * k))))
+    per_batch = paths * k
+    emit = emitters(sim.light_bodies, len(sim.snapshot("backward").parts[1].kind))
+    scene, query = sim.snapshot("backward"), Shipment((views, emit, seed))
+    compile_s = warm(("radiance",), scene, query, backend)
+
+    def run_round(b0, nb):
+        return backend.run(("radiance",), scene, query, b0, nb, paths)
+
+    est, batches, stop, counters = loop(run_round, 2 * k, per_batch, budget, progress, cancel, t0, shape, k)
+    cdict = {name: int(c) for name, c in zip(RADIANCE_COUNTERS, counters, strict=True)}
+    res = ViewBins(est.mean[:k], est.stderr[:k], photons=batches * per_batch, seconds=time.perf_counter() - t0,
+                   effects=effects, estimator="backward", stop_reason=stop, batches=batches,
+                   rejected=cdict["rejected"], counters=cdict, compile_seconds=compile_s,
+                   through_specular=est.mean[k:])
+    res.cost = cost_of(res.lux, res.stderr, res.photons, res.seconds - res.compile_seconds)
+    res.backend = backend.describe()
+    return res
 
 
 def compile_seconds() -> dict[str, float]:

@@ -204,6 +204,36 @@ async function simulate(sensorId) {
   }
 }
 
+/** "render this view": the viewer's camera as a camera sensor of the scene, simulated as a job; its tone-mapped
+ *  image (image.png) shown once the job is done. */
+async function renderView() {
+  const button = $("render-view"), state = $("render-state");
+  if (!viewer) return;
+  button.disabled = true;
+  try {
+    const body = { ...viewer.cameraBody(120), name: `view ${new Date().toLocaleTimeString()}` };
+    const sensor = await postJSON(`/scenes/${sceneId}/sensors`, body);
+    state.textContent = `rendering ${body.width} × ${body.height}…`;
+    let job = await postJSON(`/scenes/${sceneId}/sensors/${sensor.id}/simulate?mode=async`, { max_seconds: 10 });
+    while (!["succeeded", "failed", "cancelled"].includes(job.status)) {
+      await new Promise((r) => setTimeout(r, 300));
+      job = await getJSON(job.url);
+    }
+    if (job.status !== "succeeded") throw new Error(job.error ?? job.status);
+    const r = job.result, lum = r.luminance.flat();
+    state.textContent = `${Math.min(...lum).toPrecision(3)} – ${Math.max(...lum).toPrecision(3)} cd/m² ` +
+      `(${r.photons.toLocaleString()} paths; Reinhard tone map)`;
+    ll.render = { sensor: sensor.id, result: r };
+    Object.assign($("render"), { src: `/scenes/${sceneId}/sensors/${sensor.id}/image.png?revision=${r.revision}`,
+                                 hidden: false });
+  } catch (err) {
+    state.textContent = `render refused: ${err.message}`;
+  } finally {
+    button.disabled = false;
+  }
+}
+$("render-view").onclick = renderView;
+
 // ------------------------------------------------------------------------------------------- picking
 
 function materialText(m) {

@@ -87,6 +87,15 @@ export class Viewer {
     this.renderer.render(this.scene, this.camera);
   }
 
+  /** The view shown, as a camera sensor's body (world metres; `fov_deg` vertical, as three.js's `fov`), `height`
+   *  pixels high and as wide as the canvas's aspect asks. */
+  cameraBody(height = 120) {
+    const p = this.camera.position, t = this.controls.target, u = this.camera.up;
+    const width = Math.max(1, Math.min(4096, Math.round(height * this.camera.aspect)));
+    return { type: "camera", position: [p.x, p.y, p.z], look_at: [t.x, t.y, t.z], up: [u.x, u.y, u.z],
+             fov_deg: this.camera.fov, width, height };
+  }
+
   /**
    * Place the state's instances: new ones loaded (their GLB fetched once per geometry), moved ones moved, gone
    * ones removed, each tinted by the last push's change kind when `highlight` is on. Resolves when all are drawn.

@@ -27,6 +27,9 @@ BODIES = {   # one body of each kind over the room below; a kind registered with
     "grid": {"type": "grid", "origin": [-1.5, -1.5, 0.0], "u": [3.0, 0, 0], "v": [0, 3.0, 0], "nu": 3, "nv": 2},
     "surface": {"type": "surface", "instances": [0]},
     "far_field": {"type": "far_field", "nc": 4, "ngamma": 5},
+    "luminance": {"type": "luminance", "position": [0.5, 0.0, 1.0], "direction": [0, 0, -1], "aperture_deg": 2.0},
+    "camera": {"type": "camera", "position": [0.0, -1.5, 2.0], "look_at": [0, 0, 0], "fov_deg": 50, "width": 4,
+               "height": 3},
 }
 
 

@@ -1,0 +1,104 @@
+"""The service's side of the sensor kinds that see (`tracer.sensors.luminance`, `tracer.sensors.camera`): what they
+answer and where it is kept (the contract: `service.sensor_kinds`).
+
+Both are answered by paths from the eye (`tracer.transport.radiance`): the forward estimator, observables, a
+polarization reference and ``physics_left_out`` are refused (422) before anything runs. The answer holds
+``luminance`` and ``stderr`` in cd/m² — one value for a meter (as a disk answers one lux), ``height`` rows of
+``width`` pixels for a camera, top row first — with the estimator's ``strategy`` in words and ``unreachable``
+(the lights paths from the eye cannot find here, or null).
+
+``KEEP = "image"``: the latest result is kept in memory while the scene is unchanged (as a grid's, for
+``image.exr``, ``image.png`` and ``map.png``), not in the result store, whose rows are lux.
+"""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+
+from service.errors import Invalid, TooLarge
+from service.payloads import finite_list, result_payload
+
+_COMMON = ("photons", "seconds", "effects", "estimator", "stop_reason", "compile_seconds", "backend", "cost")
+
+
+def _refuse(sensor: dict, query: Any) -> None:
+    sid, kind = sensor.get("id"), sensor.get("type")
+    if query.estimator == "forward":
+        raise Invalid(f"sensor {sid!r} is a {kind} sensor: the forward estimator cannot answer it (photons from the "
+                      f"lights almost never pass through a pinhole or a meter's cone; luminance is answered by paths "
+                      f"from the eye); use 'backward' or 'auto'")
+    for field, given in (("observe", query.observe), ("reference", query.reference),
+                         ("physics_left_out", query.physics_left_out)):
+        if given:
+            raise Invalid(f"sensor {sid!r} is a {kind} sensor: {field} is not available for it")
+
+
+def _payload(result: Any, sensor: dict, live: Any) -> dict[str, Any]:
+    """The answer's JSON: the run's common fields (`service.payloads.result_payload`), ``luminance`` for ``lux``."""
+    flat = SimpleNamespace(**{name: getattr(result, name) for name in _COMMON})
+    flat.lux, flat.stderr = np.atleast_1d(result.luminance), np.atleast_1d(result.stderr)
+    payload = result_payload(flat, live.revision)
+    payload["luminance"] = payload.pop("lux")
+    share = result.through_specular
+    payload.update(sensor=str(sensor["id"]), type=str(sensor["type"]), strategy=str(result.strategy),
+                   unreachable=result.unreachable,
+                   through_specular=finite_list(np.atleast_1d(share)) if share is not None else None)
+    return payload
+
+
+class Luminance:
+    """A luminance meter: ``luminance`` and ``stderr`` [one value], cd/m²."""
+
+    TYPE = "luminance"
+    KEEP = "image"
+
+    @staticmethod
+    def check(sensor: dict, query: Any, limits: Any, live: Any) -> None:
+        _refuse(sensor, query)
+
+    @staticmethod
+    def body(sensor: dict, live: Any) -> dict:
+        out: dict[str, Any] = {"type": "luminance", "position": np.asarray(sensor["position"], float),
+               "direction": np.asarray(sensor["direction"], float)}
+        if sensor.get("aperture_deg") is not None:
+            out["aperture_deg"] = float(sensor["aperture_deg"])
+        return out
+
+    @staticmethod
+    def payload(result: Any, sensor: dict, live: Any) -> dict:
+        return _payload(result, sensor, live)
+
+
+class Camera:
+    """A pinhole camera: ``luminance`` and ``stderr`` as ``height`` rows of ``width`` pixels, cd/m², top row
+    first."""
+
+    TYPE = "camera"
+    KEEP = "image"
+
+    @staticmethod
+    def check(sensor: dict, query: Any, limits: Any, live: Any) -> None:
+        _refuse(sensor, query)
+        pixels = int(sensor["width"]) * int(sensor["height"])
+        if pixels > limits.max_points:
+            raise TooLarge(f"sensor {sensor.get('id')!r} has {pixels} pixels; this service answers at most "
+                           f"{limits.max_points} points per query", limit=limits.max_points)
+
+    @staticmethod
+    def body(sensor: dict, live: Any) -> dict:
+        out: dict[str, Any] = {k: np.asarray(sensor[k], float) for k in ("position", "look_at")}
+        if sensor.get("up") is not None:
+            out["up"] = np.asarray(sensor["up"], float)
+        return {"type": "camera", **out, "fov_deg": float(sensor["fov_deg"]), "width": int(sensor["width"]),
+                "height": int(sensor["height"])}
+
+    @staticmethod
+    def payload(result: Any, sensor: dict, live: Any) -> dict:
+        payload = _payload(result, sensor, live)
+        payload.update(width=int(sensor["width"]), height=int(sensor["height"]),
+                       position=finite_list(sensor["position"]), look_at=finite_list(sensor["look_at"]),
+                       fov_deg=float(sensor["fov_deg"]))
+        return payload

@@ -1,0 +1,108 @@
+"""What the luminance kinds (`luminance`, `camera`) share: their answer, and what it says paths from the eye missed.
+
+Not a kind itself (it has no ``TYPE``). Units: luminance L_v in cd/m² = lm/(m² sr), angles in degrees on the wire.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from tracer.errors import SimulationError
+from tracer.sensors.base import IlluminanceResult, Readout
+
+#: what ran, as every luminance answer states it (`tracer.transport.radiance`)
+STRATEGY = ("paths from the eye: next-event estimation to every light at diffuse surfaces (one light a vertex, "
+            "picked by flux), multiple importance sampling (power heuristic) with BSDF sampling where a light has "
+            "area, specular chains followed through mirrors and glass, Russian roulette after 3 diffuse bounces; "
+            "point-like lights in view added exactly")
+POINT_LIKE = ("point", "spot", "goniometric")
+BODY_COMMON = frozenset({"type", "id", "name", "attached_to"})   # kept by the service, ignored here
+
+
+@dataclass
+class LuminanceResult(Readout):
+    """Luminance seen by a meter (scalars) or a camera ((height, width) arrays, top row first).
+
+    luminance, stderr : cd/m² — the mean luminance over the meter's cone or each pixel, and its standard error
+        (batch means over independent batches).
+    cost : dict — what tighter errors would cost (`tracer.transport.estimate.cost_of`), over the pixels.
+    strategy : str — the estimator that ran, in words (`STRATEGY`).
+    through_specular : float or (height, width) — share of the view's paths whose view ray went on through a mirror
+        or glass before any diffuse surface.
+    unreachable : dict or None — the light paths from the eye cannot find, where the scene has them (None: nothing
+        is missing): ``{"lights": [light indices], "why": str, "through_specular": max share over the views,
+        "caustic_paths": paths that met a specular surface after a diffuse one}``. The value then lacks that light.
+    """
+
+    luminance: Any
+    stderr: Any
+    cost: dict | None = None
+    strategy: str = STRATEGY
+    through_specular: Any = None
+    unreachable: dict | None = None
+
+
+def unreachable(sim, share: np.ndarray, caustic_paths: int) -> dict | None:
+    """What the paths from the eye could not find in this scene (see `LuminanceResult.unreachable`)."""
+    bodies = sim.light_bodies
+    collimated = [j for j, b in enumerate(bodies) if b.get("type") == "collimated"]
+    point_like = [j for j, b in enumerate(bodies) if b.get("type") in POINT_LIKE]
+    top = float(np.max(share)) if share.size else 0.0
+    lights: list[int] = list(collimated)
+    why = []
+    if collimated:
+        why.append(f"collimated light(s) {collimated} cannot be sampled from a point (no shadow ray finds a beam): "
+                   f"their light is missing from every view")
+    if point_like and (top > 0.0 or caustic_paths > 0):
+        lights += point_like
+        why.append(f"point-like light(s) {point_like} seen through a specular chain (in a mirror, through glass: "
+                   f"{top:.0%} of the paths of the most affected view went on through one), or lighting a diffuse "
+                   f"surface only through one (a caustic: {caustic_paths} paths met a specular surface after a "
+                   f"diffuse one), cannot be reached by paths from the eye: that light is missing")
+    if not lights:
+        return None
+    return {"lights": sorted(set(lights)), "why": "; ".join(why), "through_specular": top,
+            "caustic_paths": int(caustic_paths)}
+
+
+def luminance_result(sim, res: IlluminanceResult, shape: tuple[int, ...] | None) -> LuminanceResult:
+    """The raw view bins (`tracer.transport.rounds.ViewBins`) as a `LuminanceResult`: scalars where `shape` is None
+    (a meter), else arrays of `shape`."""
+    share = getattr(res, "through_specular", None)
+    share = np.zeros_like(res.lux) if share is None else np.asarray(share)
+
+    def shaped(a: np.ndarray) -> Any:
+        return float(a[0]) if shape is None else a.reshape(shape)
+
+    return LuminanceResult(**res.readout(), luminance=shaped(res.lux), stderr=shaped(res.stderr), cost=res.cost,
+                           through_specular=shaped(share),
+                           unreachable=unreachable(sim, share, int(res.counters.get("caustic_paths", 0))))
+
+
+def check_fields(body: dict, kind: str, fields: Any) -> None:
+    """`SimulationError` naming any field of `body` a `kind` sensor does not take (`fields`: its names)."""
+    extra = set(body) - set(fields) - BODY_COMMON
+    if extra:
+        raise SimulationError(f"unknown field(s) {sorted(extra)} for a {kind!r} sensor; it takes {sorted(fields)}")
+
+
+def angle(body: dict, name: str, lo: float, hi: float, default: float | None = None) -> float:
+    """body[name] as degrees in (lo, hi]; `default` where absent; `SimulationError` naming the field otherwise."""
+    v = body.get(name)
+    if v is None and default is not None:
+        return default
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or not lo < v <= hi:
+        raise SimulationError(f"{name} must be a number of degrees in ({lo:g}, {hi:g}], got {v!r}")
+    return float(v)
+
+
+def unit(v: np.ndarray, name: str) -> np.ndarray:
+    """v / |v|; `SimulationError` naming the field where v is the zero vector."""
+    n = float(np.linalg.norm(v))
+    if not n > 0.0:
+        raise SimulationError(f"{name} must not be the zero vector")
+    return v / n
