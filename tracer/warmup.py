@@ -206,8 +206,10 @@ class Background:
                     self._events[stage].set()
 
     def wait(self, stage: str, timeout: float | None = None) -> bool:
-        """Wait until `stage` is compiled or every child compiling it has ended; False on timeout."""
-        return self._events[stage].wait(timeout)
+        """Wait until `stage` is compiled or every child compiling it has ended; False on timeout. A kernel no child
+        compiles (not one of `STAGES`: the luminance kernel, say) has nothing to wait for."""
+        event = self._events.get(stage)
+        return True if event is None else event.wait(timeout)
 
     def status(self) -> dict:
         """{"state": "warming" | "ready" | "failed", "seconds": {stage: s}} for `GET /health`."""

@@ -19,6 +19,7 @@ import tracer
 TUPLES = {"sa", "L", "M", "S", "Q"}
 #: entry points that allocate (their stacks, their outputs): called once per batch, or for convenience
 ALLOCATING = {"tracer.transport.backward.backward_batches", "tracer.accel.lanes.batch",
+              "tracer.transport.radiance.radiance_batches",
              "tracer.transport.forward.forward_batches",
               "tracer.accel.traverse.intersect_closest", "tracer.accel.traverse.intersect_any",
               "tracer.accel.traverse.sensor_crossings", "tracer.accel.traverse.closest_each"}

@@ -57,7 +57,8 @@ FIELDS = fields(
               lo_open=True),
     BodyField("up", "direction", "Orients a rectangle's height (dimensionless; not along direction).",
               required=False),
-    BodyField("illuminance_lx", "number", "Illuminance on a plane across the beam, lx.", lo=0.0, hi=1e15))
+    BodyField("illuminance_lx", "number", "Illuminance on a plane across the beam, lx (unbounded: a pencil beam may be "
+              "very bright; its flux, illuminance times aperture, is bounded).", lo=0.0))
 EXAMPLE = {"type": "collimated", "name": "sun", "origin": [0.0, 0.0, 3.0], "direction": [0.3, 0.2, -1.0], "width": 4.0,
            "height": 4.0, "up": [0.0, 1.0, 0.0], "illuminance_lx": 100000.0,
            "spectrum": {"type": "blackbody", "kelvin": 5778.0}}
