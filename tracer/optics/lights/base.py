@@ -66,6 +66,8 @@ FLUX_LM = BodyField("flux_lm", "number", "Luminous flux, lm (instead of intensit
                     hi=1e15)
 FLUX_W = BodyField("flux_w", "number", "Radiant flux, W (instead of a photometric quantity; lm = W × the spectrum's "
                    "efficacy).", required=False, lo=0.0, hi=1e13)
+MAX_FLUX_LM = 1e15   # lm: a light beyond this is a unit mistake (the brightest searchlights are ~1e9 lm); the
+                     # estimates (sums of squared tallies) stay finite far beyond it
 
 
 class LightError(TracerError):

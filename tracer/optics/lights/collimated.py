@@ -31,6 +31,7 @@ from tracer.jit import njit
 from tracer.optics.fields import BodyField, fields
 from tracer.optics.frames import onb
 from tracer.optics.lights.base import (
+    MAX_FLUX_LM,
     P_AXIS,
     P_B,
     P_FLUX,
@@ -96,7 +97,8 @@ class Spec:
         if "radius" in body:
             if "up" in body:
                 raise LightError(f"{where}: 'up' orients a rectangular aperture; a disk has none")
-            return cls(origin, a, tt, bb, e, DISK, field_value(body, FIELDS["radius"], where), 0.0, 0.0)
+            r = field_value(body, FIELDS["radius"], where)
+            return _bounded(cls(origin, a, tt, bb, e, DISK, r, 0.0, 0.0), math.pi * r * r, where)
         w = field_value(body, FIELDS["width"], where)
         h = field_value(body, FIELDS["height"], where)
         if "up" in body:
@@ -106,7 +108,17 @@ class Spec:
                 raise LightError(f"{where}: 'up' must not be parallel to 'direction'")
             bb = bb / np.linalg.norm(bb)
             tt = np.cross(bb, a)
-        return cls(origin, a, tt, bb, e, RECTANGLE, 0.0, w, h)
+        return _bounded(cls(origin, a, tt, bb, e, RECTANGLE, 0.0, w, h), w * h, where)
+
+
+def _bounded(spec: Spec, area: float, where: str) -> Spec:
+    """The spec, where its flux (illuminance × aperture area, lm) is within `MAX_FLUX_LM`: the illuminance itself is
+    unbounded (a pencil beam may be very bright), a beam's whole flux is not."""
+    if not spec.illuminance_lx * area <= MAX_FLUX_LM:
+        raise LightError(f"{where}: its luminous flux {spec.illuminance_lx * area:.3g} lm (illuminance_lx × aperture) "
+                         f"is beyond {MAX_FLUX_LM:g} lm (or not finite): check the magnitude and unit of "
+                         f"'illuminance_lx' and of the aperture")
+    return spec
 
 
 def pack(spec: Spec, j: int, out: Packing, where: str) -> float:

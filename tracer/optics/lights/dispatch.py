@@ -14,15 +14,13 @@ from tracer.jit import kind_switch, njit
 from tracer.optics import spectra
 from tracer.optics.fields import BodyField
 from tracer.optics.lights import area, collimated, goniometric, point, spot
-from tracer.optics.lights.base import FLUX_W, P_FLUX, LightArrays, LightError, Packing
+from tracer.optics.lights.base import FLUX_W, MAX_FLUX_LM, P_FLUX, LightArrays, LightError, Packing
 from tracer.optics.polarization import PolarizationError, light_polarization
 from tracer.optics.spectra import sample_grid
 
 KINDS = (point, spot, collimated, goniometric, area)
 POINT, SPOT, COLLIMATED, GONIOMETRIC, AREA = 0, 1, 2, 3, 4
 KIND_OF_NAME = {module.NAME: k for k, module in enumerate(KINDS)}
-MAX_FLUX_LM = 1e15   # lm: a light beyond this is a unit mistake (the brightest searchlights are ~1e9 lm); the
-                     # estimates (sums of squared tallies) stay finite far beyond it
 
 
 def pack_lights(lights: list[dict], scene=None, sensor_ids: frozenset = frozenset()) -> LightArrays:
