@@ -265,7 +265,7 @@ class Scene(SceneQueries):
         i = self._instance(i)
         self._touch(i, structural=True)
         self._kind[i] = -1
-        self._reliefs.rows.pop(i, None)
+        self._reliefs.drop(i)
 
     def instances(self) -> list[int]:
         """Ids of the live instances (meshes and sensors), ascending."""

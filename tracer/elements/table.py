@@ -20,10 +20,17 @@ from tracer.kinds import mesh, relief
 
 
 class Reliefs:
-    """Rows by instance id."""
+    """Rows by instance id. Their packed arrays are kept until a row changes: a commit after a move (the hot path of
+    a CAD edit) packs nothing again, and copies no element's points."""
 
     def __init__(self) -> None:
         self.rows: dict[int, Row] = {}
+        self._packed: tuple[np.ndarray, ...] | None = None   # el_f ... el_item of `rows` as they are
+
+    def drop(self, i: int) -> None:
+        """Forget instance `i`'s row (it was removed, or its element taken off)."""
+        if self.rows.pop(i, None) is not None:
+            self._packed = None
 
     def full_of(self, i: int, own: str) -> str:
         """The part's own geometry id of instance `i`: its row's where it carries an element, else `own`."""
@@ -35,12 +42,13 @@ class Reliefs:
         instance becomes: ``(kind, geometry id, object box)``. A support that cannot carry it raises `ElementError`
         with nothing changed."""
         if element is None:
-            self.rows.pop(i, None)
+            self.drop(i)
             return mesh.KIND, full, g.box
         ids = None if face_ids is None else np.asarray(face_ids)
         prims = support.select(g.vertices, g.triangles, facing=facing, faces=faces, face_ids=ids)
         row = self.make_row(add_geometry, element, full, g.vertices, g.triangles, g.normals, prims, mm_per_unit)
         self.rows[i] = row
+        self._packed = None
         return relief.KIND, row.rest, support.box(row, g.box)
 
     def make_row(self, add_geometry: Callable, element: Microstructure, full: str, vertices: np.ndarray,
@@ -60,6 +68,14 @@ class Reliefs:
         """``(inst_aux, el_f, el_i, el_prim, el_bits, el_uv, el_bin, el_item)`` for `n_ids` instance ids;
         `index_of` gives a geometry's index in the store."""
         aux = np.full(n_ids, -1, np.int32)
+        for r, i in enumerate(sorted(self.rows)):
+            aux[i] = r
+        if self._packed is None:
+            self._packed = self._pack(index_of)
+        return (aux, *self._packed)
+
+    def _pack(self, index_of: Callable[[str], int]) -> tuple[np.ndarray, ...]:
+        """``(el_f, el_i, el_prim, el_bits, el_uv, el_bin, el_item)`` of the rows, in instance order."""
         ef = np.zeros((len(self.rows), fx.NF))
         ei = np.zeros((len(self.rows), fx.NI), np.int64)
         prim: list[np.ndarray] = []
@@ -69,8 +85,7 @@ class Reliefs:
         items: list[np.ndarray] = []
         shared: dict[str, tuple[int, int, int, int]] = {}
         sizes = [0, 0, 0, 0, 0]   # el_prim, el_bits, el_uv, el_bin, el_item so far
-        for r, (i, row) in enumerate(sorted(self.rows.items())):
-            aux[i] = r
+        for r, (_, row) in enumerate(sorted(self.rows.items())):
             ef[r], ei[r] = support.row_params(row, index_of(row.support))
             inverse = np.empty(len(row.rest_prims) + len(row.support_prims), np.int32)
             inverse[row.rest_prims] = np.arange(len(row.rest_prims))
@@ -90,7 +105,7 @@ class Reliefs:
                 for k, a in enumerate((e.bits, e.uv, e.bins, e.items)):
                     sizes[1 + k] += len(a)
             ei[r, fx.BITS], ei[r, fx.UV], ei[r, fx.BINS], ei[r, fx.ITEMS] = shared[e.id]
-        return (aux, ef, ei, _cat(prim, np.int32), _cat(bits, np.uint8), _cat(uv, np.float32, (0, 2)),
+        return (ef, ei, _cat(prim, np.int32), _cat(bits, np.uint8), _cat(uv, np.float32, (0, 2)),
                 _cat(bins, np.int32), _cat(items, np.int32))
 
 
