@@ -359,8 +359,10 @@ def compare(scene: str, server: str, out: Path, sensor: str = "all", from_key: s
             answers = ll.compare(info, sensor, from_key, to_key, out=out_dir)
         for sensor_id, d in answers.items():
             s = d["summary"]
+            unit = "cd/m2" if d.get("quantity") == "luminance" else "lx"
+            before, after = (s.get(f"mean_{w}_lux", s.get(f"mean_{w}_cd_m2")) for w in ("before", "after"))
             line = (f"sensor {names.get(sensor_id, sensor_id)} ({sensor_id}): {d['from']} -> {d['to']}: mean "
-                    f"{s['mean_before_lux']:.4g} -> {s['mean_after_lux']:.4g} lx; {s['significant']}/{s['cells']} "
+                    f"{before:.4g} -> {after:.4g} {unit}; {s['significant']}/{s['cells']} "
                     f"cells changed beyond {d['significance_sigmas']:g} sigma ({s['increased']} brighter, "
                     f"{s['decreased']} darker)")
             if s.get("max_increase_lux"):
