@@ -93,6 +93,9 @@ class Camera:
         out: dict[str, Any] = {k: np.asarray(sensor[k], float) for k in ("position", "look_at")}
         if sensor.get("up") is not None:
             out["up"] = np.asarray(sensor["up"], float)
+        for name in ("lens_diameter_m", "focus_distance_m"):
+            if sensor.get(name) is not None:
+                out[name] = float(sensor[name])
         return {"type": "camera", **out, "fov_deg": float(sensor["fov_deg"]), "width": int(sensor["width"]),
                 "height": int(sensor["height"])}
 

@@ -24,7 +24,7 @@ from tracer.optics.fields import BodyField, fields
 from tracer.optics.frames import onb
 from tracer.sensors.base import IlluminanceResult, Probe, vec3
 from tracer.sensors.views import LuminanceResult, angle, check_fields, luminance_result, unit
-from tracer.transport.radiance import CONE, ViewArrays
+from tracer.transport.radiance import CONE, ViewArrays, pinhole
 
 TYPE = "luminance"
 FORWARD_ONLY = False
@@ -54,7 +54,8 @@ def probe(sim, body: dict) -> Probe:
     one_minus_cos = 2.0 * math.sin(half / 2.0) ** 2   # 1 − cos, exact for small apertures
     t, b = onb(*axis)
     view = ViewArrays(np.array([CONE], np.int64), o[None, :], axis[None, :], np.array([t]), np.array([b]),
-                      np.zeros((1, 3)), np.array([1.0 - one_minus_cos]), np.array([2.0 * math.pi * one_minus_cos]))
+                      np.zeros((1, 3)), np.array([1.0 - one_minus_cos]), np.array([2.0 * math.pi * one_minus_cos]),
+                      *pinhole(1))
     return Probe(o[None, :], axis[None, :], view=view)
 
 
@@ -79,7 +80,7 @@ def meters_probe(sim, body: dict) -> Probe:
     frames = [onb(*a) for a in axes]
     view = ViewArrays(np.full(k, CONE, np.int64), np.ascontiguousarray(pos), np.ascontiguousarray(axes),
                       np.array([f[0] for f in frames]), np.array([f[1] for f in frames]), np.zeros((k, 3)),
-                      np.full(k, 1.0 - one_minus_cos), np.full(k, 2.0 * math.pi * one_minus_cos))
+                      np.full(k, 1.0 - one_minus_cos), np.full(k, 2.0 * math.pi * one_minus_cos), *pinhole(k))
     return Probe(pos, axes, view=view)
 
 
