@@ -144,7 +144,8 @@ def sync(state: Any, library: ElementLibrary) -> None:
         body = state.elements[aid]
         try:
             state.tracer.set_element(inst, library.get(body["element"]), facing=body.get("facing"),
-                                     faces=body.get("faces"), mm_per_unit=mm)
+                                     faces=body.get("faces"), mm_per_unit=mm,
+                                     face_ids=state.face_ids.get(state.tracer.instance_geometry(inst)))
         except (ElementError, NotFound) as exc:
             state.element_problems[aid] = str(getattr(exc, "detail", exc))
             continue
@@ -154,9 +155,10 @@ def sync(state: Any, library: ElementLibrary) -> None:
 
 def public(state: Any, aid: str, body: dict) -> dict[str, Any]:
     """An assignment as listed: its body, whether its node is gone, whether it is applied and if not why."""
+    inst = state.element_instances.get(aid)
     return {"id": aid, "body": body, "orphaned": not state.has_node(body["node"]),
-            "applied": aid in state.element_instances, "problem": state.element_problems.get(aid),
-            "model": "exact"}
+            "applied": inst is not None, "problem": state.element_problems.get(aid),
+            "model": "exact", "support": None if inst is None else state.tracer.element_support(inst)}
 
 
 def describe(state: Any) -> list[dict[str, Any]]:

@@ -62,6 +62,7 @@ class SceneState:
     instances: dict[str, int] = field(default_factory=dict)  # document node uuid -> instance
     object_instances: dict[str, int] = field(default_factory=dict)  # sim object id -> instance
     geometries: set[str] = field(default_factory=set)  # geometry ids added to `tracer`
+    face_ids: dict[str, Any] = field(default_factory=dict)  # geometry id -> its triangles' B-rep face indices
     materials: dict[str, dict] = field(default_factory=dict)  # node uuid / object id -> material body
     lights: dict[str, dict] = field(default_factory=dict)  # id -> body as given
     sensors: dict[str, dict] = field(default_factory=dict)

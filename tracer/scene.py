@@ -313,6 +313,16 @@ class Scene(SceneQueries):
         self._kind[i], self._igeom[i], self._obox[i] = kind, self._geometry(rest).index, box
         self._touch(i, structural=True)
 
+    def element_support(self, i: int) -> dict[str, Any] | None:
+        """What carries instance `i`'s element: ``{"triangles": n, "size_mm": [lu, lv], "normal": [x, y, z]}`` (its
+        support's triangles of the part, its extent along u and v, its outward normal in the part's frame); None
+        where the instance carries none."""
+        row = self._reliefs.rows.get(self._instance(i))
+        if row is None:
+            return None
+        return {"triangles": int(len(row.support_prims)), "size_mm": [row.frame.lu, row.frame.lv],
+                "normal": [float(x) for x in row.frame.n]}
+
     # ---------------------------------------------------------------- shapes (sensors)
     def add_shape(self, kind: str, *placement: Any) -> int:
         """An instance of a kind with a placement of its own (`SHAPES`: a sensor shape), placed by the kind's

@@ -65,7 +65,8 @@ class ElementAssign(BaseModel):
                                        description="a direction in the node's frame: its triangles facing it "
                                                    "(within 1 degree) carry the element; they must be one plane")
     faces: list[int] | None = Field(default=None, min_length=1, description=(
-        "B-rep face indices, where the part's mesh carries them (not yet pushed by the adapter: use facing)"))
+        "B-rep face indices (the adapter pushes each triangle's face, `lumenlink faces FILE` lists them): those "
+        "faces' triangles carry the element, whatever tolerance the part was tessellated with"))
 
     @model_validator(mode="after")
     def _one_support(self) -> ElementAssign:
@@ -83,6 +84,9 @@ class ElementAssignment(BaseModel):
     problem: str | None = Field(description="why it is not applied, where it is not (its node gone, or a push left "
                                             "the support unusable)")
     model: str = Field(description="the element's model answers use: 'exact' (its micro-geometry traced)")
+    support: dict[str, Any] | None = Field(None, description=(
+        "what carries it, where applied: the part's triangles selected, the support's size along u and v (mm) and "
+        "its outward normal in the node's frame"))
 
 
 @router.post("/elements", status_code=201, response_model=ElementSummary,

@@ -55,6 +55,11 @@ def select(vertices: np.ndarray, triangles: np.ndarray, *, facing: Any = None, f
         if not isinstance(faces, list | tuple) or not faces or not all(
                 isinstance(f, int) and not isinstance(f, bool) for f in faces):
             raise ElementError(f"faces must be a non-empty list of B-rep face indices (ints), got {faces!r}"[:300])
+        present = np.unique(face_ids)
+        for k, face in enumerate(faces):
+            if face not in present:
+                raise ElementError(f"faces[{k}] = {face}: the part's mesh has no triangle of B-rep face {face} (its "
+                                   f"faces: {present.tolist()[:50]}{' ...' if len(present) > 50 else ''})")
         prims = np.flatnonzero(np.isin(face_ids, np.array(faces)))
         what = f"faces {list(faces)}"
     else:
