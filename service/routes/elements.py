@@ -65,8 +65,8 @@ class ElementAssign(BaseModel):
                                        description="a direction in the node's frame: its triangles facing it "
                                                    "(within 1 degree) carry the element; they must be one plane")
     faces: list[int] | None = Field(default=None, min_length=1, description=(
-        "B-rep face indices (the adapter pushes each triangle's face, `lumenlink faces FILE` lists them): those "
-        "faces' triangles carry the element, whatever tolerance the part was tessellated with"))
+        "B-rep face indices (the adapter pushes each triangle's face; cad_adapter.tessellate.face_table lists "
+        "them): those faces' triangles carry the element, whatever tolerance the part was tessellated with"))
 
     @model_validator(mode="after")
     def _one_support(self) -> ElementAssign:

@@ -139,6 +139,7 @@ def row_params(row: Row, support_index: int) -> tuple[np.ndarray, np.ndarray]:
     f[fx.MM], f[fx.LU], f[fx.LV] = fr.mm, fr.lu, fr.lv
     f[fx.A], f[fx.H], f[fx.RS], f[fx.SIGN] = e.a, e.h, e.rs, e.sign
     f[fx.SLOPE] = e.a / e.h
+    f[fx.FMAT], f[fx.FRHO] = e.material, e.reflectance
     f[fx.CU], f[fx.CV] = e.cell
     f[fx.ORG_U], f[fx.ORG_V] = e.origin
     i = np.zeros(fx.NI, np.int64)

@@ -18,6 +18,7 @@ import dataclasses
 
 import numpy as np
 
+from tracer.elements import features as fx
 from tracer.jit import njit
 from tracer.optics import mie, spectra
 from tracer.optics.coating import Coating
@@ -205,9 +206,39 @@ def _rows(spec, tables: _Tables):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def feature_surface(sa, inst, prim):
+    """``(kind, reflectance)`` of a hit on an element's feature that has a surface of its own (`fx.MAT_BLACK`,
+    `fx.MAT_LAMBERTIAN`: a printed dot); ``(fx.MAT_PART, 0)`` where the hit takes the instance's material."""
+    if prim < -1:
+        r = sa.inst_aux[inst]
+        if r >= 0:
+            k = int(sa.el_f[r, fx.FMAT])
+            if k >= 0:
+                return k, sa.el_f[r, fx.FRHO]
+    return fx.MAT_PART, 0.0
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def surface_albedo(sa, M, inst, prim):
+    """`albedo` of the hit: a feature's own reflectance where it has a surface of its own."""
+    fk, rho = feature_surface(sa, inst, prim)
+    if fk == fx.MAT_LAMBERTIAN:
+        return rho
+    if fk == fx.MAT_BLACK:
+        return 0.0
+    return albedo(M, inst)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol):
     """What the surface of instance `inst` does to a photon of wavelength `lam` nm (0: white) and polarization
-    state `pol` (`tracer.optics.polarization`) arriving along d (`base` has the contract)."""
+    state `pol` (`tracer.optics.polarization`) arriving along d (`base` has the contract); on an element's feature
+    with a surface of its own (`feature_surface`), what that surface does."""
+    fk, frho = feature_surface(sa, inst, prim)
+    if fk == fx.MAT_LAMBERTIAN:
+        return lambertian.scatter_rho(frho, dx, dy, dz, ngx, ngy, ngz, depth, key, dim, pol)
+    if fk == fx.MAT_BLACK:
+        return ABSORBED, dx, dy, dz, 0.0, depth, dim
     k = M.kind[inst]
     if k == LAMBERTIAN:
         return lambertian.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol)
