@@ -129,6 +129,7 @@ class Row:
     support: str              # the support's triangles, their own geometry id
     rest_prims: np.ndarray    # rest triangle -> part triangle
     support_prims: np.ndarray  # support triangle -> part triangle
+    table: Any = None         # a `tracer.elements.bsdf.Table`: the element used through its tabulated model
 
 
 def row_params(row: Row, support_index: int) -> tuple[np.ndarray, np.ndarray]:
@@ -144,6 +145,8 @@ def row_params(row: Row, support_index: int) -> tuple[np.ndarray, np.ndarray]:
     f[fx.ORG_U], f[fx.ORG_V] = e.origin
     i = np.zeros(fx.NI, np.int64)
     i[fx.SHAPE], i[fx.LAYOUT], i[fx.GEOM_S] = e.shape, e.layout, support_index
+    if row.table is not None:
+        i[fx.MODEL], i[fx.TAB_MU], i[fx.TAB_PHI] = fx.BSDF, row.table.n_mu, row.table.n_phi
     if e.layout in (fx.GRID, fx.HEX):
         nu = max(1, int(fr.lu // e.cell[0]) + (1 if e.layout == fx.HEX else 0))
         nv = max(1, int(fr.lv // e.cell[1]))
