@@ -196,7 +196,7 @@ class Pusher(ServiceClient):
             if gid not in by_gid:
                 raise PushError(f"the service asked for geometry {gid} which this document does not have")
             m = by_gid[gid]
-            glb = encode_glb(m.vertices, m.triangles, m.normals)
+            glb = encode_glb(m.vertices, m.triangles, m.normals, m.face_ids)
             self.upload(gid, glb)
             sent += len(glb)
             if self.upload_progress is not None:

@@ -12,15 +12,16 @@ import numpy as np
 import trimesh
 
 from lumenlink import glb as lumenlink_glb
-from tracer.geometry_id import canonical_arrays
+from tracer.geometry_id import canonical_arrays, canonical_faces
 
 from .errors import CadAdapterError
 
 MEDIA_TYPE = lumenlink_glb.MEDIA_TYPE
 
 
-def encode_glb(vertices: np.ndarray, triangles: np.ndarray, normals: np.ndarray | None = None) -> bytes:
-    """Encode a mesh as GLB bytes.
+def encode_glb(vertices: np.ndarray, triangles: np.ndarray, normals: np.ndarray | None = None,
+               face_ids: np.ndarray | None = None) -> bytes:
+    """Encode a mesh as GLB bytes (with its B-rep face indices, where given, as ``_FEATURE_ID_0``).
 
     Parameters
     ----------
@@ -28,6 +29,9 @@ def encode_glb(vertices: np.ndarray, triangles: np.ndarray, normals: np.ndarray 
         Cast to float32 exactly as the geometry id hashes them.
     triangles : (m, 3) int
     normals : (n, 3) float, optional
+    face_ids : (m,) int, optional
+        Each triangle's B-rep face index; a vertex must belong to the triangles of one face (the adapter's faces
+        are not welded).
 
     Raises
     ------
@@ -40,11 +44,32 @@ def encode_glb(vertices: np.ndarray, triangles: np.ndarray, normals: np.ndarray 
         raise CadAdapterError(f"cannot encode mesh: {exc}") from exc
     if len(f) == 0:
         raise CadAdapterError("cannot encode an empty mesh (no triangles)")
-    kwargs = {"vertex_normals": n} if n is not None else {}
+    kwargs: dict = {"vertex_normals": n} if n is not None else {}
+    if face_ids is not None:
+        try:
+            faces = canonical_faces(face_ids, len(f))
+        except ValueError as exc:
+            raise CadAdapterError(f"cannot encode mesh: {exc}") from exc
+        assert faces is not None
+        per_vertex = np.zeros(len(v), np.float32)
+        per_vertex[f.ravel()] = np.repeat(faces, 3)
+        if not (per_vertex[f] == faces[:, None]).all():
+            raise CadAdapterError("cannot encode mesh: a vertex is shared by triangles of different B-rep faces "
+                                  "(face indices travel per vertex: give each face its own vertices)")
+        kwargs["vertex_attributes"] = {lumenlink_glb.FACE_ATTRIBUTE: per_vertex}
     mesh = trimesh.Trimesh(vertices=v, faces=f, process=False, validate=False, **kwargs)
     # unitize_normals=False: trimesh would otherwise renormalise and move some normals by an ulp
     data = mesh.export(file_type="glb", include_normals=n is not None, unitize_normals=False)
-    return bytes(data)
+    return bytes(data)  # type: ignore[arg-type]  (a GLB export is bytes)
+
+
+def decode_glb_faces(data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """`decode_glb` and the mesh's B-rep face indices (uint32 (m,) or None): ``geometry_id(*decode_glb_faces(b))`` is
+    the id the mesh was pushed under."""
+    try:
+        return lumenlink_glb.decode_glb_faces(data)
+    except lumenlink_glb.GlbError as exc:
+        raise CadAdapterError(f"not a readable GLB: {exc}") from exc
 
 
 def decode_glb(data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:

@@ -22,7 +22,10 @@ Arrays: vertices float32 (n, 3) in the part's own frame (face locations applied)
 (n, 3) from the B-rep surface (``BRepLib_ToolTriangulatedShape.ComputeNormals``), outward. Faces are
 not welded together: each face keeps its own vertices, so normals stay sharp at edges; positions along a
 shared edge are identical on both sides, so a closed B-rep gives a watertight mesh once positions are
-merged.
+merged. ``face_ids`` uint32 (m,) names each triangle's B-rep face: the face's index in the part's B-rep
+(``TopExp_Explorer`` over its faces, from 0, the order the B-rep stores them in; `face_table` lists them), which
+depends on the B-rep only, never on the settings, so an element assigned to "face 5" stays on the same face when
+the part is meshed again at another tolerance. The face indices are part of the geometry id (DESIGN.md).
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from OCP.BinTools import BinTools, BinTools_FormatVersion
@@ -112,9 +116,11 @@ class Mesh:
     triangles : (m, 3) uint32
     normals : (n, 3) float32 or None
     geometry_id : str
-        DESIGN.md's content hash of the three arrays.
+        DESIGN.md's content hash of the arrays (the face indices included where there are some).
     deflection : float
         The absolute linear deflection used, document units.
+    face_ids : (m,) uint32 or None
+        Each triangle's B-rep face index (see the module docstring).
     """
 
     vertices: np.ndarray
@@ -122,6 +128,7 @@ class Mesh:
     normals: np.ndarray | None
     geometry_id: str
     deflection: float = 0.0
+    face_ids: np.ndarray | None = None
 
     @property
     def n_triangles(self) -> int:
@@ -204,16 +211,51 @@ def _face_order(verts: list[np.ndarray], tris: list[np.ndarray]) -> list[int]:
     return sorted(range(len(verts)), key=lambda k: keys[k])
 
 
-def _read_faces(shape) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
-    """Collect every face's triangulation: vertices float64 (n,3), triangles int64 (m,3), normals float64."""
-    verts: list[np.ndarray] = []
-    tris: list[np.ndarray] = []
-    norms: list[np.ndarray] = []
-    missing = 0
+def face_table(shape) -> list[dict]:
+    """The part's B-rep faces as the adapter names them: ``{"face": index, "surface": kind, "area", "centroid",
+    "normal"}`` (document units; ``normal`` the outward normal at the centroid's parameters for a plane, else None),
+    in B-rep order: what an element assignment's ``faces`` refers to."""
+    from OCP.BRepAdaptor import BRepAdaptor_Surface
+    from OCP.BRepGProp import BRepGProp
+    from OCP.GeomAbs import GeomAbs_Plane
+    from OCP.GProp import GProp_GProps
+
+    kinds = {0: "plane", 1: "cylinder", 2: "cone", 3: "sphere", 4: "torus"}
+    out = []
     exp = TopExp_Explorer(shape, TopAbs_FACE)
+    k = 0
     while exp.More():
         face = TopoDS.Face_s(exp.Current())
         exp.Next()
+        props = GProp_GProps()
+        BRepGProp.SurfaceProperties_s(face, props)
+        c = props.CentreOfMass()
+        surf = BRepAdaptor_Surface(face)
+        normal = None
+        if surf.GetType() == GeomAbs_Plane:
+            d = surf.Plane().Axis().Direction()
+            sign = -1.0 if face.Orientation() == TopAbs_REVERSED else 1.0
+            normal = [sign * d.X(), sign * d.Y(), sign * d.Z()]
+        out.append({"face": k, "surface": kinds.get(int(surf.GetType()), "other"), "area": float(props.Mass()),
+                    "centroid": [c.X(), c.Y(), c.Z()], "normal": normal})
+        k += 1
+    return out
+
+
+def _read_faces(shape) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, np.ndarray]:
+    """Collect every face's triangulation: vertices float64 (n,3), triangles int64 (m,3), normals float64, the
+    faces without triangles, and each triangle's B-rep face index (uint32 (m,))."""
+    verts: list[np.ndarray] = []
+    tris: list[np.ndarray] = []
+    norms: list[np.ndarray] = []
+    index: list[int] = []
+    missing = 0
+    exp = TopExp_Explorer(shape, TopAbs_FACE)
+    k = -1
+    while exp.More():
+        face = TopoDS.Face_s(exp.Current())
+        exp.Next()
+        k += 1
         loc = TopLoc_Location()
         tri = BRep_Tool.Triangulation_s(face, loc)
         if tri is None or tri.NbTriangles() == 0:
@@ -242,19 +284,21 @@ def _read_faces(shape) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
         verts.append(p)
         tris.append(t)
         norms.append(nn)
+        index.append(k)
     if not verts:
-        return np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 3)), missing
+        return np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 3)), missing, np.zeros(0, np.uint32)
     # faces in an order of their own (where they lie), not the writer's: a re-export that lists the same
     # faces in another order gives the same arrays, hence the same geometry id
     order = _face_order(verts, tris)
     verts, norms = [verts[k] for k in order], [norms[k] for k in order]
     offsets = np.cumsum([0] + [len(verts[k]) for k in range(len(verts) - 1)])
+    face_ids = np.concatenate([np.full(len(tris[k]), index[k], np.uint32) for k in order])
     tris = [tris[k] + offsets[j] for j, k in enumerate(order)]
     v = np.concatenate(verts)
     nn = np.concatenate(norms)
     length = np.linalg.norm(nn, axis=1, keepdims=True)
     nn = np.where(length > 0, nn / np.where(length > 0, length, 1.0), 0.0)
-    return v, np.concatenate(tris), nn, missing
+    return v, np.concatenate(tris), nn, missing, face_ids
 
 
 def mesh_shape(shape, deflection: float, angular: float, parallel: bool = True) -> tuple[Mesh | None, int]:
@@ -294,7 +338,7 @@ def mesh_shape(shape, deflection: float, angular: float, parallel: bool = True) 
         raise TessellationError(f"OCCT meshing failed: {exc}") from exc
     if not mesher.IsDone():
         raise TessellationError(f"OCCT meshing did not finish (status flags {mesher.GetStatusFlags()})")
-    v, t, n, missing = _read_faces(shape)
+    v, t, n, missing, face_ids = _read_faces(shape)
     if len(t) == 0:
         raise TessellationError(f"no face could be meshed ({missing} face(s) without triangles)")
     v32, t32, n32 = canonical_arrays(v, t, n.astype(np.float32))
@@ -305,7 +349,8 @@ def mesh_shape(shape, deflection: float, angular: float, parallel: bool = True) 
                  | (corners[:, 2] == corners[:, 0]).all(axis=1))
     if collapsed.any():
         t32 = np.ascontiguousarray(t32[~collapsed])
-    return Mesh(v32, t32, n32, geometry_id(v32, t32, n32), deflection), missing
+        face_ids = np.ascontiguousarray(face_ids[~collapsed])
+    return Mesh(v32, t32, n32, geometry_id(v32, t32, n32, face_ids), deflection, face_ids), missing
 
 
 class TessellationCache:
@@ -324,7 +369,7 @@ class TessellationCache:
 
     @staticmethod
     def key(digest: str, deflection: float, angular: float) -> str:
-        return hashlib.sha256(f"{digest}|{deflection!r}|{angular!r}|v2".encode()).hexdigest()  # v2: faces by place
+        return hashlib.sha256(f"{digest}|{deflection!r}|{angular!r}|v3".encode()).hexdigest()  # v3: face ids
 
     def get(self, key: str) -> Mesh | None:
         if key in self.memory:
@@ -335,11 +380,12 @@ class TessellationCache:
                 try:
                     with np.load(path) as z:
                         normals = z["normals"] if z["normals"].size else None
+                        faces = z["face_ids"] if "face_ids" in z.files else None
                         mesh = Mesh(z["vertices"], z["triangles"], normals, str(z["geometry_id"]),
-                                    float(z["deflection"]))
+                                    float(z["deflection"]), faces)
                 except (OSError, ValueError, KeyError):
                     return None  # a damaged cache entry is a miss, rewritten below
-                if geometry_id(mesh.vertices, mesh.triangles, mesh.normals) == mesh.geometry_id:
+                if geometry_id(mesh.vertices, mesh.triangles, mesh.normals, mesh.face_ids) == mesh.geometry_id:
                     self.memory[key] = mesh
                     return mesh
         return None
@@ -349,9 +395,10 @@ class TessellationCache:
         if self.directory is not None:
             self.directory.mkdir(parents=True, exist_ok=True)
             tmp = self.directory / f"{key}.tmp.npz"
+            extra: dict[str, Any] = {"face_ids": mesh.face_ids} if mesh.face_ids is not None else {}
             np.savez(tmp, vertices=mesh.vertices, triangles=mesh.triangles,
                      normals=mesh.normals if mesh.normals is not None else np.zeros((0, 3), np.float32),
-                     geometry_id=np.array(mesh.geometry_id), deflection=np.array(mesh.deflection))
+                     geometry_id=np.array(mesh.geometry_id), deflection=np.array(mesh.deflection), **extra)
             tmp.replace(self.directory / f"{key}.npz")
 
 

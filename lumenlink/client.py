@@ -237,15 +237,19 @@ class Client(ServiceClient):
         return list(self._call("GET", "/elements", "listing the element library"))
 
     def put_element(self, scene: str | dict, path_or_uuid: str, element: str | dict[str, Any], *,
-                    facing: Sequence[float] | None = None, faces: Sequence[int] | None = None) -> dict[str, Any]:
+                    facing: Sequence[float] | None = None, faces: Sequence[int] | None = None,
+                    model: str | None = None) -> dict[str, Any]:
         """Put an element (its library id, or a body, prepared first) onto the faces of a node that face `facing`
-        (its own frame), or onto its B-rep `faces`. Answers ``{id, body, orphaned, applied, problem, model}``."""
+        (its own frame), or onto its B-rep `faces`; `model` "exact" (default) or "bsdf" (its tabulated BSDF). Answers
+        ``{id, body, orphaned, applied, problem, model, support}``."""
         eid = element if isinstance(element, str) else self.add_element(element)["id"]
         body: dict[str, Any] = {"element": eid, "node": path_or_uuid}
         if facing is not None:
             body["facing"] = triples([list(facing)], "facing")[0]
         if faces is not None:
             body["faces"] = [int(f) for f in faces]
+        if model is not None:
+            body["model"] = model
         return dict(self._call("POST", f"/scenes/{self._sid(scene)}/elements", f"putting an element on "
                                                                               f"{path_or_uuid!r}", json=body))
 

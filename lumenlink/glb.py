@@ -9,6 +9,11 @@ length, exactly one primitive, whether it carries NORMAL) and the arrays through
 (`tracer.geometry_id.canonical_arrays`). Anything else raises `GlbError` (a ValueError) saying what is wrong;
 each side turns it into its own error (the service: 422). Imports nothing of ours but `tracer.geometry_id`
 (no numba), so the service and the adapter may both use it (tests/test_layout.py).
+
+B-rep face indices (which face of the part each triangle tessellates, `cad_adapter.tessellate`) travel as the vertex
+attribute ``_FEATURE_ID_0`` (float32, the feature-id attribute of glTF's EXT_mesh_features): the adapter's faces are
+not welded, so each vertex belongs to one face and a triangle's face is its vertices' (`decode_glb_faces`; all three
+must agree). A GLB without it is a mesh without face indices, as before they existed.
 """
 
 from __future__ import annotations
@@ -19,18 +24,19 @@ import struct
 
 import numpy as np
 
-from tracer.geometry_id import canonical_arrays
+from tracer.geometry_id import canonical_arrays, canonical_faces
 
 MEDIA_TYPE = "model/gltf-binary"
 _JSON_CHUNK = 0x4E4F534A
+FACE_ATTRIBUTE = "_FEATURE_ID_0"
 
 
 class GlbError(ValueError):
     """The bytes are not a geometry GLB (not glTF 2 binary, not exactly one triangle mesh, bad arrays)."""
 
 
-def _has_normals(data: bytes) -> bool:
-    """Whether the GLB's one mesh primitive carries a NORMAL attribute (read from its JSON chunk)."""
+def _attributes(data: bytes) -> dict:
+    """The attributes of the GLB's one mesh primitive (read from its JSON chunk)."""
     if len(data) < 20 or data[:4] != b"glTF":
         raise GlbError("the body is not a GLB file (it must start with the magic 'glTF')")
     version, length = struct.unpack_from("<II", data, 4)
@@ -49,7 +55,7 @@ def _has_normals(data: bytes) -> bool:
         raise GlbError(f"GLB JSON chunk is unreadable: {exc}") from exc
     if len(prims) != 1:
         raise GlbError(f"a geometry must be exactly one mesh primitive; the GLB has {len(prims)}")
-    return "NORMAL" in attributes
+    return dict(attributes)
 
 
 def decode_glb(data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
@@ -72,7 +78,15 @@ def decode_glb(data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         Not a glTF 2 binary, not exactly one triangle mesh, no triangles, or arrays that
         `canonical_arrays` refuses (shapes, non-finite values, indices out of range).
     """
-    has_normals = _has_normals(data)
+    v, f, n, _ = decode_glb_faces(data)
+    return v, f, n
+
+
+def decode_glb_faces(data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """`decode_glb` and the mesh's B-rep face indices: uint32 (m,), one per triangle, or None where the GLB carries
+    no ``_FEATURE_ID_0``. `GlbError` also where a triangle's vertices name different faces."""
+    attributes = _attributes(data)
+    has_normals = "NORMAL" in attributes
     import trimesh  # on first decode: neither side pays for it at start-up
 
     try:
@@ -93,4 +107,20 @@ def decode_glb(data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         raise GlbError(f"invalid mesh: {exc}") from exc
     if len(f) == 0:
         raise GlbError("invalid mesh: it has no triangles")
-    return v, f, n
+    faces = None
+    if FACE_ATTRIBUTE in attributes:
+        per_vertex = np.asarray(getattr(mesh, "vertex_attributes", {}).get(FACE_ATTRIBUTE, np.zeros(0)))
+        per_vertex = per_vertex.reshape(len(per_vertex), -1)[:, 0] if per_vertex.ndim > 1 else per_vertex
+        if per_vertex.shape != (len(v),):
+            raise GlbError(f"{FACE_ATTRIBUTE} must give one B-rep face index per vertex ({len(v)}), got "
+                           f"{per_vertex.shape}")
+        corners = per_vertex[f.astype(np.int64)]
+        if not (corners[:, 0] == corners[:, 1]).all() or not (corners[:, 0] == corners[:, 2]).all():
+            bad = int(np.flatnonzero((corners[:, 0] != corners[:, 1]) | (corners[:, 0] != corners[:, 2]))[0])
+            raise GlbError(f"{FACE_ATTRIBUTE}: triangle {bad}'s vertices name different B-rep faces "
+                           f"{corners[bad].tolist()}: a face index is one per triangle")
+        try:
+            faces = canonical_faces(corners[:, 0], len(f))
+        except ValueError as exc:
+            raise GlbError(f"{FACE_ATTRIBUTE}: {exc}") from exc
+    return v, f, n, faces

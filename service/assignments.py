@@ -76,6 +76,7 @@ class Assignments:
                 raise NotFound(f"no node or object {key} in scene {scene_id}", node=key)
             self.store.set_material(scene_id, state.version, key, clean)
             state.materials[key] = clean
+            self._retabulate(state)
             self.scenes.changed(state)
         return {"node": key, "material": clean, "orphaned": False}
 
@@ -86,7 +87,19 @@ class Assignments:
                 raise NotFound(f"no material assigned to {key} in scene {scene_id}")
             self.store.delete_material(scene_id, state.version, key)
             del state.materials[key]
+            self._retabulate(state)
             self.scenes.changed(state)
+
+    def _retabulate(self, state: SceneState) -> None:
+        """After a material change: elements used through their tabulated BSDF follow their part's ior (a table
+        for the new one, or not applied, saying why, where the part is no dielectric any more)."""
+        if any(b.get("model") == "bsdf" for b in state.elements.values()):
+            try:
+                element_sync(state, self.scenes.elements)
+                state.last_commit = self.scenes.commit(state)
+            except Exception:
+                self.scenes.forget(state.id)
+                raise
 
     def list_materials(self, scene_id: str) -> list[dict[str, Any]]:
         state = self.scenes.state(scene_id)

@@ -33,6 +33,7 @@ class ElementLibrary:
         self.engine = engine
         self.directory = directory
         self._models: dict[str, Any] = {}
+        self._tables: dict[tuple[str, float], Any] = {}
         self._lock = threading.Lock()
 
     def _file(self, eid: str) -> Path:
@@ -95,6 +96,30 @@ class ElementLibrary:
             self._models[eid] = model
         return model
 
+    def bsdf(self, eid: str, ior: float) -> Any:
+        """The element's tabulated BSDF on a solid of index `ior` (`tracer.elements.bsdf.tabulate`): computed once
+        from its exact model and kept beside it (``<id>.bsdf-<ior>.npz``), then read back, never computed again."""
+        from tracer.elements.bsdf import Table, tabulate
+
+        key = (eid, float(ior))
+        with self._lock:
+            if key in self._tables:
+                return self._tables[key]
+        path = self.directory / f"{eid}.bsdf-{float(ior)!r}.npz"
+        if path.exists():
+            with np.load(path) as arrays:
+                table = Table.from_arrays(arrays)
+        else:
+            table = tabulate(self.get(eid), float(ior))
+            self.directory.mkdir(parents=True, exist_ok=True)
+            tmp = self.directory / f".{eid}.bsdf.{os.getpid()}.{threading.get_ident()}.npz"
+            saved: dict[str, Any] = table.arrays()
+            np.savez(tmp, **saved)
+            os.replace(tmp, path)
+        with self._lock:
+            self._tables[key] = table
+        return table
+
     def loaded(self) -> set[str]:
         """Ids held in memory (what `get` will not read again)."""
         with self._lock:
@@ -120,6 +145,21 @@ def check_assignment(body: dict, library: ElementLibrary, state: Any) -> None:
                       node=body["node"])
 
 
+def _ior(state: Any, node: str) -> float | None:
+    """The index of the node's effective material (its own, else its nearest ancestor's) where it is a dielectric
+    with a number ior; None otherwise."""
+    tree = state.tree
+    u: str | None = node
+    while u is not None:
+        m = state.materials.get(u)
+        if m is not None:
+            ior = m.get("ior") if m.get("type") == "dielectric" else None
+            return float(ior) if isinstance(ior, int | float) and not isinstance(ior, bool) else None
+        i = tree.index.get(u)
+        u = tree.parents[i] if i is not None else None
+    return None
+
+
 def sync(state: Any, library: ElementLibrary) -> None:
     """Make the tracer scene's elements those of ``state.elements`` on the nodes present (call before commit):
     an element is put on where its node's instance does not carry it yet, taken off where it no longer applies.
@@ -139,27 +179,40 @@ def sync(state: Any, library: ElementLibrary) -> None:
     from tracer.elements import ElementError
 
     for aid, inst in want.items():
-        if state.element_instances.get(aid) == inst:
-            continue
         body = state.elements[aid]
+        ior = _ior(state, body["node"]) if body.get("model") == "bsdf" else None
+        if state.element_instances.get(aid) == inst and state.element_ior.get(aid) == ior:
+            continue
         try:
+            table = None
+            if body.get("model") == "bsdf":
+                if ior is None:
+                    raise ElementError("model: a tabulated BSDF ('bsdf') is computed for the part's material, which "
+                                       "must be a dielectric with a number ior: assign one first, or use 'exact'")
+                table = library.bsdf(body["element"], ior)
             state.tracer.set_element(inst, library.get(body["element"]), facing=body.get("facing"),
-                                     faces=body.get("faces"), mm_per_unit=mm)
+                                     faces=body.get("faces"), mm_per_unit=mm, table=table,
+                                     face_ids=state.face_ids.get(state.tracer.instance_geometry(inst)))
         except (ElementError, NotFound) as exc:
             state.element_problems[aid] = str(getattr(exc, "detail", exc))
+            if state.element_instances.pop(aid, None) is not None:
+                state.tracer.set_element(inst, None)
             continue
         state.element_instances[aid] = inst
+        state.element_ior[aid] = ior
         state.element_problems.pop(aid, None)
 
 
 def public(state: Any, aid: str, body: dict) -> dict[str, Any]:
     """An assignment as listed: its body, whether its node is gone, whether it is applied and if not why."""
+    inst = state.element_instances.get(aid)
     return {"id": aid, "body": body, "orphaned": not state.has_node(body["node"]),
-            "applied": aid in state.element_instances, "problem": state.element_problems.get(aid),
-            "model": "exact"}
+            "applied": inst is not None, "problem": state.element_problems.get(aid),
+            "model": body.get("model", "exact"),
+            "support": None if inst is None else state.tracer.element_support(inst)}
 
 
 def describe(state: Any) -> list[dict[str, Any]]:
     """The elements applied in the scene, as an answer names them: assignment id, element id, node, model."""
     return [{"id": aid, "element": state.elements[aid]["element"], "node": state.elements[aid]["node"],
-             "model": "exact"} for aid in sorted(state.element_instances)]
+             "model": state.elements[aid].get("model", "exact")} for aid in sorted(state.element_instances)]

@@ -2,7 +2,8 @@
 
 An uploaded mesh is kept twice under ``<data_dir>/meshes/``: the GLB exactly as received
 (``<gid>.glb``, served back by ``GET /geometries/{gid}``) and its canonical arrays
-(``<gid>.npz``: float32 vertices, uint32 triangles, optional float32 normals) that the service
+(``<gid>.npz``: float32 vertices, uint32 triangles, optional float32 normals, optional uint32 B-rep face indices,
+one per triangle, where the adapter sent them: `lumenlink.glb`) that the service
 loads into `tracer.Scene` without decoding glTF again. File names are built only from ids that
 passed `tracer.geometry_id.is_geometry_id` (64 lowercase hex characters), so no path can escape
 the directory. Files are written to a temporary name and renamed: a reader never sees half a file.
@@ -25,11 +26,13 @@ from tracer.geometry_id import hash_canonical, is_geometry_id
 
 @dataclass
 class Mesh:
-    """Canonical arrays of one geometry: (n,3) float32, (m,3) uint32, (n,3) float32 or None."""
+    """Canonical arrays of one geometry: (n,3) float32, (m,3) uint32, (n,3) float32 or None, and each triangle's
+    B-rep face index (m,) uint32 or None."""
 
     vertices: np.ndarray
     triangles: np.ndarray
     normals: np.ndarray | None
+    face_ids: np.ndarray | None = None
 
 
 def check_id(gid: str) -> str:
@@ -44,10 +47,10 @@ def decode_glb(data: bytes) -> Mesh:
     """Decode a one-mesh GLB into canonical arrays (`lumenlink.glb.decode_glb`, the one decoder both sides use);
     Invalid (422) for anything that is not a valid mesh."""
     try:
-        v, f, n = glb.decode_glb(data)
+        v, f, n, faces = glb.decode_glb_faces(data)
     except glb.GlbError as exc:
         raise Invalid(str(exc)) from exc
-    return Mesh(v, f, n)
+    return Mesh(v, f, n, faces)
 
 
 class MeshStore:
@@ -72,14 +75,14 @@ class MeshStore:
         again (`Scenes.ensure_geometry` gives the tracer their id)."""
         check_id(gid)
         mesh = decode_glb(data)
-        full = hash_canonical(mesh.vertices, mesh.triangles, mesh.normals)
+        full = hash_canonical(mesh.vertices, mesh.triangles, mesh.normals, mesh.face_ids)
         if full == gid:
             return mesh
         if mesh.normals is None:
             raise BadRequest(f"the mesh does not hash to the id in the URL: it hashes to {full}", actual=full)
-        plain = hash_canonical(mesh.vertices, mesh.triangles, None)
+        plain = hash_canonical(mesh.vertices, mesh.triangles, None, mesh.face_ids)
         if plain == gid:
-            return Mesh(mesh.vertices, mesh.triangles, None)
+            return Mesh(mesh.vertices, mesh.triangles, None, mesh.face_ids)
         raise BadRequest(f"the mesh does not hash to the id in the URL: it hashes to {full} (with its normals), "
                          f"{plain} (without)", actual=plain)
 
@@ -89,6 +92,8 @@ class MeshStore:
         arrays = {"vertices": mesh.vertices, "triangles": mesh.triangles}
         if mesh.normals is not None:
             arrays["normals"] = mesh.normals
+        if mesh.face_ids is not None:
+            arrays["face_ids"] = mesh.face_ids
         np.savez(buf, **arrays)  # type: ignore[arg-type]
         self._atomic_write(self._path(gid, ".glb"), data)
         self._atomic_write(self._path(gid, ".npz"), buf.getvalue())
@@ -116,4 +121,5 @@ class MeshStore:
             raise NotFound(f"no geometry {gid}")
         with np.load(path) as z:
             normals = z["normals"] if "normals" in z.files else None
-            return Mesh(z["vertices"], z["triangles"], normals)
+            faces = z["face_ids"] if "face_ids" in z.files else None
+            return Mesh(z["vertices"], z["triangles"], normals, faces)

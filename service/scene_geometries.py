@@ -51,7 +51,8 @@ class SceneGeometries:
             self.store.add_geometry(gid, len(mesh.vertices), len(mesh.triangles), mesh.normals is not None, len(data))
             self.known_geometries.add(gid)
         return {"id": gid, "vertices": len(mesh.vertices), "triangles": len(mesh.triangles),
-                "normals": mesh.normals is not None, "bytes": len(data), "created": created}
+                "normals": mesh.normals is not None, "faces": mesh.face_ids is not None, "bytes": len(data),
+                "created": created}
 
     def geometry_glb(self, gid: str) -> bytes:
         self._look_up_geometries([gid])
@@ -72,4 +73,6 @@ class SceneGeometries:
         # the store holds only meshes whose id was checked on upload (one hash per mesh): not hashed again here
         state.tracer.add_geometry(mesh.vertices, mesh.triangles, mesh.normals, known_id=gid)
         state.geometries.add(gid)
+        if mesh.face_ids is not None:   # what an element assignment by B-rep `faces` selects from
+            state.face_ids[gid] = mesh.face_ids
         return True

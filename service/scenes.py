@@ -62,6 +62,7 @@ class SceneState:
     instances: dict[str, int] = field(default_factory=dict)  # document node uuid -> instance
     object_instances: dict[str, int] = field(default_factory=dict)  # sim object id -> instance
     geometries: set[str] = field(default_factory=set)  # geometry ids added to `tracer`
+    face_ids: dict[str, Any] = field(default_factory=dict)  # geometry id -> its triangles' B-rep face indices
     materials: dict[str, dict] = field(default_factory=dict)  # node uuid / object id -> material body
     lights: dict[str, dict] = field(default_factory=dict)  # id -> body as given
     sensors: dict[str, dict] = field(default_factory=dict)
@@ -69,6 +70,7 @@ class SceneState:
     elements: dict[str, dict] = field(default_factory=dict)  # element assignment id -> body
     element_instances: dict[str, int] = field(default_factory=dict)  # element assignment id -> instance carrying it
     element_problems: dict[str, str] = field(default_factory=dict)  # element assignment id -> why it is not applied
+    element_ior: dict[str, Any] = field(default_factory=dict)  # element assignment id -> its BSDF table's ior
     last_commit: dict[str, Any] = field(default_factory=dict)
     node_bytes: NodeBytes | None = None  # where each node sits in the body that made `tree` (row i = chunk i)
     identity: dict[str, IdentityIn] = field(default_factory=dict)  # node uuid -> its identity record, as stored

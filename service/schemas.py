@@ -303,6 +303,8 @@ class GeometryPublic(Wire):
     vertices: int = Field(description="Vertices of the mesh.")
     triangles: int = Field(description="Triangles of the mesh.")
     normals: bool = Field(description="Whether the GLB carries vertex normals.")
+    faces: bool = Field(False, description="Whether the GLB carries each triangle's B-rep face index "
+                                           "(_FEATURE_ID_0; what an element assignment's `faces` selects).")
     bytes: int = Field(description="Size of the GLB, bytes.")
     created: bool = Field(description="False when the mesh was already stored (an idempotent upload).")
 

@@ -2,8 +2,10 @@
 
 The id is the lowercase hex SHA-256 of ``b"lumenlink-mesh-v1\\0"``, ``struct.pack("<II", n, m)``,
 the vertices as little-endian float32 (n×3, C order), the triangle indices as little-endian
-uint32 (m×3) and, only where the mesh has vertex normals, the normals as little-endian float32.
-The same tessellation gives the same id in the adapter, the service and the tracer.
+uint32 (m×3), only where the mesh has vertex normals, the normals as little-endian float32 and, only where it
+carries B-rep face indices (the adapter's, one per triangle), ``b"faces\\0"`` then those indices as little-endian
+uint32 (m). A mesh without face indices hashes as before they existed. The same tessellation gives the same id in
+the adapter, the service and the tracer.
 """
 
 from __future__ import annotations
@@ -54,19 +56,46 @@ def canonical_arrays(
     return np.ascontiguousarray(v32), np.ascontiguousarray(f.astype("<u4")), n32
 
 
-def geometry_id(vertices: np.ndarray, triangles: np.ndarray, normals: np.ndarray | None = None) -> str:
-    """Lowercase hex SHA-256 content hash of a mesh, as DESIGN.md defines it."""
-    return hash_canonical(*canonical_arrays(vertices, triangles, normals))
+FACES = b"faces\0"
+MAX_FACE_INDEX = 2 ** 24 - 1   # a face index travels in a GLB as float32 (`lumenlink.glb`): exact up to 2^24
 
 
-def hash_canonical(v: np.ndarray, f: np.ndarray, n: np.ndarray | None) -> str:
-    """The id of arrays that `canonical_arrays` already returned (no second validation on a hot path)."""
+def canonical_faces(face_ids: np.ndarray | None, m: int) -> np.ndarray | None:
+    """B-rep face indices as hashed: uint32 (m,), one per triangle, in [0, 2^24); None stays None.
+
+    Raises ValueError for a wrong length, non-integers or indices out of range."""
+    if face_ids is None:
+        return None
+    a = np.asarray(face_ids)
+    if a.shape != (m,):
+        raise ValueError(f"face_ids must give one B-rep face index per triangle ({m}), got shape {a.shape}")
+    if a.size and not np.issubdtype(a.dtype, np.integer):
+        if not (np.issubdtype(a.dtype, np.floating) and np.isfinite(a).all() and (a == np.round(a)).all()):
+            raise ValueError("face_ids must be integers (B-rep face indices)")
+    if a.size and (a.min() < 0 or a.max() > MAX_FACE_INDEX):
+        raise ValueError(f"face_ids must lie in [0, {MAX_FACE_INDEX}], found {a.min():g}..{a.max():g}")
+    return np.ascontiguousarray(a.astype("<u4"))
+
+
+def geometry_id(vertices: np.ndarray, triangles: np.ndarray, normals: np.ndarray | None = None,
+                face_ids: np.ndarray | None = None) -> str:
+    """Lowercase hex SHA-256 content hash of a mesh, as DESIGN.md defines it (face indices where it has them)."""
+    v, f, n = canonical_arrays(vertices, triangles, normals)
+    return hash_canonical(v, f, n, canonical_faces(face_ids, len(f)))
+
+
+def hash_canonical(v: np.ndarray, f: np.ndarray, n: np.ndarray | None, faces: np.ndarray | None = None) -> str:
+    """The id of arrays that `canonical_arrays` (and `canonical_faces`) already returned (no second validation on a
+    hot path)."""
     h = hashlib.sha256(PREFIX)
     h.update(struct.pack("<II", len(v), len(f)))
     h.update(v.tobytes())
     h.update(f.tobytes())
     if n is not None:
         h.update(n.tobytes())
+    if faces is not None:
+        h.update(FACES)
+        h.update(faces.tobytes())
     return h.hexdigest()
 
 

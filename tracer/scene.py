@@ -300,18 +300,30 @@ class Scene(SceneQueries):
         return int(self._kind[self._instance(i)]) in SENSOR_KINDS
 
     def set_element(self, i: int, element: Microstructure | None, *, facing: Any = None, faces: Any = None,
-                    face_ids: Any = None, mm_per_unit: float = 1000.0) -> None:
+                    face_ids: Any = None, mm_per_unit: float = 1000.0, table: Any = None) -> None:
         """Put `element` onto the planar support of mesh instance `i` (`tracer.elements.support.select`: the triangles
         `facing` a direction of its frame, or the B-rep `faces` given each triangle's `face_ids`), or take it off
-        (None). Its instance id, transform and material stay; `mm_per_unit`: millimetres per object unit."""
+        (None). Its instance id, transform and material stay; `mm_per_unit`: millimetres per object unit. With `table`
+        (`tracer.elements.bsdf.tabulate` of the element on the part's material) the element is used through its
+        tabulated BSDF: the plain support, whose hits scatter by the table, instead of its micro-geometry."""
         i = self._instance(i)
         if int(self._kind[i]) not in (mesh.KIND, relief.KIND):
             raise ElementError(f"instance {i} is not a part (a sensor cannot carry an element)")
         full = self._reliefs.full_of(i, self._blas.ids[int(self._igeom[i])])
         kind, rest, box = self._reliefs.put(i, element, full, self._geometry(full), self.add_geometry, facing=facing,
-                                            faces=faces, face_ids=face_ids, mm_per_unit=mm_per_unit)
+                                            faces=faces, face_ids=face_ids, mm_per_unit=mm_per_unit, table=table)
         self._kind[i], self._igeom[i], self._obox[i] = kind, self._geometry(rest).index, box
         self._touch(i, structural=True)
+
+    def element_support(self, i: int) -> dict[str, Any] | None:
+        """What carries instance `i`'s element: ``{"triangles": n, "size_mm": [lu, lv], "normal": [x, y, z]}`` (its
+        support's triangles of the part, its extent along u and v, its outward normal in the part's frame); None
+        where the instance carries none."""
+        row = self._reliefs.rows.get(self._instance(i))
+        if row is None:
+            return None
+        return {"triangles": int(len(row.support_prims)), "size_mm": [row.frame.lu, row.frame.lv],
+                "normal": [float(x) for x in row.frame.n]}
 
     # ---------------------------------------------------------------- shapes (sensors)
     def add_shape(self, kind: str, *placement: Any) -> int:

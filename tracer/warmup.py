@@ -105,7 +105,8 @@ def forward_callees() -> list[tuple[Any, tuple]]:
     sample = (t["lights"], i8, *[f8] * 5)
     own = [(kind.scatter, scatter) for kind in surfaces.KINDS]
     own += [(kind.sample, sample) for kind in lights.KINDS]
-    own += [(media.medium_coefficients, (mats, i8, f8)), (media.medium_event, (mats, i8, *[f8] * 6, u8, i8, vf)),
+    own += [(surfaces.bsdf_scatter, (sa, i8, i8, f8, f8, f8, vi, i8, u8, i8, vf)),   # an element's table
+            (media.medium_coefficients, (mats, i8, f8)), (media.medium_event, (mats, i8, *[f8] * 6, u8, i8, vf)),
             (homogeneous.sample_free_flight, (f8, f8)), (homogeneous.transmittance, (f8, f8)),
             (spectra.sample_grid, (vf, vf, f8)), (spectra.luminous, (f8,)), (frames.find_in_cdf, (vf, i8, i8, f8)),
             (polarization.emit, (vf, mf, i8, f8, f8, f8)),

@@ -10,7 +10,7 @@ is not planar.
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Body, Path, Response
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -65,7 +65,13 @@ class ElementAssign(BaseModel):
                                        description="a direction in the node's frame: its triangles facing it "
                                                    "(within 1 degree) carry the element; they must be one plane")
     faces: list[int] | None = Field(default=None, min_length=1, description=(
-        "B-rep face indices, where the part's mesh carries them (not yet pushed by the adapter: use facing)"))
+        "B-rep face indices (the adapter pushes each triangle's face; cad_adapter.tessellate.face_table lists "
+        "them): those faces' triangles carry the element, whatever tolerance the part was tessellated with"))
+
+    model: Literal["exact", "bsdf"] | None = Field(default=None, description=(
+        "'exact' (default): its micro-geometry traced; 'bsdf': its tabulated BSDF (in and out direction bins, "
+        "computed once from the exact model for the part's dielectric ior and kept in the library beside it); "
+        "periodic layouts (grid, hex)"))
 
     @model_validator(mode="after")
     def _one_support(self) -> ElementAssign:
@@ -82,7 +88,11 @@ class ElementAssignment(BaseModel):
     applied: bool = Field(description="the part carries it now")
     problem: str | None = Field(description="why it is not applied, where it is not (its node gone, or a push left "
                                             "the support unusable)")
-    model: str = Field(description="the element's model answers use: 'exact' (its micro-geometry traced)")
+    model: str = Field(description="the element's model answers use: 'exact' (its micro-geometry traced) or "
+                                   "'bsdf' (its tabulated BSDF)")
+    support: dict[str, Any] | None = Field(None, description=(
+        "what carries it, where applied: the part's triangles selected, the support's size along u and v (mm) and "
+        "its outward normal in the node's frame"))
 
 
 @router.post("/elements", status_code=201, response_model=ElementSummary,

@@ -14,7 +14,7 @@ import cad_adapter
 from cad_adapter import cli
 from cad_adapter.client import Pusher
 from cad_adapter.errors import PushError, RevisionConflict, ServiceUnavailable
-from cad_adapter.glb import decode_glb
+from cad_adapter.glb import decode_glb_faces
 from cad_adapter.step_uuid import write_step
 from tests.hash_counting import counted_geometry_hashes
 from tracer.geometry_id import geometry_id
@@ -47,7 +47,7 @@ class FakeService:
         m = re.fullmatch(r"/geometries/([0-9a-f]{64})", path)
         if m and method == "PUT":
             assert request.headers["content-type"] == "model/gltf-binary"
-            if self.check_ids and geometry_id(*decode_glb(request.content)) != m.group(1):
+            if self.check_ids and geometry_id(*decode_glb_faces(request.content)) != m.group(1):
                 return httpx.Response(400, json={"title": "Bad Request", "detail": "hash mismatch"})
             self.meshes.add(m.group(1))
             return httpx.Response(201, json={"id": m.group(1)})

@@ -10,7 +10,7 @@ from cad_helpers import AS1, COARSE, S1C5, STAMP, car, needs_fixtures
 
 import cad_adapter
 from cad_adapter.errors import CadAdapterError
-from cad_adapter.glb import decode_glb, encode_glb
+from cad_adapter.glb import decode_glb, decode_glb_faces, encode_glb
 from tracer.geometry_id import geometry_id
 
 HAVE_SCHEMA = importlib.util.find_spec("service.schemas") is not None
@@ -21,7 +21,7 @@ def service_decode(data: bytes):
     from service.meshes import decode_glb as svc
 
     m = svc(data)
-    return m.vertices, m.triangles, m.normals
+    return m.vertices, m.triangles, m.normals, m.face_ids
 
 
 @needs_fixtures
@@ -29,7 +29,7 @@ def service_decode(data: bytes):
 def test_glb_round_trip_keeps_the_geometry_id(path) -> None:
     doc = cad_adapter.read_document(path, write_sidecar=False)
     t = cad_adapter.tessellate(doc, linear=0.5, angular=0.8)
-    decoders = [decode_glb]
+    decoders = [decode_glb_faces]
     try:  # the service's own decoder, when the service (and the tracer it imports) is importable
         import service.meshes  # noqa: F401
 
@@ -37,12 +37,13 @@ def test_glb_round_trip_keeps_the_geometry_id(path) -> None:
     except ImportError:
         pass
     for mesh in t.meshes.values():
-        data = encode_glb(mesh.vertices, mesh.triangles, mesh.normals)
+        data = encode_glb(mesh.vertices, mesh.triangles, mesh.normals, mesh.face_ids)
         for decode in decoders:
-            v, f, n = decode(data)
+            v, f, n, faces = decode(data)
             assert v.tobytes() == mesh.vertices.tobytes() and f.tobytes() == mesh.triangles.tobytes()
             assert n is not None and n.tobytes() == mesh.normals.tobytes()
-            assert geometry_id(v, f, n) == mesh.geometry_id
+            assert faces is not None and faces.tobytes() == mesh.face_ids.tobytes()
+            assert geometry_id(v, f, n, faces) == mesh.geometry_id
 
 
 def test_glb_without_normals(rng) -> None:

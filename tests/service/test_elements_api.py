@@ -123,6 +123,11 @@ def test_an_element_outlives_a_restart_loaded_from_the_library_not_prepared_agai
      "outside [0, 1]"),
     ({**DOTS, "feature": {"shape": "dome", "radius_mm": 0.3}}, "missing field(s) ['height_mm']"),
     ([1, 2], "body: Input should be a valid dictionary"),
+    ({**DOTS, "feature": {"shape": "corner_cube", "side_mm": -1}}, "feature.side_mm must be > 0"),
+    ({**DOTS, "feature": {"shape": "corner_cube", "side_mm": 1.0, "apex_deg": 90}}, "feature: unknown field(s)"),
+    ({**DOTS, "material": {"type": "lambertian", "reflectance": 1.5}}, "material.reflectance must be >= 0"),
+    ({**DOTS, "material": {"type": "dielectric", "ior": 1.5}}, "material.type 'dielectric' is not a feature"),
+    ({**DOTS, "material": {"type": "lambertian"}}, "material: missing field(s) ['reflectance']"),
 ])
 def test_a_bad_element_body_is_a_422_naming_the_field_and_the_library_is_unchanged(
         client: Any, body: Any, words: str) -> None:

@@ -65,7 +65,9 @@ class SceneArrays(NamedTuple):
     Elements with an inside (:mod:`tracer.kinds.relief`, packed by :mod:`tracer.elements.support`): ``inst_aux``
     (I,) i4 — an instance's row in them (-1: none); per row ``el_f`` (R, NF) f8 and ``el_i`` (R, NI) i8 (the columns
     of :mod:`tracer.elements.features`); shared tables ``el_prim`` i4 (triangle maps), ``el_bits`` u1 (kept lattice
-    sites), ``el_uv`` (P, 2) f4 (listed feature centres, mm), ``el_bin`` i4 and ``el_item`` i4 (their cells).
+    sites), ``el_uv`` (P, 2) f4 (listed feature centres, mm), ``el_bin`` i4 and ``el_item`` i4 (their cells),
+    ``el_tab`` (T, B) f8 (the rows of the tabulated BSDFs of elements used through their ``bsdf`` model:
+    :mod:`tracer.elements.bsdf`).
     """
 
     bvh_f: np.ndarray
@@ -97,6 +99,7 @@ class SceneArrays(NamedTuple):
     el_uv: np.ndarray
     el_bin: np.ndarray
     el_item: np.ndarray
+    el_tab: np.ndarray
 
 
 #: dtype and dimensions of each :class:`SceneArrays` field, as :class:`tracer.Scene` packs them
@@ -108,7 +111,8 @@ SCENE_ARRAY_TYPES = {"bvh_f": ("f4", 1), "bvh_i": ("i4", 1), "tri_v": ("f4", 1),
                      "top_f": ("f4", 1), "top_i": ("i4", 1), "top_items": ("i4", 1), "top_rec": ("i8", 1),
                      "sen_f": ("f4", 1), "sen_i": ("i4", 1), "sen_items": ("i4", 1), "inst_aux": ("i4", 1),
                      "el_f": ("f8", 2), "el_i": ("i8", 2), "el_prim": ("i4", 1), "el_bits": ("u1", 1),
-                     "el_uv": ("f4", 2), "el_bin": ("i4", 1), "el_item": ("i4", 1)}
+                     "el_uv": ("f4", 2), "el_bin": ("i4", 1), "el_item": ("i4", 1),
+                     "el_tab": ("f8", 2)}
 
 
 def empty_scene_arrays() -> SceneArrays:

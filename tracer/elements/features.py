@@ -7,7 +7,12 @@ it), between ``w' = 0`` and its height ``h``:
 
 - dome: the cap of the sphere of radius ``rs = (a^2 + h^2) / 2h`` centred at ``w' = h - rs`` (base radius ``a``);
 - pyramid: ``|u - cu| + slope w' <= a`` and ``|v - cv| + slope w' <= a`` (``slope = a / h``, square base ``2a``);
-- prism: ``|u - cu| + slope w' <= a``, a ridge along v across the whole support.
+- prism: ``|u - cu| + slope w' <= a``, a ridge along v across the whole support;
+- corner cube: three mutually perpendicular faces meeting at the apex ``w' = h`` above the centre, its axis along
+  w: ``d_k . (q - c) + w' / sqrt(2) <= h / sqrt(2)`` for the three unit directions ``d_k`` of the plane at -90, 30
+  and 150 degrees from u (each face's normal is ``(sqrt(2/3) d_k, 1/sqrt(3))``, so the three are orthogonal); its
+  base an equilateral triangle of side ``s`` (a vertex towards +v), inradius ``ri = h / sqrt(2)``, circumradius
+  ``a = 2 ri``, ``h = s / sqrt(6)`` (the "triangular" corner cube of Eckhardt, Appl. Opt. 10, 1559 (1971)).
 
 The relief's surface is the support plane outside the features' bases plus each ``K``'s boundary above the plane;
 the base is no surface (the same material goes on across it for a bump, air for a pit). A ray meets a feature where
@@ -32,7 +37,9 @@ import numpy as np
 
 from tracer.jit import njit
 
-DOME, PYRAMID, PRISM = 0, 1, 2
+DOME, PYRAMID, PRISM, CORNER = 0, 1, 2, 3
+S2 = math.sqrt(2.0)
+C30 = math.sqrt(3.0) / 2.0
 GRID, HEX, DENSITY, POINTS = 0, 1, 2, 3
 
 # el_f columns (float64): the frame in object space, the scale, the support, the feature, the layout
@@ -43,14 +50,19 @@ A, H, RS, SLOPE = 15, 16, 17, 18          # half base (radius), height, sphere r
 CU, CV = 19, 20                           # the layout's cell size, mm
 ORG_U, ORG_V = 21, 22                     # the layout's first cell corner, mm
 SIGN = 23                                 # +1 bump, -1 pit
-NF = 24
+FMAT, FRHO = 24, 25                       # the features' own surface (-1: the part's material; 0 black;
+                                          # 1 Lambertian of reflectance FRHO)
+NF = 26
+MAT_PART, MAT_BLACK, MAT_LAMBERTIAN = -1, 0, 1
 # el_i columns (int64)
 SHAPE, LAYOUT, NU, NV = 0, 1, 2, 3        # feature shape, layout kind, cells along u and v
 GEOM_S = 4                                # the support's own geometry (bottom level) in the store
 MAP_A, MAP_S, MAP_INV = 5, 6, 7           # offsets in el_prim: rest -> part, support -> part, part -> either
 BITS, UV, BINS = 8, 9, 10                 # offsets in el_bits (bytes), el_uv (rows), el_bin (starts)
 ITEMS = 11                                # offset in el_item
-NI = 12
+MODEL, TAB, TAB_MU, TAB_PHI = 12, 13, 14, 15   # 0 exact, 1 bsdf: its table's first row in el_tab, its bins
+NI = 16
+EXACT, BSDF = 0, 1
 
 NEAR = 1.0e300
 
@@ -113,6 +125,11 @@ def cross_feature(shape, a, h, rs, slope, cu, cv, ou, ov, ow, du, dv, dw, t_lo, 
         r1 = c / q
         lo = min(r0, r1)
         hi = max(r0, r1)
+    elif shape == CORNER:
+        c = h / S2   # rs holds the inradius h / sqrt(2)
+        lo, hi, a0, b0 = _half(0.0, -1.0, 1.0 / S2, -cv + c, ou, ov, ow, du, dv, dw, lo, hi)
+        lo, hi, a1, b1 = _half(C30, 0.5, 1.0 / S2, C30 * cu + 0.5 * cv + c, ou, ov, ow, du, dv, dw, lo, hi)
+        lo, hi, a2, b2 = _half(-C30, 0.5, 1.0 / S2, -C30 * cu + 0.5 * cv + c, ou, ov, ow, du, dv, dw, lo, hi)
     else:
         lo, hi, a0, b0 = _half(1.0, 0.0, slope, a + cu, ou, ov, ow, du, dv, dw, lo, hi)
         lo, hi, a1, b1 = _half(-1.0, 0.0, slope, a - cu, ou, ov, ow, du, dv, dw, lo, hi)
@@ -140,6 +157,9 @@ def covers(shape, a, cu, cv, pu, pv):
         return du * du + dv * dv <= a * a
     if shape == PYRAMID:
         return abs(du) <= a and abs(dv) <= a
+    if shape == CORNER:
+        ri = 0.5 * a
+        return -dv <= ri and C30 * du + 0.5 * dv <= ri and -C30 * du + 0.5 * dv <= ri
     return abs(du) <= a
 
 
@@ -286,6 +306,19 @@ def surface(F, I, uv, f, hu, hv):
         ku = du / rs
         kv = dv / rs
         kw = (wk - (h - rs)) / rs
+    elif shape == CORNER:
+        p0 = -dv
+        p1 = C30 * du + 0.5 * dv
+        p2 = -C30 * du + 0.5 * dv
+        s23 = math.sqrt(2.0 / 3.0)
+        if p0 >= p1 and p0 >= p2:
+            top, ku, kv = p0, 0.0, -s23
+        elif p1 >= p2:
+            top, ku, kv = p1, s23 * C30, s23 * 0.5
+        else:
+            top, ku, kv = p2, -s23 * C30, s23 * 0.5
+        wk = h - S2 * top
+        kw = 1.0 / math.sqrt(3.0)
     else:
         slope = F[SLOPE]
         norm = math.sqrt(1.0 + slope * slope)

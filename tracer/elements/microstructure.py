@@ -6,7 +6,12 @@ The body (DESIGN.md "Optical elements with an inside"; lengths in mm, on the sup
      "feature": {"shape": "dome", "radius_mm": r, "height_mm": h}          (a spherical cap, h <= r)
               | {"shape": "pyramid", "base_mm": b, "height_mm": h}         (square base, sides along u and v)
               | {"shape": "prism", "base_mm": b, "apex_deg": 90},          (a ridge along v; layout grid only)
-     "relief": "bump" | "pit",  "material": null,
+              | {"shape": "corner_cube", "side_mm": s},                    (three perpendicular faces meeting at
+                                   the apex, axis along the normal, over an equilateral triangle of side s with a
+                                   vertex towards +v; height s / sqrt(6): a retroreflector)
+     "relief": "bump" | "pit",
+     "material": null                                              (the features take the part's own material)
+               | {"type": "lambertian", "reflectance": r} | {"type": "black"},   (their own surface: a printed dot)
      "layout": {"type": "grid", "pitch_mm": [pu, pv]} | {"type": "hex", "pitch_mm": p}         (domes)
              | {"type": "density", "origin_mm": [u0, v0], "size_mm": [su, sv], "fill": [[...], ...], "seed": 1,
                 "pitch_mm": p}        (a lattice of pitch p, default the feature's base; each site kept with the
@@ -22,6 +27,7 @@ the count), one bit per lattice site for a density map, 12 to 20 bytes per liste
 from __future__ import annotations
 
 import hashlib
+import itertools
 import json
 import math
 import time
@@ -33,7 +39,8 @@ import numpy as np
 from tracer.elements import features as fx
 from tracer.errors import TracerError
 
-SHAPES = {"dome": fx.DOME, "pyramid": fx.PYRAMID, "prism": fx.PRISM}
+SHAPES = {"dome": fx.DOME, "pyramid": fx.PYRAMID, "prism": fx.PRISM, "corner_cube": fx.CORNER}
+FEATURE_MATERIALS = ("lambertian", "black")
 LAYOUTS = {"grid": fx.GRID, "hex": fx.HEX, "density": fx.DENSITY, "points": fx.POINTS}
 MAX_SITES = 4_000_000_000     # a density lattice's sites (one bit each: 500 MB)
 MAX_POINTS = 20_000_000       # listed features
@@ -49,7 +56,9 @@ class Microstructure:
     """A prepared micro-structured face. Lengths in mm.
 
     ``a``: the feature's half base (a dome's base radius); ``h`` its height; ``rs`` a dome's sphere radius;
-    ``sign`` +1 for a bump, -1 for a pit; ``cell`` the layout's cell (mm, (2,)), ``origin`` its first corner (mm);
+    ``sign`` +1 for a bump, -1 for a pit (a corner cube: ``a`` its circumradius, ``rs`` its inradius);
+    ``material`` the features' own surface (`features.MAT_PART`: the part's; `MAT_BLACK`, `MAT_LAMBERTIAN`) and
+    ``reflectance`` its reflectance; ``cell`` the layout's cell (mm, (2,)), ``origin`` its first corner (mm);
     ``cells`` (nu, nv) for the listed layouts (zero: the periodic ones, counted on their support);
     ``bits`` (uint8) the kept lattice sites of a density map; ``uv`` (P, 2) float32 listed centres with ``bins``
     (int32 starts, nu nv + 1) and ``items`` (int32) their ids by cell.
@@ -72,6 +81,8 @@ class Microstructure:
     items: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
     features: int | None = None      # None: periodic, as many as its support holds
     prepare_seconds: float = 0.0
+    material: int = fx.MAT_PART
+    reflectance: float = 0.0
 
     @property
     def nbytes(self) -> int:
@@ -88,9 +99,9 @@ class Microstructure:
         return {"body": np.frombuffer(json.dumps(self.body, sort_keys=True).encode(), np.uint8),
                 "bits": self.bits, "uv": self.uv, "bins": self.bins, "items": self.items,
                 "params": np.array([self.a, self.h, self.rs, self.sign, *self.cell, *self.origin,
-                                    self.prepare_seconds]),
-                "ints": np.array([self.shape, self.layout, *self.cells, -1 if self.features is None else self.features],
-                                 np.int64)}
+                                    self.prepare_seconds, self.reflectance]),
+                "ints": np.array([self.shape, self.layout, *self.cells, -1 if self.features is None else self.features,
+                                  self.material], np.int64)}
 
     @classmethod
     def from_arrays(cls, arrays: Any) -> Microstructure:
@@ -102,12 +113,39 @@ class Microstructure:
                    (float(p[4]), float(p[5])), (float(p[6]), float(p[7])), (ints[2], ints[3]),
                    np.asarray(arrays["bits"], np.uint8), np.asarray(arrays["uv"], np.float32),
                    np.asarray(arrays["bins"], np.int32), np.asarray(arrays["items"], np.int32),
-                   None if ints[4] < 0 else ints[4], float(p[8]))
+                   None if ints[4] < 0 else ints[4], float(p[8]),
+                   ints[5] if len(ints) > 5 else fx.MAT_PART, float(p[9]) if len(p) > 9 else 0.0)
 
 
-def element_id(body: dict) -> str:
-    """The id of a checked body: SHA-256 of its canonical JSON (the same body, the same id)."""
+def element_id(body: dict, uv: np.ndarray | None = None) -> str:
+    """The id of a checked body: SHA-256 of its canonical JSON (the same body, the same id). A point list enters it
+    as the SHA-256 of its centres as little-endian float64 (`uv`, (P, 2), where the caller has them): formatting 10^6
+    points as JSON took longer than preparing them."""
+    layout = body.get("layout")
+    if isinstance(layout, dict) and layout.get("type") == "points":
+        pts = _uv_array(layout["uv_mm"]) if uv is None else uv
+        digest = hashlib.sha256(np.ascontiguousarray(pts, "<f8").tobytes()).hexdigest()
+        body = {**body, "layout": {**layout, "uv_mm": {"float64_sha256": digest, "count": len(pts)}}}
     return hashlib.sha256(json.dumps(body, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+
+def _uv_array(x: Any) -> np.ndarray:
+    """Listed centres as float64 (P, 2): from a list of [u, v] pairs (read flat, without a Python float per element
+    kept) or an array. `ElementError` where they are not pairs of numbers."""
+    if isinstance(x, np.ndarray):
+        uv = x.astype(np.float64, copy=False)
+    elif isinstance(x, list | tuple):
+        try:
+            if any(len(p) != 2 for p in x):
+                raise TypeError
+            uv = np.fromiter(itertools.chain.from_iterable(x), np.float64, count=2 * len(x)).reshape(-1, 2)
+        except (TypeError, ValueError):
+            raise ElementError("layout.uv_mm must be a list of [u, v] pairs in mm") from None
+    else:
+        raise ElementError("layout.uv_mm must be a list of [u, v] pairs in mm")
+    if uv.ndim != 2 or uv.shape[1:] != (2,) or len(uv) == 0:
+        raise ElementError(f"layout.uv_mm must be a non-empty list of [u, v] pairs in mm, got shape {uv.shape}")
+    return uv
 
 
 def _number(x: Any, where: str, *, lo: float = 0.0, lo_open: bool = True, hi: float = math.inf) -> float:
@@ -154,6 +192,11 @@ def _feature(f: Any) -> tuple[dict, int, float, float, float]:
         b = _number(f["base_mm"], "feature.base_mm")
         h = _number(f["height_mm"], "feature.height_mm")
         return {"shape": shape, "base_mm": b, "height_mm": h}, fx.PYRAMID, b / 2.0, h, 0.0
+    if shape == "corner_cube":
+        _fields(f, "feature", {"shape", "side_mm"}, set())
+        side = _number(f["side_mm"], "feature.side_mm")
+        return ({"shape": shape, "side_mm": side}, fx.CORNER, side / math.sqrt(3.0), side / math.sqrt(6.0),
+                side / (2.0 * math.sqrt(3.0)))
     _fields(f, "feature", {"shape", "base_mm", "apex_deg"}, set())
     b = _number(f["base_mm"], "feature.base_mm")
     apex = _number(f["apex_deg"], "feature.apex_deg", hi=179.0)
@@ -178,9 +221,7 @@ def prepare(body: Any) -> Microstructure:
     if body.get("type") != "microstructure":
         raise ElementError(f"element type {body.get('type')!r} is unknown; known: ['microstructure']")
     _fields(body, "element", {"type", "feature", "layout"}, {"relief", "material"})
-    if body.get("material") is not None:
-        raise ElementError("material: the features take the part's own material for now (give null or leave it "
-                           "out); a material of their own is not supported yet")
+    material, mat, rho = _material(body.get("material"))
     relief = body.get("relief", "bump")
     if relief not in ("bump", "pit"):
         raise ElementError(f"relief must be 'bump' (raised from the surface) or 'pit' (cut into it), got {relief!r}")
@@ -193,11 +234,11 @@ def prepare(body: Any) -> Microstructure:
     if shape == fx.PRISM and lay != fx.GRID:
         raise ElementError("layout: prisms are ridges across the support, laid out by a 'grid' (its pitch_mm[0] "
                            "along u)")
-    if lay == fx.HEX and shape != fx.DOME:
-        raise ElementError("layout: a 'hex' layout takes domes; lay pyramids out on a 'grid'")
-    common = {"type": "microstructure", "relief": relief, "material": None, "feature": feature}
+    if lay == fx.HEX and shape not in (fx.DOME, fx.CORNER):
+        raise ElementError("layout: a 'hex' layout takes domes and corner cubes; lay pyramids out on a 'grid'")
+    common = {"type": "microstructure", "relief": relief, "material": material, "feature": feature}
     sign = 1.0 if relief == "bump" else -1.0
-    args = (shape, a, h, rs, sign)
+    args = (shape, a, h, rs, sign, mat, rho)
     if lay == fx.GRID:
         return _grid(layout, common, args, t0)
     if lay == fx.HEX:
@@ -210,6 +251,22 @@ def prepare(body: Any) -> Microstructure:
     return _points(layout, common, args, t0)
 
 
+def _material(m: Any) -> tuple[dict | None, int, float]:
+    """The features' own surface: (canonical body, `features.MAT_*`, reflectance); None: the part's material."""
+    if m is None:
+        return None, fx.MAT_PART, 0.0
+    if not isinstance(m, dict) or m.get("type") not in FEATURE_MATERIALS:
+        got = m.get("type") if isinstance(m, dict) else m
+        raise ElementError(f"material.type {got!r} is not a feature material; known: {list(FEATURE_MATERIALS)} (or "
+                           f"null: the part's own material)"[:300])
+    if m["type"] == "black":
+        _fields(m, "material", {"type"}, set())
+        return {"type": "black"}, fx.MAT_BLACK, 0.0
+    _fields(m, "material", {"type", "reflectance"}, set())
+    rho = _number(m["reflectance"], "material.reflectance", lo_open=False, hi=1.0)
+    return {"type": "lambertian", "reflectance": rho}, fx.MAT_LAMBERTIAN, rho
+
+
 def _pitch(x: Any, where: str, a: float) -> float:
     p = _number(x, where)
     if p < 2.0 * a:
@@ -218,11 +275,11 @@ def _pitch(x: Any, where: str, a: float) -> float:
     return p
 
 
-def _model(canon: dict, args: tuple, layout: int, cell: tuple[float, float], t0: float, **arrays: Any
-           ) -> Microstructure:
-    shape, a, h, rs, sign = args
-    return Microstructure(element_id(canon), canon, shape, a, h, rs, sign, layout, cell, **arrays,
-                          prepare_seconds=time.perf_counter() - t0)
+def _model(canon: dict, args: tuple, layout: int, cell: tuple[float, float], t0: float, uv64: np.ndarray | None = None,
+           **arrays: Any) -> Microstructure:
+    shape, a, h, rs, sign, mat, rho = args
+    return Microstructure(element_id(canon, uv64), canon, shape, a, h, rs, sign, layout, cell, **arrays,
+                          prepare_seconds=time.perf_counter() - t0, material=mat, reflectance=rho)
 
 
 def _grid(layout: dict, common: dict, args: tuple, t0: float) -> Microstructure:
@@ -289,22 +346,21 @@ def _fill(fill: Any) -> np.ndarray:
 
 
 def _points(layout: dict, common: dict, args: tuple, t0: float) -> Microstructure:
+    """Listed centres, checked for overlaps (a k-d tree: pairs closer than a feature's width) and binned by a grid of
+    about one point per cell (a counting sort: `bins` starts, `items` ids), all in numpy: 12 bytes per point and
+    4 per cell. The body keeps the list as given (no copy)."""
     _fields(layout, "layout", {"type", "uv_mm"}, set())
     shape, a = args[0], args[1]
-    try:
-        uv = np.array(layout["uv_mm"], dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ElementError("layout.uv_mm must be a list of [u, v] pairs in mm") from None
-    if uv.ndim != 2 or uv.shape[1:] != (2,) or len(uv) == 0:
-        raise ElementError(f"layout.uv_mm must be a non-empty list of [u, v] pairs in mm, got shape {uv.shape}")
+    uv = _uv_array(layout["uv_mm"])
     if len(uv) > MAX_POINTS:
         raise ElementError(f"layout.uv_mm lists {len(uv)} features, more than {MAX_POINTS}: use a density layout")
     if not np.isfinite(uv).all():
         raise ElementError(f"layout.uv_mm[{int(np.argwhere(~np.isfinite(uv))[0][0])}] is not finite")
     from scipy.spatial import cKDTree
 
-    pairs = cKDTree(uv).query_pairs(2.0 * a * (1.0 - 1e-9), p=2.0 if shape == fx.DOME else np.inf,
-                                    output_type="ndarray")
+    tree = cKDTree(uv, balanced_tree=False, compact_nodes=False)   # the faster build; queries as fast here
+    pairs = tree.query_pairs(2.0 * a * (1.0 - 1e-9), p=2.0 if shape in (fx.DOME, fx.CORNER) else np.inf,
+                             output_type="ndarray")
     if len(pairs):
         i, j = (int(x) for x in pairs[0])
         raise ElementError(f"layout.uv_mm[{i}] and [{j}] overlap ({uv[i].tolist()} and {uv[j].tolist()} mm): keep "
@@ -313,11 +369,14 @@ def _points(layout: dict, common: dict, args: tuple, t0: float) -> Microstructur
     span = uv.max(axis=0) + a - lo
     size = max(2.0 * a, math.sqrt(float(span[0] * span[1]) / len(uv)))
     nu, nv = (int(x) for x in np.maximum(1, np.ceil(span / size)))
-    cell = ((uv - lo) // size).astype(np.int64)
-    flat = np.minimum(cell[:, 1], nv - 1) * nu + np.minimum(cell[:, 0], nu - 1)
-    items = np.argsort(flat, kind="stable").astype(np.int32)
+    cu = np.minimum(((uv[:, 0] - lo[0]) // size).astype(np.int32), nu - 1)
+    cv = np.minimum(((uv[:, 1] - lo[1]) // size).astype(np.int32), nv - 1)
+    flat = cv.astype(np.int64) * nu + cu
+    counts = np.bincount(flat, minlength=nu * nv)
     bins = np.zeros(nu * nv + 1, np.int32)
-    np.cumsum(np.bincount(flat, minlength=nu * nv), out=bins[1:])
-    canon = {**common, "layout": {"type": "points", "uv_mm": uv.tolist()}}
+    np.cumsum(counts, out=bins[1:])
+    items = np.argsort(flat, kind="stable").astype(np.int32)
+    given = layout["uv_mm"]
+    canon = {**common, "layout": {"type": "points", "uv_mm": given if isinstance(given, list) else uv.tolist()}}
     return _model(canon, args, fx.POINTS, (size, size), t0, origin=(float(lo[0]), float(lo[1])), cells=(nu, nv),
-                  uv=uv.astype(np.float32), bins=bins, items=items, features=len(uv))
+                  uv=uv.astype(np.float32), bins=bins, items=items, features=len(uv), uv64=uv)

@@ -55,6 +55,11 @@ def select(vertices: np.ndarray, triangles: np.ndarray, *, facing: Any = None, f
         if not isinstance(faces, list | tuple) or not faces or not all(
                 isinstance(f, int) and not isinstance(f, bool) for f in faces):
             raise ElementError(f"faces must be a non-empty list of B-rep face indices (ints), got {faces!r}"[:300])
+        present = np.unique(face_ids)
+        for k, face in enumerate(faces):
+            if face not in present:
+                raise ElementError(f"faces[{k}] = {face}: the part's mesh has no triangle of B-rep face {face} (its "
+                                   f"faces: {present.tolist()[:50]}{' ...' if len(present) > 50 else ''})")
         prims = np.flatnonzero(np.isin(face_ids, np.array(faces)))
         what = f"faces {list(faces)}"
     else:
@@ -124,6 +129,7 @@ class Row:
     support: str              # the support's triangles, their own geometry id
     rest_prims: np.ndarray    # rest triangle -> part triangle
     support_prims: np.ndarray  # support triangle -> part triangle
+    table: Any = None         # a `tracer.elements.bsdf.Table`: the element used through its tabulated model
 
 
 def row_params(row: Row, support_index: int) -> tuple[np.ndarray, np.ndarray]:
@@ -134,10 +140,13 @@ def row_params(row: Row, support_index: int) -> tuple[np.ndarray, np.ndarray]:
     f[fx.MM], f[fx.LU], f[fx.LV] = fr.mm, fr.lu, fr.lv
     f[fx.A], f[fx.H], f[fx.RS], f[fx.SIGN] = e.a, e.h, e.rs, e.sign
     f[fx.SLOPE] = e.a / e.h
+    f[fx.FMAT], f[fx.FRHO] = e.material, e.reflectance
     f[fx.CU], f[fx.CV] = e.cell
     f[fx.ORG_U], f[fx.ORG_V] = e.origin
     i = np.zeros(fx.NI, np.int64)
     i[fx.SHAPE], i[fx.LAYOUT], i[fx.GEOM_S] = e.shape, e.layout, support_index
+    if row.table is not None:
+        i[fx.MODEL], i[fx.TAB_MU], i[fx.TAB_PHI] = fx.BSDF, row.table.n_mu, row.table.n_phi
     if e.layout in (fx.GRID, fx.HEX):
         nu = max(1, int(fr.lu // e.cell[0]) + (1 if e.layout == fx.HEX else 0))
         nv = max(1, int(fr.lv // e.cell[1]))

@@ -37,7 +37,8 @@ class Reliefs:
         return self.rows[i].full if i in self.rows else own
 
     def put(self, i: int, element: Microstructure | None, full: str, g: Geometry, add_geometry: Callable, *,
-            facing: Any, faces: Any, face_ids: Any, mm_per_unit: float) -> tuple[int, str, np.ndarray]:
+            facing: Any, faces: Any, face_ids: Any, mm_per_unit: float, table: Any = None
+            ) -> tuple[int, str, np.ndarray]:
         """Put `element` onto part `g` (geometry id `full`) of instance `i`, or take it off (None); answers what the
         instance becomes: ``(kind, geometry id, object box)``. A support that cannot carry it raises `ElementError`
         with nothing changed."""
@@ -47,6 +48,9 @@ class Reliefs:
         ids = None if face_ids is None else np.asarray(face_ids)
         prims = support.select(g.vertices, g.triangles, facing=facing, faces=faces, face_ids=ids)
         row = self.make_row(add_geometry, element, full, g.vertices, g.triangles, g.normals, prims, mm_per_unit)
+        if table is not None:
+            row = Row(row.element, row.frame, row.full, row.rest, row.support, row.rest_prims, row.support_prims,
+                      table)
         self.rows[i] = row
         self._packed = None
         return relief.KIND, row.rest, support.box(row, g.box)
@@ -65,7 +69,7 @@ class Reliefs:
         return Row(element, fr, full, rest, sup, rest_prims, support_prims)
 
     def pack(self, n_ids: int, index_of: Callable[[str], int]) -> tuple[np.ndarray, ...]:
-        """``(inst_aux, el_f, el_i, el_prim, el_bits, el_uv, el_bin, el_item)`` for `n_ids` instance ids;
+        """``(inst_aux, el_f, el_i, el_prim, el_bits, el_uv, el_bin, el_item, el_tab)`` for `n_ids` instance ids;
         `index_of` gives a geometry's index in the store."""
         aux = np.full(n_ids, -1, np.int32)
         for r, i in enumerate(sorted(self.rows)):
@@ -75,7 +79,7 @@ class Reliefs:
         return (aux, *self._packed)
 
     def _pack(self, index_of: Callable[[str], int]) -> tuple[np.ndarray, ...]:
-        """``(el_f, el_i, el_prim, el_bits, el_uv, el_bin, el_item)`` of the rows, in instance order."""
+        """``(el_f, el_i, el_prim, el_bits, el_uv, el_bin, el_item, el_tab)`` of the rows, in instance order."""
         ef = np.zeros((len(self.rows), fx.NF))
         ei = np.zeros((len(self.rows), fx.NI), np.int64)
         prim: list[np.ndarray] = []
@@ -83,6 +87,8 @@ class Reliefs:
         uv: list[np.ndarray] = []
         bins: list[np.ndarray] = []
         items: list[np.ndarray] = []
+        tabs: list[np.ndarray] = []
+        n_tab = 0
         shared: dict[str, tuple[int, int, int, int]] = {}
         sizes = [0, 0, 0, 0, 0]   # el_prim, el_bits, el_uv, el_bin, el_item so far
         for r, (_, row) in enumerate(sorted(self.rows.items())):
@@ -105,8 +111,18 @@ class Reliefs:
                 for k, a in enumerate((e.bits, e.uv, e.bins, e.items)):
                     sizes[1 + k] += len(a)
             ei[r, fx.BITS], ei[r, fx.UV], ei[r, fx.BINS], ei[r, fx.ITEMS] = shared[e.id]
+            if row.table is not None:
+                ei[r, fx.TAB] = n_tab
+                tabs.append(row.table.cdf)
+                n_tab += len(row.table.cdf)
+        width = max((len(t[0]) for t in tabs), default=0)
+        tab = np.zeros((n_tab, width))
+        k = 0
+        for t in tabs:
+            tab[k:k + len(t), :t.shape[1]] = t
+            k += len(t)
         return (ef, ei, _cat(prim, np.int32), _cat(bits, np.uint8), _cat(uv, np.float32, (0, 2)),
-                _cat(bins, np.int32), _cat(items, np.int32))
+                _cat(bins, np.int32), _cat(items, np.int32), tab)
 
 
 def _cat(parts: list[np.ndarray], dtype: type, empty: tuple[int, ...] = (0,)) -> np.ndarray:

@@ -51,9 +51,13 @@ def intersect(sa, inst, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
         (False, 0.0, -1, 0.0, 0.0)
     best = t if hit else t_max
     gs = I[fx.GEOM_S]
-    ou, ov, ow, du, dv, dw = _to_frame(F, ox, oy, oz, dx, dy, dz)
     hs, ts, ss, us, vs = traverse_rows(sa.bvh_f, sa.bvh_i, sa.tri_v, sa.geom_node0[gs], sa.geom_tri0[gs], ox, oy, oz,
                                        dx, dy, dz, best, False, stack, tstack)
+    if I[fx.MODEL] == fx.BSDF:   # the tabulated model: the plain support, scattered by the table (`dispatch`)
+        if hs:
+            return True, ts, ss, us, vs
+        return hit, t, slot, u, v
+    ou, ov, ow, du, dv, dw = _to_frame(F, ox, oy, oz, dx, dy, dz)
     if hs and fx.feature_at(F, I, sa.el_bits, sa.el_uv, sa.el_bin, sa.el_item, ou + ts * du, ov + ts * dv) < 0:
         hit, t, slot, u, v = True, ts, ss, us, vs
         best = ts

@@ -36,7 +36,7 @@ from tracer.accel.traverse import any_with_stacks, closest_with_stacks, new_stac
 from tracer.jit import njit
 from tracer.optics.frames import onb, sample_cosine
 from tracer.optics.lights import light_connect, pick_light
-from tracer.optics.surfaces.dispatch import albedo
+from tracer.optics.surfaces.dispatch import surface_albedo
 from tracer.rng import path_key, uniform
 
 RR_DEPTH = 3
@@ -102,7 +102,7 @@ def trace_path(sa, M, L, Q, q, key, counters, stack, tstack):
                                                                        tstack)
         if inst < 0:
             break
-        w *= albedo(M, inst)   # only purely diffuse kinds reach here (Simulation.backward_applies)
+        w *= surface_albedo(sa, M, inst, prim)   # only purely diffuse kinds reach here (Simulation.backward_applies)
         if w <= 0.0:
             break
         px, py, pz = x + t_hit * dx, y + t_hit * dy, z + t_hit * dz

@@ -39,6 +39,7 @@ import numpy as np
 
 from tracer.accel.spawn import offset_ray_origin
 from tracer.accel.traverse import any_with_stacks, closest_with_stacks, new_stacks
+from tracer.elements.features import MAT_LAMBERTIAN, MAT_PART
 from tracer.jit import njit
 from tracer.optics.frames import sample_cosine
 from tracer.optics.lights import light_connect, pick_light
@@ -46,7 +47,7 @@ from tracer.optics.lights.base import P_I0
 from tracer.optics.lights.dispatch import AREA
 from tracer.optics.polarization import N_POL
 from tracer.optics.surfaces.base import CONTINUES, STACK_FULL, arrival_normal, reflect_specular
-from tracer.optics.surfaces.dispatch import BLACK, LAMBERTIAN, albedo, scatter
+from tracer.optics.surfaces.dispatch import BLACK, LAMBERTIAN, feature_surface, scatter, surface_albedo
 from tracer.rng import path_key, uniform
 
 RR_DEPTH = 3            # diffuse bounces before Russian roulette (as `tracer.transport.backward`)
@@ -283,8 +284,9 @@ def trace_view(sa, M, L, V, E, q, key, counters, med, pol, stack, tstack):
             lum += w * E.le[inst] * mis
         fx, fy, fz = arrival_normal(ngx, ngy, ngz, dx, dy, dz)
         sx, sy, sz = offset_ray_origin(px, py, pz, ngx, ngy, ngz, fx, fy, fz)
-        rho = albedo(M, inst)
-        lambertian = M.kind[inst] == LAMBERTIAN
+        rho = surface_albedo(sa, M, inst, prim)
+        own, _ = feature_surface(sa, inst, prim)   # an element's feature with a surface of its own
+        lambertian = own == MAT_LAMBERTIAN or (own == MAT_PART and M.kind[inst] == LAMBERTIAN)
         if rho > 0.0:
             lobe = 1.0 / math.pi if lambertian else rho / math.pi   # the diffuse lobe's density / cosθ
             lum += w * rho / math.pi * light_sample(sa, L, sx, sy, sz, fx, fy, fz, lobe, uniform(key, dim),
@@ -310,7 +312,8 @@ def trace_view(sa, M, L, V, E, q, key, counters, med, pol, stack, tstack):
                 dim += 1
                 w /= survive
             continue
-        if rho == 0.0 and M.kind[inst] != BLACK:   # a specular surface (met, whether it reflects or absorbs)
+        # a specular surface (met, whether it reflects or absorbs)
+        if rho == 0.0 and M.kind[inst] != BLACK and own == MAT_PART:
             if from_eye:
                 through_specular = 1.0
             else:

@@ -187,3 +187,35 @@ def test_a_density_map_keeps_about_fill_of_its_sites_and_its_model_survives_a_fi
     assert e.nbytes <= sites // 8 + 8   # a bit per site, and an empty list of cells
     back = type(e).from_arrays(e.arrays())
     assert back.id == e.id and back.features == e.features and np.array_equal(back.bits, e.bits)
+
+
+def test_a_point_list_is_the_same_body_as_ints_floats_or_an_array_and_takes_16_bytes_a_point():
+    pts = [[1 + 2 * i, 1 + 2 * j] for i in range(30) for j in range(20)]
+    a = dome(layout={"type": "points", "uv_mm": pts})
+    b = dome(layout={"type": "points", "uv_mm": [[float(u), float(v)] for u, v in pts]})
+    c = dome(layout={"type": "points", "uv_mm": np.array(pts, float)})
+    assert a.id == b.id == c.id
+    moved = [list(p) for p in pts]
+    moved[7][1] += 1e-9
+    assert dome(layout={"type": "points", "uv_mm": moved}).id != a.id
+    assert a.features == 600 and a.nbytes <= 32 * a.features
+    back = type(a).from_arrays(a.arrays())
+    assert back.id == a.id and np.array_equal(back.uv, a.uv) and np.array_equal(back.items, a.items)
+    # every listed point is found in its cell: bins and items are a counting sort of the points by cell
+    cell = np.floor((a.uv.astype(np.float64) - np.array(a.origin)) / np.array(a.cell)).astype(int)
+    flat = np.minimum(cell[:, 1], a.cells[1] - 1) * a.cells[0] + np.minimum(cell[:, 0], a.cells[0] - 1)
+    for f in (0, 123, 599):
+        assert f in a.items[a.bins[flat[f]]:a.bins[flat[f] + 1]]
+
+
+@pytest.mark.parametrize("uv, words", [
+    ([[0, 0], [1, 2, 3]], "layout.uv_mm must be a list of [u, v] pairs"),
+    ([[0, 0], ["a", 1]], "layout.uv_mm must be a list of [u, v] pairs"),
+    ([], "non-empty"),
+    ("0,0", "layout.uv_mm must be a list of [u, v] pairs"),
+    ([[0, 0], [float("nan"), 1]], "layout.uv_mm[1] is not finite"),
+])
+def test_a_bad_point_list_names_its_field(uv, words):
+    with pytest.raises(ElementError) as e:
+        dome(layout={"type": "points", "uv_mm": uv})
+    assert words in str(e.value)

@@ -15,25 +15,31 @@ specs what the scene calls for.
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
+from tracer.elements import features as fx
 from tracer.jit import njit
 from tracer.optics import mie, spectra
 from tracer.optics.coating import Coating
 from tracer.optics.elements import diffuser, polarizer, retarder
+from tracer.optics.polarization import depolarize
 from tracer.optics.surfaces import black, dielectric, lambertian, mirror, mix
 from tracer.optics.surfaces.base import (
     ABSORBED,
+    CONTINUES,
     MIE_ROW,
     N_MPAR,
     N_PAR,
     NO_MEDIUM,
     NONE,
+    STACK_FULL,
     MaterialArrays,
     MaterialError,
     spec_from_body,
 )
+from tracer.rng import uniform
 
 KINDS = (black, lambertian, mirror, mix, dielectric, diffuser, polarizer, retarder)
 BLACK, LAMBERTIAN, MIRROR, MIX, DIELECTRIC, DIFFUSER, POLARIZER, RETARDER = range(len(KINDS))
@@ -205,9 +211,124 @@ def _rows(spec, tables: _Tables):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def feature_surface(sa, inst, prim):
+    """``(kind, reflectance)`` of a hit on an element's feature that has a surface of its own (`fx.MAT_BLACK`,
+    `fx.MAT_LAMBERTIAN`: a printed dot); ``(fx.MAT_PART, 0)`` where the hit takes the instance's material."""
+    if prim < -1:
+        r = sa.inst_aux[inst]
+        if r >= 0:
+            k = int(sa.el_f[r, fx.FMAT])
+            if k >= 0:
+                return k, sa.el_f[r, fx.FRHO]
+    return fx.MAT_PART, 0.0
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def bsdf_row(sa, inst, prim):
+    """The element row of a hit on the support of an element used through its tabulated BSDF (`fx.BSDF`), -1 for any
+    other hit."""
+    if prim < 0 or inst >= sa.inst_aux.shape[0]:
+        return -1
+    r = sa.inst_aux[inst]
+    if r < 0 or sa.el_i[r, fx.MODEL] != fx.BSDF or sa.el_prim[sa.el_i[r, fx.MAP_INV] + prim] >= 0:
+        return -1
+    return r
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def bsdf_scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, pol):
+    """Scatter a photon arriving along d on the support of element row `r` by its table (`tracer.elements.bsdf`:
+    the arriving bin is the reversed direction's, in the support's frame; the leaving bin is drawn from the row's
+    running sums, the direction uniform over its solid angle). Crossing the face pushes or pops the part's medium;
+    the table is unpolarized, so the photon is depolarized."""
+    F = sa.el_f[r]
+    R = sa.object_from_world[inst]
+    ax = R[0, 0] * dx + R[0, 1] * dy + R[0, 2] * dz
+    ay = R[1, 0] * dx + R[1, 1] * dy + R[1, 2] * dz
+    az = R[2, 0] * dx + R[2, 1] * dy + R[2, 2] * dz
+    du = ax * F[fx.U_X] + ay * F[fx.U_X + 1] + az * F[fx.U_X + 2]
+    dv = ax * F[fx.V_X] + ay * F[fx.V_X + 1] + az * F[fx.V_X + 2]
+    dn = ax * F[fx.N_X] + ay * F[fx.N_X + 1] + az * F[fx.N_X + 2]
+    norm = math.sqrt(du * du + dv * dv + dn * dn)
+    n_mu = sa.el_i[r, fx.TAB_MU]
+    n_phi = sa.el_i[r, fx.TAB_PHI]
+    half = n_mu * n_phi
+    side_in = 1 if dn >= 0.0 else 0          # travelling out of the solid: it came from side 1
+    im = min(int(abs(dn) / norm * n_mu), n_mu - 1)
+    phi = math.atan2(-dv, -du)
+    if phi < 0.0:
+        phi += 2.0 * math.pi
+    ip = min(int(phi / (2.0 * math.pi) * n_phi), n_phi - 1)
+    row = sa.el_i[r, fx.TAB] + side_in * half + im * n_phi + ip
+    nb = 2 * half
+    u = uniform(key, dim)
+    if not u < sa.el_tab[row, nb - 1]:
+        return ABSORBED, dx, dy, dz, 0.0, depth, dim + 1
+    b = 0
+    while b < nb - 1 and sa.el_tab[row, b] <= u:
+        b += 1
+    side_out = b // half
+    rest = b - side_out * half
+    jm = rest // n_phi
+    jp = rest - jm * n_phi
+    mu = (jm + uniform(key, dim + 1)) / n_mu
+    ph = (jp + uniform(key, dim + 2)) / n_phi * 2.0 * math.pi
+    st = math.sqrt(max(0.0, 1.0 - mu * mu))
+    wu = st * math.cos(ph)
+    wv = st * math.sin(ph)
+    wn = mu if side_out == 0 else -mu
+    bx = wu * F[fx.U_X] + wv * F[fx.V_X] + wn * F[fx.N_X]
+    by = wu * F[fx.U_X + 1] + wv * F[fx.V_X + 1] + wn * F[fx.N_X + 1]
+    bz = wu * F[fx.U_X + 2] + wv * F[fx.V_X + 2] + wn * F[fx.N_X + 2]
+    W = sa.world_from_object[inst]
+    ox = W[0, 0] * bx + W[0, 1] * by + W[0, 2] * bz
+    oy = W[1, 0] * bx + W[1, 1] * by + W[1, 2] * bz
+    oz = W[2, 0] * bx + W[2, 1] * by + W[2, 2] * bz
+    inv = 1.0 / math.sqrt(ox * ox + oy * oy + oz * oz)
+    depolarize(pol)
+    if side_in == 0 and side_out == 1:       # into the part: its medium
+        if depth == med.shape[0]:
+            return STACK_FULL, dx, dy, dz, 0.0, depth, dim + 3
+        med[depth] = inst
+        depth += 1
+    elif side_in == 1 and side_out == 0:     # out of the part
+        pos = -1
+        for k in range(depth - 1, -1, -1):
+            if med[k] == inst:
+                pos = k
+                break
+        if pos >= 0:
+            for k in range(pos, depth - 1):
+                med[k] = med[k + 1]
+            depth -= 1
+    return CONTINUES, ox * inv, oy * inv, oz * inv, 1.0, depth, dim + 3
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def surface_albedo(sa, M, inst, prim):
+    """`albedo` of the hit: a feature's own reflectance where it has a surface of its own."""
+    fk, rho = feature_surface(sa, inst, prim)
+    if fk == fx.MAT_LAMBERTIAN:
+        return rho
+    if fk == fx.MAT_BLACK:
+        return 0.0
+    return albedo(M, inst)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol):
     """What the surface of instance `inst` does to a photon of wavelength `lam` nm (0: white) and polarization
-    state `pol` (`tracer.optics.polarization`) arriving along d (`base` has the contract)."""
+    state `pol` (`tracer.optics.polarization`) arriving along d (`base` has the contract); on an element's feature
+    with a surface of its own (`feature_surface`), what that surface does; on the support of an element used through
+    its tabulated BSDF (`bsdf_row`), what the table says."""
+    r = bsdf_row(sa, inst, prim)
+    if r >= 0:
+        return bsdf_scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, pol)
+    fk, frho = feature_surface(sa, inst, prim)
+    if fk == fx.MAT_LAMBERTIAN:
+        return lambertian.scatter_rho(frho, dx, dy, dz, ngx, ngy, ngz, depth, key, dim, pol)
+    if fk == fx.MAT_BLACK:
+        return ABSORBED, dx, dy, dz, 0.0, depth, dim
     k = M.kind[inst]
     if k == LAMBERTIAN:
         return lambertian.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol)

@@ -53,7 +53,13 @@ def albedo(M, inst):
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol):
-    if uniform(key, dim) >= param(M, inst, 0, lam):
+    return scatter_rho(param(M, inst, 0, lam), dx, dy, dz, ngx, ngy, ngz, depth, key, dim, pol)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def scatter_rho(rho, dx, dy, dz, ngx, ngy, ngz, depth, key, dim, pol):
+    """`scatter` for a reflectance given as a number (an element's features, `tracer.elements.features.FRHO`)."""
+    if uniform(key, dim) >= rho:
         return ABSORBED, dx, dy, dz, 0.0, depth, dim + 1
     fx, fy, fz = arrival_normal(ngx, ngy, ngz, dx, dy, dz)
     dx, dy, dz = sample_cosine(fx, fy, fz, uniform(key, dim + 1), uniform(key, dim + 2))

@@ -1,0 +1,82 @@
+"""An element used through its tabulated BSDF by the REST API (issue 36): ``"model": "bsdf"`` tabulates it once for
+the part's dielectric ior and keeps the table beside the element, answers name the model, a material change
+tabulates again, and a model that cannot go is a 422 naming it with nothing changed."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from service_helpers import glb, make_client, node, uid
+
+import tracer.elements.bsdf as bsdf
+from tests.tracer.transport_scenes import box
+
+DOTS = {"type": "microstructure", "feature": {"shape": "dome", "radius_mm": 0.3, "height_mm": 0.15},
+        "layout": {"type": "grid", "pitch_mm": [1.0, 1.0]}}
+
+
+@pytest.fixture
+def client(tmp_path: Path, monkeypatch: Any) -> Any:
+    monkeypatch.setattr(bsdf, "RAYS", 60)    # a coarse table: this checks the plumbing, test_bsdf_model the physics
+    with make_client(tmp_path) as c:
+        c.data_dir = tmp_path
+        yield c
+
+
+def _scene(client: Any) -> str:
+    sid = client.post("/scenes", json={"name": "film"}).json()["id"]
+    v, t = box([0, 0, 0], [20, 20, 2])
+    gid, data = glb(v.astype(np.float32), t)
+    client.put(f"/geometries/{gid}", content=data, headers={"content-type": "model/gltf-binary"})
+    nodes = [node(uid(0), None, "root"), node(uid(1), uid(0), "plate", geometry=gid),
+             node(uid(2), uid(0), "other", geometry=gid)]
+    assert client.put(f"/scenes/{sid}/document", json={"base_revision": 0, "length_unit": "mm", "nodes": nodes}
+                      ).status_code == 200
+    assert client.put(f"/scenes/{sid}/materials/{uid(1)}", json={"type": "dielectric", "ior": 1.49}
+                      ).status_code in (200, 201)
+    return sid
+
+
+def test_a_bsdf_assignment_is_tabulated_once_beside_the_element_and_answers_name_it(client: Any) -> None:
+    sid = _scene(client)
+    eid = client.post("/elements", json=DOTS).json()["id"]
+    r = client.post(f"/scenes/{sid}/elements", json={"element": eid, "node": uid(1), "facing": [0, 0, 1],
+                                                     "model": "bsdf"})
+    assert r.status_code == 201, r.text
+    assert r.json()["model"] == "bsdf" and r.json()["applied"]
+    tables = sorted(p.name for p in (client.data_dir / "elements").glob(f"{eid}.bsdf-*.npz"))
+    assert tables == [f"{eid}.bsdf-1.49.npz"]
+    sensor = client.post(f"/scenes/{sid}/sensors", json={
+        "type": "grid", "origin": [0.0, 0.0, -0.001], "u": [0.02, 0, 0], "v": [0, 0.02, 0], "nu": 1, "nv": 1}
+                         ).json()["id"]
+    client.post(f"/scenes/{sid}/lights", json={"type": "collimated", "origin": [0.01, 0.01, 0.005],
+                                               "direction": [0, 0, -1], "radius": 0.003, "illuminance_lx": 1000})
+    a = client.post(f"/scenes/{sid}/sensors/{sensor}/simulate", json={"max_photons": 2000, "seed": 1,
+                                                                        "estimator": "forward"})
+    assert a.status_code == 200, a.text
+    assert [e["model"] for e in a.json()["elements"]] == ["bsdf"]
+    assert a.json()["lux"][0][0] > 0
+    # another ior: another table; the first one stays in the library
+    assert client.put(f"/scenes/{sid}/materials/{uid(1)}", json={"type": "dielectric", "ior": 1.59}
+                      ).status_code in (200, 201)
+    listed = client.get(f"/scenes/{sid}/elements").json()
+    assert listed[0]["applied"] and listed[0]["model"] == "bsdf"
+    assert len(list((client.data_dir / "elements").glob(f"{eid}.bsdf-*.npz"))) == 2
+
+
+def test_a_model_that_cannot_go_is_a_422_naming_it_and_nothing_changes(client: Any) -> None:
+    sid = _scene(client)
+    eid = client.post("/elements", json=DOTS).json()["id"]
+    points = client.post("/elements", json={**DOTS, "layout": {"type": "points", "uv_mm": [[2, 2], [5, 5]]}}
+                         ).json()["id"]
+    before = client.get(f"/scenes/{sid}").json()
+    for body, words in (({"element": eid, "node": uid(2), "model": "bsdf"}, "model: a tabulated BSDF"),
+                        ({"element": points, "node": uid(1), "model": "bsdf"}, "periodic"),
+                        ({"element": eid, "node": uid(1), "model": "wave"}, "model")):
+        r = client.post(f"/scenes/{sid}/elements", json={**body, "facing": [0, 0, 1]})
+        assert r.status_code == 422 and words in r.text, (body, r.text)
+    assert client.get(f"/scenes/{sid}/elements").json() == []
+    assert client.get(f"/scenes/{sid}").json() == before
