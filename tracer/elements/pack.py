@@ -101,8 +101,8 @@ def check(start: Microstructure, target: Any, figure: Any = "min_max", damping: 
                                if name == "target" else ""))
     if figure not in FIGURES:
         raise PackError(f"figure must be one of {list(FIGURES)}, got {figure!r}")
-    if pitch_mm is not None:
-        density_body(start.body, np.asarray(start.body["layout"]["fill"]), pitch_mm)   # prepared by the caller
+    if pitch_mm is not None:   # a pitch smaller than the feature is refused, naming layout.pitch_mm
+        prepare(density_body(start.body, np.asarray(start.body["layout"]["fill"]), pitch_mm))
 
 
 def density_body(body: dict, fill: np.ndarray, pitch_mm: float | None = None) -> dict:
