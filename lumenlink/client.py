@@ -270,7 +270,7 @@ class Client(ServiceClient):
         pack keeps what it measured) and answers its last state, whose ``result`` names the packed ``element``;
         otherwise the 202 answer (``url``)."""
         body = {"scene": self._sid(scene), "assignment": assignment, "sensor": sensor, **options}
-        accepted = dict(self._call("POST", f"/elements/{element}/pack", "starting a pack", json=body))
+        accepted = dict(self._call("POST", f"/elements/{element}/pack", "starting a pack", ok=(202,), json=body))
         if not wait:
             return accepted
         return self.follow(accepted["url"], progress=progress, poll=poll)
