@@ -182,7 +182,7 @@ def run(out_dir: Path = Path("demo-output"), photons: int = 400_000, pack: bool 
                 n.say("          cells (lx; rows away from the LED, columns along y): "
                       + " | ".join(" ".join(f"{x:7.1f}" for x in row) for row in lux))
             if pack:
-                n.step(f"packing the dots (issue 41): a uniform start, fill {UNIFORM_START:g} on a {PACK_ROWS} x 24 "
+                n.step(f"packing the dots (issue 41): a uniform start, fill {UNIFORM_START:.1f} on an {PACK_ROWS} x 24 "
                        f"map, fed back on the nine cells to min/max 0.95")
                 p = pack_guide(ll, http, out_dir, photons)
                 b, a, r = p["before"], p["after"], p["pack"]

@@ -170,7 +170,7 @@ def plot(record: dict[str, Any], layout: dict[str, Any]) -> bytes:
         b.text(i, j, f"{x:.0f}", ha="center", va="center", color="cyan", fontsize=8)
     fig.colorbar(im2, ax=b, label="lx")
     b.set(title=f"measured over the face: {record['figure'].replace('_', '/')} {record['uniformity']:.3f} ± "
-                f"{record['uniformity_stderr']:.3f}", xlabel="cell along u", ylabel="cell along v")
+                f"{record['uniformity_stderr']:.3f}", xlabel="grid cell along its u", ylabel="grid cell along its v")
     h = record["history"]
     it = [x["iteration"] for x in h]
     c.errorbar(it, [x["uniformity"] for x in h], yerr=[x["stderr"] for x in h], marker="o", capsize=3)
