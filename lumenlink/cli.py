@@ -276,6 +276,53 @@ def compare(
 
 
 @app.command()
+def ugr(
+    scene: SceneOpt,
+    sensor: Annotated[str, typer.Option(help="The camera (id or name): the observer at its position, looking along "
+                                             "its line of sight.")],
+    background: Annotated[float | None, typer.Option(help="Background luminance L_b, cd/m² (CIE 117: E_ind/π); "
+                                                          "default: the image's non-source pixels.")] = None,
+    threshold: Annotated[float | None, typer.Option(help="Pixels at least this bright (cd/m²) above the line of "
+                                                         "sight are luminaires; default 5 × the image's mean.")] = None,
+    simulate_first: Annotated[bool, typer.Option("--simulate/--latest", help="Simulate the camera first (default), "
+                                                 "or rate its latest image.")] = True,
+    max_seconds: Annotated[float | None, typer.Option(help="Time budget of the camera, s.")] = None,
+    max_photons: Annotated[int | None, typer.Option(help="Path budget of the camera.")] = None,
+    seed: Annotated[int, typer.Option(help="Same seed and revision: the same numbers.")] = 0,
+    server: Server = "http://127.0.0.1:8000",
+    json_out: Annotated[bool, typer.Option("--json", help="Print the answer as JSON.")] = False,
+) -> None:
+    """The unified glare rating (CIE 117) a camera's observer sees, with its error bar."""
+    raise typer.Exit(_call("lumenlink.commands", "ugr", 37, scene=scene, server=server, sensor=sensor,
+                           background=background, threshold=threshold, simulate_first=simulate_first,
+                           max_seconds=max_seconds, max_photons=max_photons, seed=seed, json_out=json_out) or 0)
+
+
+@app.command()
+def uniformity(
+    scene: SceneOpt,
+    direction: Annotated[str, typer.Option(help="The way the meters look, X,Y,Z (e.g. 0,0,-1: down).")],
+    nine_points: Annotated[tuple[str, str, str] | None, typer.Option(
+        metavar="ORIGIN U V", help="The 9-point figure of the rectangle ORIGIN + s*U + t*V (each X,Y,Z, m).")] = None,
+    point: Annotated[list[str] | None, typer.Option(help="A point a meter looks at, X,Y,Z (m); repeat it.")] = None,
+    distance: Annotated[float | None, typer.Option(help="How far each meter stands back from its point, m "
+                                                        "(default 0.5).")] = None,
+    aperture: Annotated[float | None, typer.Option(help="Each meter's acceptance angle, degrees (default 1).")] = None,
+    target: Annotated[float | None, typer.Option(help="Stop at this relative error (0.01 = 1 %).")] = None,
+    max_seconds: Annotated[float | None, typer.Option(help="Time budget, s.")] = None,
+    max_photons: Annotated[int | None, typer.Option(help="Path budget (all meters).")] = None,
+    seed: Annotated[int, typer.Option(help="Same seed and revision: the same numbers.")] = 0,
+    server: Server = "http://127.0.0.1:8000",
+    json_out: Annotated[bool, typer.Option("--json", help="Print the answer as JSON.")] = False,
+) -> None:
+    """Luminance uniformity over a grid of meters: each reading (CSV on stdout) and min/max, min/mean ± error."""
+    raise typer.Exit(_call("lumenlink.commands", "uniformity", 37, scene=scene, server=server, direction=direction,
+                           nine_points=nine_points, points=point, distance=distance, aperture=aperture,
+                           target=target, max_seconds=max_seconds, max_photons=max_photons, seed=seed,
+                           json_out=json_out) or 0)
+
+
+@app.command()
 def demo(
     out_dir: Annotated[Path, typer.Option(help="Where the maps and the STEP files go.")] = Path("demo-output"),
     photons: Annotated[int, typer.Option(help="Photon budget per query.")] = 2_000_000,

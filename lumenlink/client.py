@@ -387,6 +387,43 @@ class Client(ServiceClient):
         return self._bytes(f"/scenes/{self._sid(scene)}/sensors/{sensor_id}/{names[format]}",
                            f"reading the image of sensor {sensor_id}", None)
 
+    def ugr(self, scene: str | dict, sensor: str, *, background: float | None = None,
+            threshold: float | None = None) -> dict[str, Any]:
+        """The unified glare rating (CIE 117-1995) an observer at a camera's position (by id or name) sees along its
+        line of sight, from the camera's latest image (simulate it first): ``{ugr, stderr, background,
+        background_stderr, threshold, source_pixels, …}``. `background`: L_b in cd/m² (default: the image's
+        non-source pixels); `threshold`: cd/m² from which a pixel above the line of sight is a luminaire."""
+        sid = self._sid(scene)
+        s = self._sensor_ids(sid, sensor)[0]
+        params = {k: v for k, v in (("background", background), ("threshold", threshold)) if v is not None}
+        return dict(self._call("GET", f"/scenes/{sid}/sensors/{s['id']}/ugr", f"rating the glare seen by {sensor}",
+                               params=params or None))
+
+    def uniformity(self, scene: str | dict, *, direction: Any, points: Any = None, nine_points: Any = None,
+                   distance: float | None = None, aperture_deg: float | None = None, target: float | None = None,
+                   max_seconds: float | None = None, max_photons: int | None = None, seed: int = 0,
+                   **extra: Any) -> dict[str, Any]:
+        """Luminance meters looking along `direction` at `points` ([[x, y, z], …] m) or at the 9-point figure of a
+        rectangle (`nine_points`: (origin, u, v), each [x, y, z] m), each `distance` m back from its point, measured
+        together: ``{luminance, stderr (cd/m², one per point), uniformity: {min, max, mean, min_max,
+        min_max_stderr, min_mean, min_mean_stderr}, photons, seconds, …}``."""
+        if (points is None) == (nine_points is None):
+            raise LumenLinkError("give either points or nine_points", usage=True)
+        body: dict[str, Any] = {"direction": triples([direction], "direction")[0], "seed": seed, **extra}
+        if points is not None:
+            body["points"] = triples(points, "points")
+        else:
+            if isinstance(nine_points, dict):
+                nine_points = [nine_points.get(k) for k in ("origin", "u", "v")]
+            o, u, v = triples(nine_points, "nine_points (origin, u, v)")
+            body["nine_points"] = {"origin": o, "u": u, "v": v}
+        for key, value in (("distance", distance), ("aperture_deg", aperture_deg), ("target_relative_error", target),
+                           ("max_seconds", max_seconds), ("max_photons", max_photons)):
+            if value is not None:
+                body[key] = value
+        return dict(self._call("POST", f"/scenes/{self._sid(scene)}/luminance/uniformity",
+                               "measuring luminance uniformity", json=body))
+
     def export(self, scene: str | dict, sensor: str, format: str = "ies", *,
                out: str | Path | None = None) -> str:
         """A far-field sensor's (by id or name) latest result as photometric file text: `format` ``"ies"`` (IES

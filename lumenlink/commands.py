@@ -400,8 +400,10 @@ def compare(scene: str, server: str, out: Path, sensor: str = "all", from_key: s
             answers = ll.compare(info, sensor, from_key, to_key, out=out_dir)
         for sensor_id, d in answers.items():
             s = d["summary"]
+            unit = "cd/m2" if d.get("quantity") == "luminance" else "lx"
+            before, after = (s.get(f"mean_{w}_lux", s.get(f"mean_{w}_cd_m2")) for w in ("before", "after"))
             line = (f"sensor {names.get(sensor_id, sensor_id)} ({sensor_id}): {d['from']} -> {d['to']}: mean "
-                    f"{s['mean_before_lux']:.4g} -> {s['mean_after_lux']:.4g} lx; {s['significant']}/{s['cells']} "
+                    f"{before:.4g} -> {after:.4g} {unit}; {s['significant']}/{s['cells']} "
                     f"cells changed beyond {d['significance_sigmas']:g} sigma ({s['increased']} brighter, "
                     f"{s['decreased']} darker)")
             if s.get("max_increase_lux"):
@@ -440,3 +442,65 @@ def _progress_update(progress: Progress, task: TaskID, target: float | None, max
         else:
             progress.update(task, state=state)
     return update
+
+
+# ---------------------------------------------------------------- glare and uniformity (issue 37)
+
+def _pm(value: float | None, err: float | None, digits: int = 4) -> str:
+    if value is None:
+        return "undefined"
+    return f"{value:.{digits}g} ± {err:.2g}" if err is not None else f"{value:.{digits}g}"
+
+
+def ugr(scene: str, server: str, sensor: str, background: float | None = None, threshold: float | None = None,
+        simulate_first: bool = True, max_seconds: float | None = None, max_photons: int | None = None,
+        seed: int = 0, json_out: bool = False) -> int:
+    """Simulate a camera (unless told not to) and print the UGR its observer sees, with its error bar."""
+    def work(console: Console) -> int:
+        with Client(server) as ll:
+            info = ll.scene(scene)
+            if simulate_first:
+                ll.simulate(info, sensor, max_seconds=max_seconds, max_photons=max_photons, seed=seed)
+            out = ll.ugr(info, sensor, background=background, threshold=threshold)
+        if json_out:
+            print(json.dumps(out))
+            return EXIT_OK
+        bg = _pm(out["background"], out["background_stderr"])
+        print(f"UGR {out['ugr']:.2f} ± {out['stderr']:.2f}  (background {bg} cd/m², {out['source_pixels']} source "
+              f"pixels ≥ {out['threshold']:.4g} cd/m², revision {out['revision']})")
+        return EXIT_OK
+    return _run(work)
+
+
+def uniformity(scene: str, server: str, direction: str, nine_points: tuple[str, str, str] | None = None,
+               points: list[str] | None = None, distance: float | None = None, aperture: float | None = None,
+               target: float | None = None, max_seconds: float | None = None, max_photons: int | None = None,
+               seed: int = 0, json_out: bool = False) -> int:
+    """Luminance meters at points (or the 9-point figure of a rectangle): each reading and the uniformity, with
+    error bars."""
+    def work(console: Console) -> int:
+        if (nine_points is None) == (not points):
+            raise LumenLinkError("give --nine-points ORIGIN U V or one or more --point X,Y,Z", usage=True)
+        d = vec3(direction, "--direction")
+        kwargs: dict[str, Any] = {}
+        if nine_points is not None:
+            kwargs["nine_points"] = [vec3(t, "--nine-points") for t in nine_points]
+        else:
+            kwargs["points"] = [vec3(t, "--point") for t in points or []]
+        with Client(server) as ll:
+            info = ll.scene(scene)
+            out = ll.uniformity(info, direction=d, distance=distance, aperture_deg=aperture, target=target,
+                                max_seconds=max_seconds, max_photons=max_photons, seed=seed, **kwargs)
+        if json_out:
+            print(json.dumps(out))
+            return EXIT_OK
+        print("point,x_m,y_m,z_m,cd_m2,stderr_cd_m2")
+        for k, (p, v, e) in enumerate(zip(out["points"], out["luminance"], out["stderr"], strict=True)):
+            print(f"{k},{p[0]:.9g},{p[1]:.9g},{p[2]:.9g},{v!r},{e!r}")
+        u = out["uniformity"]
+        console.print(f"{out['figure']}: min {u['min']:.4g}, mean {u['mean']:.4g}, max {u['max']:.4g} cd/m²; "
+                      f"min/max {_pm(u['min_max'], u['min_max_stderr'])}, min/mean "
+                      f"{_pm(u['min_mean'], u['min_mean_stderr'])}; {out['photons']:,} paths in "
+                      f"{out['seconds']:.2f} s")
+        return EXIT_OK
+    return _run(work)

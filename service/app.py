@@ -79,6 +79,9 @@ def create_app(settings: Settings | None = None, scene_factory: Callable[[], Any
         from service.routes import images
 
         app.include_router(images.router, responses=PROBLEM_RESPONSES)
+        from service.routes import glare
+
+        app.include_router(glare.router, responses=PROBLEM_RESPONSES)
     # the pages for people, the API docs with their assets, the event streams; before the middleware below
     pages.install(app, responses=PROBLEM_RESPONSES)
     app.openapi = _openapi_with_problems(app)  # type: ignore[method-assign]  # FastAPI documents this override

@@ -14,6 +14,13 @@ are kept per sensor; the oldest go first. Results outlive the sensor (its deleti
 the scene. Only what a map, a CSV or a difference needs is kept: lux and standard error per cell (exact float64),
 the grid's frame, photons, seconds, estimator, stop reason and effects.
 
+Luminance meters and cameras (issue 37) are kept the same way, their values in cd/m² in the same columns (the
+``lux`` bytes and ``min_lux``/``mean_lux``/``max_lux`` of the table; ``meta.quantity`` is ``"luminance"``): read
+back they answer ``luminance`` and ``min_luminance``/``mean_luminance``/``max_luminance`` instead, a camera's as
+``height`` rows of ``width`` pixels, and their differences are per pixel (``luminance_from``, ``luminance_to``).
+`current` finds the kept result that still describes the scene as it is (its revision and state): a camera's
+images outlive a restart of the service through it.
+
 Differences (`difference`) are ``to − from`` per cell with the combined standard error √(σ_from² + σ_to²); cells
 are compared by index (a sensor attached to a node that moved compares the same cells on the part).
 """
@@ -43,7 +50,11 @@ KEY_PATTERN = r"^[0-9]{1,9}(\.[0-9]{1,9})?$"
 _KEY = re.compile(KEY_PATTERN)
 #: what the JSON of a kept result carries besides the per-cell values
 _META = ("type", "nu", "nv", "origin", "u", "v", "center", "normal", "radius", "estimator", "stop_reason",
-         "effects", "seed")
+         "effects", "seed", "width", "height", "position", "look_at", "fov_deg", "strategy")
+#: the sensor kinds whose values are luminance (cd/m²), not illuminance
+LUMINANCE_TYPES = ("luminance", "camera")
+#: a luminance meter's body fields kept with its result
+_METER = ("position", "direction", "aperture_deg")
 
 
 def state_digest(live: LiveScene, sensor: dict[str, Any]) -> str:
@@ -105,10 +116,18 @@ class ResultStore:
         if sensor.get("type") == "disk":
             meta.update(center=list(map(float, sensor["center"])), normal=list(map(float, sensor["normal"])),
                         radius=float(sensor["radius"]))
+        if sensor.get("type") in LUMINANCE_TYPES:
+            values = np.asarray(payload["luminance"], float)
+            meta["quantity"] = "luminance"
+            if sensor.get("type") == "luminance":
+                meta.update({k: sensor[k] for k in _METER if sensor.get(k) is not None})
+            low, mean, high = float(values.min()), float(values.mean()), float(values.max())
+        else:
+            values = np.asarray(payload["lux"], float)
+            low, mean, high = float(payload["min_lux"]), float(payload["mean_lux"]), float(payload["max_lux"])
         row = dict(scene_id=scene_id, sensor_id=sensor_id, revision=revision, state=state,
                    created_at=datetime.now(UTC), photons=int(payload["photons"]), seconds=float(payload["seconds"]),
-                   min_lux=float(payload["min_lux"]), mean_lux=float(payload["mean_lux"]),
-                   max_lux=float(payload["max_lux"]), meta=meta, lux=_bytes(payload["lux"]),
+                   min_lux=low, mean_lux=mean, max_lux=high, meta=meta, lux=_bytes(values),
                    stderr=_bytes(payload["stderr"]))
         mine = and_(t.c.scene_id == scene_id, t.c.sensor_id == sensor_id)
         with self.engine.begin() as conn:
@@ -180,23 +199,54 @@ class ResultStore:
             raise NotFound(f"sensor {sensor_id} has no kept result {key!r}; "
                            + (f"kept: {', '.join(kept)}" if kept else "none is kept: simulate it first"),
                            kept=kept)
-        out = _summary(row)
-        lux = np.frombuffer(row.lux, dtype="<f8")
-        err = np.frombuffer(row.stderr, dtype="<f8")
-        meta = row.meta
-        if meta.get("type") == "grid":
-            shape = (int(meta["nv"]), int(meta["nu"]))
-            lux, err = lux.reshape(shape), err.reshape(shape)
-        out.update(lux=lux.tolist(), stderr=err.tolist())
-        return out
+        return _with_cells(row)
+
+    def current(self, live: LiveScene, sensor: dict[str, Any]) -> dict[str, Any] | None:
+        """The kept result (with its cells) that still describes the scene as it is now: computed at its revision,
+        in its present state of materials, lights and this sensor; None if there is none."""
+        t = db.sensor_results
+        try:
+            with self.engine.connect() as conn:
+                row = conn.execute(select(t).where(t.c.scene_id == live.scene_id, t.c.sensor_id == str(sensor["id"]),
+                                                   t.c.revision == int(live.revision),
+                                                   t.c.state == state_digest(live, sensor))
+                                   .order_by(t.c.edit.desc()).limit(1)).first()
+        except SQLAlchemyError:
+            log.exception("could not read the kept results of sensor %s of scene %s", sensor.get("id"),
+                          live.scene_id)
+            return None
+        return None if row is None else _with_cells(row)
+
+
+def _with_cells(row: Any) -> dict[str, Any]:
+    """A kept row as its summary with its cells: ``lux`` (or ``luminance``) and ``stderr``, shaped as the sensor
+    (nv × nu for a grid, height × width for a camera)."""
+    out = _summary(row)
+    values = np.frombuffer(row.lux, dtype="<f8")
+    err = np.frombuffer(row.stderr, dtype="<f8")
+    meta = row.meta
+    if meta.get("type") == "grid":
+        shape = (int(meta["nv"]), int(meta["nu"]))
+        values, err = values.reshape(shape), err.reshape(shape)
+    elif meta.get("type") == "camera":
+        shape = (int(meta["height"]), int(meta["width"]))
+        values, err = values.reshape(shape), err.reshape(shape)
+    out.update({"luminance" if _is_luminance(meta) else "lux": values.tolist(), "stderr": err.tolist()})
+    return out
+
+
+def _is_luminance(r: Any) -> bool:
+    return r.get("quantity") == "luminance" or r.get("type") in LUMINANCE_TYPES
 
 
 def _summary(r: Any) -> dict[str, Any]:
     meta = dict(r.meta)
     created = r.created_at if r.created_at.tzinfo else r.created_at.replace(tzinfo=UTC)  # SQLite drops the zone
+    name = "luminance" if _is_luminance(meta) else "lux"
     return {"key": key_of(r.revision, r.edit), "revision": int(r.revision), "edit": int(r.edit),
             "created_at": created.isoformat(), "photons": int(r.photons), "seconds": float(r.seconds),
-            "min_lux": float(r.min_lux), "mean_lux": float(r.mean_lux), "max_lux": float(r.max_lux), **meta}
+            f"min_{name}": float(r.min_lux), f"mean_{name}": float(r.mean_lux), f"max_{name}": float(r.max_lux),
+            **meta}
 
 
 def centres(result: dict[str, Any]) -> np.ndarray:
@@ -206,13 +256,34 @@ def centres(result: dict[str, Any]) -> np.ndarray:
     return np.asarray(result.get("center") or [np.nan] * 3, float).reshape(1, 1, 3)
 
 
+def _shape(result: dict[str, Any]) -> tuple[int, int]:
+    if result.get("type") == "camera":
+        return int(result["height"]), int(result["width"])
+    if result.get("type") == "luminance":
+        return 1, 1
+    c = centres(result).shape
+    return int(c[0]), int(c[1])
+
+
 def _cells(result: dict[str, Any], name: str) -> np.ndarray:
-    return np.asarray(result[name], float).reshape(centres(result).shape[:2])
+    return np.asarray(result[name], float).reshape(_shape(result))
+
+
+def _luminance_csv(values: np.ndarray, columns: list[tuple[str, np.ndarray]]) -> str:
+    lines = ["row,col," + ",".join(name for name, _ in columns)]
+    for j in range(values.shape[0]):
+        for i in range(values.shape[1]):
+            lines.append(f"{j},{i}," + ",".join(repr(float(a[j, i])) for _, a in columns))
+    return "\n".join(lines) + "\n"
 
 
 def result_csv(result: dict[str, Any]) -> str:
     """One row per cell: ``i,j,x_m,y_m,z_m,lux,stderr_lux`` (the cell centre in world metres; as the CLI's); the
-    values exact (shortest round-tripping float)."""
+    values exact (shortest round-tripping float). A luminance meter or camera: ``row,col,cd_m2,stderr_cd_m2``, one
+    row per pixel (row 0 the top; a meter: one row), as the client's `sensor_csv`."""
+    if _is_luminance(result):
+        lum = _cells(result, "luminance")
+        return _luminance_csv(lum, [("cd_m2", lum), ("stderr_cd_m2", _cells(result, "stderr"))])
     c, lux, err = centres(result), _cells(result, "lux"), _cells(result, "stderr")
     lines = ["i,j,x_m,y_m,z_m,lux,stderr_lux"]
     for j in range(lux.shape[0]):
@@ -226,12 +297,16 @@ def difference(before: dict[str, Any], after: dict[str, Any]) -> dict[str, Any]:
     """``after − before`` per cell with the combined standard error, and where it changed beyond noise.
 
     Refuses (422) two results whose cells cannot be paired (another type or grid size)."""
-    shape = (before.get("type"), before.get("nu"), before.get("nv"))
-    if shape != (after.get("type"), after.get("nu"), after.get("nv")):
+    dims = ("type", "nu", "nv", "width", "height")
+    if tuple(before.get(k) for k in dims) != tuple(after.get(k) for k in dims):
         def size(r: dict[str, Any]) -> str:
+            if r.get("type") == "camera":
+                return f"a {r['width']} x {r['height']} camera"
             return f"a {r['nu']} x {r['nv']} grid" if r.get("type") == "grid" else f"a {r.get('type')} sensor"
         raise Invalid(f"results {before['key']} and {after['key']} cannot be compared cell by cell: the sensor was "
                       f"{size(before)} at {before['key']} and {size(after)} at {after['key']}")
+    if _is_luminance(after):
+        return _luminance_difference(before, after)
     lux_b, lux_a = _cells(before, "lux"), _cells(after, "lux")
     se_b, se_a = _cells(before, "stderr"), _cells(after, "stderr")
     delta, sigma = lux_a - lux_b, np.hypot(se_b, se_a)
@@ -260,8 +335,34 @@ def difference(before: dict[str, Any], after: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _luminance_difference(before: dict[str, Any], after: dict[str, Any]) -> dict[str, Any]:
+    """`difference` of two kept luminance results (a meter's one value, a camera's pixels), cd/m²."""
+    lb, la = _cells(before, "luminance"), _cells(after, "luminance")
+    delta, sigma = la - lb, np.hypot(_cells(before, "stderr"), _cells(after, "stderr"))
+    frame = ("position", "look_at", "fov_deg", "direction", "aperture_deg")
+    warnings = []
+    if any(before.get(k) != after.get(k) for k in frame):
+        warnings.append(f"the sensor moved between {before['key']} and {after['key']}: pixels are compared by index")
+    significant = np.abs(delta) > SIGNIFICANCE_SIGMAS * sigma
+    return {"from": before["key"], "to": after["key"], "type": after.get("type"), "quantity": "luminance",
+            "difference": delta.tolist(), "stderr": sigma.tolist(), "luminance_from": lb.tolist(),
+            "luminance_to": la.tolist(), "significance_sigmas": SIGNIFICANCE_SIGMAS, "warnings": warnings,
+            "summary": {"cells": int(delta.size), "significant": int(significant.sum()),
+                        "increased": int((significant & (delta > 0)).sum()),
+                        "decreased": int((significant & (delta < 0)).sum()),
+                        "mean_before_cd_m2": float(lb.mean()), "mean_after_cd_m2": float(la.mean())},
+            **{k: after[k] for k in ("width", "height", *frame) if k in after}}
+
+
 def difference_csv(diff: dict[str, Any]) -> str:
-    """One row per cell: ``i,j,x_m,y_m,z_m,lux_from,lux_to,difference_lux,stderr_lux``."""
+    """One row per cell: ``i,j,x_m,y_m,z_m,lux_from,lux_to,difference_lux,stderr_lux``; luminance:
+    ``row,col,cd_m2_from,cd_m2_to,difference_cd_m2,stderr_cd_m2``."""
+    if diff.get("quantity") == "luminance":
+        shape = _shape(diff)
+        cols = [(name, np.asarray(diff[key], float).reshape(shape)) for name, key in (
+            ("cd_m2_from", "luminance_from"), ("cd_m2_to", "luminance_to"), ("difference_cd_m2", "difference"),
+            ("stderr_cd_m2", "stderr"))]
+        return _luminance_csv(cols[0][1], cols)
     c = centres(diff)
     nv, nu = int(c.shape[0]), int(c.shape[1])
     d, se = (np.asarray(diff[k], float).reshape(nv, nu) for k in ("difference", "stderr"))

@@ -7,8 +7,8 @@ store), so a new sensor kind needs a class only where it stores or renders somet
 
 - ``TYPE``: the wire's ``type``, the same as the tracer kind it runs;
 - ``KEEP``: where its latest result is kept: ``"map"`` (in memory while the scene is unchanged, for ``map.png`` and
-  the page, and in the result store), ``"image"`` (in memory only, for a camera's images: `service.view_kinds`),
-  ``"store"`` (the result store only), ``"far"`` (the far-field store: its
+  the page, and in the result store), ``"image"`` (in memory for a camera's images, and in the result store:
+  `service.view_kinds`), ``"store"`` (the result store only), ``"far"`` (the far-field store: its
   export outlives a restart and an edit);
 - ``check(sensor, query, limits, live)``: refuse (422 `Invalid`, 413 `TooLarge`) what it cannot answer, before anything
   runs;

@@ -12,7 +12,8 @@ requests:
   hub then bumps the scene's *generation* and drops what it holds for that scene. Results carry
   the revision they were computed at and the hub tells whether they are still current.
 - the latest result of each grid sensor (for ``map.png``), of each surface sensor (for the view) and of each
-  luminance meter and camera (for ``image.exr``, ``image.png``, ``map.png``), at the generation it was computed at;
+  luminance meter and camera (for ``image.exr``, ``image.png``, ``map.png``), at the generation it was computed at
+  (a camera's is also in the result store, which serves its images after a restart: `view_result`);
 - the latest result of each far-field sensor (for ``export``: IES or EULUMDAT), whatever changed since (the file
   names the revision it describes); in memory: a restart forgets it;
 - the `JobRunner` of async queries.
@@ -359,7 +360,7 @@ class SimulationHub:
         with self._lock:
             if self._generation.get(scene_id, 0) == prepared.generation and kind.KEEP in ("map", "image"):
                 self._grids[(scene_id, str(sensor["id"]))] = (prepared.generation, payload)
-        if kind.KEEP != "image" and self.results is not None and self.is_current(scene_id, prepared.generation):
+        if self.results is not None and self.is_current(scene_id, prepared.generation):
             self.results.keep(prepared.live, sensor, payload)
         return payload
 
@@ -382,6 +383,20 @@ class SimulationHub:
             if entry is None or entry[0] != self._generation.get(scene_id, 0):
                 return None
             return entry[1]
+
+    def view_result(self, scene_id: str, sensor: dict[str, Any]) -> dict[str, Any] | None:
+        """The latest result of a luminance meter or camera while it still describes the scene: from memory, else
+        the kept one of the scene's revision and state (`service.results.ResultStore.current`: a result of an
+        earlier run of the service), with its JSON fields as a fresh answer names them."""
+        payload = self.grid_result(scene_id, str(sensor["id"]))
+        if payload is not None or self.results is None:
+            return payload
+        kept = self.results.current(self.live.get(scene_id), sensor)
+        if kept is None:
+            return None
+        kept.setdefault("position", sensor.get("position"))
+        kept.setdefault("look_at", sensor.get("look_at"))
+        return {**kept, "estimator": kept.get("estimator", "backward"), "kept": kept["key"]}
 
     def shutdown(self) -> None:
         self.jobs.shutdown(wait=1.0)

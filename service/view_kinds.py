@@ -8,7 +8,8 @@ polarization reference and ``physics_left_out`` are refused (422) before anythin
 (the lights paths from the eye cannot find here, or null).
 
 ``KEEP = "image"``: the latest result is kept in memory while the scene is unchanged (as a grid's, for
-``image.exr``, ``image.png`` and ``map.png``), not in the result store, whose rows are lux.
+``image.exr``, ``image.png`` and ``map.png``), and in the result store (values in cd/m², `service.results`), which
+keeps the differences between revisions and serves the images after a restart.
 """
 
 from __future__ import annotations
@@ -92,6 +93,9 @@ class Camera:
         out: dict[str, Any] = {k: np.asarray(sensor[k], float) for k in ("position", "look_at")}
         if sensor.get("up") is not None:
             out["up"] = np.asarray(sensor["up"], float)
+        for name in ("lens_diameter_m", "focus_distance_m"):
+            if sensor.get(name) is not None:
+                out[name] = float(sensor[name])
         return {"type": "camera", **out, "fov_deg": float(sensor["fov_deg"]), "width": int(sensor["width"]),
                 "height": int(sensor["height"])}
 

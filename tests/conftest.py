@@ -16,6 +16,13 @@ ROOT = Path(__file__).resolve().parents[1]
 SHARED_FIXTURES = ROOT.parent / "shared" / "fixtures"
 
 
+def pytest_collection_modifyitems(session, config, items):
+    """The benchmarks' smoke tests (tests/bench) last: their child processes then load the tracer's kernels from
+    numba's cache, which the tests before them filled, instead of compiling them all again on a cold machine
+    (about 200 s of CI time on 2 cores)."""
+    items.sort(key=lambda item: Path(str(item.path)).is_relative_to(ROOT / "tests" / "bench"))
+
+
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(20081946)

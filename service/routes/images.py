@@ -6,8 +6,9 @@
   global operator on luminance, key 0.18).
 
 (``map.png``, the false-colour map with its cd/m² legend, is the sensor map route's: `service.routes.simulation`.)
-The image is that of the latest simulation while the scene is unchanged since; 404 until then, 422 for a sensor
-that is not a camera.
+The image is that of the latest simulation while the scene is unchanged since (from memory, or after a restart from
+the result store: `service.simulation.SimulationHub.view_result`); 404 until then, 422 for a sensor that is not a
+camera.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ def camera_result(request: Request, scene_id: str, sensor_id: str) -> dict[str, 
     sensor = find_sensor(live, sensor_id)
     if sensor.get("type") != "camera":
         raise Invalid(f"sensor {sensor_id!r} is a {sensor.get('type')} sensor; images exist for camera sensors")
-    result = hub.grid_result(scene_id, sensor_id)
+    result = hub.view_result(scene_id, sensor)
     if result is None:
         raise NotFound(f"sensor {sensor_id!r} has no image of the scene as it is now (revision {live.revision}); "
                        f"POST /scenes/{scene_id}/sensors/{sensor_id}/simulate first", revision=live.revision)

@@ -3,11 +3,12 @@
 - ``GET /scenes/{id}/sensors/{sid}/results`` — the kept results, newest first (key, revision, when, photons,
   seconds, min/mean/max lux);
 - ``GET /scenes/{id}/sensors/{sid}/results/{key}`` — one, with its cells (``?format=csv``: one row per cell);
-- ``GET /scenes/{id}/sensors/{sid}/results/{key}/map.png`` — its false-colour map (grid sensors);
+- ``GET /scenes/{id}/sensors/{sid}/results/{key}/map.png`` — its false-colour map (grid sensors, cameras);
 - ``GET /scenes/{id}/sensors/{sid}/difference?from=K1&to=K2`` — ``to − from`` per cell with the combined standard
   error (``?format=csv`` too), and ``…/difference.png`` its map.
 
-A key is the scene revision ``R`` (the latest state kept at it) or ``R.k`` (the k-th state at revision R: an
+Luminance meters and cameras are kept too (values in cd/m²: ``luminance``, ``min_luminance``…, a camera's per
+pixel). A key is the scene revision ``R`` (the latest state kept at it) or ``R.k`` (the k-th state at revision R: an
 assignment keeps the revision). The results outlive the sensor; a sensor that never had a kept result and is not
 in the scene is a 404.
 """
@@ -20,7 +21,7 @@ from fastapi import APIRouter, Path, Query, Request, Response
 from pydantic import BaseModel, Field
 
 from service.errors import NotFound
-from service.maps import difference_map_png, illuminance_map_png
+from service.maps import difference_map_png, illuminance_map_png, luminance_map_png
 from service.results import KEY_PATTERN, ResultStore, difference, difference_csv, result_csv
 from service.routes.deps import ItemId, SceneId
 from service.sensor_kinds import SensorType
@@ -47,9 +48,14 @@ class ResultSummary(BaseModel):
     created_at: str = Field(description="When it was computed (ISO 8601, UTC).")
     photons: int = Field(description="Photons (forward) or paths (backward) traced.")
     seconds: float = Field(description="Seconds the simulation took, s.")
-    min_lux: float = Field(description="The smallest value, lx.")
-    mean_lux: float = Field(description="The mean value, lx.")
-    max_lux: float = Field(description="The largest value, lx.")
+    min_lux: float | None = Field(None, description="The smallest value, lx (sensors that answer illuminance).")
+    mean_lux: float | None = Field(None, description="The mean value, lx.")
+    max_lux: float | None = Field(None, description="The largest value, lx.")
+    min_luminance: float | None = Field(None, description="The smallest value, cd/m² (luminance meters and "
+                                                          "cameras).")
+    mean_luminance: float | None = Field(None, description="The mean value, cd/m².")
+    max_luminance: float | None = Field(None, description="The largest value, cd/m².")
+    quantity: str | None = Field(None, description="`luminance` where the values are cd/m² (else lux).")
     type: SensorType | None = Field(None, description="The sensor's kind.")
     estimator: str | None = Field(None, description="The estimator that ran: `forward` or `backward`.")
     stop_reason: str | None = Field(None, description="Which rule stopped the run.")
@@ -62,6 +68,14 @@ class ResultSummary(BaseModel):
     center: list[float] | None = Field(None, description="Disk: its centre, world metres.")
     normal: list[float] | None = Field(None, description="Disk: the side it receives on, a unit vector.")
     radius: float | None = Field(None, description="Disk: its radius, m.")
+    width: int | None = Field(None, description="Camera: pixels across.")
+    height: int | None = Field(None, description="Camera: pixels down (row 0 the top).")
+    position: list[float] | None = Field(None, description="Camera or meter: the eye, world metres.")
+    look_at: list[float] | None = Field(None, description="Camera: a point on its line of sight, world metres.")
+    fov_deg: float | None = Field(None, description="Camera: vertical field of view, degrees.")
+    direction: list[float] | None = Field(None, description="Meter: where it looks.")
+    aperture_deg: float | None = Field(None, description="Meter: its acceptance angle, degrees.")
+    strategy: str | None = Field(None, description="Luminance: the estimator in words.")
     url: str | None = Field(None, description="This result's URL.")
 
 
@@ -77,8 +91,10 @@ class ResultList(BaseModel):
 class ResultPublic(ResultSummary):
     """One kept result with its cells: for a grid, nv rows of nu cells (row j along v, column i along u)."""
 
-    lux: list[Any] = Field(description="Illuminance, lx.")
-    stderr: list[Any] = Field(description="Standard error of each value, lx.")
+    lux: list[Any] | None = Field(None, description="Illuminance, lx.")
+    luminance: list[Any] | None = Field(None, description="Luminance, cd/m² (a camera: height rows of width "
+                                                          "pixels, top row first).")
+    stderr: list[Any] = Field(description="Standard error of each value, lx (cd/m² for luminance).")
 
 
 class DifferencePublic(BaseModel):
@@ -88,10 +104,15 @@ class DifferencePublic(BaseModel):
     from_: str = Field(alias="from", description="Key of the earlier result.")
     to: str = Field(description="Key of the later result.")
     type: str | None = Field(None, description="The sensor's kind: `grid` or `disk`.")
-    difference: list[Any] = Field(description="lux(to) − lux(from) per cell, lx.")
-    stderr: list[Any] = Field(description="Combined standard error √(σ_from² + σ_to²) per cell, lx.")
-    lux_from: list[Any] = Field(description="Illuminance of the earlier result per cell, lx.")
-    lux_to: list[Any] = Field(description="Illuminance of the later result per cell, lx.")
+    quantity: str | None = Field(None, description="`luminance` where the values are cd/m² (else lux).")
+    difference: list[Any] = Field(description="value(to) − value(from) per cell, lx (cd/m² for luminance).")
+    stderr: list[Any] = Field(description="Combined standard error √(σ_from² + σ_to²) per cell, lx (cd/m²).")
+    lux_from: list[Any] | None = Field(None, description="Illuminance of the earlier result per cell, lx.")
+    lux_to: list[Any] | None = Field(None, description="Illuminance of the later result per cell, lx.")
+    luminance_from: list[Any] | None = Field(None, description="Luminance of the earlier result per pixel, cd/m².")
+    luminance_to: list[Any] | None = Field(None, description="Luminance of the later result per pixel, cd/m².")
+    width: int | None = Field(None, description="Camera: pixels across.")
+    height: int | None = Field(None, description="Camera: pixels down.")
     significance_sigmas: float = Field(description="A cell changed beyond noise where |difference| exceeds this many "
                                                    "standard errors.")
     summary: dict[str, Any] = Field(description="Cells, significant changes (increased, decreased), the largest rise "
@@ -163,9 +184,14 @@ def result_map(scene_id: SceneId, sensor_id: ItemId, key: Key, request: Request,
                                                    description="Top of the colour scale, lx.")] = None) -> Response:
     """False-colour PNG of a kept grid result."""
     result = _get(request, scene_id, sensor_id, key)
+    if result.get("type") == "camera":
+        png = luminance_map_png(result["luminance"], stderr=result["stderr"], vmax=vmax,
+                                title=f"{_title(request, scene_id, sensor_id)} — result {result['key']}, "
+                                      f"{result['photons']:,} paths")
+        return Response(png, media_type="image/png", headers={"X-Scene-Revision": str(result["revision"])})
     if result.get("type") != "grid":
         raise NotFound(f"result {result['key']} of sensor {sensor_id} is of a {result.get('type')} sensor; maps exist "
-                       "for grid sensors")
+                       "for grid and camera sensors")
     png = illuminance_map_png(result["lux"], result["origin"], result["u"], result["v"], stderr=result["stderr"],
                               title=f"{_title(request, scene_id, sensor_id)} — result {result['key']}, "
                                     f"{result['photons']:,} photons", vmax=vmax)

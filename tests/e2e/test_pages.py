@@ -8,6 +8,7 @@ real `lumenlink serve` process.
   and highlights it, a job shows up with its final state, a click on a sensor cell reports the floor's node path,
   its material and the cell's lux ± error, the linear/log switch recolours the plane.
 - a surface sensor on the box colours its triangles; a click on one reports that triangle's lux ± error.
+- "render this view" shows the view's luminance image: a coarse one first, then the full one, refined.
 
 Screenshots go to ``$LUMENLINK_ARTIFACTS/pages`` (default ``<tmp>/lumenlink-artifacts/pages``), never into the repo.
 Skipped, saying why, only where Chromium or Playwright is not installed (`make test` installs both: the Makefile's
@@ -263,6 +264,28 @@ def test_a_surface_sensor_colours_the_model_and_a_click_reports_its_triangle(
     assert pick["node"]["path"] == "room/box" and pick["triangle"] == top
     assert pick["lux"] == part["lux"][top] and pick["stderr"] == part["stderr"][top] and pick["lux"] > 0
     assert "triangle 2" in page.locator("#pick").inner_text()
+    assert watched.errors == []
+
+
+def test_render_this_view_shows_a_coarse_image_then_refines_it(service: dict[str, Any], watched: Watched,
+                                                               artifacts: Path) -> None:
+    """"render this view" makes camera sensors of the view shown: a coarse image (40 rows) appears beside the 3D
+    view, then the full one (120 rows) replaces it, pass after pass, each image a PNG of the camera's size."""
+    page = watched.page
+    page.goto(f"{service['base']}/scenes/{service['scene']}/view")
+    _wait(page, "window.lumenlink.ready && window.lumenlink.connection === 'live'")
+    page.get_by_role("button", name="render this view").click()
+    _wait(page, "window.lumenlink.render && window.lumenlink.render.passes.length >= 1", timeout=WAIT_MS)
+    first = page.evaluate("window.lumenlink.render.passes[0]")
+    assert first["coarse"] and first["height"] == 40
+    _wait(page, "window.lumenlink.render.passes.length >= 2", timeout=WAIT_MS)
+    _wait(page, "(() => { const i = document.getElementById('render'); return !i.hidden && i.complete && "
+                "i.naturalHeight === 120; })()", timeout=30_000)
+    second = page.evaluate("window.lumenlink.render.passes[1]")
+    assert not second["coarse"] and second["height"] == 120 and second["photons"] > first["photons"] / 10
+    assert page.evaluate("document.getElementById('render').naturalWidth") == second["width"]
+    assert "pass 2" in page.text_content("#render-state") or "pass 3" in page.text_content("#render-state")
+    page.screenshot(path=str(artifacts / "view-rendered.png"))
     assert watched.errors == []
 
 

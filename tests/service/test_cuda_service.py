@@ -16,7 +16,8 @@ from service_process import running_service
 
 Z = 4.0   # combined standard errors (the issue's |ΔE| ≤ 4σ)
 QUERY = {"points": [[0.3, 0.0, 0.0], [1.0, 0.5, 0.0]], "normals": [[0, 0, 1.0]] * 2, "radius": 0.3,
-         "max_photons": 200_000, "estimator": "forward"}
+         "max_photons": 200_000, "estimator": "forward",
+         "max_seconds": 600.0}   # photons, not the clock, end it: a loaded machine gives the same count
 
 
 def _lit_floor(base: str) -> str:

@@ -174,6 +174,8 @@ def test_exr_reads_back_with_openexr_where_installed(tmp_path: Path) -> None:
     ({**CAMERA, "look_at": CAMERA["position"]}, "look_at"),
     ({**CAMERA, "up": [0.0, 1.8, -1.2]}, "up"),
     ({**CAMERA, "lens": 0.1}, "lens"),
+    ({**CAMERA, "lens_diameter_m": -0.1}, "lens_diameter_m"),
+    ({**CAMERA, "lens_diameter_m": 0.05, "focus_distance_m": 0}, "focus_distance_m"),
     ({**METER, "aperture_deg": 0}, "aperture_deg"),
     ({**METER, "aperture_deg": 181}, "aperture_deg"),
     ({**METER, "direction": [0, 0, 0]}, "direction"),

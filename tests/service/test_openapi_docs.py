@@ -27,7 +27,7 @@ NO_DESCRIPTION: dict[str, str] = {}
 #: what a valid example may answer, per operation (beyond 200/201): a second scene of the same name is a conflict
 MAY_ALSO_ANSWER = {("post", "/scenes"): {409}}
 SIMULATION = {"/scenes/{scene_id}/illuminance", "/scenes/{scene_id}/illuminance/plan",
-              "/scenes/{scene_id}/sensors/{sensor_id}/simulate"}
+              "/scenes/{scene_id}/sensors/{sensor_id}/simulate", "/scenes/{scene_id}/luminance/uniformity"}
 #: examples that name ids only a run gives (an element assignment, a pack's scene and sensor): read by their models
 BY_MODEL = {"/elements/{element_id}/pack": "PackRequest", "/scenes/{scene_id}/elements/{item_id}": "ElementSwitch"}
 CEILING_PANEL = "6f1c9a52-3b7e-4d08-9e2a-51c4b7d3e003"
@@ -101,7 +101,10 @@ def test_every_example_is_accepted_by_the_service(served) -> None:
     sent = 0
     for method, path, name, value in _examples(spec):
         if path in SIMULATION:
-            model = SensorSimulate if "simulate" in path else IlluminanceQuery
+            from service.routes.glare import UniformityQuery
+
+            model: Any = (SensorSimulate if "simulate" in path else UniformityQuery if "uniformity" in path
+                          else IlluminanceQuery)
             query = model.model_validate(value)
             resolve_budget(limits, query.target_relative_error, query.max_seconds, query.max_photons)
             continue

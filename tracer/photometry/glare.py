@@ -65,23 +65,26 @@ def guth_position_index(alpha_deg, beta_deg):
     return np.exp(ln_p)
 
 
-def ugr(luminance, omega, p, background: float, stderr=None) -> dict:
+def ugr(luminance, omega, p, background: float, stderr=None, background_stderr: float = 0.0) -> dict:
     """UGR of listed luminaires: luminance (n,) cd/m², solid angle omega (n,) sr, position index p (n,), seen
     against the background luminance `background` (cd/m², > 0). Returns {"ugr", "stderr", "sum"} (sum: Σ L² ω / p²);
-    the error from the luminances' `stderr` (n,) to first order."""
+    the error to first order from the luminances' `stderr` (n,) and the background's `background_stderr` (cd/m²),
+    taken as independent: σ² = (8/ln 10)² ((σ_Σ/Σ)² + (σ_b/L_b)²)."""
     lum, om, pp = (np.atleast_1d(np.asarray(x, float)) for x in (luminance, omega, p))
     if not (background > 0 and math.isfinite(background)):
         raise ValueError(f"background luminance must be > 0 cd/m², got {background!r}")
+    if not (background_stderr >= 0 and math.isfinite(background_stderr)):
+        raise ValueError(f"background_stderr must be ≥ 0 cd/m², got {background_stderr!r}")
     terms = lum * lum * om / (pp * pp)
     total = float(terms.sum())
     if not total > 0:
         raise ValueError("no luminaire is seen: UGR is undefined (−∞)")
     value = 8.0 * math.log10(0.25 / background * total)
-    err = 0.0
+    rel2 = (background_stderr / background) ** 2
     if stderr is not None:
         d_total = float(np.sqrt(((2.0 * lum * om / (pp * pp) * np.asarray(stderr, float)) ** 2).sum()))
-        err = 8.0 / math.log(10.0) * d_total / total
-    return {"ugr": value, "stderr": err, "sum": total}
+        rel2 += (d_total / total) ** 2
+    return {"ugr": value, "stderr": 8.0 / math.log(10.0) * math.sqrt(rel2), "sum": total}
 
 
 def pixel_geometry(fov_deg: float, width: int, height: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -107,18 +110,34 @@ def ugr_from_image(luminance, fov_deg: float, stderr=None, background: float | N
     """UGR seen by a camera (its image (height, width) cd/m², vertical field of view `fov_deg`) looking along the
     observer's line of sight. Source pixels: above the line of sight with luminance ≥ `threshold` (default 5 × the
     image's mean luminance weighted by solid angle, evalglare's rule); background L_b: `background`, or the
-    solid-angle-weighted mean of the other pixels. Returns `ugr`'s dict with "background", "threshold" and
-    "source_pixels"."""
+    solid-angle-weighted mean of the other pixels, with its standard error from theirs. Returns `ugr`'s dict with
+    "background", "background_stderr" (0 where the background is given), "threshold" and "source_pixels";
+    ValueError where no pixel is a source or the background is black."""
     lum = np.asarray(luminance, float)
     if lum.ndim != 2:
         raise ValueError(f"an image is (height, width), got shape {lum.shape}")
     omega, beta, alpha = pixel_geometry(fov_deg, lum.shape[1], lum.shape[0])
+    given_background = background
     if threshold is None:
         threshold = 5.0 * float((lum * omega).sum() / omega.sum())
     source = (lum >= threshold) & np.isfinite(alpha)
     if background is None:
         rest = ~source
         background = float((lum[rest] * omega[rest]).sum() / omega[rest].sum()) if rest.any() else 0.0
+    source_count = int(source.sum())
+    if source_count == 0:
+        raise ValueError(f"no pixel above the line of sight reaches the threshold {threshold:.6g} cd/m²: no "
+                         f"luminaire is seen, UGR is undefined")
+    background_stderr = 0.0
+    if given_background is None and stderr is not None and (~source).any():
+        rest = ~source
+        s_rest = np.asarray(stderr, float)[rest] * omega[rest]
+        background_stderr = float(np.sqrt((s_rest * s_rest).sum()) / omega[rest].sum())
+    if not background > 0:
+        raise ValueError("the background (every pixel that is not a source) is black: UGR is undefined; give the "
+                         "background luminance")
     err = None if stderr is None else np.asarray(stderr, float)[source]
-    out = ugr(lum[source], omega[source], guth_position_index(alpha[source], beta[source]), background, err)
-    return {**out, "background": background, "threshold": threshold, "source_pixels": int(source.sum())}
+    out = ugr(lum[source], omega[source], guth_position_index(alpha[source], beta[source]), background, err,
+              background_stderr)
+    return {**out, "background": background, "background_stderr": background_stderr, "threshold": threshold,
+            "source_pixels": source_count}

@@ -19,11 +19,12 @@ import math
 
 import numpy as np
 
+from tracer.errors import SimulationError
 from tracer.optics.fields import BodyField, fields
 from tracer.optics.frames import onb
 from tracer.sensors.base import IlluminanceResult, Probe, vec3
 from tracer.sensors.views import LuminanceResult, angle, check_fields, luminance_result, unit
-from tracer.transport.radiance import CONE, ViewArrays
+from tracer.transport.radiance import CONE, ViewArrays, pinhole
 
 TYPE = "luminance"
 FORWARD_ONLY = False
@@ -53,9 +54,44 @@ def probe(sim, body: dict) -> Probe:
     one_minus_cos = 2.0 * math.sin(half / 2.0) ** 2   # 1 − cos, exact for small apertures
     t, b = onb(*axis)
     view = ViewArrays(np.array([CONE], np.int64), o[None, :], axis[None, :], np.array([t]), np.array([b]),
-                      np.zeros((1, 3)), np.array([1.0 - one_minus_cos]), np.array([2.0 * math.pi * one_minus_cos]))
+                      np.zeros((1, 3)), np.array([1.0 - one_minus_cos]), np.array([2.0 * math.pi * one_minus_cos]),
+                      *pinhole(1))
     return Probe(o[None, :], axis[None, :], view=view)
 
 
 def answer(sim, probe: Probe, res: IlluminanceResult) -> LuminanceResult:
     return luminance_result(sim, res, None)
+
+
+def meters_probe(sim, body: dict) -> Probe:
+    """k luminance meters in one query: ``{"positions": (k, 3) m, "directions": (k, 3), "aperture_deg": °}`` (one
+    aperture for all); their views are the same cones `probe` makes for one."""
+    pos = np.atleast_2d(np.asarray(body.get("positions"), float))
+    dirs = np.atleast_2d(np.asarray(body.get("directions"), float))
+    if pos.ndim != 2 or pos.shape[1] != 3 or pos.shape[0] < 1 or dirs.shape != pos.shape:
+        raise SimulationError(f"positions and directions must be (k, 3) arrays of the same k ≥ 1, got "
+                              f"{pos.shape} and {dirs.shape}")
+    k = pos.shape[0]
+    parts = [check({"type": TYPE, "position": pos[i], "direction": dirs[i],
+                    "aperture_deg": body.get("aperture_deg", DEFAULT_APERTURE_DEG)}) for i in range(k)]
+    half = parts[0][2]
+    one_minus_cos = 2.0 * math.sin(half / 2.0) ** 2
+    axes = np.array([p[1] for p in parts])
+    frames = [onb(*a) for a in axes]
+    view = ViewArrays(np.full(k, CONE, np.int64), np.ascontiguousarray(pos), np.ascontiguousarray(axes),
+                      np.array([f[0] for f in frames]), np.array([f[1] for f in frames]), np.zeros((k, 3)),
+                      np.full(k, 1.0 - one_minus_cos), np.full(k, 2.0 * math.pi * one_minus_cos), *pinhole(k))
+    return Probe(pos, axes, view=view)
+
+
+def meters(sim, positions, directions, aperture_deg: float = DEFAULT_APERTURE_DEG, **query) -> LuminanceResult:
+    """The luminance (cd/m²) each of k meters reads, measured together (one run, one stop rule over all of them):
+    `LuminanceResult` with ``luminance`` and ``stderr`` of shape (k,). `query`: the budget options of
+    `tracer.simulate.Simulation.run` (estimator "auto" or "backward")."""
+    if query.get("estimator", "auto") == "forward":
+        raise SimulationError("luminance meters are answered by paths from the eye; the forward estimator cannot")
+    body = {"positions": positions, "directions": directions, "aperture_deg": aperture_deg}
+    if "target_relative_error" in query:
+        query["target"] = query.pop("target_relative_error")
+    probe, res = sim.measure(meters_probe, body, **query)
+    return luminance_result(sim, res, (probe.view.kind.shape[0],))

@@ -64,7 +64,8 @@ class ViewArrays(NamedTuple):
     forward axis. a, b (k, 3): a cone's unit frame across its axis; a pixel's edges on the film (the plane at unit
     distance along `axis`), u and v. c (k, 3): a pixel's corner on the film (from the eye); unused for a cone.
     cos_max (k,): cos of a cone's half angle (1 for a pixel). size (k,): a cone's solid angle (sr), a pixel's film
-    area |a × b|.
+    area |a × b|. lens (k,): a pixel's thin-lens radius (m; 0: a pinhole), the lens a disk across the axis at the eye
+    (spanned by a and b). focus (k,): the focus distance along the axis (m; unused for a pinhole).
     """
 
     kind: np.ndarray
@@ -75,6 +76,13 @@ class ViewArrays(NamedTuple):
     c: np.ndarray
     cos_max: np.ndarray
     size: np.ndarray
+    lens: np.ndarray
+    focus: np.ndarray
+
+
+def pinhole(k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The ``lens`` and ``focus`` of k views without a lens (meters, pinhole cameras)."""
+    return np.zeros(k), np.ones(k)
 
 
 class Emitters(NamedTuple):
@@ -117,6 +125,61 @@ def view_direction(V, q, u0, u1):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
+def lens_ray(V, q, dx, dy, dz, u0, u1):
+    """A thin lens's ray for pixel direction d (unit): from a point uniform on the lens disk (radius V.lens[q], across
+    the axis at the eye) through the point the pinhole ray meets on the plane of focus (V.focus[q] along the axis).
+    Returns (origin, unit direction)."""
+    r = V.lens[q] * math.sqrt(u0)
+    phi = 2.0 * math.pi * u1
+    ia = 1.0 / math.sqrt(V.a[q, 0] ** 2 + V.a[q, 1] ** 2 + V.a[q, 2] ** 2)
+    ib = 1.0 / math.sqrt(V.b[q, 0] ** 2 + V.b[q, 1] ** 2 + V.b[q, 2] ** 2)
+    ca, sb = r * math.cos(phi) * ia, r * math.sin(phi) * ib
+    ox = V.o[q, 0] + ca * V.a[q, 0] + sb * V.b[q, 0]
+    oy = V.o[q, 1] + ca * V.a[q, 1] + sb * V.b[q, 1]
+    oz = V.o[q, 2] + ca * V.a[q, 2] + sb * V.b[q, 2]
+    t = V.focus[q] / (dx * V.axis[q, 0] + dy * V.axis[q, 1] + dz * V.axis[q, 2])
+    fx, fy, fz = V.o[q, 0] + t * dx - ox, V.o[q, 1] + t * dy - oy, V.o[q, 2] + t * dz - oz
+    inv = 1.0 / math.sqrt(fx * fx + fy * fy + fz * fz)
+    return ox, oy, oz, fx * inv, fy * inv, fz * inv
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def lens_point_lights(sa, L, V, q, ox, oy, oz, stack, tstack):
+    """The point-like lights one lens point (ox, oy, oz) of pixel q sees: for each light, the film point its light
+    reaches through that lens point (through the light's image on the plane of focus); where that falls in the pixel,
+    E⊥ / (cos³θ' × film area), θ' the ray's angle from the axis (the lens-point form of `seen_point_lights`). Its mean
+    over the lens points of a pixel's paths is the pixel's mean luminance of the lights, unbiased."""
+    ax, ay, az = V.axis[q, 0], V.axis[q, 1], V.axis[q, 2]
+    total = 0.0
+    for j in range(L.kind.shape[0]):
+        if L.kind[j] == AREA:
+            continue
+        e, sx, sy, sz, t_max = light_connect(L, j, ox, oy, oz, ax, ay, az, 0.5, 0.5, 0.5)
+        if e <= 0.0:
+            continue
+        dist = math.sqrt(sx * sx + sy * sy + sz * sz)
+        cos_a = (sx * ax + sy * ay + sz * az) / dist
+        if cos_a <= 0.0:
+            continue
+        k = V.focus[q] / (cos_a * dist)   # the ray from the lens point reaches the plane of focus here
+        px = ox + k * sx - V.o[q, 0]
+        py = oy + k * sy - V.o[q, 1]
+        pz = oz + k * sz - V.o[q, 2]
+        f = 1.0 / V.focus[q]              # … which the pinhole ray through this film point meets
+        fx, fy, fz = px * f - V.c[q, 0], py * f - V.c[q, 1], pz * f - V.c[q, 2]
+        a2 = V.a[q, 0] ** 2 + V.a[q, 1] ** 2 + V.a[q, 2] ** 2
+        b2 = V.b[q, 0] ** 2 + V.b[q, 1] ** 2 + V.b[q, 2] ** 2
+        s = (fx * V.a[q, 0] + fy * V.a[q, 1] + fz * V.a[q, 2]) / a2
+        t = (fx * V.b[q, 0] + fy * V.b[q, 1] + fz * V.b[q, 2]) / b2
+        if not (0.0 <= s < 1.0 and 0.0 <= t < 1.0):
+            continue
+        if any_with_stacks(sa, ox, oy, oz, sx, sy, sz, t_max, stack, tstack):
+            continue
+        total += e / cos_a / (cos_a ** 3 * V.size[q])
+    return total
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
 def power_heuristic(p, other):
     """Veach's power heuristic (β = 2): the weight of a strategy of density p against one of density `other`."""
     return p * p / (p * p + other * other)
@@ -151,6 +214,8 @@ def seen_point_lights(sa, L, V, q, stack, tstack):
     ox, oy, oz = V.o[q, 0], V.o[q, 1], V.o[q, 2]
     ax, ay, az = V.axis[q, 0], V.axis[q, 1], V.axis[q, 2]
     total = 0.0
+    if V.lens[q] > 0.0:
+        return 0.0     # a thin lens: each path adds them from its own lens point (`lens_point_lights`)
     for j in range(L.kind.shape[0]):
         if L.kind[j] == AREA:
             continue   # seen by the paths themselves (emission on hit)
@@ -189,6 +254,10 @@ def trace_view(sa, M, L, V, E, q, key, counters, med, pol, stack, tstack):
     x, y, z = V.o[q, 0], V.o[q, 1], V.o[q, 2]
     dim = 2
     lum = 0.0
+    if V.lens[q] > 0.0:   # a thin lens: from a point on the lens through the point in focus
+        x, y, z, dx, dy, dz = lens_ray(V, q, dx, dy, dz, uniform(key, 2), uniform(key, 3))
+        dim = 4
+        lum += lens_point_lights(sa, L, V, q, x, y, z, stack, tstack)
     w = 1.0
     pb_scale = 0.0    # > 0: d was drawn from a diffuse lobe with density pb_scale × cos_prev (MIS on emission)
     cos_prev = 0.0

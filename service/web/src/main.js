@@ -275,33 +275,78 @@ async function simulate(sensorId) {
   }
 }
 
-/** "render this view": the viewer's camera as a camera sensor of the scene, simulated as a job; its tone-mapped
- *  image (image.png) shown once the job is done. */
+/** "render this view": the viewer's camera as two camera sensors of the scene, a coarse one (40 rows) and the
+ *  full one (120 rows), each simulated as a job: the coarse image shows within about a second, then the full one
+ *  refines pass by pass (growing time budgets) until its median pixel error is at most 2 % or the passes are spent.
+ *  A push (a new revision) starts the passes again on the new scene; a newer render replaces the running one. */
+const RENDER_PASSES = [{ coarse: true, max_seconds: 1 }, { max_seconds: 2 }, { max_seconds: 6 }, { max_seconds: 20 }];
+const RENDER_TARGET = 0.02;   // median pixel relative error to stop at
+
+function medianRelativeError(r) {
+  const lum = r.luminance.flat(), err = r.stderr.flat();
+  const rel = lum.map((v, k) => (v > 0 ? err[k] / v : NaN)).filter((x) => Number.isFinite(x)).sort((a, b) => a - b);
+  return rel.length ? rel[Math.floor(rel.length / 2)] : NaN;
+}
+
+async function runJob(sensorId, budget, seed) {
+  let job = await postJSON(`/scenes/${sceneId}/sensors/${sensorId}/simulate?mode=async`, { ...budget, seed });
+  while (!["succeeded", "failed", "cancelled"].includes(job.status)) {
+    await new Promise((r) => setTimeout(r, 200));
+    job = await getJSON(job.url);
+  }
+  if (job.status !== "succeeded") throw new Error(job.error ?? job.status);
+  return job.result;
+}
+
+async function renderPasses(render) {
+  const state = $("render-state");
+  for (const [k, pass] of RENDER_PASSES.entries()) {
+    if (ll.render !== render) return;                       // a newer render (or a push) took over
+    const sensor = pass.coarse ? render.coarse : render.full;
+    const t0 = performance.now();
+    const r = await runJob(sensor, { max_seconds: pass.max_seconds }, k);
+    if (ll.render !== render) return;
+    const lum = r.luminance.flat(), median = medianRelativeError(r);
+    render.passes.push({ pass: k, coarse: !!pass.coarse, width: r.width, height: r.height, photons: r.photons,
+                         seconds: r.seconds, wall: (performance.now() - t0) / 1000, median, revision: r.revision });
+    render.result = r;
+    state.textContent = `pass ${k + 1}: ${r.width} × ${r.height}, ${Math.min(...lum).toPrecision(3)} – ` +
+      `${Math.max(...lum).toPrecision(3)} cd/m², median error ${(100 * median).toFixed(1)} % ` +
+      `(${r.photons.toLocaleString()} paths, revision ${r.revision}; Reinhard tone map)`;
+    Object.assign($("render"), { src: `/scenes/${sceneId}/sensors/${sensor}/image.png?revision=${r.revision}&pass=${k}`,
+                                 hidden: false });
+    if (!pass.coarse && median <= RENDER_TARGET) break;
+  }
+  render.done = true;
+}
+
 async function renderView() {
   const button = $("render-view"), state = $("render-state");
   if (!viewer) return;
   button.disabled = true;
   try {
-    const body = { ...viewer.cameraBody(120), name: `view ${new Date().toLocaleTimeString()}` };
-    const sensor = await postJSON(`/scenes/${sceneId}/sensors`, body);
-    state.textContent = `rendering ${body.width} × ${body.height}…`;
-    let job = await postJSON(`/scenes/${sceneId}/sensors/${sensor.id}/simulate?mode=async`, { max_seconds: 10 });
-    while (!["succeeded", "failed", "cancelled"].includes(job.status)) {
-      await new Promise((r) => setTimeout(r, 300));
-      job = await getJSON(job.url);
-    }
-    if (job.status !== "succeeded") throw new Error(job.error ?? job.status);
-    const r = job.result, lum = r.luminance.flat();
-    state.textContent = `${Math.min(...lum).toPrecision(3)} – ${Math.max(...lum).toPrecision(3)} cd/m² ` +
-      `(${r.photons.toLocaleString()} paths; Reinhard tone map)`;
-    ll.render = { sensor: sensor.id, result: r };
-    Object.assign($("render"), { src: `/scenes/${sceneId}/sensors/${sensor.id}/image.png?revision=${r.revision}`,
-                                 hidden: false });
+    const stamp = new Date().toLocaleTimeString();
+    const full = await postJSON(`/scenes/${sceneId}/sensors`, { ...viewer.cameraBody(120), name: `view ${stamp}` });
+    const coarse = await postJSON(`/scenes/${sceneId}/sensors`,
+                                  { ...viewer.cameraBody(40), name: `view ${stamp} (coarse)` });
+    const render = { sensor: full.id, full: full.id, coarse: coarse.id, passes: [], result: null, done: false };
+    ll.render = render;
+    state.textContent = "rendering: a coarse image first…";
+    await renderPasses(render);
   } catch (err) {
     state.textContent = `render refused: ${err.message}`;
   } finally {
     button.disabled = false;
   }
+}
+
+/** After a push, the image starts again on the new revision. */
+function renderAgain() {
+  const old = ll.render;
+  if (!old) return;
+  const render = { ...old, passes: [], result: null, done: false, restarts: (old.restarts ?? 0) + 1 };
+  ll.render = render;
+  renderPasses(render).catch((err) => { $("render-state").textContent = `render refused: ${err.message}`; });
 }
 $("render-view").onclick = renderView;
 
@@ -415,7 +460,7 @@ const seen = (name, data) => { ll.events.push({ name, data, at: Date.now() }); i
 followEvents(sceneId, {
   hello: (d) => { seen("hello", d); soon(); },
   scene: (d) => { seen("scene", d); soon(); },
-  push: (d) => { seen("push", d); soon(); },
+  push: (d) => { seen("push", d); soon(); renderAgain(); },
   result: (d) => { seen("result", d); soon(); },
   resync: (d) => { seen("resync", d); soon(); },
   job: (d) => { seen("job", d); jobs.set(d.id, d); listJobs(); },

@@ -1,0 +1,211 @@
+"""What engineers compute from luminance, each value with its error bar (`tracer.photometry.glare`):
+
+- ``GET /scenes/{id}/sensors/{sid}/ugr`` — the unified glare rating (CIE 117-1995) an observer at a camera's position
+  sees looking along its line of sight, from the camera's latest image (the scene as it is now; 404 until it is
+  simulated): source pixels above the line of sight at least ``threshold`` cd/m² (default 5 × the image's
+  solid-angle-weighted mean), each weighted by its solid angle and its Luckiesh–Guth position index; the background
+  luminance L_b is ``background`` where given, else the solid-angle-weighted mean of the other pixels. ``stderr``
+  is first-order, from the pixels' standard errors (the sources' and the background's).
+- ``POST /scenes/{id}/luminance/uniformity`` — a grid of luminance meters measured together (one run, one stop
+  rule): the listed ``points`` or the ``nine_points`` of a rectangle (the 9-point figure of a backlight or a
+  display: the centres of its 3 × 3 division), each seen by a meter ``distance`` metres back from it along
+  ``direction``; the answer holds each meter's cd/m² ± stderr and the uniformity over them: min/max (U_d), min/mean
+  (U₀), with their standard errors (the delta method, the smallest and largest meters held fixed).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Any
+
+import numpy as np
+from fastapi import APIRouter, Query, Request
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from service.errors import Invalid
+from service.routes.deps import ItemId, SceneId
+from service.routes.images import camera_result
+from service.routes.simulation import _answer, _targeted
+from service.simulation import _refusals, hub_for, resolve_budget
+from service.simulation_wire import FiniteFloat, Mode, QueryBudget, Vec3
+from tracer.photometry.glare import nine_points, ugr_from_image, uniformity
+
+router = APIRouter(tags=["simulation"])
+MAX_METERS = 1000
+DEFAULT_DISTANCE_M = 0.5
+
+
+class UgrPublic(BaseModel):
+    """The UGR an observer at the camera sees along its line of sight."""
+
+    sensor: str = Field(description="The camera's id.")
+    revision: int = Field(description="Scene revision of the image it was computed from.")
+    ugr: float = Field(description="Unified glare rating, 8 log₁₀(0.25/L_b Σ L² ω / p²).")
+    stderr: float = Field(description="Its standard error (first order, from the pixels' standard errors).")
+    background: float = Field(description="Background luminance L_b, cd/m².")
+    background_stderr: float = Field(description="Its standard error, cd/m² (0 where the query gave it).")
+    threshold: float = Field(description="Pixels at least this bright (cd/m²) and above the line of sight are "
+                                         "sources.")
+    source_pixels: int = Field(description="How many pixels were taken as sources.")
+    sum: float = Field(description="Σ L² ω / p² over the source pixels, (cd/m²)² sr.")
+    fov_deg: float = Field(description="The camera's vertical field of view, degrees: sources outside it are not "
+                                       "counted.")
+    position: list[float] = Field(description="The observer's eye (the camera's position), world metres.")
+    look_at: list[float] = Field(description="A point on the line of sight, world metres.")
+    method: str = Field(description="What was computed, in words.")
+
+
+@router.get("/scenes/{scene_id}/sensors/{sensor_id}/ugr", response_model=UgrPublic, responses={404: {}})
+def sensor_ugr(scene_id: SceneId, sensor_id: ItemId, request: Request,
+               background: Annotated[float | None, Query(gt=0.0, allow_inf_nan=False, description=(
+                   "Background luminance L_b, cd/m² (CIE 117: E_ind/π, the indirect vertical illuminance at the eye "
+                   "over π); default: the solid-angle-weighted mean of the image's non-source pixels."))] = None,
+               threshold: Annotated[float | None, Query(gt=0.0, allow_inf_nan=False, description=(
+                   "Pixels at least this bright (cd/m²) above the line of sight are luminaires; default 5 × the "
+                   "image's solid-angle-weighted mean luminance (evalglare's rule)."))] = None) -> dict[str, Any]:
+    """UGR (CIE 117-1995) from the camera's latest image: the observer at its position, looking along its line of
+    sight; 404 until the camera is simulated on the scene as it is now, 422 where no luminaire is seen."""
+    result = camera_result(request, scene_id, sensor_id)
+    try:
+        out = ugr_from_image(np.asarray(result["luminance"], float), float(result["fov_deg"]),
+                             stderr=np.asarray(result["stderr"], float), background=background, threshold=threshold)
+    except ValueError as exc:
+        raise Invalid(f"sensor {sensor_id!r}: {exc}") from exc
+    return {**out, "sensor": sensor_id, "revision": int(result["revision"]), "fov_deg": float(result["fov_deg"]),
+            "position": result["position"], "look_at": result["look_at"],
+            "method": "CIE 117-1995 UGR over the image's pixels: each source pixel's luminance, solid angle and "
+                      "Luckiesh–Guth position index (closed form, above the line of sight); first-order error"}
+
+
+class NinePoints(BaseModel):
+    """A rectangle origin + s u + t v (s, t in [0, 1]) whose 9-point figure is asked."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    origin: Vec3 = Field(description="A corner of the lit area, world metres.")
+    u: Vec3 = Field(description="One edge, m.")
+    v: Vec3 = Field(description="The other edge, m.")
+
+
+class UniformityQuery(QueryBudget):
+    """Body of ``POST /scenes/{id}/luminance/uniformity``: meters that look at points."""
+
+    points: Annotated[list[Vec3], Field(min_length=1, max_length=MAX_METERS)] | None = Field(
+        default=None, description="The points the meters look at, world metres (or `nine_points`).")
+    nine_points: NinePoints | None = Field(
+        default=None, description="The 9-point figure of a rectangle: the centres of its 3 × 3 division (at 1/6, "
+                                  "1/2 and 5/6 of each edge), row by row along v.")
+    direction: Vec3 = Field(description="The way every meter looks (towards the points), any non-zero length.")
+    distance: Annotated[FiniteFloat, Field(gt=0.0)] = Field(
+        default=DEFAULT_DISTANCE_M, description="How far each meter stands back from its point, m.")
+    aperture_deg: Annotated[FiniteFloat, Field(gt=0.0, le=180.0)] = Field(
+        default=1.0, description="Each meter's acceptance angle (its cone's full angle), degrees.")
+
+    model_config = ConfigDict(json_schema_extra={"examples": [
+        {"nine_points": {"origin": [-0.1, -0.06, 0.0], "u": [0.2, 0.0, 0.0], "v": [0.0, 0.12, 0.0]},
+         "direction": [0.0, 0.0, -1.0], "distance": 0.5, "aperture_deg": 1.0, "max_seconds": 10.0}]})
+
+    @model_validator(mode="after")
+    def _check(self) -> UniformityQuery:
+        if (self.points is None) == (self.nine_points is None):
+            raise ValueError("give either points or nine_points (one of them)")
+        if math.hypot(*self.direction) == 0.0:
+            raise ValueError("direction must not be the zero vector")
+        if self.estimator == "forward":
+            raise ValueError("estimator: luminance meters are answered by paths from the eye; the forward estimator "
+                             "cannot (photons from the lights almost never enter a meter's cone); use 'backward' or "
+                             "'auto'")
+        for name in ("observe", "physics_left_out"):
+            if getattr(self, name):
+                raise ValueError(f"{name} is not available for luminance meters")
+        if self.reference is not None:
+            raise ValueError("reference is not available for luminance meters")
+        return self
+
+
+class Uniformity(BaseModel):
+    """Uniformity of the readings; the standard errors by the delta method (null where a ratio is undefined)."""
+
+    min: float = Field(description="The smallest reading, cd/m².")
+    max: float = Field(description="The largest reading, cd/m².")
+    mean: float = Field(description="The mean reading, cd/m².")
+    min_max: float | None = Field(description="U_d = min/max.")
+    min_max_stderr: float | None = Field(description="Its standard error.")
+    min_mean: float | None = Field(description="U₀ = min/mean.")
+    min_mean_stderr: float | None = Field(description="Its standard error.")
+
+
+class UniformityPublic(BaseModel):
+    """The meters' readings and their uniformity."""
+
+    figure: str = Field(description="`9-point` for nine_points, else `points`.")
+    points: list[list[float]] = Field(description="The points looked at, world metres.")
+    positions: list[list[float]] = Field(description="Each meter's eye, world metres.")
+    luminance: list[float] = Field(description="Each meter's reading, cd/m².")
+    stderr: list[float] = Field(description="Its standard error, cd/m².")
+    uniformity: Uniformity = Field(description="min/max (U_d) and min/mean (U₀) of the readings, with their "
+                                               "standard errors; min, mean, max in cd/m².")
+    aperture_deg: float = Field(description="Each meter's acceptance angle, degrees.")
+    photons: int = Field(description="Paths from the eye traced (all meters).")
+    seconds: float = Field(description="Seconds the run took, s.")
+    revision: int = Field(description="Scene revision the readings describe.")
+    estimator: str = Field(description="The estimator that ran (`backward`: paths from the eye).")
+    stop_reason: str = Field(description="Which rule stopped the run.")
+    effects: list[str] = Field(description="The effect set the simulation ran with.")
+    strategy: str = Field(description="The estimator in words.")
+    unreachable: dict[str, Any] | None = Field(None, description="Light the paths from the eye cannot find here "
+                                                                 "(then missing from the readings), or null.")
+    cost: dict[str, Any] | None = Field(None, description="What tighter errors would cost (as for lux).")
+
+
+@router.post("/scenes/{scene_id}/luminance/uniformity", response_model=UniformityPublic,
+             responses={202: {}, 413: {}, 503: {}})
+async def luminance_uniformity(scene_id: SceneId, query: UniformityQuery, request: Request,
+                               mode: Mode = "sync") -> Any:
+    """Luminance meters looking at points (or the 9-point figure of a rectangle), measured together, and their
+    uniformity (min/max, min/mean), each value with its standard error."""
+    return await _answer(request, mode, _uniformity_query, scene_id, query, request)
+
+
+def _finite(d: dict[str, float]) -> dict[str, float | None]:
+    """NaN (a ratio of nothing: every meter dark) as null."""
+    return {k: (v if math.isfinite(v) else None) for k, v in d.items()}
+
+
+def _uniformity_query(scene_id: str, query: UniformityQuery, request: Request) -> tuple:
+    hub = hub_for(request.app)
+    budget = resolve_budget(hub.limits, query.target_relative_error, query.max_seconds, query.max_photons,
+                            query.target_scope)
+    if query.nine_points is not None:
+        n = query.nine_points
+        pts, figure = nine_points(n.origin, n.u, n.v), "9-point"
+    else:
+        pts, figure = np.asarray(query.points, float), "points"
+    d = np.asarray(query.direction, float)
+    d = d / np.linalg.norm(d)
+    eyes = pts - query.distance * d[None, :]
+    prepared = hub.prepare(scene_id)
+    hub.check_query(prepared, query.estimator, tuple(query.force_effects))
+
+    def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
+        from tracer.sensors.luminance import meters
+
+        with _refusals():
+            res = meters(prepared.simulation, eyes, np.tile(d, (len(pts), 1)), query.aperture_deg,
+                         target_relative_error=budget.target_relative_error, target_scope=budget.target_scope,
+                         max_seconds=budget.max_seconds, max_photons=budget.max_photons, seed=query.seed,
+                         estimator=query.estimator, force_effects=tuple(query.force_effects), progress=progress,
+                         cancel=cancel)
+        lum, err = np.asarray(res.luminance, float), np.asarray(res.stderr, float)
+        payload = {"figure": figure, "points": pts.tolist(), "positions": eyes.tolist(), "luminance": lum.tolist(),
+                   "stderr": err.tolist(), "uniformity": _finite(uniformity(lum, err)),
+                   "aperture_deg": query.aperture_deg,
+                   "photons": int(res.photons), "seconds": float(res.seconds),
+                   "compile_seconds": float(getattr(res, "compile_seconds", 0.0)),
+                   "revision": int(prepared.live.revision), "estimator": str(res.estimator),
+                   "stop_reason": str(res.stop_reason), "effects": sorted(str(e) for e in res.effects),
+                   "strategy": str(res.strategy), "unreachable": res.unreachable, "cost": res.cost}
+        _targeted(payload, query.cost_targets)
+        payload["current"] = hub.is_current(scene_id, prepared.generation)
+        return payload
+
+    return ("uniformity", scene_id, prepared, work, budget, {"generation": prepared.generation, "points": len(pts)})
