@@ -141,9 +141,11 @@ def assign(
 def demo_guide(
     out_dir: Annotated[Path, typer.Option(help="Where the two maps go.")] = Path("demo-output"),
     photons: Annotated[int, typer.Option(help="Photons per pattern.")] = 400_000,
+    pack: Annotated[bool, typer.Option(help="Also pack a uniform start to 0.95 min/max (before/after).")] = True,
 ) -> None:
-    """An edge-lit light guide with its extraction dots as an optical element: uniform against graded dots."""
-    raise typer.Exit(_call("lumenlink.guide_demo", "run", 36, out_dir=out_dir, photons=photons) or 0)
+    """An edge-lit light guide with its extraction dots as an optical element: uniform against graded dots, and a
+    uniform start packed until its lit face is uniform."""
+    raise typer.Exit(_call("lumenlink.guide_demo", "run", 36, out_dir=out_dir, photons=photons, pack=pack) or 0)
 
 
 @app.command()
@@ -162,6 +164,31 @@ def element(
     """Prepare an optical element with an inside into the library, put it onto a part, or list the library."""
     raise typer.Exit(_call("lumenlink.commands", "element", 36, scene=scene, server=server, body=body, file=file,
                            node=node, facing=facing, element_id=element_id, create=create) or 0)
+
+
+@app.command()
+def pack(
+    element_id: Annotated[str, typer.Argument(help="The density element to pack (its library id).")],
+    scene: SceneOpt,
+    assignment: Annotated[str, typer.Option(help="The element assignment that puts it onto the guide's face.")],
+    sensor: Annotated[str, typer.Option(help="A grid sensor over the lit face (its cells are the meters).")],
+    target: Annotated[float, typer.Option(help="The uniformity to reach, in (0, 1].")] = 0.8,
+    figure: Annotated[str, typer.Option(help="min_max or min_mean.")] = "min_max",
+    photons: Annotated[int, typer.Option(help="Photons of the first measurement (x4 as the map converges).")
+                       ] = 100_000,
+    max_photons: Annotated[int, typer.Option(help="The most photons of one measurement.")] = 1_600_000,
+    max_iterations: Annotated[int, typer.Option(help="Budget: measurements at most.")] = 10,
+    max_seconds: Annotated[float, typer.Option(help="Budget: seconds.")] = 600.0,
+    seed: Annotated[int, typer.Option(help="Photon seed.")] = 1,
+    switch: Annotated[bool, typer.Option("--switch", help="Put the packed element in place of the start.")] = False,
+    png: Annotated[Path | None, typer.Option(help="Write pack.png here.")] = None,
+    server: Server = "http://127.0.0.1:8000",
+) -> None:
+    """Pack a light guide's density element until its lit face is uniform (a job; Ctrl-C cancels it)."""
+    raise typer.Exit(_call("lumenlink.commands", "pack", 41, element_id=element_id, scene=scene,
+                           assignment=assignment, sensor=sensor, server=server, target=target, figure=figure,
+                           photons=photons, max_photons=max_photons, max_iterations=max_iterations,
+                           max_seconds=max_seconds, seed=seed, switch=switch, png=png) or 0)
 
 
 @app.command()

@@ -260,6 +260,33 @@ class Client(ServiceClient):
         """Take an element off its part (the part's faces are plain again)."""
         self._call("DELETE", f"/scenes/{self._sid(scene)}/elements/{assignment}", "taking an element off")
 
+    def switch_element(self, scene: str | dict, assignment: str, element: str) -> dict[str, Any]:
+        """Switch an element assignment to another library element in one call (a packed pattern, say)."""
+        return dict(self._call("PUT", f"/scenes/{self._sid(scene)}/elements/{assignment}", "switching an element",
+                               json={"element": element}))
+
+    def pack(self, element: str, scene: str | dict, assignment: str, sensor: str, *, wait: bool = True,
+             progress: Callable[[dict[str, Any]], None] | None = None, poll: float = 0.5,
+             **options: Any) -> dict[str, Any]:
+        """Pack a density element against the grid `sensor` over the lit face of the part that `assignment` puts it
+        on (``POST /elements/{id}/pack``); options: target, figure, photons, max_photons, max_iterations,
+        max_seconds, damping, max_fill, pitch_mm, seed. With `wait`, follows the job (Ctrl-C cancels it; a cancelled
+        pack keeps what it measured) and answers its last state, whose ``result`` names the packed ``element``;
+        otherwise the 202 answer (``url``)."""
+        body = {"scene": self._sid(scene), "assignment": assignment, "sensor": sensor, **options}
+        accepted = dict(self._call("POST", f"/elements/{element}/pack", "starting a pack", ok=(202,), json=body))
+        if not wait:
+            return accepted
+        return self.follow(accepted["url"], progress=progress, poll=poll)
+
+    def pack_record(self, element: str) -> dict[str, Any]:
+        """How a packed element was found: target, stop, history (uniformity ± error and seconds per iteration)."""
+        return dict(self._call("GET", f"/elements/{element}/pack", "reading a pack's history"))
+
+    def pack_png(self, element: str) -> bytes:
+        """A packed element's ``pack.png``: density map, the map it measured, uniformity against iterations."""
+        return self._bytes(f"/elements/{element}/pack.png", f"reading the pack plot of {element}")
+
     def add_sensor(self, scene: str | dict, body: dict[str, Any], *, attach: str | None = None) -> dict[str, Any]:
         """Add a sensor: ``{"type": "grid", "origin", "u", "v", "nu", "nv"}`` (front side u × v, metres) or
         ``{"type": "disk", "center", "normal", "radius"}``. Answers ``{id, body, orphaned}``."""

@@ -218,6 +218,47 @@ def element(scene: str | None, server: str, body: str | None = None, file: Path 
     return _run(work)
 
 
+def pack(element_id: str, scene: str, assignment: str, sensor: str, server: str, target: float = 0.8,
+         figure: str = "min_max", photons: int = 100_000, max_photons: int = 1_600_000, max_iterations: int = 10,
+         max_seconds: float = 600.0, seed: int = 1, switch: bool = False, png: Path | None = None) -> int:
+    """Pack a density element against a grid over the lit face; print each iteration, the packed element's id,
+    and with --switch put it in place of the start on the scene; --png writes pack.png."""
+    def work(console: Console) -> int:
+        seen: set[int] = set()
+
+        def show(job: dict[str, Any]) -> None:
+            p = job["progress"]
+            if p.get("uniformity") is not None and p.get("iteration") not in seen:
+                seen.add(p["iteration"])
+                console.print(f"  after iteration {p['iteration']}: {figure} {p['uniformity']:.3f} ± "
+                              f"{p['uniformity_stderr']:.3f}, {p['seconds']:.1f} s")
+
+        with Client(server) as ll:
+            info = ll.scene(scene)
+            job = ll.pack(element_id, info, assignment, sensor, progress=show, target=target, figure=figure,
+                          photons=photons, max_photons=max_photons, max_iterations=max_iterations,
+                          max_seconds=max_seconds, seed=seed)
+            res = job.get("result") or {}
+            if job["status"] == "failed" or not res.get("element"):
+                raise LumenLinkError(f"the pack {job['status']}: {job.get('error') or 'nothing was measured'}",
+                                     problem=job)
+            for h in res["history"]:
+                print(f"iteration {h['iteration']}: {figure} {h['uniformity']:.3f} ± {h['stderr']:.3f}  "
+                      f"{h['photons']} photons  {h['features']} features  {h['seconds']:.2f} s "
+                      f"(update {h['update_seconds'] * 1000:.1f} ms)")
+            print(f"element {res['element']}: {figure} {res['uniformity']:.3f} ± {res['uniformity_stderr']:.3f} "
+                  f"(iteration {res['best']}; stopped: {res['stopped']}); a full rebuild took "
+                  f"{res['rebuild_seconds']:.2f} s, an iteration's update {res['update_seconds_mean'] * 1000:.1f} ms")
+            if png is not None:
+                Path(png).write_bytes(ll.pack_png(res["element"]))
+                print(f"plot {png}")
+            if switch:
+                ll.switch_element(info, assignment, res["element"])
+                print(f"assignment {assignment} now carries {res['element']}")
+        return EXIT_OK
+    return _run(work)
+
+
 def sensor(scene: str, server: str, grid: tuple[str, str, str, int, int] | None = None, body: str | None = None,
            attach: str | None = None, name: str | None = None, create: bool = False) -> int:
     """Add a grid sensor (--grid ORIGIN U V NU NV, vectors X,Y,Z in metres) or any sensor from a JSON body."""

@@ -10,6 +10,11 @@ scenes of one service:
 - graded: the fill grows away from the LED, from 0.27 to 0.33, as a designer grades it to make up for the light the
   dots nearer the LED have already taken out (found by hand on this guide: packing it is issue 41's job).
 
+Then the before/after pair of issue 41 (`pack_guide`): a uniform start of fill 1.0 on an 8 x 24 map, measured,
+packed (``POST /elements/{id}/pack``) against the same nine cells to min/max 0.95, the scene's assignment switched to
+the result in one call, and the lit face measured again with a fresh seed; ``guide_before.png``, ``guide_after.png``
+and the pack's ``guide_pack.png``.
+
 Everything goes through the REST API of a real service (uvicorn on loopback, SQLite in a fresh data directory).
 It prints each pattern's dots, preparation time, mean illuminance and uniformity (min/max and min/mean of the nine
 cells, with the cells' standard errors), and writes the two maps to ``demo-output/guide_uniform.png`` and
@@ -84,7 +89,56 @@ def _scene(ll: Any, http: Any, name: str) -> tuple[str, dict[str, str]]:
     return info["id"], uuids
 
 
-def run(out_dir: Path = Path("demo-output"), photons: int = 400_000) -> int:
+UNIFORM_START = 1.0       # the pack's uniform start: every lattice site kept
+PACK_ROWS = 8             # its map: 8 rows along y, 24 columns along x
+CHECK_SEED = 20261127     # the independent check's seed (the pack's are 1009 * seed + iteration)
+
+
+def _measure(http: Any, sid: str, sensor: str, photons: int, seed: int) -> dict[str, Any]:
+    from tracer.photometry.glare import uniformity
+
+    r = http.post(f"/scenes/{sid}/sensors/{sensor}/simulate", json={"max_photons": photons, "seed": seed,
+                                                                      "estimator": "forward"})
+    r.raise_for_status()
+    a = r.json()
+    u = uniformity(np.array(a["lux"]), np.array(a["stderr"]))
+    return {"lux": a["lux"], "min_max": u["min_max"], "min_max_stderr": u["min_max_stderr"],
+            "min_mean": u["min_mean"], "mean": u["mean"], "photons": a["photons"]}
+
+
+def pack_guide(ll: Any, http: Any, out_dir: Path | None, photons: int = 400_000, target: float = 0.95,
+               start_photons: int = 200_000, max_iterations: int = 10,
+               progress: Any = None) -> dict[str, Any]:
+    """The before/after pair: the guide with a uniform start (fill 1.0, 8 x 24 map) measured, packed to `target`
+    min/max on the nine cells, switched, measured again with a fresh seed (`photons` each); answers the figures and
+    the pack job's result."""
+    body = {"type": "microstructure", "feature": DOT, "relief": "bump",
+            "layout": {"type": "density", "origin_mm": [0.0, 0.0], "size_mm": [SIZE[0], SIZE[1]],
+                       "fill": [[UNIFORM_START] * 24] * PACK_ROWS, "seed": 1, "pitch_mm": PITCH}}
+    element = ll.add_element(body)
+    sid, _ = _scene(ll, http, "guide-packed")
+    put = ll.put_element(sid, "backlight/guide", element["id"], facing=[0, 0, -1])
+    sensor = ll.add_sensor(sid, GRID)["id"]
+    before = _measure(http, sid, sensor, photons, CHECK_SEED)
+    if out_dir is not None:
+        (out_dir / "guide_before.png").write_bytes(http.get(f"/scenes/{sid}/sensors/{sensor}/map.png").content)
+    t0 = time.perf_counter()
+    job = ll.pack(element["id"], sid, put["id"], sensor, target=target, photons=start_photons,
+                  max_photons=16 * start_photons, max_iterations=max_iterations, progress=progress)
+    wall = time.perf_counter() - t0
+    res = job["result"]
+    if job["status"] != "succeeded" or not res or not res.get("element"):
+        raise RuntimeError(f"the pack {job['status']}: {job.get('error')}")
+    ll.switch_element(sid, put["id"], res["element"])
+    after = _measure(http, sid, sensor, photons, CHECK_SEED + 1)
+    if out_dir is not None:
+        (out_dir / "guide_after.png").write_bytes(http.get(f"/scenes/{sid}/sensors/{sensor}/map.png").content)
+        (out_dir / "guide_pack.png").write_bytes(ll.pack_png(res["element"]))
+    return {"start_element": element, "before": before, "after": after, "pack": res, "pack_wall_seconds": wall,
+            "target": target}
+
+
+def run(out_dir: Path = Path("demo-output"), photons: int = 400_000, pack: bool = True) -> int:
     """Run the demo; 0 on success."""
     import httpx
 
@@ -127,6 +181,21 @@ def run(out_dir: Path = Path("demo-output"), photons: int = 400_000) -> int:
                       f"{lux.min() / lux.mean():.2f}; {seconds:.1f} s; map {path}")
                 n.say("          cells (lx; rows away from the LED, columns along y): "
                       + " | ".join(" ".join(f"{x:7.1f}" for x in row) for row in lux))
+            if pack:
+                n.step(f"packing the dots (issue 41): a uniform start, fill {UNIFORM_START:.1f} on an {PACK_ROWS} x 24 "
+                       f"map, fed back on the nine cells to min/max 0.95")
+                p = pack_guide(ll, http, out_dir, photons)
+                b, a, r = p["before"], p["after"], p["pack"]
+                for h in r["history"]:
+                    n.say(f"iteration {h['iteration']}: min/max {h['uniformity']:.3f} ± {h['stderr']:.3f} "
+                          f"({h['photons']:,} photons, {h['seconds']:.1f} s; the element's update "
+                          f"{h['update_seconds'] * 1000:.1f} ms)")
+                n.say(f"before: min/max {b['min_max']:.2f} ± {b['min_max_stderr']:.2f} (min/mean {b['min_mean']:.2f}, "
+                      f"mean {b['mean']:.0f} lx); map {out_dir / 'guide_before.png'}")
+                n.say(f"after ({r['stopped']}, {r['iterations']} iterations, {p['pack_wall_seconds']:.0f} s; checked "
+                      f"with a fresh seed): min/max {a['min_max']:.2f} ± {a['min_max_stderr']:.2f} (min/mean "
+                      f"{a['min_mean']:.2f}, mean {a['mean']:.0f} lx); map {out_dir / 'guide_after.png'}, plot "
+                      f"{out_dir / 'guide_pack.png'}")
         return 0
     finally:
         shutil.rmtree(data, ignore_errors=True)

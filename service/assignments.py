@@ -221,6 +221,40 @@ class Assignments:
             return element_public(state, aid, state.elements[aid])
 
     @_retried
+    def switch_element(self, scene_id: str, aid: str, element: str) -> dict[str, Any]:
+        """The element assignment `aid` carries library element `element` from now on (a packed pattern in place of
+        the one it was packed from): the same node and faces, one element's inner model changed. 422 for an element
+        the library lacks or that cannot go onto the faces, with nothing changed."""
+        with self.scenes.current(scene_id) as state:
+            if aid not in state.elements:
+                raise NotFound(f"no element assignment {aid} in scene {scene_id}")
+            old = state.elements[aid]
+            body = {**old, "element": element}
+            check_assignment(body, self.scenes.elements, state)
+            if old["element"] == element:
+                return element_public(state, aid, old)
+            state.elements[aid] = body
+            state.element_instances.pop(aid, None)   # put on again, with the new model
+            try:
+                element_sync(state, self.scenes.elements)
+                problem = state.element_problems.get(aid)
+                if problem is not None:
+                    state.elements[aid] = old
+                    state.element_problems.pop(aid, None)
+                    element_sync(state, self.scenes.elements)
+                    raise Invalid(f"element: it cannot go onto node {body['node']}: {problem}", node=body["node"])
+                state.last_commit = self.scenes.commit(state)
+                self.store.replace_assignment(scene_id, state.version, "element", aid, body)
+            except Invalid:
+                state.last_commit = self.scenes.commit(state)
+                raise
+            except Exception:
+                self.scenes.forget(scene_id)
+                raise
+            self.scenes.changed(state)
+            return element_public(state, aid, body)
+
+    @_retried
     def delete_element(self, scene_id: str, aid: str) -> None:
         """Take an element off its part (the part is plain again: its own faces, instance and material)."""
         with self.scenes.current(scene_id) as state:

@@ -120,6 +120,23 @@ class ElementLibrary:
             self._tables[key] = table
         return table
 
+    def keep_pack(self, eid: str, record: dict[str, Any], png: bytes) -> None:
+        """Keep how element `eid` was packed: its record (history, figures) and ``pack.png``, beside its file."""
+        import json
+
+        for suffix, data in ((".pack.json", json.dumps(record).encode()), (".pack.png", png)):
+            tmp = self.directory / f".{eid}{suffix}.{os.getpid()}.{threading.get_ident()}"
+            tmp.write_bytes(data)
+            os.replace(tmp, self.directory / f"{eid}{suffix}")
+
+    def pack_record(self, eid: str, suffix: str = ".pack.json") -> bytes:
+        """The pack record (JSON bytes) or ``pack.png`` of element `eid`; 404 where it was not made by a pack."""
+        self.summary(eid)
+        path = self.directory / f"{eid}{suffix}"
+        if not path.exists():
+            raise NotFound(f"element {eid} was not made by a pack (POST /elements/{{id}}/pack makes one)")
+        return path.read_bytes()
+
     def loaded(self) -> set[str]:
         """Ids held in memory (what `get` will not read again)."""
         with self._lock:

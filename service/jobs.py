@@ -154,6 +154,7 @@ class Job:
     compile_seconds: float | None = None
     result: dict[str, Any] | None = None
     error: str | None = None
+    detail: dict[str, Any] = field(default_factory=dict)   # a job's own progress fields (a pack's iteration, ...)
     cancel_event: threading.Event = field(default_factory=threading.Event)
 
     def snapshot(self) -> dict[str, Any]:
@@ -175,6 +176,7 @@ class Job:
                 "seconds": self.seconds,
                 "seconds_left": self.seconds_left,
                 "compile_seconds": self.compile_seconds,
+                **self.detail,
             },
             "result": self.result,
             "error": self.error,
@@ -317,7 +319,10 @@ class JobRunner:
     def _run(self, job: Job) -> None:
         first: list[tuple[int, float]] = []   # (photons, seconds) at the first report: compiling lies before it
 
-        def progress(photons: int, worst_relative_error: float, seconds: float) -> None:
+        def progress(photons: int, worst_relative_error: float, seconds: float, **detail: Any) -> None:
+            if detail:   # a job's own fields, beside the photons (a pack: iteration, uniformity ± error)
+                with self._lock:
+                    job.detail.update(detail)
             if photons == 0:   # the report before the first round: the seconds spent compiling (or loading)
                 with self._lock:
                     job.compile_seconds = float(seconds)

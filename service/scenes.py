@@ -243,6 +243,13 @@ class Scenes(SceneGeometries, SceneViews):
                  state.last_commit)
         return state
 
+    def rebuilt(self, scene_id: str) -> SceneState:
+        """A scene of its own, rebuilt from the database as a restart would (its tracer scene built anew, its
+        elements applied, committed), that nobody else sees or changes: a pack changes its element freely."""
+        if self.store.version(scene_id) is None:
+            raise NotFound(f"no scene {scene_id}")
+        return self._load(scene_id, threading.RLock())
+
     def _reload_assignments(self, state: SceneState) -> None:
         """Bring the assignments and identity records of `state` (tree unchanged) up to the database's, in place:
         sim objects gone or new get their instances removed or added (one top-level commit if any did)."""

@@ -354,6 +354,9 @@ class JobProgress(BaseModel):
                     "s, from the tracing rate since the first round: compiling does not make it drift.")
     compile_seconds: float | None = Field(None, description="Seconds the job spent compiling (or loading) its "
                                                             "kernel before the first round, s; null until known.")
+    iteration: int | None = Field(None, description="Pack jobs: the iteration being measured (0: the start).")
+    uniformity: float | None = Field(None, description="Pack jobs: the last measured figure (min/max or min/mean).")
+    uniformity_stderr: float | None = Field(None, description="Pack jobs: its standard error.")
 
 
 class JobPublic(BaseModel):
@@ -362,7 +365,8 @@ class JobPublic(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     id: str = Field(description="The job's id.")
-    kind: Literal["illuminance", "sensor"] = Field(description="A point query or a sensor simulation.")
+    kind: Literal["illuminance", "sensor", "pack"] = Field(description="A point query, a sensor simulation or a "
+                                                                   "pack of a density element.")
     status: Literal["queued", "running", "succeeded", "failed", "cancelled"] = Field(description="Where it is.")
     scene_id: str = Field(description="The scene's id.")
     revision: int = Field(description="Scene revision the job computes.")
@@ -378,4 +382,5 @@ class JobPublic(BaseModel):
     error: str | None = Field(description="Why it failed; null otherwise.")
     url: str = Field(description="This job's URL.")
     points: int | None = Field(None, description="Illuminance jobs: how many points.")
-    sensor: str | None = Field(None, description="Sensor jobs: the sensor's id.")
+    sensor: str | None = Field(None, description="Sensor and pack jobs: the sensor's id.")
+    element: str | None = Field(None, description="Pack jobs: the element packed (its starting pattern).")

@@ -195,6 +195,13 @@ class SceneStore:
             if material is not None:
                 conn.execute(insert(db.materials).values(scene_id=scene_id, node=aid, body=material))
 
+    def replace_assignment(self, scene_id: str, version: tuple[int, int], kind: str, aid: str, body: dict) -> None:
+        """Assignment `aid` takes `body` (an element assignment switched to another element)."""
+        table = TABLES[kind][0]
+        with self.engine.begin() as conn:
+            self._bump(conn, scene_id, *version)
+            conn.execute(update(table).where(table.c.id == aid).values(body=body))
+
     def delete_assignment(self, scene_id: str, version: tuple[int, int], kind: str, aid: str) -> None:
         table = TABLES[kind][0]
         with self.engine.begin() as conn:

@@ -325,6 +325,16 @@ class Scene(SceneQueries):
         return {"triangles": int(len(row.support_prims)), "size_mm": [row.frame.lu, row.frame.lv],
                 "normal": [float(x) for x in row.frame.n]}
 
+    def element_of(self, i: int) -> tuple[Microstructure, np.ndarray, np.ndarray, np.ndarray] | None:
+        """The element instance `i` carries and where its support lies in the world: ``(model, origin, du, dv)``,
+        a point at ``(u, v)`` mm of the support's frame being ``origin + u du + v dv`` (world units); None where
+        it carries none."""
+        row = self._reliefs.rows.get(self._instance(i))
+        if row is None:
+            return None
+        fr, w = row.frame, self._wfo[i]
+        return (row.element, w[:, :3] @ fr.o + w[:, 3], w[:, :3] @ fr.u / fr.mm, w[:, :3] @ fr.v / fr.mm)
+
     # ---------------------------------------------------------------- shapes (sensors)
     def add_shape(self, kind: str, *placement: Any) -> int:
         """An instance of a kind with a placement of its own (`SHAPES`: a sensor shape), placed by the kind's

@@ -12,7 +12,8 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, Body, Path, Response
+from fastapi import APIRouter, Body, Path, Request, Response
+from fastapi.responses import JSONResponse
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from service import paths
@@ -135,6 +136,83 @@ def list_assigned(scene_id: SceneId, manager: Manager) -> list[dict[str, Any]]:
 @router.get("/scenes/{scene_id}/elements/{item_id}", response_model=ElementAssignment)
 def get_assigned(scene_id: SceneId, item_id: ItemId, manager: Manager) -> dict[str, Any]:
     return manager.assignments.get_element(scene_id, item_id)
+
+
+class ElementSwitch(BaseModel):
+    """The element an assignment carries from now on (the same node and faces)."""
+
+    model_config = ConfigDict(extra="forbid")
+    element: str = Field(pattern=ELEMENT_ID, description="a library element's id (a packed pattern, say)")
+
+
+@router.put("/scenes/{scene_id}/elements/{item_id}", response_model=ElementAssignment)
+def switch_assigned(scene_id: SceneId, item_id: ItemId, body: Annotated[ElementSwitch, Body(openapi_examples={
+        "packed": {"summary": "the packed pattern in place of the one it was packed from",
+                   "value": {"element": DOTS_EXAMPLE_ID}}})], manager: Manager) -> dict[str, Any]:
+    """Switch an assignment to another library element in one call (after a pack: its result); only that part's
+    element changes. 422 for an element the library lacks, nothing changed."""
+    return manager.assignments.switch_element(scene_id, item_id, body.element)
+
+
+class PackRequest(BaseModel):
+    """Pack a density element on a scene's light guide: feedback on a grid of cells over its lit face."""
+
+    model_config = ConfigDict(extra="forbid")
+    scene: str = Field(min_length=1, max_length=200, description="the scene's id")
+    assignment: str = Field(min_length=1, max_length=200, description="the element assignment that puts this "
+                                                                      "element onto the guide's face")
+    sensor: str = Field(min_length=1, max_length=200, description="a grid sensor over the lit face: its cells "
+                                                                  "are the meters (illuminance, lx)")
+    target: float = Field(0.8, description="the uniformity to reach, in (0, 1]")
+    figure: str = Field("min_max", description="'min_max' (the 9-point figure on a 3 x 3 grid) or 'min_mean'")
+    photons: int = Field(100_000, ge=1000, le=100_000_000, description="photons of the first measurement")
+    max_photons: int = Field(1_600_000, ge=1000, le=100_000_000, description="the most photons of one "
+                                                                             "measurement (they rise x4 as the "
+                                                                             "map converges)")
+    max_iterations: int = Field(10, ge=1, le=200, description="budget: measurements at most")
+    max_seconds: float = Field(600.0, gt=0.0, le=86_400.0, description="budget: seconds")
+    damping: float = Field(0.7, description="the multiplicative step's exponent, in (0, 1]")
+    max_fill: float = Field(1.0, description="the largest fill a map cell may take, in (0, 1]")
+    pitch_mm: float | None = Field(None, description="the lattice pitch (the minimum pitch between features); "
+                                                     "default the element's")
+    seed: int = Field(1, ge=0, lt=2 ** 31, description="photon seed (each iteration takes its own from it)")
+
+
+PACK_EXAMPLES = {"guide": {"summary": "the demo guide's dots to 0.8 min/max on its 9-point grid", "value": {
+    "scene": "<scene id>", "assignment": "<element assignment id>", "sensor": "<grid sensor id>", "target": 0.8,
+    "max_iterations": 8}}}
+
+
+@router.post("/elements/{element_id}/pack", status_code=202, responses={202: {"description": "the pack job"}})
+def pack_element(element_id: ElementId, body: Annotated[PackRequest, Body(openapi_examples=PACK_EXAMPLES)],
+                 manager: Manager, request: Request) -> JSONResponse:
+    """Pack a density element against the scene's lit face, as a job (`GET /jobs/{id}`: iteration, uniformity ±
+    error, seconds; `DELETE` cancels it and keeps what it measured). The result is a new element in the library
+    with its history (`GET /elements/{id}/pack`) and `pack.png`; `PUT /scenes/{id}/elements/{aid}` switches the
+    scene to it. 422 before any job for a target outside (0, 1], an element that is not a density layout, a face
+    no light reaches."""
+    from service import pack
+    from service.routes.simulation import _accepted, _submit
+    from service.simulation import hub_for
+
+    hub = hub_for(request.app)
+    scene_id, revision, work, budget, meta = pack.start(manager, hub, element_id, body.model_dump())
+    job = _submit(hub, "pack", scene_id, revision, work, budget, meta)
+    return _accepted(request, job)
+
+
+@router.get("/elements/{element_id}/pack")
+def pack_record(element_id: ElementId, manager: Manager) -> Response:
+    """How a packed element was found: target, why it stopped, every iteration (uniformity ± error, photons,
+    seconds), the full-rebuild and per-iteration update times, the chosen map and what it measured."""
+    return Response(manager.scenes.elements.pack_record(element_id), media_type="application/json")
+
+
+@router.get("/elements/{element_id}/pack.png", response_class=Response,
+            responses={200: {"content": {"image/png": {}}}, 404: {}})
+def pack_png(element_id: ElementId, manager: Manager) -> Response:
+    """The density map, the map it measured over the face, and the uniformity against the iterations."""
+    return Response(manager.scenes.elements.pack_record(element_id, ".pack.png"), media_type="image/png")
 
 
 @router.delete("/scenes/{scene_id}/elements/{item_id}", status_code=204)

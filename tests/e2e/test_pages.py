@@ -317,3 +317,36 @@ def test_with_a_token_a_person_signs_in_once_and_the_view_works(tmp_path: Path, 
         assert page.evaluate("window.lumenlink.counts()") == {"instances": 2, "sensors": 0}
         # the 401 of the wrong token's form is the one expected error the browser logs
         assert [e for e in watched.errors if "401" not in e] == []
+
+
+def test_the_view_packs_a_light_guides_dots_and_switches_to_them(service: dict[str, Any], watched: Watched,
+                                                                 artifacts: Path) -> None:
+    """Issue 41 on the page: the demo guide's uniform dots (fill 1.0) listed with a "pack" button; a click runs the
+    pack job (its iterations shown), and "use it" puts the packed element onto the guide."""
+    from lumenlink import Client
+    from lumenlink.guide_demo import DOT, PITCH, SIZE, _scene
+    from lumenlink.guide_demo import GRID as GUIDE_GRID
+
+    page, http = watched.page, service["http"]
+    with Client(service["base"]) as ll:
+        body = {"type": "microstructure", "feature": DOT, "relief": "bump",
+                "layout": {"type": "density", "origin_mm": [0.0, 0.0], "size_mm": [SIZE[0], SIZE[1]],
+                           "fill": [[1.0] * 24], "seed": 1, "pitch_mm": PITCH}}
+        eid = ll.add_element(body)["id"]
+        sid, _ = _scene(ll, http, "guide on the page")
+        aid = ll.put_element(sid, "backlight/guide", eid, facing=[0, 0, -1])["id"]
+        ll.add_sensor(sid, GUIDE_GRID)
+    page.goto(f"{service['base']}/scenes/{sid}/view")
+    _wait(page, "window.lumenlink.ready")
+    page.locator("#elements button", has_text="pack").click()
+    page.locator("#elements .pack-use").wait_for(timeout=WAIT_MS)
+    assert "min/max" in page.locator("#elements .pack-state").inner_text()
+    page.screenshot(path=str(artifacts / "view-pack.png"))
+    page.locator("#elements .pack-use").click()
+    for _ in range(100):
+        now = http.get(f"/scenes/{sid}/elements/{aid}").json()["body"]["element"]
+        if now != eid:
+            break
+        page.wait_for_timeout(100)
+    assert now != eid and http.get(f"/elements/{now}/pack").json()["packed_from"] == eid
+    assert watched.errors == []

@@ -28,6 +28,8 @@ NO_DESCRIPTION: dict[str, str] = {}
 MAY_ALSO_ANSWER = {("post", "/scenes"): {409}}
 SIMULATION = {"/scenes/{scene_id}/illuminance", "/scenes/{scene_id}/illuminance/plan",
               "/scenes/{scene_id}/sensors/{sensor_id}/simulate", "/scenes/{scene_id}/luminance/uniformity"}
+#: examples that name ids only a run gives (an element assignment, a pack's scene and sensor): read by their models
+BY_MODEL = {"/elements/{element_id}/pack": "PackRequest", "/scenes/{scene_id}/elements/{item_id}": "ElementSwitch"}
 CEILING_PANEL = "6f1c9a52-3b7e-4d08-9e2a-51c4b7d3e003"
 
 
@@ -105,6 +107,11 @@ def test_every_example_is_accepted_by_the_service(served) -> None:
                           else IlluminanceQuery)
             query = model.model_validate(value)
             resolve_budget(limits, query.target_relative_error, query.max_seconds, query.max_photons)
+            continue
+        if path in BY_MODEL:
+            from service.routes import elements
+
+            getattr(elements, BY_MODEL[path]).model_validate(value)
             continue
         scene = sid
         if path == "/scenes/{scene_id}/document":   # as written (base_revision 0), to a new scene

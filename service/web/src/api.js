@@ -12,6 +12,13 @@ export async function postJSON(url, body) {
   }));
 }
 
+/** PUT a JSON body; throws with the problem's detail on an error status. */
+export async function putJSON(url, body) {
+  return answer(await fetch(url, {
+    method: "PUT", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body),
+  }));
+}
+
 async function answer(response) {
   const body = response.headers.get("content-type")?.includes("json") ? await response.json() : null;
   if (!response.ok) throw new Error(body?.detail ?? `HTTP ${response.status} from ${response.url}`);

@@ -4,7 +4,7 @@
 
 import { Viewer, CHANGE_COLOURS } from "./scene3d.js";
 import { Scale, drawLegend, formatLux, turbo } from "./colour.js";
-import { followEvents, getJSON, postJSON } from "./api.js";
+import { followEvents, getJSON, postJSON, putJSON } from "./api.js";
 
 const sceneId = document.body.dataset.scene;
 const $ = (id) => document.getElementById(id);
@@ -108,8 +108,77 @@ function listElements(elements, nodes) {
     const where = pathOf.get(e.body.node) ?? e.body.node;
     li.textContent = `${where}: element ${e.body.element.slice(0, 12)} (${e.model})` +
       (e.applied ? "" : ` — not applied: ${e.problem ?? "its node is gone"}`);
+    const grid = (ll.state?.sensors ?? []).find((s) => s.type === "grid");
+    if (e.applied && grid) li.append(" ", ...packControls(e, grid));
     return li;
   }));
+}
+
+/** Packs started from this page, by assignment id: {busy, text, result} (kept across redraws of the list). */
+const packs = new Map();
+
+function redrawElements() {
+  listElements(ll.state?.elements ?? [], ll.state?.nodes ?? []);
+}
+
+/** The "pack" button of an assignment, its progress, and once done the plot and a "use it" button. */
+function packControls(assignment, grid) {
+  const p = packs.get(assignment.id) ?? {};
+  const button = document.createElement("button");
+  button.textContent = "pack";
+  button.title = `pack this element's dots until ${grid.name ?? "the first grid sensor"} reads min/max 0.8 ` +
+    "(a job; a density element only)";
+  button.disabled = Boolean(p.busy);
+  button.onclick = () => pack(assignment, grid);
+  const state = document.createElement("span");
+  state.className = "muted pack-state";
+  state.textContent = p.text ?? "";
+  if (p.result) {
+    const plot = document.createElement("a");
+    plot.href = p.result.png_url;
+    plot.target = "_blank";
+    plot.textContent = "pack.png";
+    const use = document.createElement("button");
+    use.textContent = "use it";
+    use.className = "pack-use";
+    use.title = `put element ${p.result.element.slice(0, 12)} in place of ${p.result.packed_from.slice(0, 12)}`;
+    use.onclick = async () => {
+      try {
+        await putJSON(`/scenes/${sceneId}/elements/${assignment.id}`, { element: p.result.element });
+      } catch (err) {
+        fail(`switch refused: ${err.message}`);
+      }
+    };
+    state.append(" ", plot, " ", use);
+  }
+  return [button, " ", state];
+}
+
+/** Pack an element against a grid sensor (POST /elements/{id}/pack) and follow the job; its result offers the
+ *  switch of the scene's assignment to the packed element (PUT /scenes/{id}/elements/{aid}). */
+async function pack(assignment, grid) {
+  const show = (entry) => { packs.set(assignment.id, entry); redrawElements(); };
+  show({ busy: true, text: "starting…" });
+  try {
+    let job = await postJSON(`/elements/${assignment.body.element}/pack`,
+      { scene: sceneId, assignment: assignment.id, sensor: grid.id, target: 0.8, max_iterations: 8 });
+    while (!["succeeded", "failed", "cancelled"].includes(job.status)) {
+      await new Promise((r) => setTimeout(r, 500));
+      job = await getJSON(job.url);
+      const p = job.progress ?? {};
+      if (p.uniformity != null) {
+        show({ busy: true, text: `iteration ${p.iteration}: min/max ${p.uniformity.toFixed(3)} ± ` +
+          `${(p.uniformity_stderr ?? 0).toFixed(3)}, ${(p.seconds ?? 0).toFixed(1)} s` });
+      }
+    }
+    const r = job.result;
+    if (!r?.element) throw new Error(job.error ?? job.status);
+    show({ busy: false, result: r, text: `${job.status}: min/max ${r.uniformity.toFixed(3)} ± ` +
+      `${r.uniformity_stderr.toFixed(3)} after ${r.iterations} iterations (${r.stopped})` });
+  } catch (err) {
+    show({ busy: false, text: "" });
+    fail(`pack refused: ${err.message}`);
+  }
 }
 
 function drawSensors() {
@@ -180,7 +249,9 @@ function listJobs(list) {
   const items = [...jobs.values()].map((j) => {
     const li = document.createElement("li");
     const p = j.progress ?? {};
-    const what = j.kind === "sensor" ? `sensor ${(j.sensor ?? "").slice(0, 8)}` : `${j.points ?? "?"} points`;
+    const what = j.kind === "sensor" ? `sensor ${(j.sensor ?? "").slice(0, 8)}`
+      : j.kind === "pack" ? `pack of ${(j.element ?? "").slice(0, 8)}, iteration ${p.iteration ?? 0}`
+      : `${j.points ?? "?"} points`;
     const err = p.worst_relative_error != null ? `, worst error ${(100 * p.worst_relative_error).toFixed(1)} %` : "";
     const left = p.seconds_left != null && j.status === "running" ? `, ~${p.seconds_left.toFixed(1)} s left` : "";
     li.textContent = `${what}: ${j.status}, ${(p.photons ?? 0).toLocaleString()} photons${err}${left}`;

@@ -1,0 +1,184 @@
+"""Packing a density element against a scene (issue 41): ``POST /elements/{id}/pack`` as a job.
+
+The request names the scene, the element assignment that puts the element onto the light guide's face, and a grid
+sensor over the lit face (its cells are the meters). `start` checks everything before a job is queued (422 naming
+the field, nothing changed): a target outside (0, 1], an element that is not a density layout, an assignment or a
+sensor the scene lacks, a scene without lights, a face that no light reaches (a short pilot measurement reads 0 lx
+in every cell).
+
+The job packs on a scene of its own: the scene rebuilt from the database (`Scenes.rebuilt`, timed: the full
+rebuild each iteration would cost without the two levels), whose element it changes at each iteration with
+`tracer.Scene.set_element` (`tracer.elements.pack`). The scene everybody queries is never touched: switching its
+assignment to the result is one more call (``PUT /scenes/{id}/elements/{aid}``). The result, the chosen pattern,
+is a new element in the library with its history (`ElementLibrary.keep_pack`: uniformity, photons and seconds per
+iteration) and ``pack.png`` (`plot`); a cancelled job keeps what it measured the same way.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import time
+from typing import Any
+
+import numpy as np
+
+from service.errors import Invalid, NotFound
+from service.jobs import Budget
+
+PILOT_PHOTONS = 20_000   # the pilot that tells a face no light reaches
+
+
+def start(manager: Any, hub: Any, element_id: str, req: dict[str, Any]) -> tuple[str, int, Any, Budget, dict]:
+    """Check a pack request and set it up: answers ``(scene_id, revision, work, budget, meta)`` for
+    `JobRunner.submit` (see the module docstring for what is refused)."""
+    from tracer.elements import ElementError
+    from tracer.elements.pack import PackError, check
+
+    library = manager.scenes.elements
+    start_model = library.get(element_id)   # 404: no such element
+    try:
+        check(start_model, req["target"], req["figure"], req["damping"], req["max_fill"], req.get("pitch_mm"))
+    except ElementError as exc:
+        raise Invalid(str(exc)) from None
+    scene_id = req["scene"]
+    try:
+        state = manager.scenes.state(scene_id)
+    except NotFound:
+        raise Invalid(f"scene: no scene {scene_id}") from None
+    with state.lock:
+        assignment = state.elements.get(req["assignment"])
+        sensor_body = state.sensors.get(req["sensor"])
+    if assignment is None:
+        raise Invalid(f"assignment: scene {scene_id} has no element assignment {req['assignment']} (POST /scenes/"
+                      f"{scene_id}/elements puts the element onto the guide's face first)")
+    if assignment["element"] != element_id:
+        raise Invalid(f"assignment {req['assignment']} carries element {assignment['element']}, not {element_id}: "
+                      f"pack the element the face carries")
+    if sensor_body is None:
+        raise Invalid(f"sensor: scene {scene_id} has no sensor {req['sensor']}")
+    if sensor_body.get("type") != "grid":
+        raise Invalid(f"sensor: a pack measures a grid of cells over the lit face; sensor {req['sensor']} is a "
+                      f"{sensor_body.get('type')!r} sensor")
+    t0 = time.perf_counter()
+    own = manager.scenes.rebuilt(scene_id)      # the pack's own scene: a full rebuild, timed
+    live = manager.scenes.live_locked(own)
+    if req["assignment"] not in own.element_instances:
+        raise Invalid(f"assignment {req['assignment']} is not applied: {own.element_problems.get(req['assignment'])}")
+    if not live.lights:
+        raise Invalid(f"scene: {scene_id} has no light: no light can reach the face")
+    simulation = _simulation_factory(hub, live)
+    sim = simulation(own.tracer)
+    rebuild_seconds = time.perf_counter() - t0
+    from service.sensor_kinds import kind_of
+    from service.simulation import find_sensor
+
+    sensor = kind_of(find_sensor(live, req["sensor"])).body(find_sensor(live, req["sensor"]), live)
+    pilot = sim.run(sensor, max_photons=PILOT_PHOTONS, seed=int(req["seed"]), estimator="forward")
+    if not float(np.max(pilot.lux)) > 0:
+        raise Invalid(f"sensor: no light reaches the grid over the face ({pilot.photons} photons of a pilot, every "
+                      f"cell 0 lx): check the lights, and that the grid's front side (u x v) faces the lit face",
+                      sensor=req["sensor"])
+    instance = own.element_instances[req["assignment"]]
+    mm = own.tree.scale * 1000.0
+    assign = {"facing": assignment.get("facing"), "faces": assignment.get("faces"), "mm_per_unit": mm}
+    options = {k: req[k] for k in ("target", "figure", "photons", "max_photons", "max_iterations", "max_seconds",
+                                   "damping", "max_fill", "pitch_mm", "seed")}
+
+    def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
+        from tracer.elements.pack import pack
+
+        def report(s: dict[str, Any]) -> None:
+            if progress is not None:
+                u = s["uniformity"]
+                progress(s["photons"], math.nan, s["seconds"], iteration=s["iteration"], uniformity=u,
+                         uniformity_stderr=s["stderr"])
+
+        try:
+            result = pack(own.tracer, instance, start_model, sensor, simulation, assign=assign, progress=report,
+                          cancel=cancel, **options)
+        except PackError as exc:
+            if cancel is not None and cancel():   # cancelled before anything was measured: nothing to keep
+                return {"element": None, "stopped": "cancelled", "history": [], "seconds": 0.0}
+            raise Invalid(str(exc)) from None
+        return keep(library, element_id, req, result, rebuild_seconds)
+
+    budget = Budget(max_seconds=float(req["max_seconds"]))
+    meta = {"generation": hub.generation(scene_id), "sensor": req["sensor"], "element": element_id}
+    return scene_id, int(own.revision), work, budget, meta
+
+
+def _simulation_factory(hub: Any, live: Any) -> Any:
+    """``simulation(scene)``: a `tracer.simulate.Simulation` of the committed `scene` with the snapshot's materials
+    and lights (instance ids are the rebuilt scene's own)."""
+    from service.optics import to_spec
+    from service.simulation import load_transport, transport_lights
+
+    simulate = load_transport()
+    materials = {int(k): to_spec(v) for k, v in live.materials.items()}
+    lights = transport_lights(live)
+    default = to_spec(live.default_material)
+    backend = hub.backend()
+
+    def make(scene: Any) -> Any:
+        try:
+            return simulate.Simulation(scene, materials, lights, default_material=default, backend=backend)
+        except ValueError as exc:
+            raise Invalid(f"the scene cannot be simulated: {exc}") from exc
+
+    return make
+
+
+def keep(library: Any, element_id: str, req: dict[str, Any], result: Any, rebuild_seconds: float) -> dict[str, Any]:
+    """The chosen pattern into the library, with its history and ``pack.png``; answers the job's result."""
+    summary, _ = library.create(result.element.body)
+    history = [h.public() for h in result.history]
+    updates = [h["update_seconds"] for h in history]
+    best = result.history[result.best]
+    record = {"element": summary["id"], "packed_from": element_id, "scene": req["scene"],
+              "assignment": req["assignment"], "sensor": req["sensor"], "target": result.target,
+              "figure": result.figure, "stopped": result.stopped, "best": result.best,
+              "uniformity": best.uniformity, "uniformity_stderr": best.stderr, "min_mean": best.min_mean,
+              "iterations": len(history), "seconds": result.seconds, "rebuild_seconds": rebuild_seconds,
+              "update_seconds_mean": float(np.mean(updates)),
+              "measure_seconds_mean": float(np.mean([h["measure_seconds"] for h in history])),
+              "history": history, "fill": best.fill, "lux": best.lux, "stderr": best.lux_stderr,
+              "start": {"uniformity": result.history[0].uniformity, "stderr": result.history[0].stderr}}
+    png = plot(record, result.element.body["layout"])
+    library.keep_pack(summary["id"], record, png)
+    return {**{k: v for k, v in record.items() if k not in ("fill", "lux", "stderr")}, "summary": summary,
+            "pack_url": f"/elements/{summary['id']}/pack", "png_url": f"/elements/{summary['id']}/pack.png"}
+
+
+def plot(record: dict[str, Any], layout: dict[str, Any]) -> bytes:
+    """``pack.png``: the chosen density map over the support (mm), the luminance (here illuminance) map it measured,
+    and the figure against the iterations with its error bars and the target."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(13, 4.0), dpi=100)
+    FigureCanvasAgg(fig)
+    a, b, c = fig.subplots(1, 3)
+    (u0, v0), (su, sv) = layout["origin_mm"], layout["size_mm"]
+    im = a.imshow(np.asarray(record["fill"]), origin="lower", extent=(u0, u0 + su, v0, v0 + sv), vmin=0.0,
+                  vmax=1.0, cmap="viridis", aspect="auto")
+    fig.colorbar(im, ax=a, label="fill (share of lattice sites with a dot)")
+    a.set(title=f"density map, pitch {layout.get('pitch_mm', 0):g} mm", xlabel="u (mm)", ylabel="v (mm)")
+    lux = np.asarray(record["lux"])
+    im2 = b.imshow(lux, origin="lower", cmap="inferno", vmin=0.0, vmax=float(lux.max()) or 1.0, aspect="auto")
+    for (j, i), x in np.ndenumerate(lux):
+        b.text(i, j, f"{x:.0f}", ha="center", va="center", color="cyan", fontsize=8)
+    fig.colorbar(im2, ax=b, label="lx")
+    b.set(title=f"measured over the face: {record['figure'].replace('_', '/')} {record['uniformity']:.3f} ± "
+                f"{record['uniformity_stderr']:.3f}", xlabel="grid cell along its u", ylabel="grid cell along its v")
+    h = record["history"]
+    it = [x["iteration"] for x in h]
+    c.errorbar(it, [x["uniformity"] for x in h], yerr=[x["stderr"] for x in h], marker="o", capsize=3)
+    c.axhline(record["target"], color="grey", ls="--", label=f"target {record['target']:g}")
+    c.set(title=f"stopped: {record['stopped']} ({sum(x['seconds'] for x in h):.1f} s)", xlabel="iteration",
+          ylabel=record["figure"].replace("_", "/"), ylim=(0.0, 1.02))
+    c.legend(loc="lower right")
+    fig.tight_layout()
+    out = io.BytesIO()
+    fig.savefig(out, format="png")
+    return out.getvalue()
