@@ -45,7 +45,9 @@ def summary(result: Any, doc: Any, tess: Any, read_seconds: float) -> str:
     lines = [
         f"scene {a.get('scene', result.scene_id)}: revision {a.get('base_revision')} -> {a.get('revision')}"
         + (" (scene created)" if result.created_scene else ""),
-        f"  diff: {diff}, unchanged {a.get('unchanged', '?')}",
+        f"  diff: {diff}, unchanged {a.get('unchanged', '?')}"
+        + (f"; restored {len(a['restored_nodes'])} removed node(s) under their old UUIDs" if a.get("restored_nodes")
+           else ""),
         f"  bottom levels: built {a.get('blas_built', '?')}, reused {a.get('blas_reused', '?')}, "
         f"loaded {a.get('blas_loaded', '?')}; instances {a.get('instances', '?')}",
         f"  meshes: {result.geometries} distinct, {result.uploaded} uploaded ({result.uploaded_bytes / 1e3:.1f} kB); "
@@ -108,7 +110,7 @@ def push_file(file: Path, scene: str, server: str, linear: float | None = None, 
     same_settings = tree is not None and tree.tessellation is not None and all(
         tree.tessellation.get(k) == v for k, v in settings.as_dict().items())
     identify(doc, write=not dry_run, previous=previous, previous_unit=tree.length_unit if tree else None,
-             reuse_geometry=same_settings)
+             reuse_geometry=same_settings, removed=tree.removed if tree is not None else None)
     read_seconds = time.perf_counter() - t0
     if on_read is not None:
         on_read(doc)
@@ -184,7 +186,9 @@ def dry_run_summary(a: dict) -> str:
     diff = ", ".join(f"{k.replace('_', ' ')} {len(a.get(k) or [])}" for k in lists if k in a)
     return "\n".join([
         f"dry run (nothing changed): scene {a.get('scene') or '(would be created)'} at revision {a.get('revision')}",
-        f"  diff: {diff}, unchanged {a.get('unchanged', '?')}",
+        f"  diff: {diff}, unchanged {a.get('unchanged', '?')}"
+        + (f"; would restore {len(a['restored_nodes'])} removed node(s) under their old UUIDs"
+           if a.get("restored_nodes") else ""),
         f"  would build {len(a.get('blas_to_build') or [])} bottom level(s), upload "
         f"{len(a.get('missing_geometries') or [])} mesh(es); would orphan {len(a.get('orphaned') or [])} "
         f"assignment(s), restore {len(a.get('restored') or [])}",

@@ -365,7 +365,8 @@ def _rotation_angle(a: np.ndarray, b: np.ndarray) -> float:
 
 def identify(doc: Document, sidecar: str | Path | None = None, write: bool = True, *,
              previous: list[dict] | None = None, previous_unit: str | None = None,
-             tolerance: Tolerance | None = None, reuse_geometry: bool = False) -> dict[str, int]:
+             tolerance: Tolerance | None = None, reuse_geometry: bool = False,
+             removed: list[dict] | None = None) -> dict[str, int]:
     """Give every node of ``doc`` its UUID (``Node.uuid``, ``Node.match``) and fill ``doc.reconciliation``.
 
     Parameters
@@ -385,6 +386,10 @@ def identify(doc: Document, sidecar: str | Path | None = None, write: bool = Tru
     reuse_geometry : bool
         Keep the old geometry id of parts whose B-rep is the same within tolerance (only where the old
         meshes were made with the same tessellation settings: the caller knows).
+    removed : list of dict, optional
+        The scene's memory of removed nodes (``GET /scenes/{id}/removed-nodes``, same unit as ``previous``):
+        a node that matches nothing present and comes back where one of them was gets its UUID (rule
+        ``restored``), and with it the assignments the scene kept for it.
 
     Returns
     -------
@@ -404,10 +409,14 @@ def identify(doc: Document, sidecar: str | Path | None = None, write: bool = Tru
     scale = UNIT_METRES[unit] / UNIT_METRES[doc.length_unit] if unit in UNIT_METRES else 1.0
     old, rows = side_from_records(records or [], scale)
     new = side_from_document(doc)
-    rec = reconcile(old, new, same_place_rtol=tol.linear)
+    gone, gone_rows = (side_from_records(_parents_first(removed), scale) if from_scene and removed
+                       else (None, []))
+    rec = reconcile(old, new, same_place_rtol=tol.linear, removed=gone)
     for i, node in enumerate(doc.nodes):
         node.uuid, node.match = rec.uuids[i], rec.rule[i]
         node.previous = rows[rec.old[i]] if rec.old[i] >= 0 else None
+        if node.previous is None and len(rec.restored) and rec.restored[i] >= 0:
+            node.previous = gone_rows[rec.restored[i]]
     snapped = _snap_placements(doc, rec, old, tol)
     doc.reuse = _reusable_geometry(doc, tol) if reuse_geometry and from_scene and scale == 1.0 else {}
     counts = rec.counts()
@@ -423,6 +432,31 @@ def identify(doc: Document, sidecar: str | Path | None = None, write: bool = Tru
     if sidecar is not None and write:
         write_sidecar(sidecar, doc, stored["nodes"])
     return counts
+
+
+def _parents_first(records: list[dict]) -> list[dict]:
+    """Records ordered so that a parent among them comes before its children (removed at different times)."""
+    by = {r.get("uuid"): r for r in records if isinstance(r, dict)}
+    out: list[dict] = []
+    seen: set = set()
+
+    def visit(r: dict, depth: int = 0) -> None:
+        u = r.get("uuid")
+        if u in seen or depth > len(by):
+            return
+        p = by.get(r.get("parent"))
+        if p is not None:
+            visit(p, depth + 1)
+        if u not in seen:
+            seen.add(u)
+            out.append(r)
+
+    for r in records:
+        if isinstance(r, dict):
+            visit(r)
+        else:
+            out.append(r)  # side_from_records says what is wrong with it
+    return out
 
 
 def _snap_placements(doc: Document, rec, old: Side, tol: Tolerance) -> int:

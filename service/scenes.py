@@ -72,6 +72,7 @@ class SceneState:
     last_commit: dict[str, Any] = field(default_factory=dict)
     node_bytes: NodeBytes | None = None  # where each node sits in the body that made `tree` (row i = chunk i)
     identity: dict[str, IdentityIn] = field(default_factory=dict)  # node uuid -> its identity record, as stored
+    removed: dict[str, dict] = field(default_factory=dict)  # uuid -> what the node was (service.push), oldest first
     live: LiveScene | None = None
     lock: threading.RLock = field(default_factory=threading.RLock)
 
@@ -229,7 +230,7 @@ class Scenes(SceneGeometries, SceneViews):
                            self.new_tracer_scene(), assign_revision=row.assign_revision,
                            materials=stored["materials"], lights=stored["lights"], sensors=stored["sensors"],
                            objects=stored["objects"], elements=stored["elements"], lock=lock,
-                           identity=stored["identity"])
+                           identity=stored["identity"], removed=stored.get("removed") or {})
         diff = diff_trees(state.tree, tree)
         state.tree = tree
         apply_to_scene(state.tracer, state.instances, tree, diff, lambda g: self.ensure_geometry(state, g))

@@ -24,6 +24,9 @@ from service.schemas import IdentityIn
 #: What `_identity_changes` answers: (records to insert, uuids whose rows to delete first, delete every row instead)
 IdentityChanges = tuple[dict[str, IdentityIn], list[str], bool]
 
+#: What a push changes in the memory of removed nodes: (uuid -> record to insert, uuids whose rows to delete)
+RemovedChanges = tuple[dict[str, dict], list[str]]
+
 #: The table of each kind of assignment, and the `SceneState` attribute that holds it in memory.
 TABLES = {"light": (db.lights, "lights"), "sensor": (db.sensors, "sensors"), "object": (db.sim_objects, "objects"),
           "element": (db.element_assignments, "elements")}
@@ -74,7 +77,7 @@ class SceneStore:
     def delete_scene(self, scene_id: str) -> None:
         with self.engine.begin() as conn:
             for table in (db.materials, db.lights, db.sensors, db.sim_objects, db.node_identity, db.nodes,
-                          db.revisions):
+                          db.removed_nodes, db.revisions):
                 conn.execute(delete(table).where(table.c.scene_id == scene_id))
             conn.execute(delete(db.scenes).where(db.scenes.c.id == scene_id))
 
@@ -95,7 +98,11 @@ class SceneStore:
                 return None
             node_rows = conn.execute(select(db.nodes).where(db.nodes.c.scene_id == scene_id)
                                      .order_by(db.nodes.c.position)).all()
-            return row, list(node_rows), self._read_assignments(conn, scene_id)
+            stored = self._read_assignments(conn, scene_id)
+            stored["removed"] = {r.uuid: r.record for r in conn.execute(
+                select(db.removed_nodes).where(db.removed_nodes.c.scene_id == scene_id)
+                .order_by(db.removed_nodes.c.revision))}
+            return row, list(node_rows), stored
 
     def read_assignments(self, scene_id: str) -> tuple[int, dict[str, Any]]:
         """(assign_revision, `read_assignments`) in one read."""
@@ -213,7 +220,8 @@ class SceneStore:
     # ------------------------------------------------------------ a push
 
     def store_push(self, scene_id: str, revision: int, length_unit: str, source: dict | None, old: Any, new: Any,
-                   diff: Any, summary: dict[str, Any], identity_changes: IdentityChanges | None) -> None:
+                   diff: Any, summary: dict[str, Any], identity_changes: IdentityChanges | None,
+                   removed_changes: RemovedChanges | None = None) -> None:
         """Write a push as revision ``revision + 1``: the scene row (guarded: 409 if another writer got there
         first), the changed node rows of `new` (a `service.tree.Tree`) against `old`, the identity records and
         the revision's summary, in one transaction."""
@@ -239,6 +247,8 @@ class SceneStore:
                 conn.execute(insert(db.nodes), rows)
             if identity_changes is not None:
                 _write_identity(conn, scene_id, *identity_changes)
+            if removed_changes is not None:
+                _write_removed(conn, scene_id, revision + 1, *removed_changes)
             conn.execute(insert(db.revisions).values(scene_id=scene_id, revision=revision + 1, summary=summary))
 
 
@@ -254,3 +264,17 @@ def _write_identity(conn: Any, scene_id: str, write: dict[str, IdentityIn], drop
             {"scene_id": scene_id, "uuid": u, "product": r.product,
              "signature": r.signature.model_dump(exclude_none=True) if r.signature is not None else None}
             for u, r in write.items()])
+
+
+def _write_removed(conn: Any, scene_id: str, revision: int, write: dict[str, dict], drop: list[str]) -> None:
+    """Apply a `RemovedChanges` to ``removed_nodes`` on `conn` (inside the push's transaction)."""
+    import datetime as dt
+
+    c = db.removed_nodes.c
+    gone = list(drop) + list(write)
+    for i in range(0, len(gone), 500):
+        conn.execute(delete(db.removed_nodes).where(c.scene_id == scene_id).where(c.uuid.in_(gone[i:i + 500])))
+    if write:
+        conn.execute(insert(db.removed_nodes), [
+            {"scene_id": scene_id, "uuid": u, "revision": revision, "record": r,
+             "removed_at": dt.datetime.fromisoformat(r["removed_at"])} for u, r in write.items()])
