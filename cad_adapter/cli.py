@@ -69,6 +69,8 @@ def identity_report(doc: Any) -> list[str]:
     if detail.get("snapped") or detail.get("reused_geometries"):
         lines.append(f"  within tolerance: {detail.get('snapped', 0)} placement(s) kept, "
                      f"{detail.get('reused_geometries', 0)} geometry id(s) kept (not meshed, not uploaded)")
+    for name, h in (detail.get("same_surface") or {}).items():
+        lines.append(f"  {name}: B-rep edited by the writer, surfaces {h:.3g} apart (Hausdorff)")
     for a in rec.get("ambiguous") or []:
         lines.append(f"  [yellow]ambiguous:[/] {a['path']}: {a['reason']}")
     return lines
@@ -97,7 +99,7 @@ def push_file(file: Path, scene: str, server: str, linear: float | None = None, 
     ``dry_run``: diff only; no upload, no sidecar, no scene. ``token``: the bearer token (None:
     ``$LUMENLINK_TOKEN``)."""
     from .client import Pusher
-    from .identity import identify
+    from .identity import confirm_same_surface, identify
     from .step_reader import read_step
     from .tessellate import tessellate
 
@@ -116,6 +118,8 @@ def push_file(file: Path, scene: str, server: str, linear: float | None = None, 
         on_read(doc)
     tess = tessellate(doc, settings, cache=cache, progress=tessellation_progress)
     with Pusher(server, transport=transport, upload_progress=upload_progress, token=token) as pusher:
+        if doc.reuse_if_same_surface:  # a B-rep close to the scene's: keep its mesh if it shows the same surface
+            confirm_same_surface(doc, tess, lambda gid: pusher.geometry(gid)[:2])
         result = pusher.push(doc, tess, scene, base_revision=tree.revision if tree else None, dry_run=dry_run)
     return result, doc, tess, read_seconds, previous
 

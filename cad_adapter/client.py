@@ -124,6 +124,15 @@ class Pusher(ServiceClient):
         self._call("PUT", f"/geometries/{gid}", f"uploading geometry {gid[:12]}", content=glb,
                    headers={"content-type": MEDIA_TYPE})
 
+    def geometry(self, gid: str) -> tuple:
+        """A stored mesh (``GET /geometries/{gid}``): (vertices, triangles, normals or None)."""
+        from .glb import decode_glb
+
+        resp = self._request("GET", f"/geometries/{gid}")
+        if resp.status_code != 200:
+            self._answer(resp, f"reading geometry {gid[:12]}")  # raises, saying why
+        return decode_glb(resp.content)
+
     def scene_tree(self, name: str) -> SceneTree | None:
         """What the scene called ``name`` holds now (its nodes, for reconciliation), or None if there is none."""
         info = self.scene_by_name(name)

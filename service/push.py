@@ -166,11 +166,16 @@ class Pushes:
         t_diff = time.perf_counter()
         changes = _identity_changes(state.identity, identity)
         if diff.is_empty():
+            reordered = new.uuids != state.tree.uuids
+            old_index = state.tree.index
             state.tree = new  # the same tree; its rows now follow this body's order
             t_store = time.perf_counter()
-            if changes is not None:  # only the identity records changed: stored, no new revision
+            if changes is not None or reordered:  # identity records or the order changed: stored, no new revision
                 try:
-                    self.store.store_identity(state.id, state.version, changes)
+                    if reordered:  # the [k] ranks of same-named siblings follow the order: a restart must see it
+                        self.store.store_order(state.id, state.version, new.uuids, old_index, changes)
+                    else:
+                        self.store.store_identity(state.id, state.version, changes)  # type: ignore[arg-type]
                 except Raced as exc:
                     self.scenes.forget(state.id)
                     now = self.store.version(state.id)
@@ -182,6 +187,8 @@ class Pushes:
                     raise
                 state.identity = identity
                 state.assign_revision += 1
+                if reordered:
+                    state.live = None
             seconds = {"decode": t_decode - t0, "validate": t_validate - t_decode, "diff": t_diff - t_validate,
                        "blas": 0.0, "tlas": 0.0, "commit": 0.0, "store": time.perf_counter() - t_store}
             seconds["total"] = time.perf_counter() - t0

@@ -41,7 +41,7 @@ from service.meshes import MeshStore
 from service.scene_geometries import SceneGeometries
 from service.scene_views import SceneViews
 from service.schemas import LENGTH_UNITS, IdentityIn
-from service.store import SceneStore
+from service.store import SceneStore, normalize_positions
 from service.tree import Tree, apply_to_scene, diff_trees
 
 log = logging.getLogger("lumenlink.service")
@@ -220,6 +220,7 @@ class Scenes(SceneGeometries, SceneViews):
         if read is None:
             raise NotFound(f"no scene {scene_id}")
         row, node_rows, stored = read
+        normalize_positions(self.store.engine, scene_id, node_rows)
         unit = row.length_unit or "m"
         transforms = (np.frombuffer(b"".join(r.transform for r in node_rows), dtype="<f8").reshape(-1, 16)
                       if node_rows else np.zeros((0, 16)))

@@ -14,7 +14,7 @@ from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
-from sqlalchemy import Engine, delete, insert, select, update
+from sqlalchemy import Engine, bindparam, delete, insert, select, update
 from sqlalchemy.exc import IntegrityError
 
 from service import db
@@ -97,7 +97,7 @@ class SceneStore:
             if row is None:
                 return None
             node_rows = conn.execute(select(db.nodes).where(db.nodes.c.scene_id == scene_id)
-                                     .order_by(db.nodes.c.position)).all()
+                                     .order_by(db.nodes.c.position, db.nodes.c.uuid)).all()
             stored = self._read_assignments(conn, scene_id)
             stored["removed"] = {r.uuid: r.record for r in conn.execute(
                 select(db.removed_nodes).where(db.removed_nodes.c.scene_id == scene_id)
@@ -217,6 +217,20 @@ class SceneStore:
             self._bump(conn, scene_id, *version)
             _write_identity(conn, scene_id, *changes)
 
+    def store_order(self, scene_id: str, version: tuple[int, int], uuids: list[str], old_index: dict[str, int],
+                    identity_changes: IdentityChanges | None = None) -> None:
+        """A push that only reorders the node list (no new revision): the positions of the rows that moved, so
+        that a restart gives same-named siblings the [k] ranks this order gives them."""
+        c = db.nodes.c
+        rows = [{"u": u, "p": float(j)} for j, u in enumerate(uuids) if old_index.get(u) != j]
+        with self.engine.begin() as conn:
+            self._bump(conn, scene_id, *version)
+            if rows:
+                conn.execute(update(db.nodes).where(c.scene_id == scene_id).where(c.uuid == bindparam("u"))
+                             .values(position=bindparam("p")), rows)
+            if identity_changes is not None:
+                _write_identity(conn, scene_id, *identity_changes)
+
     # ------------------------------------------------------------ a push
 
     def store_push(self, scene_id: str, revision: int, length_unit: str, source: dict | None, old: Any, new: Any,
@@ -237,6 +251,14 @@ class SceneStore:
             gone = list(diff.removed) + [u for u in diff.upserts if u in old.index]
             for i in range(0, len(gone), 500):
                 conn.execute(delete(db.nodes).where(c.scene_id == scene_id).where(c.uuid.in_(gone[i:i + 500])))
+            # document order: rows whose place in the node list changed (a reorder, a removal before them) get
+            # their new position, so that a restart orders siblings (and their [k] ranks) as this push did
+            if old.uuids != new.uuids:
+                moved_rows = [{"u": u, "p": float(j)} for j, u in enumerate(new.uuids)
+                              if u not in diff.upserts and old.index.get(u) != j]
+                if moved_rows:
+                    conn.execute(update(db.nodes).where(c.scene_id == scene_id).where(c.uuid == bindparam("u"))
+                                 .values(position=bindparam("p")), moved_rows)
             if diff.upserts:
                 rows = []
                 for u in diff.upserts:
@@ -278,3 +300,14 @@ def _write_removed(conn: Any, scene_id: str, revision: int, write: dict[str, dic
         conn.execute(insert(db.removed_nodes), [
             {"scene_id": scene_id, "uuid": u, "revision": revision, "record": r,
              "removed_at": dt.datetime.fromisoformat(r["removed_at"])} for u, r in write.items()])
+
+
+def normalize_positions(engine: Engine, scene_id: str, rows: list[Any]) -> None:
+    """Store positions 0, 1, … for node rows read in document order (`read_scene`), where they are not: older
+    pushes left gaps and ties that a push's `store_push` (which writes row numbers) could collide with."""
+    fix = [{"u": r.uuid, "p": float(j)} for j, r in enumerate(rows) if r.position != float(j)]
+    if fix:
+        c = db.nodes.c
+        with engine.begin() as conn:
+            conn.execute(update(db.nodes).where(c.scene_id == scene_id).where(c.uuid == bindparam("u"))
+                         .values(position=bindparam("p")), fix)

@@ -71,3 +71,20 @@ def xcaf_without(src, dst, name: str, drop_product: bool = True) -> None:
     writer.SetColorMode(True)
     assert writer.Transfer(doc, STEPControl_AsIs)
     assert writer.Write(str(dst)) == IFSelect_RetDone
+
+
+def xcaf_round_trip(src, dst) -> None:
+    """Read a STEP file into OCCT's XCAF document and write it again with OCCT's own writer (another writer:
+    instance ids renumbered, entities reordered; on Stamp-S3 it splits one edge of the board), with no edit."""
+    from OCP.IFSelect import IFSelect_RetDone
+    from OCP.STEPCAFControl import STEPCAFControl_Writer
+    from OCP.STEPControl import STEPControl_AsIs
+
+    from cad_adapter.step_reader import read_xcaf
+
+    doc, _, _, _ = read_xcaf(src)
+    writer = STEPCAFControl_Writer()
+    writer.SetNameMode(True)
+    writer.SetColorMode(True)
+    assert writer.Transfer(doc, STEPControl_AsIs)
+    assert writer.Write(str(dst)) == IFSelect_RetDone

@@ -254,3 +254,33 @@ def test_a_deleted_subassembly_pushed_back_gets_its_uuids_and_assignments_again(
         assert {n["path"]: n["uuid"] for n in http.get(f"/scenes/{sid}/nodes").json()} == nodes
         assert http.get(f"/scenes/{sid}/removed-nodes").json() == []
         assert b["blas_built"] == 0 and not b["geometry_changed"]
+
+
+@needs_fixtures
+def test_stamp_reexported_changes_no_geometry_and_a_restart_rebuilds_no_bottom_level(tmp_path) -> None:
+    """Issue 42 on Creo's Stamp-S3: re-exported through OCCT (ids renumbered, one edge of the board split) it keeps
+    every geometry id (the board's by the Hausdorff test: no upload, no bottom level); a restart of the service then
+    loads all its bottom levels from the BLAS library, the small ones too, and builds none."""
+    import httpx
+    from cad_helpers import STAMP, xcaf_round_trip
+    from service_process import running_service
+
+    rt = tmp_path / "Stamp-S3_occt.step"
+    xcaf_round_trip(STAMP, rt)
+    cache = cli.TessellationCache(tmp_path / "cache")
+    data = tmp_path / "service"
+    with running_service(data) as url:
+        first, _, tess, _, _ = cli.push_file(STAMP, "stamp", url, 0.05, 0.5, cache=cache)
+        assert first.answer["blas_built"] == first.geometries == len(tess.meshes)
+        small = sum(m.n_triangles < 512 for m in tess.meshes.values())
+        again, doc, tess2, _, _ = cli.push_file(rt, "stamp", url, 0.05, 0.5, cache=cache)
+        a = again.answer
+        assert not a["geometry_changed"] and not a["added"] and not a["removed"] and not a["moved"]
+        assert a["blas_built"] == 0 and again.uploaded == 0 and not tess2.meshes
+        assert list(doc.reconciliation_detail["same_surface"]) == ["STAMP-S3"]
+        assert doc.reconciliation_detail["same_surface"]["STAMP-S3"] <= 2 * 0.05
+        assert a["reconciliation"]["ambiguous"] == []
+        sid = first.scene_id
+    with running_service(data, log_name="restart.log") as url:
+        last = httpx.get(f"{url}/scenes/{sid}").json()["last_commit"]
+        assert small > 0 and last["blas_built"] == 0 and last["blas_loaded"] == first.geometries
