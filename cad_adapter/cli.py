@@ -45,7 +45,9 @@ def summary(result: Any, doc: Any, tess: Any, read_seconds: float) -> str:
     lines = [
         f"scene {a.get('scene', result.scene_id)}: revision {a.get('base_revision')} -> {a.get('revision')}"
         + (" (scene created)" if result.created_scene else ""),
-        f"  diff: {diff}, unchanged {a.get('unchanged', '?')}",
+        f"  diff: {diff}, unchanged {a.get('unchanged', '?')}"
+        + (f"; restored {len(a['restored_nodes'])} removed node(s) under their old UUIDs" if a.get("restored_nodes")
+           else ""),
         f"  bottom levels: built {a.get('blas_built', '?')}, reused {a.get('blas_reused', '?')}, "
         f"loaded {a.get('blas_loaded', '?')}; instances {a.get('instances', '?')}",
         f"  meshes: {result.geometries} distinct, {result.uploaded} uploaded ({result.uploaded_bytes / 1e3:.1f} kB); "
@@ -67,6 +69,8 @@ def identity_report(doc: Any) -> list[str]:
     if detail.get("snapped") or detail.get("reused_geometries"):
         lines.append(f"  within tolerance: {detail.get('snapped', 0)} placement(s) kept, "
                      f"{detail.get('reused_geometries', 0)} geometry id(s) kept (not meshed, not uploaded)")
+    for name, h in (detail.get("same_surface") or {}).items():
+        lines.append(f"  {name}: B-rep edited by the writer, surfaces {h:.3g} apart (Hausdorff)")
     for a in rec.get("ambiguous") or []:
         lines.append(f"  [yellow]ambiguous:[/] {a['path']}: {a['reason']}")
     return lines
@@ -95,7 +99,7 @@ def push_file(file: Path, scene: str, server: str, linear: float | None = None, 
     ``dry_run``: diff only; no upload, no sidecar, no scene. ``token``: the bearer token (None:
     ``$LUMENLINK_TOKEN``)."""
     from .client import Pusher
-    from .identity import identify
+    from .identity import confirm_same_surface, identify
     from .step_reader import read_step
     from .tessellate import tessellate
 
@@ -108,12 +112,14 @@ def push_file(file: Path, scene: str, server: str, linear: float | None = None, 
     same_settings = tree is not None and tree.tessellation is not None and all(
         tree.tessellation.get(k) == v for k, v in settings.as_dict().items())
     identify(doc, write=not dry_run, previous=previous, previous_unit=tree.length_unit if tree else None,
-             reuse_geometry=same_settings)
+             reuse_geometry=same_settings, removed=tree.removed if tree is not None else None)
     read_seconds = time.perf_counter() - t0
     if on_read is not None:
         on_read(doc)
     tess = tessellate(doc, settings, cache=cache, progress=tessellation_progress)
     with Pusher(server, transport=transport, upload_progress=upload_progress, token=token) as pusher:
+        if doc.reuse_if_same_surface:  # a B-rep close to the scene's: keep its mesh if it shows the same surface
+            confirm_same_surface(doc, tess, lambda gid: pusher.geometry(gid)[:2])
         result = pusher.push(doc, tess, scene, base_revision=tree.revision if tree else None, dry_run=dry_run)
     return result, doc, tess, read_seconds, previous
 
@@ -184,7 +190,9 @@ def dry_run_summary(a: dict) -> str:
     diff = ", ".join(f"{k.replace('_', ' ')} {len(a.get(k) or [])}" for k in lists if k in a)
     return "\n".join([
         f"dry run (nothing changed): scene {a.get('scene') or '(would be created)'} at revision {a.get('revision')}",
-        f"  diff: {diff}, unchanged {a.get('unchanged', '?')}",
+        f"  diff: {diff}, unchanged {a.get('unchanged', '?')}"
+        + (f"; would restore {len(a['restored_nodes'])} removed node(s) under their old UUIDs"
+           if a.get("restored_nodes") else ""),
         f"  would build {len(a.get('blas_to_build') or [])} bottom level(s), upload "
         f"{len(a.get('missing_geometries') or [])} mesh(es); would orphan {len(a.get('orphaned') or [])} "
         f"assignment(s), restore {len(a.get('restored') or [])}",

@@ -124,6 +124,15 @@ class Pusher(ServiceClient):
         self._call("PUT", f"/geometries/{gid}", f"uploading geometry {gid[:12]}", content=glb,
                    headers={"content-type": MEDIA_TYPE})
 
+    def geometry(self, gid: str) -> tuple:
+        """A stored mesh (``GET /geometries/{gid}``): (vertices, triangles, normals or None)."""
+        from .glb import decode_glb
+
+        resp = self._request("GET", f"/geometries/{gid}")
+        if resp.status_code != 200:
+            self._answer(resp, f"reading geometry {gid[:12]}")  # raises, saying why
+        return decode_glb(resp.content)
+
     def scene_tree(self, name: str) -> SceneTree | None:
         """What the scene called ``name`` holds now (its nodes, for reconciliation), or None if there is none."""
         info = self.scene_by_name(name)
@@ -134,8 +143,14 @@ class Pusher(ServiceClient):
         nodes = self._call("GET", f"/scenes/{sid}/nodes", f"reading the nodes of scene {name!r}")
         if not isinstance(nodes, list):
             raise PushError(f"GET /scenes/{sid}/nodes answered {type(nodes).__name__}, not a list")
-        return SceneTree(sid, int(summary["revision"]), summary.get("length_unit"), nodes,
-                         (summary.get("source") or {}).get("tessellation"))
+        resp = self._request("GET", f"/scenes/{sid}/removed-nodes")
+        removed = self._answer(resp, f"reading the removed nodes of scene {name!r}") if resp.status_code != 404 else []
+        if not isinstance(removed, list):
+            raise PushError(f"GET /scenes/{sid}/removed-nodes answered {type(removed).__name__}, not a list")
+        unit = summary.get("length_unit")
+        return SceneTree(sid, int(summary["revision"]), unit, nodes,
+                         (summary.get("source") or {}).get("tessellation"),
+                         [r for r in removed if isinstance(r, dict) and r.get("length_unit") in (None, unit)])
 
     def push_document(self, scene_id: str, body: dict, dry_run: bool = False) -> dict:
         """``PUT /scenes/{id}/document``; :class:`RevisionConflict` on 409 (after re-reading the revision).
@@ -247,6 +262,9 @@ class SceneTree:
         ``GET /scenes/{id}/nodes``: uuid, parent, name, product, path, transform, world, geometry, signature.
     tessellation : dict or None
         The settings the scene's meshes were made with (``source.tessellation`` of its last push).
+    removed : list of dict
+        ``GET /scenes/{id}/removed-nodes`` (those in the scene's current unit): the nodes the scene removed and
+        remembers; a node that comes back where one of them was gets its UUID again.
     """
 
     id: str
@@ -254,3 +272,4 @@ class SceneTree:
     length_unit: str | None
     nodes: list[dict]
     tessellation: dict | None
+    removed: list[dict] = field(default_factory=list)

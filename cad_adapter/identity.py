@@ -192,6 +192,62 @@ def same_brep(a: dict | None, b: dict | None, rtol: float) -> bool:
     return bool(np.abs(_inertia(a) - _inertia(b)).max() <= rtol * (max(ka.moments[-1], kb.moments[-1]) + s ** 5))
 
 
+#: invariants (volume, area, moments, centroid) this close (relative to the part's size) make a part a candidate
+#: for keeping its old mesh, which then has to show the same surface within the tessellation's deflection
+LOOSE_RTOL = 1e-3
+
+
+def _close_brep(a: dict | None, b: dict | None) -> bool:
+    """Whether two signatures are close enough (`LOOSE_RTOL`, any topology) to compare the surfaces."""
+    if not a or not b or a.get("moments") is None or b.get("moments") is None or b.get("centroid") is None:
+        return False
+    ka, kb = shape_key({**a, "topology": None}), shape_key({**b, "topology": None})
+    if ka is None or kb is None or not ka.matches(kb, LOOSE_RTOL):
+        return False
+    return bool(np.linalg.norm(np.subtract(a["centroid"], b["centroid"])) <= LOOSE_RTOL * max(ka.size, kb.size))
+
+
+def confirm_same_surface(doc: Document, tess, fetch) -> dict[str, float]:
+    """Keep the old geometry id of candidate parts (``doc.reuse_if_same_surface``) whose new mesh and old mesh show
+    the same surface: symmetric Hausdorff distance at most twice the tessellation's deflection (each mesh lies
+    within one deflection of its B-rep, so two of one B-rep lie within two of each other; a real change of ten
+    deflections does not). A kept part moves from ``tess.meshes`` to ``doc.reuse``: not uploaded, no bottom level.
+
+    Parameters
+    ----------
+    doc : Document
+        After :func:`identify` (with ``reuse_geometry``).
+    tess : cad_adapter.tessellate.Tessellation
+        The new meshes (modified in place).
+    fetch : callable(gid) -> (vertices, triangles)
+        The old mesh (the service's ``GET /geometries/{gid}``).
+
+    Returns
+    -------
+    dict of str to float
+        Part key -> the Hausdorff distance found (document units) for every candidate compared; those within
+        the bound were kept.
+    """
+    from .same_surface import hausdorff_within
+
+    out: dict[str, float] = {}
+    for key, gid in list(doc.reuse_if_same_surface.items()):
+        mesh = tess.meshes.get(key)
+        if mesh is None or mesh.geometry_id == gid:
+            continue
+        old_v, old_t = fetch(gid)
+        bound = 2.0 * float(mesh.deflection)
+        h = hausdorff_within((mesh.vertices, mesh.triangles), (old_v, old_t), bound)
+        out[key] = h
+        if h <= bound:
+            doc.reuse[key] = gid
+            del tess.meshes[key]
+            tess.reused += 1
+    doc.reconciliation_detail["same_surface"] = {doc.parts[k].name or k: h for k, h in out.items()}
+    doc.reconciliation_detail["reused_geometries"] = len(set(doc.reuse.values()))
+    return out
+
+
 # ---------------------------------------------------------------- records (what the scene and the sidecar hold)
 
 def node_records(doc: Document, geometry: dict[str, str] | None = None) -> list[dict]:
@@ -365,7 +421,8 @@ def _rotation_angle(a: np.ndarray, b: np.ndarray) -> float:
 
 def identify(doc: Document, sidecar: str | Path | None = None, write: bool = True, *,
              previous: list[dict] | None = None, previous_unit: str | None = None,
-             tolerance: Tolerance | None = None, reuse_geometry: bool = False) -> dict[str, int]:
+             tolerance: Tolerance | None = None, reuse_geometry: bool = False,
+             removed: list[dict] | None = None) -> dict[str, int]:
     """Give every node of ``doc`` its UUID (``Node.uuid``, ``Node.match``) and fill ``doc.reconciliation``.
 
     Parameters
@@ -385,6 +442,10 @@ def identify(doc: Document, sidecar: str | Path | None = None, write: bool = Tru
     reuse_geometry : bool
         Keep the old geometry id of parts whose B-rep is the same within tolerance (only where the old
         meshes were made with the same tessellation settings: the caller knows).
+    removed : list of dict, optional
+        The scene's memory of removed nodes (``GET /scenes/{id}/removed-nodes``, same unit as ``previous``):
+        a node that matches nothing present and comes back where one of them was gets its UUID (rule
+        ``restored``), and with it the assignments the scene kept for it.
 
     Returns
     -------
@@ -404,12 +465,20 @@ def identify(doc: Document, sidecar: str | Path | None = None, write: bool = Tru
     scale = UNIT_METRES[unit] / UNIT_METRES[doc.length_unit] if unit in UNIT_METRES else 1.0
     old, rows = side_from_records(records or [], scale)
     new = side_from_document(doc)
-    rec = reconcile(old, new, same_place_rtol=tol.linear)
+    gone, gone_rows = (side_from_records(_parents_first(removed), scale) if from_scene and removed
+                       else (None, []))
+    rec = reconcile(old, new, same_place_rtol=tol.linear, removed=gone)
     for i, node in enumerate(doc.nodes):
         node.uuid, node.match = rec.uuids[i], rec.rule[i]
         node.previous = rows[rec.old[i]] if rec.old[i] >= 0 else None
+        if node.previous is None and len(rec.restored) and rec.restored[i] >= 0:
+            node.previous = gone_rows[rec.restored[i]]
     snapped = _snap_placements(doc, rec, old, tol)
     doc.reuse = _reusable_geometry(doc, tol) if reuse_geometry and from_scene and scale == 1.0 else {}
+    doc.reuse_if_same_surface = (_reusable_geometry(doc, tol, loose=True) if reuse_geometry and from_scene
+                                 and scale == 1.0 else {})
+    for key in doc.reuse:
+        doc.reuse_if_same_surface.pop(key, None)
     counts = rec.counts()
     doc.reconciliation = {
         "matched": counts,
@@ -423,6 +492,31 @@ def identify(doc: Document, sidecar: str | Path | None = None, write: bool = Tru
     if sidecar is not None and write:
         write_sidecar(sidecar, doc, stored["nodes"])
     return counts
+
+
+def _parents_first(records: list[dict]) -> list[dict]:
+    """Records ordered so that a parent among them comes before its children (removed at different times)."""
+    by = {r.get("uuid"): r for r in records if isinstance(r, dict)}
+    out: list[dict] = []
+    seen: set = set()
+
+    def visit(r: dict, depth: int = 0) -> None:
+        u = r.get("uuid")
+        if u in seen or depth > len(by):
+            return
+        p = by.get(r.get("parent"))
+        if p is not None:
+            visit(p, depth + 1)
+        if u not in seen:
+            seen.add(u)
+            out.append(r)
+
+    for r in records:
+        if isinstance(r, dict):
+            visit(r)
+        else:
+            out.append(r)  # side_from_records says what is wrong with it
+    return out
 
 
 def _snap_placements(doc: Document, rec, old: Side, tol: Tolerance) -> int:
@@ -461,15 +555,22 @@ def _snap_placements(doc: Document, rec, old: Side, tol: Tolerance) -> int:
     return snapped
 
 
-def _reusable_geometry(doc: Document, tol: Tolerance) -> dict[str, str]:
-    """Parts whose every node matched an old node of one geometry id with the same B-rep in its frame."""
+def _reusable_geometry(doc: Document, tol: Tolerance, loose: bool = False) -> dict[str, str]:
+    """Parts whose every node matched an old node of one geometry id with the same B-rep in its frame.
+
+    ``loose``: the candidates whose mesh may be kept if it shows the same surface (`confirm_same_surface`):
+    invariants within `LOOSE_RTOL`, whatever the topology (a writer that split an edge)."""
     found: dict[str, str | None] = {}
     for node in doc.nodes:
         if node.part is None:
             continue
         prev = getattr(node, "previous", None)
         gid = prev.get("geometry") if prev else None
-        ok = gid is not None and same_brep(part_signature(doc, node.part), prev.get("signature"), tol.shape_rtol)
+        if loose:
+            ok = gid is not None and _close_brep(part_signature(doc, node.part), prev.get("signature"))
+        else:
+            ok = gid is not None and same_brep(part_signature(doc, node.part), prev.get("signature"),
+                                               tol.shape_rtol)
         if not ok:
             found[node.part] = None
         elif node.part not in found:

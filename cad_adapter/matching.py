@@ -16,10 +16,16 @@ Matching is a global assignment, never nearest-first. The rules, in order (``Rec
 ``structure``  an assembly whose children's old parent is one node (votes, then an assignment); a
                reshaped part under a matched parent, by its placement in that parent and its product name.
 ``path``       the same occurrence path (names from the root) as an unmatched old node.
+``restored``   a node the scene removed earlier (its memory of removed nodes, ``GET /scenes/{id}/removed-nodes``)
+               that comes back within tolerance: a part of the same shape class whose centroid, carried by the
+               model's alignment, lies within the alignment's tolerance of where it was; an assembly whose
+               restored children mostly belonged to one removed assembly of the same name or placement.
 ``new``        a fresh UUID.
 
-A pair is *ambiguous* when its placement does not set it clearly apart from another identical part, or
-when its instance name names another old part of the same class (two identical parts swapped). It keeps
+A pair is *ambiguous* only when another identical part truly ties with it: taking that part instead (a free
+one, or swapping with the new part that holds it) costs no more, within the tolerance (``TIE_RTOL`` of the
+diagonal), than the optimal assignment's choice; or when its instance name names another old part of the same
+class (two identical parts swapped). A part that moved far but still has one clear best match is not ambiguous. It keeps
 the UUID the placement gives, and is reported with its candidates: never a silent guess.
 """
 
@@ -36,11 +42,14 @@ from scipy.optimize import linear_sum_assignment
 from scipy.sparse.csgraph import min_weight_full_bipartite_matching
 from scipy.spatial import cKDTree
 
-RULES = ("carried", "shape", "placement", "structure", "path", "new")
+RULES = ("carried", "shape", "placement", "structure", "path", "restored", "new")
 #: relative tolerance of shape classes (frame-independent invariants of one part, scaled by its size)
 CLASS_RTOL = 1e-5
 #: a node moved less than this fraction of the model's diagonal (after alignment) sits where it was
 SAME_PLACE_RTOL = 1e-6
+#: two candidates tie when taking the other costs no more than this fraction of the diagonal (plus the
+#: same-place tolerance): only then is a match ambiguous
+TIE_RTOL = 1e-6
 #: names writers generate (blank instance names, renumbered ids): never evidence, never shown to people
 WRITER_ID = re.compile(r"^(?:|\d+|NAUO\d*|=>\[[0-9:]+\]|(?:SOLID|SHELL|COMPOUND|COMPONENT|PART|BODY)[_ ]?\d*|"
                        r"OPEN_CASCADE_STEP_TRANSLATO-\d+|#\d+|I\d+)$", re.IGNORECASE)
@@ -162,6 +171,8 @@ class Reconciliation:
         ``new_from_old`` of the model as a whole.
     alignment_inliers : int
         Unambiguous pairs that agree with the alignment.
+    restored : (n_new,) int64
+        The row of ``removed`` (reconcile's argument) each new row took its UUID from, -1 if none.
     """
 
     old: np.ndarray
@@ -170,6 +181,7 @@ class Reconciliation:
     ambiguous: list[dict] = field(default_factory=list)
     alignment: np.ndarray = field(default_factory=lambda: np.eye(4))
     alignment_inliers: int = 0
+    restored: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
     def counts(self) -> dict[str, int]:
         out = dict.fromkeys(RULES, 0)
@@ -299,6 +311,12 @@ def robust_alignment(p: np.ndarray, q: np.ndarray, tol: float, seed: int = 0, ro
     best = tied[0]
     if len(tied) > 1 and score is not None and not spread(p[inliers(best)]):
         best = max(tied, key=score)  # first of the best: no rotation unless the parts say so
+    elif score is not None and top < k:
+        # the unique parts disagree (some moved alone): let the identical parts vote too, so that two parts
+        # of one sub-assembly moved away do not outvote a model that stayed where it was
+        support = [c + score(t) if 2 * c >= top else -1 for t, c in zip(candidates, counts, strict=True)]
+        if max(support) > top + score(best):
+            best = candidates[int(np.argmax(support))]
     best_in = inliers(best)
     if spread(p[best_in]):
         refined = kabsch(p[best_in], q[best_in])
@@ -443,7 +461,7 @@ def _groups(cls: np.ndarray, mask: np.ndarray) -> dict[int, np.ndarray]:
 
 
 def reconcile(old: Side, new: Side, *, diagonal: float | None = None, same_place_rtol: float = SAME_PLACE_RTOL,
-              neighbours: int = 8, seed: int = 0) -> Reconciliation:
+              neighbours: int = 8, seed: int = 0, removed: Side | None = None) -> Reconciliation:
     """Match the rows of ``new`` to those of ``old`` (see the module docstring for the rules).
 
     Parameters
@@ -456,6 +474,9 @@ def reconcile(old: Side, new: Side, *, diagonal: float | None = None, same_place
         A centroid within this fraction of ``diagonal`` (after alignment) has not moved.
     neighbours : int
         Candidates per node among identical parts (k nearest after alignment).
+    removed : Side, optional
+        Nodes the scene removed earlier (same unit): new nodes that match nothing in ``old`` and come back
+        where one of them was get its UUID (rule ``restored``; ``Reconciliation.restored`` gives the row).
     """
     st = _State(old, new)
     c_old, c_new = world_centroids(old), world_centroids(new)
@@ -510,17 +531,22 @@ def reconcile(old: Side, new: Side, *, diagonal: float | None = None, same_place
         _assemblies_by_votes(st)
         _reshaped_by_parent(st, diagonal)
     _assemblies_by_votes(st)
-    # 5. occurrence path, then lone roots
+    # 5. nodes removed earlier that come back where they were
+    restored = np.full(len(new), -1, np.int64)
+    if removed is not None and len(removed):
+        restored = _restore(st, removed, c_new, align, max(tol_align, tol_same), diagonal)
+    # 6. occurrence path, then lone roots
     free_old_paths: dict[str, int] = {}
     for j in np.flatnonzero(~st.taken):
         free_old_paths.setdefault(old.paths[j], int(j))
     for i in np.flatnonzero(st.match < 0):
-        if st.rule[i] == "carried":
+        if st.rule[i] in ("carried", "restored"):
             continue
         j = free_old_paths.get(new.paths[i], -1)
         if j >= 0 and not st.taken[j] and bool(old.leaf[j]) == bool(new.leaf[i]):
             st.bind(int(i), j, "path")
-    roots_new = [i for i in np.flatnonzero(new.parent < 0) if st.match[i] < 0 and st.rule[i] != "carried"]
+    roots_new = [i for i in np.flatnonzero(new.parent < 0) if st.match[i] < 0 and st.rule[i] not in ("carried",
+                                                                                                  "restored")]
     roots_old = [j for j in np.flatnonzero(old.parent < 0) if not st.taken[j]]
     if len(roots_new) == 1 and len(roots_old) == 1 and not new.leaf[roots_new[0]] and not old.leaf[roots_old[0]]:
         st.bind(int(roots_new[0]), int(roots_old[0]), "structure")
@@ -531,13 +557,16 @@ def reconcile(old: Side, new: Side, *, diagonal: float | None = None, same_place
             uuids.append(str(new.uuids[i]).lower())
         elif st.match[i] >= 0:
             uuids.append(str(old.uuids[st.match[i]]))
+        elif restored[i] >= 0:
+            assert removed is not None
+            uuids.append(str(removed.uuids[restored[i]]))
         else:
             uuids.append(str(uuidlib.uuid4()))
     ambiguous = []
     for i, a in sorted(st.ambiguous.items()):
-        if st.match[i] >= 0:
+        if st.match[i] >= 0 or restored[i] >= 0:
             ambiguous.append({"row": i, "path": new.paths[i], "uuid": uuids[i], **a})
-    return Reconciliation(st.match, uuids, st.rule, ambiguous, align, n_in)
+    return Reconciliation(st.match, uuids, st.rule, ambiguous, align, n_in, restored)
 
 
 def _assign_by_place(st: _State, news: np.ndarray, olds: np.ndarray, c_new: np.ndarray, c_old: np.ndarray,
@@ -561,17 +590,34 @@ def _assign_by_place(st: _State, news: np.ndarray, olds: np.ndarray, c_new: np.n
         nm = old.names[j]
         if not is_writer_id(nm):
             old_names[nm] = -1 if nm in old_names else jj  # a name shared by several is no evidence
+    chosen = {int(jj): ii for ii, jj in enumerate(match) if jj >= 0}  # old column -> new row (this group)
+    c_n, c_o = c_new[news], c_old[olds]
+    tie = TIE_RTOL * diagonal + tol_same
     for ii, jj in enumerate(match):
         if jj < 0:
             continue
         i, j = int(news[ii]), int(olds[jj])
         st.bind(i, j, "placement")
-        d = float(np.linalg.norm(c_new[i] - c_old[j]))
-        others = [(float(dist[ii, m]), int(olds[nn[ii, m]])) for m in range(k) if nn[ii, m] != jj]
-        if d > tol_same and others and others[0][0] <= 2.0 * d + tol_same:
-            st.ambiguous[i] = {"candidates": [str(old.uuids[j])] + [str(old.uuids[o]) for _, o in others[:3]],
-                               "reason": f"moved {d:.6g} after the model's alignment, and another identical "
-                                         f"part was {others[0][0]:.6g} away"}
+        d = float(np.linalg.norm(c_n[ii] - c_o[jj]))
+        rivals = []  # other old parts this one could take at no more cost, within the tolerance
+        for m in range(k):
+            kk = int(nn[ii, m])
+            if kk == jj:
+                continue
+            d_k = float(dist[ii, m])
+            other = chosen.get(kk)
+            if other is None:  # a free old part: taking it instead costs d_k - d
+                delta = d_k - d
+            else:  # a swap with the new part that holds it
+                delta = (d_k + float(np.linalg.norm(c_n[other] - c_o[jj]))
+                         - d - float(np.linalg.norm(c_n[other] - c_o[kk])))
+            if delta <= tie:
+                rivals.append((d_k, int(olds[kk]), delta))
+        if rivals:
+            rivals.sort()
+            st.ambiguous[i] = {"candidates": [str(old.uuids[j])] + [str(old.uuids[o]) for _, o, _ in rivals[:3]],
+                               "reason": f"moved {d:.6g} after the model's alignment, and another identical part "
+                                         f"({old.paths[rivals[0][1]]!r}) fits as well (within {tie:.3g})"}
         nm = new.names[i]
         named = old_names.get(nm, -1) if not is_writer_id(nm) else -1
         if named >= 0 and int(olds[named]) != j and old.names[j] != nm:
@@ -643,3 +689,68 @@ def _name_penalty(a: str, b: str) -> float:
     if is_writer_id(a) or is_writer_id(b):
         return 0.25
     return 0.0 if a == b else 0.5
+
+
+def _restore(st: _State, removed: Side, c_new: np.ndarray, align: np.ndarray, tol: float,
+             diagonal: float) -> np.ndarray:
+    """New nodes matched to nothing that come back where a removed node was: ``out[i]`` = removed row or -1.
+
+    Leaves: per shape class (faceless leaves: per product name), an optimal assignment on the distance between
+    the new centroid and the removed one carried by ``align``; only pairs within ``tol``. Ties within the
+    tolerance are reported ambiguous. Assemblies (deepest first): the removed assembly most of whose rows the
+    new one's restored children were, if it has the same product or name, or sits where it was.
+    """
+    new = st.new
+    out = np.full(len(new), -1, np.int64)
+    free = np.array([st.match[i] < 0 and st.rule[i] == "new" for i in range(len(new))], bool)
+    if not free.any():
+        return out
+    taken = np.zeros(len(removed), bool)
+    c_rem = _apply(align, world_centroids(removed))
+    nr = len(removed)
+    cls = shape_classes(list(removed.keys) + list(new.keys))
+    labels: dict[tuple, list[list[int]]] = {}
+    for side, base, mask in ((0, 0, removed.leaf), (1, nr, new.leaf & free)):
+        s = removed if side == 0 else new
+        for i in np.flatnonzero(mask):
+            c = cls[base + i]
+            key: tuple = ("part", int(c)) if c >= 0 else ("empty", s.products[i] or s.names[i])
+            labels.setdefault(key, [[], []])[side].append(int(i))
+    tie = TIE_RTOL * diagonal + tol * 1e-3
+    for rems, news in labels.values():
+        if not rems or not news:
+            continue
+        d = np.linalg.norm(c_new[news][:, None, :] - c_rem[rems][None, :, :], axis=2)
+        match = _dense_assignment(np.where(d <= tol, d, 1e9), unmatched=tol + 1.0)
+        for a, b in enumerate(match):
+            if b < 0 or d[a, b] > tol:
+                continue
+            i, j = news[a], rems[b]
+            out[i] = j
+            taken[j] = True
+            st.rule[i] = "restored"
+            rivals = [rems[m] for m in range(len(rems)) if m != b and d[a, m] <= d[a, b] + tie]
+            if rivals:
+                st.ambiguous[i] = {"candidates": [str(removed.uuids[j])] + [str(removed.uuids[r]) for r in rivals[:3]],
+                                   "reason": f"comes back where two removed identical parts were (within {tie:.3g})"}
+    for i in range(len(new) - 1, -1, -1):  # children before parents
+        if not free[i] or new.leaf[i] or out[i] >= 0:
+            continue
+        votes: dict[int, int] = {}
+        kids = np.flatnonzero(new.parent == i)
+        for ch in kids:
+            if out[ch] >= 0 and removed.parent[out[ch]] >= 0:
+                p = int(removed.parent[out[ch]])
+                votes[p] = votes.get(p, 0) + 1
+        if not votes:
+            continue
+        j, n_votes = max(votes.items(), key=lambda kv: kv[1])
+        if taken[j] or removed.leaf[j] or 2 * n_votes < sum(1 for ch in kids if out[ch] >= 0):
+            continue
+        same_name = (new.products[i] or new.names[i]) == (removed.products[j] or removed.names[j])
+        where = np.linalg.norm((align @ removed.world[j])[:3, 3] - new.world[i, :3, 3]) <= tol
+        if same_name or where:
+            out[i] = j
+            taken[j] = True
+            st.rule[i] = "restored"
+    return out

@@ -50,7 +50,7 @@ def _set_name(label, text: str) -> None:
     TDataStd_Name.Set_s(label, TCollection_ExtendedString(text))
 
 
-def write_step(doc: Document, path: str | Path) -> Path:
+def write_step(doc: Document, path: str | Path, carry_uuids: bool = True) -> Path:
     """Write a document (with UUIDs assigned) as STEP AP214, each node's UUID carried in the file.
 
     Parameters
@@ -60,6 +60,8 @@ def write_step(doc: Document, path: str | Path) -> Path:
         per part, one occurrence per node).
     path : path
         Output file (overwritten).
+    carry_uuids : bool
+        False: write no UUID (OCCT's own ids, as any re-export through OCCT): what a CAD tool's "save" gives.
 
     Returns
     -------
@@ -143,7 +145,8 @@ def write_step(doc: Document, path: str | Path) -> Path:
             name = entity_text(ent.Name())
             if name in tokens:
                 uuid, real = tokens[name]
-                ent.SetId(TCollection_HAsciiString(uuid))
+                if carry_uuids:
+                    ent.SetId(TCollection_HAsciiString(uuid))
                 ent.SetName(TCollection_HAsciiString(real))
                 found += 1
     p = Path(path)

@@ -112,6 +112,10 @@ class Document:
         Things the reader noticed and worked around (empty external references, unknown units, ...).
     reuse : dict of str to str
         Part key -> geometry id kept from the scene (same B-rep within tolerance: not tessellated again).
+    reuse_if_same_surface : dict of str to str
+        Part key -> geometry id of the scene's mesh, for parts whose B-rep is close but not the same by its
+        invariants (a writer split an edge): kept if the new mesh shows the same surface
+        (:func:`cad_adapter.identity.confirm_same_surface`).
     reconciliation : dict
         How identity was found (the push's ``reconciliation``: nodes per rule, ambiguous ones).
     """
@@ -123,6 +127,7 @@ class Document:
     source: Path | None = None
     warnings: list[str] = field(default_factory=list)
     reuse: dict[str, str] = field(default_factory=dict)
+    reuse_if_same_surface: dict[str, str] = field(default_factory=dict)
     reconciliation: dict = field(default_factory=dict)
     reconciliation_detail: dict = field(default_factory=dict)
 

@@ -52,6 +52,13 @@ class Settings(BaseSettings):
     keep_results: int = Field(default=20, ge=1, le=1000, description=(
         "Results kept per sensor (`service.results`: one per scene revision and assignment state, the oldest "
         "dropped first), for `GET /scenes/{id}/sensors/{sid}/results`, their maps and differences."))
+    removed_keep_revisions: int = Field(default=100, ge=0, le=1_000_000, description=(
+        "How many revisions the scene remembers a removed node (path, product, shape signature, placement, the "
+        "assignments it carried: `GET /scenes/{id}/removed-nodes`), so that a node that comes back gets its UUID "
+        "again; 0: none."))
+    removed_keep_days: float = Field(default=30.0, ge=0, le=36500, description=(
+        "How many days the scene remembers a removed node (whichever of this and removed_keep_revisions ends "
+        "first)."))
     warm_kernels: bool = Field(default=False, description="Compile the query kernels in a child process from the "
                                                           "start (`tracer.warmup`; `lumenlink serve` turns it on).")
     device: Literal["auto", "cpu", "cuda"] = Field(default="auto", description=(

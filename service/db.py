@@ -12,6 +12,9 @@ Tables (one row per thing, keyed by scene):
 - ``node_identity``: per scene and node uuid, what the CAD adapter matches a node by besides the
   tree (product name, shape signature as JSON); a push writes only the records that changed and
   deletes those of nodes that lost theirs. Keyed by value like the nodes (no foreign key to them).
+- ``removed_nodes``: per scene, the nodes pushes removed (their last node and identity records, path, world
+  placement and the assignments they carried), kept for ``removed_keep_revisions`` revisions and
+  ``removed_keep_days`` days, so that a node that comes back gets its UUID again (`service.push`).
 - ``geometries``: uploaded meshes (the arrays live in content-addressed files under the data dir).
 - ``materials``, ``lights``, ``sensors``, ``sim_objects``: assignments by uuid; they refer to a
   node uuid by value (no foreign key), so they outlive the node and are orphaned, not deleted.
@@ -92,6 +95,15 @@ node_identity = Table(
     Column("uuid", String(36), primary_key=True),
     Column("product", String(500), nullable=True),
     Column("signature", JSON, nullable=True),  # service.schemas.Signature as a dict, or null
+)
+
+removed_nodes = Table(
+    "removed_nodes", metadata,
+    Column("scene_id", String(36), ForeignKey("scenes.id", ondelete="CASCADE"), primary_key=True),
+    Column("uuid", String(36), primary_key=True),
+    Column("revision", Integer, nullable=False),  # the revision that removed it
+    Column("removed_at", DateTime(timezone=True), nullable=False),
+    Column("record", JSON, nullable=False),  # what GET /scenes/{id}/removed-nodes answers for it
 )
 
 geometries = Table(

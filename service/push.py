@@ -15,11 +15,18 @@ the next document by, served back by `Scenes.nodes`). They are kept per node uui
 the push's transaction, or on their own when the tree is unchanged: no new revision). A dry run
 (``push(..., dry_run=True)``) decodes, validates and diffs the same way and answers what the push would do,
 changing nothing.
+
+The scene remembers the nodes a push removes (``removed_nodes``: their node and identity records, path, world
+placement and the assignments they carried) for ``removed_keep_revisions`` revisions and ``removed_keep_days``
+days. The CAD adapter matches a document's new nodes against that memory (``GET /scenes/{id}/removed-nodes``);
+a node that comes back under its old UUID is listed in ``restored_nodes`` and forgotten by the memory, and its
+orphaned assignments are live again (``restored``).
 """
 
 from __future__ import annotations
 
 import contextlib
+import datetime
 import gc
 import logging
 import time
@@ -32,7 +39,7 @@ from service.elements import sync as element_sync
 from service.errors import Conflict, Invalid, TooLarge
 from service.scenes import Scenes, SceneState
 from service.schemas import DocumentPush, IdentityIn
-from service.store import IdentityChanges, Raced
+from service.store import IdentityChanges, Raced, RemovedChanges, color_of
 from service.tree import Tree, TreeDiff, TreeError, apply_to_scene, diff_trees
 
 log = logging.getLogger("lumenlink.service")
@@ -148,6 +155,7 @@ class Pushes:
                    "blas": 0.0, "tlas": 0.0, "commit": 0.0, "store": 0.0}
         seconds["total"] = time.perf_counter() - t0
         out = _answer(state, doc, diff, {}, seconds, orphaned, restored, blas_reused=len(reused))
+        out["restored_nodes"] = [u for u in diff.added if u in state.removed]
         out.update(instances=instances, dry_run=True, blas_to_build=sorted(to_build), missing_geometries=missing)
         return out
 
@@ -158,11 +166,16 @@ class Pushes:
         t_diff = time.perf_counter()
         changes = _identity_changes(state.identity, identity)
         if diff.is_empty():
+            reordered = new.uuids != state.tree.uuids
+            old_index = state.tree.index
             state.tree = new  # the same tree; its rows now follow this body's order
             t_store = time.perf_counter()
-            if changes is not None:  # only the identity records changed: stored, no new revision
+            if changes is not None or reordered:  # identity records or the order changed: stored, no new revision
                 try:
-                    self.store.store_identity(state.id, state.version, changes)
+                    if reordered:  # the [k] ranks of same-named siblings follow the order: a restart must see it
+                        self.store.store_order(state.id, state.version, new.uuids, old_index, changes)
+                    else:
+                        self.store.store_identity(state.id, state.version, changes)  # type: ignore[arg-type]
                 except Raced as exc:
                     self.scenes.forget(state.id)
                     now = self.store.version(state.id)
@@ -174,6 +187,8 @@ class Pushes:
                     raise
                 state.identity = identity
                 state.assign_revision += 1
+                if reordered:
+                    state.live = None
             seconds = {"decode": t_decode - t0, "validate": t_validate - t_decode, "diff": t_diff - t_validate,
                        "blas": 0.0, "tlas": 0.0, "commit": 0.0, "store": time.perf_counter() - t_store}
             seconds["total"] = time.perf_counter() - t0
@@ -182,6 +197,8 @@ class Pushes:
         old_tree = state.tree
         removed = set(diff.removed)
         added = set(diff.added)
+        restored_nodes = [u for u in diff.added if u in state.removed]
+        memory = self._removed_changes(state, old_tree, diff)
         try:
             t_apply = time.perf_counter()
             load_seconds = [0.0]
@@ -217,8 +234,10 @@ class Pushes:
                    "blas": commit["blas_seconds"] + load_seconds[0],
                    "tlas": commit["tlas_seconds"] + (t_applied - t_apply - load_seconds[0]),
                    "commit": t_commit - t_applied}
+        for rec in memory[0].values():
+            rec["assignments"] = [{"kind": o["kind"], "id": o["id"]} for o in orphaned if o["node"] == rec["uuid"]]
         try:
-            self._store(state, doc, old_tree, new, diff, seconds, changes)
+            self._store(state, doc, old_tree, new, diff, seconds, changes, memory)
         except Exception:
             self.scenes.forget(state.id)
             raise
@@ -229,19 +248,57 @@ class Pushes:
         state.length_unit = doc.length_unit
         state.last_commit = commit
         state.identity = identity
+        for u in memory[1]:
+            state.removed.pop(u, None)
+        state.removed.update(memory[0])
         state.live = None
         self.scenes.live.notify(state.id, state.revision)
-        return _answer(state, doc, diff, commit, seconds, orphaned, restored,
-                       blas_reused=len(apply_stats.reused_geometries))
+        out = _answer(state, doc, diff, commit, seconds, orphaned, restored,
+                      blas_reused=len(apply_stats.reused_geometries))
+        out["restored_nodes"] = restored_nodes
+        return out
+
+    def _removed_changes(self, state: SceneState, old: Tree, diff: TreeDiff) -> RemovedChanges:
+        """What this push does to the scene's memory of removed nodes: a record for each node it removes (what
+        ``GET …/nodes`` said of it, and when), and the uuids to forget: those that come back, and those
+        remembered longer than ``removed_keep_revisions`` revisions or ``removed_keep_days`` days."""
+        revision = state.revision + 1
+        now = datetime.datetime.now(datetime.UTC)
+        keep_r, keep_s = self.settings.removed_keep_revisions, self.settings.removed_keep_days * 86400.0
+        drop = [u for u in diff.added if u in state.removed]
+        for u, rec in state.removed.items():
+            age = (now - datetime.datetime.fromisoformat(rec["removed_at"])).total_seconds()
+            if revision - int(rec["removed_revision"]) >= keep_r or age > keep_s:
+                drop.append(u)
+        write: dict[str, dict] = {}
+        if diff.removed and keep_r > 0 and keep_s > 0:
+            paths = old.paths()
+            world_doc = old.world_doc
+            if world_doc is None:
+                world_doc = old.world.copy()
+                world_doc[:, :3, 3] /= old.scale
+            for u in diff.removed:
+                i = old.index[u]
+                ident = state.identity.get(u)
+                write[u] = {"uuid": u, "parent": old.parents[i], "name": old.names[i], "path": paths[i],
+                            "transform": old.local[i].ravel().tolist(), "world": world_doc[i].ravel().tolist(),
+                            "geometry": old.geometries[i], "color": color_of(old.colors[i]),
+                            "product": ident.product if ident is not None else None,
+                            "signature": ident.signature.model_dump(exclude_none=True)
+                            if ident is not None and ident.signature is not None else None,
+                            "length_unit": old.length_unit, "removed_revision": revision,
+                            "removed_at": now.isoformat(), "assignments": []}
+        return write, sorted(set(drop))
 
     def _store(self, state: SceneState, doc: DocumentPush, old: Tree, new: Tree, diff: TreeDiff,
-               seconds: dict[str, float], identity_changes: IdentityChanges | None = None) -> None:
+               seconds: dict[str, float], identity_changes: IdentityChanges | None = None,
+               removed_changes: RemovedChanges | None = None) -> None:
         summary = diff.summary()
         summary = {k: (len(v) if isinstance(v, list) else v) for k, v in summary.items()}
         summary["seconds"] = {k: round(v, 6) for k, v in seconds.items()}
         self.store.store_push(state.id, state.revision, doc.length_unit,
                               doc.source.model_dump() if doc.source else None, old, new, diff, summary,
-                              identity_changes)
+                              identity_changes, removed_changes)
 
 
 def _answer(state: SceneState, doc: DocumentPush, diff: TreeDiff, commit: dict, seconds: dict,
@@ -251,7 +308,7 @@ def _answer(state: SceneState, doc: DocumentPush, diff: TreeDiff, commit: dict, 
     out.update(blas_built=commit.get("blas_built", 0), blas_reused=blas_reused,
                blas_loaded=commit.get("blas_loaded", 0),
                instances=len(state.instances) + len(state.object_instances),
-               seconds=seconds, orphaned=orphaned, restored=restored,
+               seconds=seconds, orphaned=orphaned, restored=restored, restored_nodes=[],
                reconciliation=doc.reconciliation.model_dump() if doc.reconciliation is not None else None,
                dry_run=False)
     return out

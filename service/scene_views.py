@@ -57,6 +57,15 @@ class SceneViews:
         self.state(scene_id)  # 404 for an unknown scene
         return self.store.revisions(scene_id)
 
+    def removed_nodes(self, scene_id: str) -> list[dict[str, Any]]:
+        """The nodes pushes removed that the scene still remembers (oldest removal first): the records
+        ``nodes`` gave for them then (``path``, ``product``, ``signature``, ``transform``, ``world``,
+        ``geometry``…), with ``removed_revision``, ``removed_at``, ``length_unit`` and the ``assignments``
+        they carried (still kept, orphaned: they come back with the node's UUID)."""
+        state = self.state(scene_id)
+        with state.lock:
+            return [dict(r) for r in state.removed.values()]
+
     def nodes(self, scene_id: str) -> list[dict[str, Any]]:
         """The current tree, one record per node in document order: the pushed fields, the tracer
         instance, and what the CAD adapter reconciles a new document against — the occurrence

@@ -41,7 +41,7 @@ from service.meshes import MeshStore
 from service.scene_geometries import SceneGeometries
 from service.scene_views import SceneViews
 from service.schemas import LENGTH_UNITS, IdentityIn
-from service.store import SceneStore
+from service.store import SceneStore, normalize_positions
 from service.tree import Tree, apply_to_scene, diff_trees
 
 log = logging.getLogger("lumenlink.service")
@@ -74,6 +74,7 @@ class SceneState:
     last_commit: dict[str, Any] = field(default_factory=dict)
     node_bytes: NodeBytes | None = None  # where each node sits in the body that made `tree` (row i = chunk i)
     identity: dict[str, IdentityIn] = field(default_factory=dict)  # node uuid -> its identity record, as stored
+    removed: dict[str, dict] = field(default_factory=dict)  # uuid -> what the node was (service.push), oldest first
     live: LiveScene | None = None
     lock: threading.RLock = field(default_factory=threading.RLock)
 
@@ -221,6 +222,7 @@ class Scenes(SceneGeometries, SceneViews):
         if read is None:
             raise NotFound(f"no scene {scene_id}")
         row, node_rows, stored = read
+        normalize_positions(self.store.engine, scene_id, node_rows)
         unit = row.length_unit or "m"
         transforms = (np.frombuffer(b"".join(r.transform for r in node_rows), dtype="<f8").reshape(-1, 16)
                       if node_rows else np.zeros((0, 16)))
@@ -231,7 +233,7 @@ class Scenes(SceneGeometries, SceneViews):
                            self.new_tracer_scene(), assign_revision=row.assign_revision,
                            materials=stored["materials"], lights=stored["lights"], sensors=stored["sensors"],
                            objects=stored["objects"], elements=stored["elements"], lock=lock,
-                           identity=stored["identity"])
+                           identity=stored["identity"], removed=stored.get("removed") or {})
         diff = diff_trees(state.tree, tree)
         state.tree = tree
         apply_to_scene(state.tracer, state.instances, tree, diff, lambda g: self.ensure_geometry(state, g))

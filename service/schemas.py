@@ -271,6 +271,9 @@ class PushPublic(Wire):
     seconds: dict[str, float] = Field(description="Seconds per stage (validate, diff, blas, tlas, store, total), s.")
     orphaned: list[OrphanPublic] = Field(description="Assignments the push orphaned.")
     restored: list[OrphanPublic] = Field(description="Orphaned assignments the push made live again.")
+    restored_nodes: list[str] = Field(default_factory=list, description=(
+        "UUIDs among `added` of nodes the scene had removed and remembered (`GET /scenes/{id}/removed-nodes`): "
+        "they came back, with the assignments they carried."))
     reconciliation: Reconciliation | None = Field(None, description="The push's reconciliation, echoed.")
     dry_run: bool = Field(False, description="True for `?dry_run=true`: nothing was changed.")
     blas_to_build: list[str] | None = Field(None, description="Dry runs: geometry ids whose BLAS would be built.")

@@ -70,4 +70,5 @@ class SceneManager:
         self.summary = self.scenes.summary
         self.revisions = self.scenes.revisions
         self.nodes = self.scenes.nodes
+        self.removed_nodes = self.scenes.removed_nodes
         self.live_scene = self.scenes.live_scene

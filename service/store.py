@@ -14,7 +14,7 @@ from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
-from sqlalchemy import Engine, delete, insert, select, update
+from sqlalchemy import Engine, bindparam, delete, insert, select, update
 from sqlalchemy.exc import IntegrityError
 
 from service import db
@@ -23,6 +23,9 @@ from service.schemas import IdentityIn
 
 #: What `_identity_changes` answers: (records to insert, uuids whose rows to delete first, delete every row instead)
 IdentityChanges = tuple[dict[str, IdentityIn], list[str], bool]
+
+#: What a push changes in the memory of removed nodes: (uuid -> record to insert, uuids whose rows to delete)
+RemovedChanges = tuple[dict[str, dict], list[str]]
 
 #: The table of each kind of assignment, and the `SceneState` attribute that holds it in memory.
 TABLES = {"light": (db.lights, "lights"), "sensor": (db.sensors, "sensors"), "object": (db.sim_objects, "objects"),
@@ -74,7 +77,7 @@ class SceneStore:
     def delete_scene(self, scene_id: str) -> None:
         with self.engine.begin() as conn:
             for table in (db.materials, db.lights, db.sensors, db.sim_objects, db.node_identity, db.nodes,
-                          db.revisions):
+                          db.removed_nodes, db.revisions):
                 conn.execute(delete(table).where(table.c.scene_id == scene_id))
             conn.execute(delete(db.scenes).where(db.scenes.c.id == scene_id))
 
@@ -94,8 +97,12 @@ class SceneStore:
             if row is None:
                 return None
             node_rows = conn.execute(select(db.nodes).where(db.nodes.c.scene_id == scene_id)
-                                     .order_by(db.nodes.c.position)).all()
-            return row, list(node_rows), self._read_assignments(conn, scene_id)
+                                     .order_by(db.nodes.c.position, db.nodes.c.uuid)).all()
+            stored = self._read_assignments(conn, scene_id)
+            stored["removed"] = {r.uuid: r.record for r in conn.execute(
+                select(db.removed_nodes).where(db.removed_nodes.c.scene_id == scene_id)
+                .order_by(db.removed_nodes.c.revision))}
+            return row, list(node_rows), stored
 
     def read_assignments(self, scene_id: str) -> tuple[int, dict[str, Any]]:
         """(assign_revision, `read_assignments`) in one read."""
@@ -217,10 +224,25 @@ class SceneStore:
             self._bump(conn, scene_id, *version)
             _write_identity(conn, scene_id, *changes)
 
+    def store_order(self, scene_id: str, version: tuple[int, int], uuids: list[str], old_index: dict[str, int],
+                    identity_changes: IdentityChanges | None = None) -> None:
+        """A push that only reorders the node list (no new revision): the positions of the rows that moved, so
+        that a restart gives same-named siblings the [k] ranks this order gives them."""
+        c = db.nodes.c
+        rows = [{"u": u, "p": float(j)} for j, u in enumerate(uuids) if old_index.get(u) != j]
+        with self.engine.begin() as conn:
+            self._bump(conn, scene_id, *version)
+            if rows:
+                conn.execute(update(db.nodes).where(c.scene_id == scene_id).where(c.uuid == bindparam("u"))
+                             .values(position=bindparam("p")), rows)
+            if identity_changes is not None:
+                _write_identity(conn, scene_id, *identity_changes)
+
     # ------------------------------------------------------------ a push
 
     def store_push(self, scene_id: str, revision: int, length_unit: str, source: dict | None, old: Any, new: Any,
-                   diff: Any, summary: dict[str, Any], identity_changes: IdentityChanges | None) -> None:
+                   diff: Any, summary: dict[str, Any], identity_changes: IdentityChanges | None,
+                   removed_changes: RemovedChanges | None = None) -> None:
         """Write a push as revision ``revision + 1``: the scene row (guarded: 409 if another writer got there
         first), the changed node rows of `new` (a `service.tree.Tree`) against `old`, the identity records and
         the revision's summary, in one transaction."""
@@ -236,6 +258,14 @@ class SceneStore:
             gone = list(diff.removed) + [u for u in diff.upserts if u in old.index]
             for i in range(0, len(gone), 500):
                 conn.execute(delete(db.nodes).where(c.scene_id == scene_id).where(c.uuid.in_(gone[i:i + 500])))
+            # document order: rows whose place in the node list changed (a reorder, a removal before them) get
+            # their new position, so that a restart orders siblings (and their [k] ranks) as this push did
+            if old.uuids != new.uuids:
+                moved_rows = [{"u": u, "p": float(j)} for j, u in enumerate(new.uuids)
+                              if u not in diff.upserts and old.index.get(u) != j]
+                if moved_rows:
+                    conn.execute(update(db.nodes).where(c.scene_id == scene_id).where(c.uuid == bindparam("u"))
+                                 .values(position=bindparam("p")), moved_rows)
             if diff.upserts:
                 rows = []
                 for u in diff.upserts:
@@ -246,6 +276,8 @@ class SceneStore:
                 conn.execute(insert(db.nodes), rows)
             if identity_changes is not None:
                 _write_identity(conn, scene_id, *identity_changes)
+            if removed_changes is not None:
+                _write_removed(conn, scene_id, revision + 1, *removed_changes)
             conn.execute(insert(db.revisions).values(scene_id=scene_id, revision=revision + 1, summary=summary))
 
 
@@ -261,3 +293,28 @@ def _write_identity(conn: Any, scene_id: str, write: dict[str, IdentityIn], drop
             {"scene_id": scene_id, "uuid": u, "product": r.product,
              "signature": r.signature.model_dump(exclude_none=True) if r.signature is not None else None}
             for u, r in write.items()])
+
+
+def _write_removed(conn: Any, scene_id: str, revision: int, write: dict[str, dict], drop: list[str]) -> None:
+    """Apply a `RemovedChanges` to ``removed_nodes`` on `conn` (inside the push's transaction)."""
+    import datetime as dt
+
+    c = db.removed_nodes.c
+    gone = list(drop) + list(write)
+    for i in range(0, len(gone), 500):
+        conn.execute(delete(db.removed_nodes).where(c.scene_id == scene_id).where(c.uuid.in_(gone[i:i + 500])))
+    if write:
+        conn.execute(insert(db.removed_nodes), [
+            {"scene_id": scene_id, "uuid": u, "revision": revision, "record": r,
+             "removed_at": dt.datetime.fromisoformat(r["removed_at"])} for u, r in write.items()])
+
+
+def normalize_positions(engine: Engine, scene_id: str, rows: list[Any]) -> None:
+    """Store positions 0, 1, … for node rows read in document order (`read_scene`), where they are not: older
+    pushes left gaps and ties that a push's `store_push` (which writes row numbers) could collide with."""
+    fix = [{"u": r.uuid, "p": float(j)} for j, r in enumerate(rows) if r.position != float(j)]
+    if fix:
+        c = db.nodes.c
+        with engine.begin() as conn:
+            conn.execute(update(db.nodes).where(c.scene_id == scene_id).where(c.uuid == bindparam("u"))
+                         .values(position=bindparam("p")), fix)

@@ -143,7 +143,7 @@ class Scene(SceneQueries):
     cache_dir : path or None
         Directory of the on-disk BLAS library (:mod:`tracer.accel.cache`); None: no disk cache.
     cache_min_triangles : int
-        Geometries with fewer triangles are not cached (rebuilding them is cheaper than a file).
+        Geometries with fewer triangles are not cached (default 1: every mesh is kept, a restart rebuilds none).
     tlas_refit : bool
         A commit that only moves a few instances refits a top level instead of rebuilding it
         (`tracer.accel.top_levels`: at most ``max(16, n/64)`` moved, none added or removed). False: always rebuild.

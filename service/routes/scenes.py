@@ -1,4 +1,5 @@
-"""Scenes and document pushes: ``/scenes``, ``/scenes/{id}``, ``/scenes/{id}/document``, ``/scenes/{id}/nodes``."""
+"""Scenes and document pushes: ``/scenes``, ``/scenes/{id}``, ``/scenes/{id}/document``, ``/scenes/{id}/nodes``,
+``/scenes/{id}/removed-nodes``."""
 
 from __future__ import annotations
 
@@ -69,6 +70,18 @@ def get_nodes(
     if name is not None:
         return paths.matching(nodes, name)
     return nodes
+
+
+@router.get("/scenes/{scene_id}/removed-nodes")
+def get_removed_nodes(scene_id: SceneId, manager: Manager) -> list[dict[str, Any]]:
+    """The nodes pushes removed that the scene still remembers (``LUMENLINK_REMOVED_KEEP_REVISIONS``,
+    ``LUMENLINK_REMOVED_KEEP_DAYS``), oldest removal first: the record ``GET …/nodes`` gave for each when it
+    went (``uuid``, ``parent``, ``name``, ``path``, ``transform``, ``world``, ``geometry``, ``product``,
+    ``signature``), with ``length_unit``, ``removed_revision``, ``removed_at`` and the ``assignments`` it
+    carried. The CAD adapter matches a document's new nodes against them: one that comes back where it was
+    gets its UUID again (listed in the push's ``restored_nodes``), and its orphaned assignments are live again.
+    """
+    return manager.removed_nodes(scene_id)
 
 
 @router.get("/scenes/{scene_id}/revisions")

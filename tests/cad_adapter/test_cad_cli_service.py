@@ -202,3 +202,85 @@ def test_save_as_and_another_writer_keep_identity_and_dry_run_changes_nothing(se
         assert {n["uuid"]: n["geometry"] for n in before} == {u: n["geometry"] for u, n in after.items()}
         mats = http.get(f"/scenes/{sid}/materials").json()
         assert plate in json.dumps(mats)  # the material is still on the plate
+
+
+@needs_fixtures
+def test_a_deleted_subassembly_pushed_back_gets_its_uuids_and_assignments_again(service, tmp_path) -> None:
+    """Issue 42, on the CAX-IF as1 file: rod-assembly_1 deleted in OCCT's XCAF editor and saved (its nuts and the
+    assembly go, the rod stays as a free root), pushed; the original pushed again. The 3 removed nodes come back
+    under their old UUIDs (`restored`, not `new`), with the material that sat on one of them; no match is
+    ambiguous. The first two pushes go through `push_file` in this process, the dry run and the last push through
+    the real CLI."""
+    import shutil
+
+    import httpx
+    from cad_helpers import AS1, xcaf_without
+
+    env = {"LUMENLINK_CACHE_DIR": str(tmp_path / "cache")}
+    orig, cut = tmp_path / "as1.stp", tmp_path / "as1_cut.stp"
+    shutil.copy(AS1, orig)
+    xcaf_without(AS1, cut, "rod-assembly_1")
+    cache = cli.TessellationCache(tmp_path / "cache")
+    first, doc, _, _, _ = cli.push_file(orig, "as1-restore", service, 1.0, 0.8, cache=cache)
+    sid = first.scene_id
+    with httpx.Client(base_url=service) as http:
+        nodes = {n["path"]: n["uuid"] for n in http.get(f"/scenes/{sid}/nodes").json()}
+        nut = nodes["as1/rod-assembly_1/nut_1"]
+        assert http.put(f"/scenes/{sid}/materials/{nut}", json={"type": "black"}).status_code == 200
+        cut_push, _, _, _, _ = cli.push_file(cut, "as1-restore", service, 1.0, 0.8, cache=cache)
+        a = cut_push.answer
+        rod_assembly = [nodes[p] for p in ("as1/rod-assembly_1", "as1/rod-assembly_1/nut_1",
+                                           "as1/rod-assembly_1/nut_2")]
+        assert sorted(a["removed"]) == sorted(rod_assembly) and not a["added"]
+        assert a["orphaned"] == [{"kind": "material", "id": nut, "node": nut}]
+        assert not a["reconciliation"]["ambiguous"]
+        remembered = http.get(f"/scenes/{sid}/removed-nodes").json()
+        assert sorted(r["uuid"] for r in remembered) == sorted(rod_assembly)
+
+        dry = run_cli("push", str(orig), "--scene", "as1-restore", "--server", service, "--dry-run", *COARSE_ARGS,
+                      env_extra=env)
+        assert dry.returncode == 0, dry.stderr
+        assert "would restore 3 removed node(s) under their old UUIDs" in dry.stdout
+        assert "restored 3" in dry.stderr  # the identity report: nodes per rule
+
+        back = run_cli("push", str(orig), "--scene", "as1-restore", "--server", service, "--json", *COARSE_ARGS,
+                       env_extra=env)
+        assert back.returncode == 0, back.stderr
+        b = json.loads(back.stdout)
+        assert sorted(b["restored_nodes"]) == sorted(rod_assembly) == sorted(b["added"])
+        assert b["reconciliation"]["matched"]["restored"] == 3 and b["reconciliation"]["matched"]["new"] == 0
+        assert b["reconciliation"]["ambiguous"] == [] and a["reconciliation"]["ambiguous"] == []
+        assert b["restored"] == [{"kind": "material", "id": nut, "node": nut}]
+        assert {n["path"]: n["uuid"] for n in http.get(f"/scenes/{sid}/nodes").json()} == nodes
+        assert http.get(f"/scenes/{sid}/removed-nodes").json() == []
+        assert b["blas_built"] == 0 and not b["geometry_changed"]
+
+
+@needs_fixtures
+def test_stamp_reexported_changes_no_geometry_and_a_restart_rebuilds_no_bottom_level(tmp_path) -> None:
+    """Issue 42 on Creo's Stamp-S3: re-exported through OCCT (ids renumbered, one edge of the board split) it keeps
+    every geometry id (the board's by the Hausdorff test: no upload, no bottom level); a restart of the service then
+    loads all its bottom levels from the BLAS library, the small ones too, and builds none."""
+    import httpx
+    from cad_helpers import STAMP, xcaf_round_trip
+    from service_process import running_service
+
+    rt = tmp_path / "Stamp-S3_occt.step"
+    xcaf_round_trip(STAMP, rt)
+    cache = cli.TessellationCache(tmp_path / "cache")
+    data = tmp_path / "service"
+    with running_service(data) as url:
+        first, _, tess, _, _ = cli.push_file(STAMP, "stamp", url, 0.05, 0.5, cache=cache)
+        assert first.answer["blas_built"] == first.geometries == len(tess.meshes)
+        small = sum(m.n_triangles < 512 for m in tess.meshes.values())
+        again, doc, tess2, _, _ = cli.push_file(rt, "stamp", url, 0.05, 0.5, cache=cache)
+        a = again.answer
+        assert not a["geometry_changed"] and not a["added"] and not a["removed"] and not a["moved"]
+        assert a["blas_built"] == 0 and again.uploaded == 0 and not tess2.meshes
+        assert list(doc.reconciliation_detail["same_surface"]) == ["STAMP-S3"]
+        assert doc.reconciliation_detail["same_surface"]["STAMP-S3"] <= 2 * 0.05
+        assert a["reconciliation"]["ambiguous"] == []
+        sid = first.scene_id
+    with running_service(data, log_name="restart.log") as url:
+        last = httpx.get(f"{url}/scenes/{sid}").json()["last_commit"]
+        assert small > 0 and last["blas_built"] == 0 and last["blas_loaded"] == first.geometries

@@ -256,3 +256,80 @@ def test_orphaned_assignments_are_reported_with_their_node_paths() -> None:
     lines = orphan_report(answer, [{"uuid": u, "path": "lamp/reflector"}])
     assert len(lines) == 1 and "ORPHANED" in lines[0] and "'lamp/reflector'" in lines[0]
     assert orphan_report({"orphaned": []}, None) == []
+
+
+def test_a_part_exactly_between_two_identical_ones_is_ambiguous_and_a_clear_move_is_not() -> None:
+    """Ambiguous only on a true tie: LEDs D1 and D2 both moved onto the plane halfway between their old places
+    (D2 10 mm above D1), so either assignment costs the same; D1 moved 5 mm off the grid has one best match."""
+    a, scene = first(board())
+    led = {n.name: n for n in a.nodes}
+
+    def moved(shift_d1, shift_d2=(0.0, 0.0, 0.0)):
+        assy = board()
+        for name, shift in (("D1", shift_d1), ("D2", shift_d2)):
+            m = np.eye(4)
+            m[:3, 3] = (-24 + 16 * int(name == "D2"), -12, 1.4)
+            m[:3, 3] += shift
+            assy.objects[name].loc = loc_of(m)
+        return read_assembly(assy)
+
+    clear = moved((0.0, 5.0, 0.0))
+    identify(clear, None, previous=scene)
+    assert clear.reconciliation["ambiguous"] == []
+    assert {n.name: n.uuid for n in clear.nodes} == {n.name: n.uuid for n in a.nodes}
+    # D1 halfway to D2's old place, D2 halfway back and 10 mm up: each is as far from both old places
+    tie = moved((8.0, 0.0, 0.0), (-8.0, 0.0, 10.0))
+    identify(tie, None, previous=scene)
+    amb = {x["path"]: x for x in tie.reconciliation["ambiguous"]}
+    assert set(amb) == {"pcb/D1", "pcb/D2"}
+    assert set(amb["pcb/D1"]["candidates"]) == {led["D1"].uuid, led["D2"].uuid}
+
+
+@needs_fixtures
+@pytest.mark.parametrize("drop_product", [True, False], ids=["deleted", "moved-out"])
+def test_as1_subassembly_deleted_then_back_is_restored_and_nothing_is_ambiguous(tmp_path, drop_product) -> None:
+    """CAX-IF as1 with rod-assembly_1 deleted in OCCT's XCAF editor (its product too, or left as a root at the
+    origin), then the original again: every node keeps the UUID of the first push; the nodes the scene removed
+    come back from its memory (``restored``); no match is reported ambiguous, and every part that did not move
+    is matched to itself (its world centroid unchanged)."""
+    from cad_helpers import xcaf_without
+
+    a = read_step(AS1)
+    identify(a, None)
+    scene = records(a)
+    cut = tmp_path / "cut.stp"
+    xcaf_without(AS1, cut, "rod-assembly_1", drop_product=drop_product)
+    b = read_step(cut)
+    identify(b, None, previous=scene)
+    assert b.reconciliation["ambiguous"] == []
+    wa, wb = world_of(a), world_of(b)
+    rod = {n.uuid for n in a.nodes if n.path.startswith("as1/rod-assembly_1")}
+    for u, p in wb.items():
+        if u not in rod:
+            np.testing.assert_allclose(p, wa[u], atol=1e-6)
+    present = {n.uuid for n in b.nodes}
+    gone = [r for r in scene if r["uuid"] not in present]
+    assert len(gone) == (3 if drop_product else 0)
+    c = read_step(AS1)
+    counts = identify(c, None, previous=records(b), removed=gone)
+    assert counts["restored"] == len(gone) and counts["new"] == 0 and c.reconciliation["ambiguous"] == []
+    assert [n.uuid for n in c.nodes] == [n.uuid for n in a.nodes]
+
+
+def test_a_removed_part_that_comes_back_elsewhere_is_new() -> None:
+    """Restored only within tolerance: an LED deleted and added back 3 mm away is a new node."""
+    a, scene = first(board())
+    b = read_assembly(board(drop=4))
+    identify(b, None, previous=scene)
+    gone = [r for r in scene if r["uuid"] not in {n.uuid for n in b.nodes}]
+    assert [r["path"] for r in gone] == ["pcb/D5"]
+    back = board()
+    m = np.eye(4)
+    m[:3, 3] = (-24.0, 3.0, 1.4)  # D5's place is (-24, 0, 1.4)
+    back.objects["D5"].loc = loc_of(m)
+    c = read_assembly(back)
+    counts = identify(c, None, previous=records(b), removed=gone)
+    assert counts["restored"] == 0 and counts["new"] == 1
+    d = read_assembly(board())
+    counts = identify(d, None, previous=records(b), removed=gone)
+    assert counts["restored"] == 1 and {n.name: n.uuid for n in d.nodes}["D5"] == gone[0]["uuid"]

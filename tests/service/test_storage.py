@@ -23,7 +23,7 @@ def test_migration_matches_the_declared_schema(tmp_path) -> None:
         assert diff == [], diff
         assert conn.execute(sa.text("PRAGMA journal_mode")).scalar() == "wal"
         assert conn.execute(sa.text("PRAGMA foreign_keys")).scalar() == 1
-        assert conn.execute(sa.text("SELECT version_num FROM alembic_version")).scalar() == "0006"
+        assert conn.execute(sa.text("SELECT version_num FROM alembic_version")).scalar() == "0011"
 
 
 def test_migrating_twice_is_harmless(tmp_path) -> None:

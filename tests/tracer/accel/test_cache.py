@@ -94,11 +94,12 @@ def test_bad_cache_file_is_rebuilt(tmp_path, mesh, rays, corrupt) -> None:
     assert (s.blas_built, s.blas_loaded) == (0, 1)
 
 
-def test_small_geometries_are_not_cached(tmp_path, rng) -> None:
+def test_small_geometries_are_cached_unless_told(tmp_path, rng) -> None:
+    """Every mesh is kept by default (issue 42: a restart rebuilds no bottom level); a threshold can still be set."""
     _, g, _ = _scene(tmp_path, reference.random_mesh(rng, 10))
-    assert not cache.cache_path(tmp_path, g).exists()
-    _, g, s = _scene(tmp_path, reference.random_mesh(rng, 10), cache_min_triangles=1)
     assert cache.cache_path(tmp_path, g).is_file()
+    _, g, s = _scene(tmp_path, reference.random_mesh(rng, 10), cache_min_triangles=512)
+    assert not cache.cache_path(tmp_path, g).exists()
 
 
 def test_missing_directory_is_created(tmp_path, mesh) -> None:
