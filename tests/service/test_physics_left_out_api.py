@@ -4,9 +4,9 @@ standard error; bad names are a 422 naming the known effects, never a 5xx.
 
 The scene: a lossless glass block (n = 1.5, 1 cm thick, 4 m × 4 m) under an unpolarized beam of 100 lx, radius
 5 mm, at Brewster's angle; a receiver (radius 0.3 m) across the specular reflection 1 m away. Closed forms
-(tests/tracer/optics/test_polarization.py): the s/p-averaged Fresnel the scene runs with reflects 2R/(1 + R) =
-0.137740 of the beam (R = Rs/2, Rs = 0.147929), polarized Fresnel Rs/(1 + Rs) = 0.128867. A black floor under a point
-light (tests/service/test_simulation_api.py) is the scene where polarization changes nothing.
+(tests/tracer/optics/test_polarization.py): the s/p-averaged Fresnel the queries force (`force_effects_off`)
+reflects 2R/(1 + R) = 0.137740 of the beam (R = Rs/2, Rs = 0.147929), polarized Fresnel Rs/(1 + Rs) = 0.128867. A
+black floor under a point light (tests/service/test_simulation_api.py) is the scene where polarization changes nothing.
 """
 
 from __future__ import annotations
@@ -66,7 +66,7 @@ def world(tmp_path_factory):
 def test_polarization_left_out_at_brewster_is_the_closed_form_difference(world):
     client, glass, _, _ = world
     body = query([REFLECTED], [[-c for c in REFLECTED]], radius=RECEIVER_R, max_photons=400_000, seed=5,
-                 physics_left_out=["polarization"])
+                 physics_left_out=["polarization"], force_effects_off=["polarization"])
     r = client.post(f"/scenes/{glass}/illuminance", json=body)
     assert r.status_code == 200, r.text
     a = r.json()
@@ -83,7 +83,8 @@ def test_polarization_left_out_at_brewster_is_the_closed_form_difference(world):
 def test_a_sensor_simulation_and_the_plan_carry_it_per_cell(world):
     client, glass, sensor, _ = world
     r = client.post(f"/scenes/{glass}/sensors/{sensor}/simulate",
-                    json={"max_photons": 40_000, "physics_left_out": ["polarization", "fresnel"]})
+                    json={"max_photons": 40_000, "physics_left_out": ["polarization", "fresnel"],
+                          "force_effects_off": ["polarization"]})
     assert r.status_code == 200, r.text
     left = r.json()["physics_left_out"]
     assert np.shape(left["polarization"]["difference"]) == (2, 2) == np.shape(left["polarization"]["stderr"])
@@ -94,7 +95,7 @@ def test_a_sensor_simulation_and_the_plan_carry_it_per_cell(world):
                        "photons": 0, "seconds": 0.0, "ran": False}   # already on: nothing runs
     r = client.post(f"/scenes/{glass}/illuminance/plan",
                     json=query([REFLECTED], [[-c for c in REFLECTED]], max_photons=20_000,
-                               physics_left_out=["polarization"]))
+                               physics_left_out=["polarization"], force_effects_off=["polarization"]))
     assert r.status_code == 200 and r.json()["physics_left_out"]["polarization"]["ran"], r.text
 
 

@@ -90,6 +90,13 @@ def effects_of(specs) -> set[str]:
     return out
 
 
+def polarizing_of(spec) -> tuple[int, float]:
+    """How many polarizing interactions a path can meet at one surface of this material, and their largest
+    diattenuation (`tracer.effects.polarization_call`): the kind's ``polarizing(spec)``, (0, 0) where it has none."""
+    m = module_of(spec)
+    return m.polarizing(spec) if hasattr(m, "polarizing") else (0, 0.0)
+
+
 def backward_ok(specs) -> tuple[bool, str]:
     """Whether the backward estimator can follow every one of these materials, and if not why."""
     for spec in specs:
