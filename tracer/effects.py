@@ -184,7 +184,10 @@ def check_off(off, force, reasons: Mapping[str, str]) -> tuple[str, ...]:
         return ()
     if isinstance(off, str) or not isinstance(off, list | tuple):
         raise EffectError(f"force_effects_off must be a list of effects {list(OPTIONAL)}, got {off!r}")
-    canonical(off)
+    try:
+        canonical(off)
+    except EffectError as exc:
+        raise EffectError(f"force_effects_off: {exc}") from None
     if len(set(off)) != len(off):
         raise EffectError(f"force_effects_off lists each effect once, got {list(off)}")
     bad = [e for e in off if e not in OPTIONAL]

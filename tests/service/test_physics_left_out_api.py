@@ -128,3 +128,36 @@ def test_bad_physics_left_out_is_a_422(world, extra, match):
         assert r.status_code == 422 and match in r.text, (url, r.status_code, r.text)
         if match == "known: ":
             assert all(name in r.text for name in EFFECTS)
+
+
+def test_polarization_is_on_by_default_and_the_answer_says_why(world):
+    """Issue 38: the plate calls for polarization by physics; the answer reflects Rs/(1 + Rs) and names why."""
+    client, glass, _, floor = world
+    body = query([REFLECTED], [[-c for c in REFLECTED]], radius=RECEIVER_R, max_photons=200_000, seed=6)
+    a = client.post(f"/scenes/{glass}/illuminance", json=body).json()
+    assert "polarization" in a["effects"] and a["effect_reasons"]["polarization"].startswith("on: a path can meet")
+    to_fraction = RECEIVER_R ** 2 / (100.0 * BEAM_R ** 2)
+    assert abs(a["lux"][0] * to_fraction - POLARIZED) <= 4 * a["stderr"][0] * to_fraction
+    assert set(a["effect_reasons"]) == set(EFFECTS)
+    assert "polarization" in client.get(f"/scenes/{glass}").json()["effects"]   # the scene's summary, same rule
+    plain = client.post(f"/scenes/{floor}/illuminance",
+                        json=query([[0.0, 0.0, 0.0]], max_photons=2000, force_effects_off=["polarization"])).json()
+    assert plain["effect_reasons"]["polarization"].startswith("off: no material polarizes")
+
+
+@pytest.mark.parametrize(("extra", "match"), [
+    ({"force_effects_off": ["fresnel"]}, "cannot be forced off"),
+    ({"force_effects_off": ["warp_drive"]}, "known: "),
+    ({"force_effects_off": "polarization"}, "force_effects_off"),
+    ({"force_effects_off": ["polarization", "polarization"]}, "once"),
+    ({"force_effects_off": ["polarization"], "observe": ["stokes"]}, "also forced on"),
+    ({"force_effects_off": ["polarization"], "force_effects": ["polarization"]}, "also forced on"),
+])
+def test_bad_force_effects_off_is_a_422_naming_it(world, extra, match):
+    client, glass, sensor, _ = world
+    for url, body in ((f"/scenes/{glass}/illuminance", query([[0.0, 0.0, 1.0]], max_photons=1000, **extra)),
+                      (f"/scenes/{glass}/illuminance?mode=async", query([[0.0, 0.0, 1.0]], max_photons=1000, **extra)),
+                      (f"/scenes/{glass}/sensors/{sensor}/simulate", {"max_photons": 1000, **extra})):
+        r = client.post(url, json=body)
+        assert r.status_code == 422 and match in r.text and "force_effects_off" in r.text, (url, r.status_code,
+                                                                                            r.text)
