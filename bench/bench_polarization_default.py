@@ -4,7 +4,7 @@ nothing new. Writes bench/results/polarization_default.json.
 1. A diffuse room (bench_transport's): the effect set stays ``["lambertian"]``, so the kernel and the photons are
    those of before; the one new cost is deciding (`tracer.effects.explain_effects`), timed here.
 2. A glass-heavy scene: 5 x 5 glass cubes (n = 1.5, 10 cm) over a Lambertian floor (rho 0.5) under a 1000 cd point
-   light; the floor's illuminance at 5 points, forward, the default (polarized) against `force_effects_off`, in turn
+   light; the floor's illuminance on 5 disks of 0.25 m, forward, the default (polarized) against `force_effects_off`, in turn
    on one thread (CPU seconds, `bench.bench_spectral._interleaved`), and the answer's `physics_left_out` (what
    leaving polarization out moves, with its error).
 3. The demo car (lumenlink.demo's model, materials, lights and floor grid, through the service): photons per second
@@ -64,7 +64,7 @@ def glass_heavy(rounds: int, photons: int) -> dict:
     sim = Simulation(s, mats, [{"type": "point", "position": [0.1, 0.05, 1.5], "intensity_cd": 1000.0}])
     pts = [[0.0, 0.0, 0.0], [0.3, 0.0, 0.0], [0.45, 0.45, 0.0], [0.15, -0.6, 0.0], [-0.9, 0.2, 0.0]]
     nrm = [[0.0, 0.0, 1.0]] * len(pts)
-    q = {"max_photons": photons, "estimator": "forward", "radius": 0.05}
+    q = {"max_photons": photons, "estimator": "forward", "radius": 0.25}
     for kw in ({}, {"force_effects_off": ["polarization"]}):
         sim.illuminance(pts, nrm, max_photons=2000, estimator="forward", **kw)     # compiled before timing
     times = _interleaved({"default (polarized)": lambda: sim.illuminance(pts, nrm, **q),

@@ -249,6 +249,10 @@ def test_material_for_an_unknown_uuid(world, unchanged) -> None:
     ({"type": "diffuser", "transmittance": 0.8, "reflectance": 0.3}, "transmittance + reflectance"),
     ({"type": "diffuser", "transmittance": True}, "transmittance"),
     ({"type": "diffuser", "reflectance": 0.1}, "transmittance"),
+    ({"type": "microfacet", "alpha": 0.0, "reflectance": 0.9}, "alpha"),
+    ({"type": "microfacet", "alpha": 0.1, "alpha_y": 2.0, "reflectance": 0.9}, "alpha_y"),
+    ({"type": "microfacet", "alpha": 0.1, "axis": [0, 0, 0], "metal": [0.96, 6.69]}, "axis"),
+    ({"type": "microfacet", "alpha": 0.1, "metal": [0.96, -1]}, "metal"),
 ])
 def test_impossible_materials(world, unchanged, material: dict, field: str) -> None:
     c, sid = world["client"], world["scene"]

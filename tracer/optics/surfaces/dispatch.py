@@ -22,7 +22,7 @@ from tracer.jit import njit
 from tracer.optics import mie, spectra
 from tracer.optics.coating import Coating
 from tracer.optics.elements import diffuser, polarizer, retarder
-from tracer.optics.surfaces import black, dielectric, lambertian, mirror, mix
+from tracer.optics.surfaces import black, dielectric, lambertian, microfacet, mirror, mix
 from tracer.optics.surfaces.base import (
     ABSORBED,
     MIE_ROW,
@@ -35,8 +35,8 @@ from tracer.optics.surfaces.base import (
     spec_from_body,
 )
 
-KINDS = (black, lambertian, mirror, mix, dielectric, diffuser, polarizer, retarder)
-BLACK, LAMBERTIAN, MIRROR, MIX, DIELECTRIC, DIFFUSER, POLARIZER, RETARDER = range(len(KINDS))
+KINDS = (black, lambertian, mirror, mix, dielectric, diffuser, polarizer, retarder, microfacet)
+BLACK, LAMBERTIAN, MIRROR, MIX, DIELECTRIC, DIFFUSER, POLARIZER, RETARDER, MICROFACET = range(len(KINDS))
 KIND_OF = {m.NAME: k for k, m in enumerate(KINDS)}
 _MODULE_OF_SPEC = {m.Spec: m for m in KINDS}
 
@@ -230,6 +230,9 @@ def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, ke
         return polarizer.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol)
     if k == RETARDER:
         return retarder.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol)
+    if k == MICROFACET:
+        return microfacet.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam,
+                                  pol)
     return ABSORBED, dx, dy, dz, 0.0, depth, dim   # black, or an id without material
 
 
