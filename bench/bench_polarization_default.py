@@ -4,11 +4,12 @@ nothing new. Writes bench/results/polarization_default.json.
 1. A diffuse room (bench_transport's): the effect set stays ``["lambertian"]``, so the kernel and the photons are
    those of before; the one new cost is deciding (`tracer.effects.explain_effects`), timed here.
 2. A glass-heavy scene: 5 x 5 glass cubes (n = 1.5, 10 cm) over a Lambertian floor (rho 0.5) under a 1000 cd point
-   light; the floor's illuminance on 5 disks of 0.25 m, forward, the default (polarized) against `force_effects_off`, in turn
-   on one thread (CPU seconds, `bench.bench_spectral._interleaved`), and the answer's `physics_left_out` (what
-   leaving polarization out moves, with its error).
+   light; the floor's illuminance on 5 disks of 0.25 m, forward, the default (polarized) against
+   `force_effects_off`, in turn on one thread (CPU seconds, `bench.bench_spectral._interleaved`), and the answer's
+   `physics_left_out` (what leaving polarization out moves, with its error).
 3. The demo car (lumenlink.demo's model, materials, lights and floor grid, through the service): photons per second
    of the grid's simulation, default against `force_effects_off` (the service's own `seconds - compile_seconds`).
+4. The cost of a `microfacet` bounce against `mirror` and `lambertian` (`microfacet_cost`).
 
 Run: ``flock /tmp/ll-cpu.lock .venv/bin/python -m bench.bench_polarization_default [--quick]``.
 """
@@ -135,13 +136,38 @@ def demo_car(rounds: int, photons: int) -> dict:
             "slowdown": med["force_effects_off"] / med["default (polarized)"], "polarization": reasons}
 
 
+def microfacet_cost(rounds: int, photons: int) -> dict:
+    """The cost of a `microfacet` bounce against the `mirror` and `lambertian` it generalises: a box room (4 x 4 x
+    2.5 m) of the kind under a point light, photons/s of the forward kernel on one thread (every photon bounces until
+    absorbed: reflectance 0.8)."""
+    from bench.bench_transport import floor_points, room_scene
+    from tracer.simulate import Simulation
+
+    s, room = room_scene()
+    pts, nrm = floor_points(3)
+    lamp = [{"type": "point", "position": [2.0, 2.0, 2.5], "intensity_cd": 1000.0}]
+    mats = {"lambertian": {"type": "lambertian", "reflectance": 0.8},
+            "mirror": {"type": "mirror", "reflectance": 0.8},
+            "microfacet": {"type": "microfacet", "alpha": 0.3, "reflectance": 0.8},
+            "microfacet brushed Al": {"type": "microfacet", "alpha": 0.1, "alpha_y": 0.4, "axis": [1, 0, 0],
+                                      "metal": [0.96, 6.69]}}
+    sims = {n: Simulation(s, {room: m}, lamp) for n, m in mats.items()}
+    for sim in sims.values():
+        sim.illuminance(pts, nrm, max_photons=2000, estimator="forward")
+    times = _interleaved({n: (lambda sim=sim: sim.illuminance(pts, nrm, max_photons=photons, estimator="forward"))
+                          for n, sim in sims.items()}, rounds)
+    return {"photons": photons, "photons_per_second": {n: photons / statistics.median(t) for n, t in times.items()},
+            "ratio_to_mirror": _ratios(times, "mirror")}
+
+
 def run(quick: bool = False) -> dict:
     import numba
 
     numba.set_num_threads(1)
     rounds = 3 if quick else 5
     out = {"diffuse_room": diffuse_room(), "glass_heavy": glass_heavy(rounds, 100_000 if quick else 400_000),
-           "demo_car": demo_car(rounds, 100_000 if quick else 400_000), "machine_threads": 1,
+           "demo_car": demo_car(rounds, 100_000 if quick else 400_000),
+           "microfacet_cost": microfacet_cost(rounds, 200_000 if quick else 1_000_000), "machine_threads": 1,
            "command": "flock /tmp/ll-cpu.lock .venv/bin/python -m bench.bench_polarization_default"
                       + (" --quick" if quick else "")}
     return out
