@@ -24,6 +24,7 @@ def result_payload(result: Any, revision: int) -> dict[str, Any]:
         "photons": int(result.photons),
         "seconds": float(result.seconds),
         "effects": sorted(str(e) for e in result.effects),
+        **({"effect_reasons": dict(result.effect_reasons)} if getattr(result, "effect_reasons", None) else {}),
         "revision": int(revision),
         "estimator": str(result.estimator),
         "stop_reason": str(result.stop_reason),

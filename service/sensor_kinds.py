@@ -72,7 +72,8 @@ def refuse_for_tally(sid: Any, kind: str, unit: str, query: Query) -> None:
 def _flat(result: Any, lux: Any, stderr: Any) -> SimpleNamespace:
     """A result's common fields with `lux` and `stderr` in place of its own (for `result_payload`)."""
     flat = SimpleNamespace(**{name: getattr(result, name) for name in (
-        "photons", "seconds", "effects", "estimator", "stop_reason", "compile_seconds", "backend")})
+        "photons", "seconds", "effects", "estimator", "stop_reason", "compile_seconds", "backend",
+        "effect_reasons")})
     flat.lux, flat.stderr = lux, stderr
     return flat
 

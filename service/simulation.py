@@ -292,20 +292,24 @@ class SimulationHub:
 
     @staticmethod
     def check_query(prepared: Prepared, estimator: str, force_effects: tuple[str, ...],
-                    physics_left_out: tuple[str, ...] = ()) -> None:
+                    physics_left_out: tuple[str, ...] = (), force_effects_off: tuple[str, ...] = ()) -> None:
         """Refuse (422) what the transport would refuse, before a job is queued: an async request gets
         its error at once, not as a failed job."""
         try:
-            from tracer.effects import EFFECTS, with_forced
+            from tracer.effects import EFFECTS, EffectError, check_off, with_forced
         except ImportError:  # an older transport: it checks for itself when the query runs
             return
         for field, names in (("force_effects", force_effects), ("physics_left_out", physics_left_out)):
             unknown = sorted(set(names) - set(EFFECTS))
             if unknown:
                 raise Invalid(f"unknown effect(s) {unknown} in {field}; known: {list(EFFECTS)}")
+        try:
+            off = check_off(list(force_effects_off), force_effects, prepared.simulation.effect_reasons)
+        except EffectError as exc:
+            raise Invalid(str(exc)) from None
         applies = getattr(prepared.simulation, "backward_applies", None)
         if estimator == "backward" and applies is not None:
-            ok, why = applies(with_forced(prepared.simulation.effects, force_effects))
+            ok, why = applies(with_forced(prepared.simulation.effects, force_effects, off))
             if not ok:
                 raise Invalid(f"the backward estimator cannot answer here: {why}; use 'forward' or 'auto'")
 
@@ -320,7 +324,7 @@ class SimulationHub:
                    budget: Budget, seed: int, estimator: str, force_effects: tuple[str, ...],
                    progress: Callable | None = None, cancel: Callable | None = None,
                    observe: tuple[str, ...] = (), reference: tuple | None = None,
-                   physics_left_out: tuple[str, ...] = ()) -> dict[str, Any]:
+                   physics_left_out: tuple[str, ...] = (), force_effects_off: tuple[str, ...] = ()) -> dict[str, Any]:
         """Illuminance at points; the JSON answer of ``POST /scenes/{id}/illuminance``."""
         with _refusals():
             result = prepared.simulation.illuminance(
@@ -328,13 +332,15 @@ class SimulationHub:
                 target_scope=budget.target_scope, max_seconds=budget.max_seconds, max_photons=budget.max_photons,
                 seed=seed, estimator=estimator,
                 force_effects=force_effects, progress=progress, cancel=cancel, observe=observe,
-                reference=reference, **({"physics_left_out": physics_left_out} if physics_left_out else {}))
+                reference=reference, force_effects_off=force_effects_off,
+                **({"physics_left_out": physics_left_out} if physics_left_out else {}))
         return result_payload(result, prepared.live.revision)
 
     def run_grid(self, prepared: Prepared, sensor: dict, budget: Budget, seed: int, estimator: str,
                  force_effects: tuple[str, ...], progress: Callable | None = None,
                  cancel: Callable | None = None, observe: tuple[str, ...] = (),
-                 reference: tuple | None = None, physics_left_out: tuple[str, ...] = ()) -> dict[str, Any]:
+                 reference: tuple | None = None, physics_left_out: tuple[str, ...] = (),
+                 force_effects_off: tuple[str, ...] = ()) -> dict[str, Any]:
         """Simulate one sensor of any kind (`service.sensor_kinds`); keeps its result where its kind says (a grid's
         for ``map.png`` while the scene is unchanged, a far field's for its export)."""
         scene_id = prepared.live.scene_id
@@ -346,7 +352,8 @@ class SimulationHub:
                 kind.body(sensor, prepared.live), target_relative_error=budget.target_relative_error,
                 target_scope=budget.target_scope, max_seconds=budget.max_seconds, max_photons=budget.max_photons,
                 seed=seed, estimator=estimator, force_effects=force_effects, progress=progress, cancel=cancel,
-                observe=observe, reference=reference, physics_left_out=physics_left_out)
+                observe=observe, reference=reference, physics_left_out=physics_left_out,
+                force_effects_off=force_effects_off)
         payload = kind.payload(result, sensor, prepared.live)
         if prepared.live.extras.get("elements"):   # the elements with an inside it traced, and their model
             payload["elements"] = prepared.live.extras["elements"]

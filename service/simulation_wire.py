@@ -48,6 +48,12 @@ class QueryBudget(BaseModel):
                                     "the scene's choice.")
     force_effects: Annotated[list[Annotated[str, Field(pattern=EFFECT_NAME)]], Field(max_length=16)] = Field(
         default_factory=list, description="Effects to switch on although the scene does not call for them.")
+    force_effects_off: Annotated[list[Annotated[str, Field(pattern=EFFECT_NAME)]], Field(max_length=4)] = Field(
+        default_factory=list, description="Effects the scene takes by its physics estimate (`polarization`, where a "
+                                          "path can meet two polarizing interactions) to leave out of this query: "
+                                          "faster, and off by at most what the answer's `effect_reasons` says. One "
+                                          "that something in the scene requires (a polarizer, a retarder, a "
+                                          "polarized light, observed Stokes) is a 422.")
     observe: Annotated[list[Literal["spectrum", "stokes"]], Field(max_length=2)] = Field(
         default_factory=list, description="`spectrum`: add the spectral irradiance (W/m²/nm in 5 nm bands) and the "
                                           "CIE 1931 chromaticity of each value; photons then carry a wavelength "
@@ -71,7 +77,7 @@ class QueryBudget(BaseModel):
                                           "one more run's time; one already on, or acting wherever the scene's "
                                           "materials call for it, changes nothing: 0 ± 0 lx, no run.")
 
-    @field_validator("observe", "physics_left_out")
+    @field_validator("observe", "physics_left_out", "force_effects_off")
     @classmethod
     def _once_each(cls, v: list[str], info: Any) -> list[str]:
         if len(set(v)) != len(v):
@@ -189,6 +195,9 @@ class IlluminancePublic(BaseModel):
     photons: int = Field(description="Photons (forward) or paths (backward) traced.")
     seconds: float = Field(description="Wall time of the query, s.")
     effects: list[str] = Field(description="The effect set of the scene (and of any forced effects).")
+    effect_reasons: dict[str, str] | None = Field(
+        None, description="For every effect, why it was on or off in this run (`on: ...` / `off: ...`): what in the "
+                          "scene calls for it, or, for polarization, the bound on what leaving it out could move.")
     revision: int = Field(description="Scene revision the answer describes.")
     estimator: str = Field(description="The estimator that ran: `forward` or `backward`.")
     stop_reason: str = Field(description="Which rule stopped the run (target reached, photons, seconds, cancel).")
@@ -253,6 +262,9 @@ class SensorPublic(BaseModel):
     photons: int = Field(description="Photons (forward) or paths (backward) traced.")
     seconds: float = Field(description="Wall time of the simulation, s.")
     effects: list[str] = Field(description="The effect set of the scene (and of any forced effects).")
+    effect_reasons: dict[str, str] | None = Field(
+        None, description="For every effect, why it was on or off in this run (`on: ...` / `off: ...`): what in the "
+                          "scene calls for it, or, for polarization, the bound on what leaving it out could move.")
     revision: int = Field(description="Scene revision the answer describes.")
     estimator: str = Field(description="The estimator that ran: `forward` or `backward`.")
     stop_reason: str = Field(description="Which rule stopped the run (target reached, photons, seconds, cancel).")

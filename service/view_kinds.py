@@ -22,7 +22,8 @@ import numpy as np
 from service.errors import Invalid, TooLarge
 from service.payloads import finite_list, result_payload
 
-_COMMON = ("photons", "seconds", "effects", "estimator", "stop_reason", "compile_seconds", "backend", "cost")
+_COMMON = ("photons", "seconds", "effects", "estimator", "stop_reason", "compile_seconds", "backend", "cost",
+           "effect_reasons")
 
 
 def _refuse(sensor: dict, query: Any) -> None:

@@ -12,7 +12,9 @@
 | `coating` | a `dielectric` with thin films |
 | `fluorescence` | a `dielectric` that fluoresces |
 | `mie` | a `dielectric` holding `particles` (Mie scattering, `tracer.optics.mie`) |
-| `polarization` | a `polarizer` or `retarder`, a polarized light, or a query that observes Stokes |
+| `polarization` | a `polarizer`, `retarder`, polarized light or a query observing Stokes (required); and by physics |
+|  | wherever a path can meet two polarizing interactions that could move the answer beyond its error bar |
+|  | (`polarization_call` below; a query may then force it off) |
 
 Each kind declares its effects (`effects(spec)` in its module, `tracer/optics/`); this module gathers
 them. The effects above change no compiled code: they are branches on data (a photon meets a mirror
@@ -23,20 +25,41 @@ up to `scattering` needs only a weight, the state ``"white"``; `spectral` (impli
 `fluorescence` and `mie`) needs a wavelength, the state ``"spectral"``; `polarization` needs a Stokes vector and
 its frame (`tracer.optics.polarization`), the state ``"polarized"`` (``"polarized-spectral"`` with both). A
 light's spectrum alone does not call for a wavelength: in a grey scene the luminous answer is exact without it.
-`with_forced` turns effects on in a scene that does not need them (the answer must not change).
+`with_forced` turns effects on in a scene that does not need them (the answer must not change), and off where the
+physics estimate took them (`OPTIONAL`) and the query asks (`force_effects_off`).
+
+Polarization by physics (DESIGN.md "Physics, and only what a scene calls for"). Unpolarized light meeting one
+interface comes out with the right power whether s and p are kept apart or averaged; only a second polarizing
+interaction on the same path can turn the first one's polarization into a different power. For two interfaces of
+diattenuations D₁ = (Ts − Tp)/(Ts + Tp) (or the same for reflection) and D₂, the polarized answer is the averaged one
+times 1 + D₁ D₂ cos 2φ (φ the angle between their planes of incidence): the relative error of leaving polarization
+out is at most D₁ D₂. Each kind declares, from its spec, how many polarizing interactions a path can meet at one of
+its surfaces and their largest diattenuation over all angles (`polarizing(spec)` in its module): a dielectric solid 2
+(entered and left), diattenuation 1 (its reflection at Brewster's angle is pure s); a metal mirror 1, its own
+maximum from the Fresnel formulas of n − ik (aluminium [0.96, 6.69]: 0.139 at 81.7°); a coated mirror 1, bounded
+by 1; particles in a medium 2 (Mie scattering polarizes, bounded by 1). Lambertian, perfect mirrors and
+Henyey–Greenstein media add nothing (they depolarize or act alike on s and p). With each surface counted once per
+instance that carries it, the bound is the product of the two largest diattenuations, and polarization is on where
+it exceeds `POLARIZATION_FLOOR` (0.2 %, the tightest relative error an answer's cost is quoted for). Geometry is not
+looked at: the bound is what the materials allow, the cheap and conservative reading of "could exceed". A single
+curved metal reflector that a path meets twice is the one case it misses (one instance: one interaction); a query
+may force polarization on, and `physics_left_out` measures it.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections import Counter
+from collections.abc import Iterable, Mapping
 
 from tracer.errors import TracerError
-from tracer.optics.surfaces.dispatch import effects_of, material_spec
+from tracer.optics.surfaces.dispatch import effects_of, material_spec, module_of, polarizing_of
 
 EFFECTS = ("lambertian", "specular", "fresnel", "absorption", "scattering", "spectral", "dispersion", "coating",
            "fluorescence", "mie", "polarization")
 NEEDS_WAVELENGTH = ("dispersion", "coating", "fluorescence", "mie")
 PHOTON_STATES = ("white", "spectral", "polarized", "polarized-spectral")
+OPTIONAL = ("polarization",)    # effects the physics estimate may take, and a query may therefore force off
+POLARIZATION_FLOOR = 0.002      # relative error below which leaving polarization out cannot show (module docstring)
 
 
 class EffectError(TracerError):
@@ -52,24 +75,145 @@ def canonical(effects: Iterable[str]) -> list[str]:
     return [e for e in EFFECTS if e in s]
 
 
-def derive_effects(materials: Iterable, lights: Iterable[dict] = ()) -> list[str]:
-    """The effect set of a scene from its materials (bodies or specs), as their kinds declare it, and its light
-    bodies (a polarized light calls for `polarization`).
+def derive_effects(materials: Iterable, lights: Iterable[dict] = (), counts: Mapping | None = None) -> list[str]:
+    """The effect set of a scene from its materials (bodies or specs), as their kinds declare it, its light
+    bodies (a polarized light calls for `polarization`), and polarization by physics (`explain_effects`).
 
     Raises `tracer.optics.surfaces.base.MaterialError` for an invalid material body.
     """
-    polarized = {"polarization"} if any(isinstance(b, dict) and b.get("polarization") for b in lights) else set()
-    return canonical(effects_of(material_spec(m) for m in materials) | polarized)
+    return explain_effects(materials, lights, counts)[0]
 
 
-def with_forced(effects: list[str], force: tuple[str, ...] | list[str] | str) -> list[str]:
-    """`effects` plus the forced ones, in canonical order; unknown names raise `EffectError`."""
+def explain_effects(materials: Iterable, lights: Iterable[dict] = (),
+                    counts: Mapping | None = None) -> tuple[list[str], dict[str, str]]:
+    """The effect set of a scene and, for every effect in `EFFECTS`, why it is on or off (a sentence that starts
+    with ``"on: "`` or ``"off: "``).
+
+    materials : bodies or specs, one per surface that carries it (an instance, or a node), or distinct ones with
+        `counts` {spec: surfaces that carry it} beside (missing: 1 each).
+    """
+    specs = [material_spec(m) for m in materials]
+    if counts is None:
+        counts = Counter(specs)
+    lights = list(lights)
+    by_effect: dict[str, list[str]] = {}
+    for spec in dict.fromkeys(specs):
+        for e in effects_of([spec]) - {"lambertian"}:
+            by_effect.setdefault(e, []).append(module_of(spec).NAME)
+    polarized_lights = [i for i, b in enumerate(lights) if isinstance(b, dict) and b.get("polarization")]
+    reasons: dict[str, str] = {}
+    on = {"lambertian"}
+    reasons["lambertian"] = "on: diffuse reflection is the baseline of every scene (it costs nothing)"
+    for e in EFFECTS[1:]:
+        kinds = sorted(set(by_effect.get(e, [])))
+        if e == "polarization":
+            continue
+        if kinds:
+            on.add(e)
+            reasons[e] = f"on: called for by {_kinds(kinds)}"
+        else:
+            reasons[e] = "off: " + ("nothing in the scene's materials depends on the wavelength" if e == "spectral"
+                                    else "no material of the scene calls for it")
+    required = sorted(set(by_effect.get("polarization", [])))
+    if required or polarized_lights:
+        on.add("polarization")
+        what = [_kinds(required)] if required else []
+        what += [f"polarized light(s) {polarized_lights}"] if polarized_lights else []
+        reasons["polarization"] = f"on: required by {' and '.join(what)} (cannot be forced off)"
+    else:
+        call, why = polarization_call(specs, counts)
+        if call:
+            on.add("polarization")
+        reasons["polarization"] = ("on: " if call else "off: ") + why
+    return canonical(on), reasons
+
+
+def _kinds(names: list[str]) -> str:
+    return ", ".join(f"a {n!r} material" for n in names)
+
+
+def polarization_call(specs: Iterable, counts: Mapping | None = None) -> tuple[bool, str]:
+    """Whether the scene's materials call for polarization by physics (the module docstring), and why: the two
+    largest diattenuations a path can meet in a row, their product (the bound on the relative error of leaving
+    polarization out) against `POLARIZATION_FLOOR`."""
+    specs = list(specs)
+    counts = Counter(specs) if counts is None else counts
+    found: list[tuple[float, str]] = []
+    for spec in dict.fromkeys(specs):
+        per, d = polarizing_of(spec)
+        if per <= 0 or d <= 0.0:
+            continue
+        n = per * max(int(counts.get(spec, 1)), 1)
+        found += [(float(d), module_of(spec).NAME)] * min(n, 2)
+    found.sort(key=lambda x: -x[0])
+    if not found:
+        return False, ("no material polarizes (diffuse, perfect mirrors and Henyey-Greenstein media act alike on s "
+                       "and p or depolarize)")
+    if len(found) < 2:
+        return False, (f"a path meets at most one polarizing interaction (one {found[0][1]!r} surface, largest "
+                       f"diattenuation {found[0][0]:.3g}): one interface alone gives unpolarized light its right power")
+    bound = found[0][0] * found[1][0]
+    pair = f"a {found[0][1]!r} then a {found[1][1]!r} interaction (diattenuations up to {found[0][0]:.3g} and " \
+           f"{found[1][0]:.3g})"
+    if bound > POLARIZATION_FLOOR:
+        return True, (f"a path can meet {pair}: leaving polarization out could move the answer by up to "
+                      f"{100 * bound:.3g} %, above the {100 * POLARIZATION_FLOOR:g} % any answer resolves "
+                      f"(force_effects_off may leave it out)")
+    return False, (f"a path can meet {pair}, but leaving polarization out moves the answer by at most "
+                   f"{100 * bound:.3g} %, below the {100 * POLARIZATION_FLOOR:g} % any answer resolves")
+
+
+def with_forced(effects: list[str], force: tuple[str, ...] | list[str] | str,
+                off: tuple[str, ...] | list[str] = ()) -> list[str]:
+    """`effects` plus the forced ones, less those forced `off`, in canonical order; unknown names raise
+    `EffectError` (the caller checks that `off` names only what may be left out: `check_off`)."""
     if isinstance(force, str):
         force = (force,)
     out = set(effects) | set(force)
     if out & set(NEEDS_WAVELENGTH):
         out.add("spectral")
-    return canonical(out)
+    canonical(off)
+    return canonical(out - set(off))
+
+
+def check_off(off, force, reasons: Mapping[str, str]) -> tuple[str, ...]:
+    """A query's `force_effects_off`, checked against the scene's `reasons` (`explain_effects`): a list of distinct
+    `OPTIONAL` effects that are not also forced on and that nothing in the scene requires; `EffectError` naming
+    the field otherwise."""
+    if off is None:
+        return ()
+    if isinstance(off, str) or not isinstance(off, list | tuple):
+        raise EffectError(f"force_effects_off must be a list of effects {list(OPTIONAL)}, got {off!r}")
+    try:
+        canonical(off)
+    except EffectError as exc:
+        raise EffectError(f"force_effects_off: {exc}") from None
+    if len(set(off)) != len(off):
+        raise EffectError(f"force_effects_off lists each effect once, got {list(off)}")
+    bad = [e for e in off if e not in OPTIONAL]
+    if bad:
+        raise EffectError(f"force_effects_off: {bad} cannot be forced off (only {list(OPTIONAL)}, which the scene "
+                          f"takes by its physics estimate: the others act wherever a material calls for them)")
+    both = sorted(set(off) & set((force,) if isinstance(force, str) else force or ()))
+    if both:
+        raise EffectError(f"force_effects_off: {both} also forced on (force_effects, or an observable needing it)")
+    for e in off:
+        if reasons.get(e, "").startswith("on: required"):
+            raise EffectError(f"force_effects_off: {e!r} cannot be left out here: {reasons[e][4:]}")
+    return tuple(off)
+
+
+def query_reasons(reasons: Mapping[str, str], effects: list[str], force, off) -> dict[str, str]:
+    """The scene's `reasons` as one query ran them: an effect it forced on or off says so."""
+    out = dict(reasons)
+    force = (force,) if isinstance(force, str) else tuple(force or ())
+    for e in EFFECTS:
+        if e in effects and not out.get(e, "").startswith("on"):
+            out[e] = ("on: forced on by the query" if e in force else "on: needed by a forced effect") \
+                + f" ({out.get(e, '')})"
+        elif e not in effects and out.get(e, "").startswith("on"):
+            out[e] = f"off: forced off by the query (force_effects_off); the scene would take it: {out[e][4:]}"
+    return out
 
 
 def photon_state(effects: list[str]) -> str:

@@ -40,12 +40,22 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections import Counter
 from typing import Any
 
 import numpy as np
 
 from tracer.backends import IN_PROCESS, Shipment, is_backend
-from tracer.effects import EFFECTS, EffectError, derive_effects, photon_state, with_forced
+from tracer.effects import (
+    EFFECTS,
+    OPTIONAL,
+    EffectError,
+    check_off,
+    explain_effects,
+    photon_state,
+    query_reasons,
+    with_forced,
+)
 from tracer.errors import SimulationError
 from tracer.optics.lights import connectable, pack_lights
 from tracer.optics.lights.dispatch import polarized_lights, spectral_lights
@@ -144,7 +154,9 @@ class Simulation:
         geometry_ids = [i for i in ids if i not in self.sensor_ids]
         # the distinct specs in use (a scene of 100k instances has a handful of materials)
         self._specs = list(dict.fromkeys(m for m in (mats.get(i, default_spec) for i in geometry_ids) if m is not None))
-        self.effects: list[str] = derive_effects(self._specs, lights)   # the one rule, as the service's summary
+        counts = Counter(m for m in (mats.get(i, default_spec) for i in geometry_ids) if m is not None)
+        # the one rule, as the service's summary: the effect set, and why each effect is on or off
+        self.effects, self.effect_reasons = explain_effects(self._specs, lights, counts)
         self._curved = scene_surfaces(scene, {i: mats.get(i, default_spec) for i in geometry_ids}, geometry_ids)
 
     # ------------------------------------------------------------------------------------------ helpers
@@ -174,7 +186,7 @@ class Simulation:
 
     def run(self, sensor: dict, target_relative_error=None, max_seconds=None, max_photons=None, seed=0,
             estimator="auto", force_effects=(), progress=None, cancel=None, observe=(), reference=None,
-            physics_left_out=(), target_scope="worst") -> Any:
+            physics_left_out=(), target_scope="worst", force_effects_off=()) -> Any:
         """Measure one sensor: a body ``{"type": kind, ...}`` of a registered kind (`tracer.sensors.dispatch.KINDS`);
         its answer (the kind's result: `IlluminanceResult`, `GridResult`, `SurfaceResult`, `FarFieldResult`).
 
@@ -183,6 +195,8 @@ class Simulation:
             least `LIT_FRACTION` of the brightest) or "mean" (the mean of the values').
         seed : int ≥ 0.  estimator : "auto", "forward" or "backward".
         force_effects : effect names to compile in although the scene does not need them.
+        force_effects_off : effects the scene takes by its physics estimate (`tracer.effects.OPTIONAL`:
+            polarization) to leave out of this query; one that something in the scene requires is refused.
         progress : callable(photons, worst_relative_error, seconds), called once before the first round (0
             photons: `seconds` is what compiling or loading the kernel took) and between rounds.
         cancel : callable() -> bool, polled between rounds.
@@ -198,7 +212,8 @@ class Simulation:
         return sensors.run(self, sensor, target=target_relative_error, max_seconds=max_seconds,
                            max_photons=max_photons, seed=seed, estimator=estimator, force_effects=force_effects,
                            progress=progress, cancel=cancel, observe=observe, reference=reference,
-                           physics_left_out=physics_left_out, target_scope=target_scope)
+                           physics_left_out=physics_left_out, target_scope=target_scope,
+                           force_effects_off=force_effects_off)
 
     def illuminance(self, points, normals, radius=None, **query) -> IlluminanceResult:
         """Illuminance (lx) on the front side of a disk receiver at each point ((k, 3) m; normals any non-zero
@@ -228,23 +243,25 @@ class Simulation:
 
     def measure(self, probe_of, body: dict, target=None, max_seconds=None, max_photons=None, seed=0,
                 estimator="auto", force_effects=(), progress=None, cancel=None, observe=(), reference=None,
-                physics_left_out=(), target_scope="worst") -> tuple[Probe, IlluminanceResult]:
+                physics_left_out=(), target_scope="worst", force_effects_off=()) -> tuple[Probe, IlluminanceResult]:
         """A sensor's receivers (`probe_of(self, body)`) and the raw bins measured on them, with what each effect in
         `physics_left_out` would change (`left_out`): what `tracer.sensors.dispatch.run` shapes into an answer."""
         left_out = _left_out_names(physics_left_out)
         probe = probe_of(self, body)
         res = self._run(probe, target, max_seconds, max_photons, seed, estimator, force_effects, progress, cancel,
-                        observe, reference, target_scope=target_scope)
+                        observe, reference, target_scope=target_scope, force_effects_off=force_effects_off)
         if left_out:
+            off = tuple(force_effects_off or ())
             res.physics_left_out = self.left_out(left_out, res, lambda force, s, est: self._run(
-                probe, target, max_seconds, max_photons, s, est, force, None, cancel, (), target_scope=target_scope),
-                force_effects, observe, seed, estimator)
+                probe, target, max_seconds, max_photons, s, est, force, None, cancel, (), target_scope=target_scope,
+                force_effects_off=tuple(e for e in off if e not in force)),
+                force_effects, observe, seed, estimator, off)
         return probe, res
 
     # ------------------------------------------------------------------------------------------ physics left out
 
     def left_out(self, names: tuple[str, ...], res: IlluminanceResult, rerun, force_effects, observe, seed: int,
-                 estimator: str) -> dict:
+                 estimator: str, off: tuple[str, ...] = ()) -> dict:
         """What each effect in `names` would change (DESIGN.md, "Accuracy is a quantity"): per effect ``{"difference":
         lux with it forced on − res.lux, "stderr": √(σ_run² + σ_pilot²), "photons", "seconds", "estimator" of the
         pilot, "ran"}``.
@@ -257,13 +274,14 @@ class Simulation:
         that acts wherever the scene's materials call for it (Fresnel wherever there is a dielectric); its difference
         is exactly 0 ± 0 and no pilot runs (``"ran": false``). What a pilot can change today is therefore the light's
         state: polarization (polarized Fresnel instead of the s/p average) and a wavelength per photon (spectral and
-        the effects that need it). A cancelled run runs no pilot (``{}``).
+        the effects that need it). An effect the query forced off (`force_effects_off`) is measured the same way: the
+        pilot turns it back on. A cancelled run runs no pilot (``{}``).
         """
         if res.stop_reason == "cancelled":
             return {}
         spectrum, stokes = _observe(observe)
         asked = (*(force_effects or ()), *(("spectral",) if spectrum else ()), *(("polarization",) if stokes else ()))
-        base = with_forced(self.effects, asked)
+        base = with_forced(self.effects, asked, off)
         pilot_estimator = "forward" if estimator == "forward" else "auto"
         out = {}
         for k, name in enumerate(names):
@@ -281,7 +299,7 @@ class Simulation:
     # ------------------------------------------------------------------------------------------ engine
 
     def _run(self, probe: Probe, target, max_seconds, max_photons, seed, estimator, force_effects, progress, cancel,
-             observe, reference=None, target_scope="worst") -> IlluminanceResult:
+             observe, reference=None, target_scope="worst", force_effects_off=()) -> IlluminanceResult:
         """One run over `probe`'s receivers: the raw bins (a surface tally's after the receivers', then a far
         field's: cd, then the total flux leaving, lm)."""
         stop = budget(target, max_seconds, max_photons, target_scope)
@@ -299,9 +317,23 @@ class Simulation:
             effects = with_forced(self.effects, force_effects)
         except EffectError as exc:
             raise SimulationError(f"{exc} (in force_effects)") from None
+        try:
+            off = check_off(force_effects_off, force_effects, self.effect_reasons)
+        except EffectError as exc:
+            raise SimulationError(str(exc)) from None
+        effects = with_forced(effects, (), off)
         if probe.view is not None:   # a luminance meter or a camera: paths from the eye
-            return radiance(self, probe, stop, int(seed), estimator, effects, progress, cancel,
-                            QueryBackend(self.backend))
+            # polarization taken by the physics estimate is left out (those paths carry no Stokes vector); forced
+            # or required, radiance refuses it
+            dropped = tuple(e for e in OPTIONAL if e in effects and e not in (force_effects or ())
+                            and not self.effect_reasons.get(e, "").startswith("on: required"))
+            out = radiance(self, probe, stop, int(seed), estimator, with_forced(effects, (), dropped), progress,
+                           cancel, QueryBackend(self.backend))
+            out.effect_reasons = query_reasons(self.effect_reasons, out.effects, force_effects, off)
+            for e in dropped:
+                out.effect_reasons[e] = ("off: paths from the eye (luminance) carry no Stokes vector; the scene "
+                                         f"would take it: {self.effect_reasons[e][4:]}")
+            return out
         which = self._choose(estimator, effects, probe.is_grid)
         if (probe.surface is not None or probe.far is not None) and which != "forward":
             raise SimulationError("the surface and far-field tallies are forward only")
@@ -324,6 +356,7 @@ class Simulation:
                 budget_lux = lux_budget(res.lux, probe.centers, self._curved, radius=probe.radius)
             res.error_budget = {"tessellation": budget_lux}
         res.backend = backend.describe()
+        res.effect_reasons = query_reasons(self.effect_reasons, res.effects, force_effects, off)
         return res
 
     def snapshot(self, state: str) -> Shipment:

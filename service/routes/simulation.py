@@ -129,12 +129,14 @@ def _points_query(scene_id: str, query: IlluminanceQuery, request: Request) -> t
     warnings = units.far_warnings(prepared.live, [(f"points[{k}]", p) for k, p in enumerate(query.points)]
                                   + units.light_positions(prepared.live))
     effects = tuple(query.force_effects)
-    hub.check_query(prepared, query.estimator, query.observed_effects(), tuple(query.physics_left_out))
+    hub.check_query(prepared, query.estimator, query.observed_effects(), tuple(query.physics_left_out),
+                    tuple(query.force_effects_off))
 
     def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
         payload = hub.run_points(prepared, points, normals, query.radius, budget, query.seed, query.estimator,
                                  effects, progress=progress, cancel=cancel, observe=tuple(query.observe),
-                                 reference=query.reference, physics_left_out=tuple(query.physics_left_out))
+                                 reference=query.reference, physics_left_out=tuple(query.physics_left_out),
+                                 force_effects_off=tuple(query.force_effects_off))
         _targeted(payload, query.cost_targets)
         payload.update(radius=radius, **({"warnings": warnings} if warnings else {}))
         payload["current"] = hub.is_current(scene_id, prepared.generation)
@@ -169,7 +171,8 @@ def _sensor_query(scene_id: str, sensor_id: str, query: SensorSimulate, request:
     warnings = units.far_warnings(prepared.live, units.sensor_positions(prepared.live, [sensor_id])
                                   + units.light_positions(prepared.live))
     effects = tuple(query.force_effects)
-    hub.check_query(prepared, query.estimator, query.observed_effects(), tuple(query.physics_left_out))
+    hub.check_query(prepared, query.estimator, query.observed_effects(), tuple(query.physics_left_out),
+                    tuple(query.force_effects_off))
 
     paths = ({n["uuid"]: n["path"] for n in request.app.state.manager.nodes(scene_id)}
              if sensor.get("type") == "surface" else {})
@@ -177,7 +180,8 @@ def _sensor_query(scene_id: str, sensor_id: str, query: SensorSimulate, request:
     def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
         payload = hub.run_grid(prepared, sensor, budget, query.seed, query.estimator, effects,
                                progress=progress, cancel=cancel, observe=tuple(query.observe),
-                               reference=query.reference, physics_left_out=tuple(query.physics_left_out))
+                               reference=query.reference, physics_left_out=tuple(query.physics_left_out),
+                               force_effects_off=tuple(query.force_effects_off))
         for part in payload.get("instances", ()):
             part["path"] = paths.get(part["node"])
         _targeted(payload, query.cost_targets)

@@ -464,7 +464,7 @@ def test_scene_effects_follow_the_tracer_and_skip_bodies_it_now_refuses() -> Non
                                       1: {"type": "dielectric", "ior": 1.5, "scattering_per_m": 1e12}},
                            default_material={"type": "dielectric", "ior": 1.5, "absorption_per_m": 2.0},
                            lights=[{"type": "point", "position": [0, 0, 1], "flux_lm": 1.0}])
-    assert scene_effects(live) == ["lambertian", "specular", "fresnel", "absorption"]
+    assert scene_effects(live) == ["lambertian", "specular", "fresnel", "absorption", "polarization"]
     assert scene_effects(live, uses_default=False) == ["lambertian", "specular"]
     live.lights[0]["polarization"] = {"type": "linear", "axis": [1, 0, 0]}
     assert scene_effects(live, uses_default=False) == ["lambertian", "specular", "polarization"]

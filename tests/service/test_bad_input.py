@@ -249,6 +249,10 @@ def test_material_for_an_unknown_uuid(world, unchanged) -> None:
     ({"type": "diffuser", "transmittance": 0.8, "reflectance": 0.3}, "transmittance + reflectance"),
     ({"type": "diffuser", "transmittance": True}, "transmittance"),
     ({"type": "diffuser", "reflectance": 0.1}, "transmittance"),
+    ({"type": "microfacet", "alpha": 0.0, "reflectance": 0.9}, "alpha"),
+    ({"type": "microfacet", "alpha": 0.1, "alpha_y": 2.0, "reflectance": 0.9}, "alpha_y"),
+    ({"type": "microfacet", "alpha": 0.1, "axis": [0, 0, 0], "metal": [0.96, 6.69]}, "axis"),
+    ({"type": "microfacet", "alpha": 0.1, "metal": [0.96, -1]}, "metal"),
 ])
 def test_impossible_materials(world, unchanged, material: dict, field: str) -> None:
     c, sid = world["client"], world["scene"]
@@ -291,6 +295,11 @@ def test_diffuser_is_a_material_of_the_api(world) -> None:
     ({"type": "goniometric", "position": [0, 0, 0], "format": "ies", "data": "x", "c0": [0, 0, 0]}, 422,
      "non-zero"),
     ({"type": "laser", "position": [0, 0, 0]}, 422, "laser"),
+    ({"type": "rayfile", "position": [0, 0, 0], "data": "0 0 0 0 0 1"}, 422, "data"),
+    ({"type": "rayfile", "position": [0, 0, 0], "data": "0 0 0 0 0 0 1"}, 422, "zero direction"),
+    ({"type": "rayfile", "position": [0, 0, 0], "data": "0 0 0 0 0 1 1", "units": "inch"}, 422, "units"),
+    ({"type": "rayfile", "position": [0, 0, 0], "data": "0 0 0 0 0 1 1", "flux_lm": -1}, 422, "flux_lm"),
+    ({"type": "rayfile", "data": "0 0 0 0 0 1 1"}, 422, "position"),
 ])
 def test_bad_lights(world, unchanged, light: dict, status: int, text: str) -> None:
     c, sid = world["client"], world["scene"]
@@ -335,3 +344,12 @@ def test_deleting_unknown_assignments(world, unchanged) -> None:
 def test_unknown_route_and_method(world, unchanged) -> None:
     refused(world["client"].get("/nope"), 404)
     refused(world["client"].delete("/geometries/missing"), 405)
+
+
+def test_a_rayfile_light_is_a_light_of_the_api(world) -> None:
+    """A light kind added to the tracer (one module) is in the API with no service change."""
+    c, sid = world["client"], world["scene"]
+    r = c.post(f"/scenes/{sid}/lights", json={"type": "rayfile", "position": [0, 0, 1], "units": "mm",
+                                               "data": "0 0 0 0 0 -1 1\n0.5 0 0 0 0.6 -0.8 1\n", "flux_lm": 10})
+    assert r.status_code == 201, r.text
+    assert c.delete(f"/scenes/{sid}/lights/{r.json()['id']}").status_code in (200, 204)

@@ -4,9 +4,9 @@ standard error; bad names are a 422 naming the known effects, never a 5xx.
 
 The scene: a lossless glass block (n = 1.5, 1 cm thick, 4 m × 4 m) under an unpolarized beam of 100 lx, radius
 5 mm, at Brewster's angle; a receiver (radius 0.3 m) across the specular reflection 1 m away. Closed forms
-(tests/tracer/optics/test_polarization.py): the s/p-averaged Fresnel the scene runs with reflects 2R/(1 + R) =
-0.137740 of the beam (R = Rs/2, Rs = 0.147929), polarized Fresnel Rs/(1 + Rs) = 0.128867. A black floor under a point
-light (tests/service/test_simulation_api.py) is the scene where polarization changes nothing.
+(tests/tracer/optics/test_polarization.py): the s/p-averaged Fresnel the queries force (`force_effects_off`)
+reflects 2R/(1 + R) = 0.137740 of the beam (R = Rs/2, Rs = 0.147929), polarized Fresnel Rs/(1 + Rs) = 0.128867. A
+black floor under a point light (tests/service/test_simulation_api.py) is the scene where polarization changes nothing.
 """
 
 from __future__ import annotations
@@ -66,7 +66,7 @@ def world(tmp_path_factory):
 def test_polarization_left_out_at_brewster_is_the_closed_form_difference(world):
     client, glass, _, _ = world
     body = query([REFLECTED], [[-c for c in REFLECTED]], radius=RECEIVER_R, max_photons=400_000, seed=5,
-                 physics_left_out=["polarization"])
+                 physics_left_out=["polarization"], force_effects_off=["polarization"])
     r = client.post(f"/scenes/{glass}/illuminance", json=body)
     assert r.status_code == 200, r.text
     a = r.json()
@@ -83,7 +83,8 @@ def test_polarization_left_out_at_brewster_is_the_closed_form_difference(world):
 def test_a_sensor_simulation_and_the_plan_carry_it_per_cell(world):
     client, glass, sensor, _ = world
     r = client.post(f"/scenes/{glass}/sensors/{sensor}/simulate",
-                    json={"max_photons": 40_000, "physics_left_out": ["polarization", "fresnel"]})
+                    json={"max_photons": 40_000, "physics_left_out": ["polarization", "fresnel"],
+                          "force_effects_off": ["polarization"]})
     assert r.status_code == 200, r.text
     left = r.json()["physics_left_out"]
     assert np.shape(left["polarization"]["difference"]) == (2, 2) == np.shape(left["polarization"]["stderr"])
@@ -94,7 +95,7 @@ def test_a_sensor_simulation_and_the_plan_carry_it_per_cell(world):
                        "photons": 0, "seconds": 0.0, "ran": False}   # already on: nothing runs
     r = client.post(f"/scenes/{glass}/illuminance/plan",
                     json=query([REFLECTED], [[-c for c in REFLECTED]], max_photons=20_000,
-                               physics_left_out=["polarization"]))
+                               physics_left_out=["polarization"], force_effects_off=["polarization"]))
     assert r.status_code == 200 and r.json()["physics_left_out"]["polarization"]["ran"], r.text
 
 
@@ -127,3 +128,36 @@ def test_bad_physics_left_out_is_a_422(world, extra, match):
         assert r.status_code == 422 and match in r.text, (url, r.status_code, r.text)
         if match == "known: ":
             assert all(name in r.text for name in EFFECTS)
+
+
+def test_polarization_is_on_by_default_and_the_answer_says_why(world):
+    """Issue 38: the plate calls for polarization by physics; the answer reflects Rs/(1 + Rs) and names why."""
+    client, glass, _, floor = world
+    body = query([REFLECTED], [[-c for c in REFLECTED]], radius=RECEIVER_R, max_photons=200_000, seed=6)
+    a = client.post(f"/scenes/{glass}/illuminance", json=body).json()
+    assert "polarization" in a["effects"] and a["effect_reasons"]["polarization"].startswith("on: a path can meet")
+    to_fraction = RECEIVER_R ** 2 / (100.0 * BEAM_R ** 2)
+    assert abs(a["lux"][0] * to_fraction - POLARIZED) <= 4 * a["stderr"][0] * to_fraction
+    assert set(a["effect_reasons"]) == set(EFFECTS)
+    assert "polarization" in client.get(f"/scenes/{glass}").json()["effects"]   # the scene's summary, same rule
+    plain = client.post(f"/scenes/{floor}/illuminance",
+                        json=query([[0.0, 0.0, 0.0]], max_photons=2000, force_effects_off=["polarization"])).json()
+    assert plain["effect_reasons"]["polarization"].startswith("off: no material polarizes")
+
+
+@pytest.mark.parametrize(("extra", "match"), [
+    ({"force_effects_off": ["fresnel"]}, "cannot be forced off"),
+    ({"force_effects_off": ["warp_drive"]}, "known: "),
+    ({"force_effects_off": "polarization"}, "force_effects_off"),
+    ({"force_effects_off": ["polarization", "polarization"]}, "once"),
+    ({"force_effects_off": ["polarization"], "observe": ["stokes"]}, "also forced on"),
+    ({"force_effects_off": ["polarization"], "force_effects": ["polarization"]}, "also forced on"),
+])
+def test_bad_force_effects_off_is_a_422_naming_it(world, extra, match):
+    client, glass, sensor, _ = world
+    for url, body in ((f"/scenes/{glass}/illuminance", query([[0.0, 0.0, 1.0]], max_photons=1000, **extra)),
+                      (f"/scenes/{glass}/illuminance?mode=async", query([[0.0, 0.0, 1.0]], max_photons=1000, **extra)),
+                      (f"/scenes/{glass}/sensors/{sensor}/simulate", {"max_photons": 1000, **extra})):
+        r = client.post(url, json=body)
+        assert r.status_code == 422 and match in r.text and "force_effects_off" in r.text, (url, r.status_code,
+                                                                                            r.text)

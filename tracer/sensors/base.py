@@ -76,6 +76,8 @@ class Readout:
     from numba's cache) a kernel variant used for the first time in this process.
     backend : dict — where the batches ran (`tracer.backends`): {"name": "in-process", "threads": n} or
     {"name": "dask", "address": …, "workers": n, "threads": n}.
+    effect_reasons : dict or None — for every effect (`tracer.effects.EFFECTS`), why it was on or off in this run
+    (`tracer.effects.explain_effects`, as the query forced it).
     """
 
     photons: int
@@ -88,6 +90,7 @@ class Readout:
     counters: dict = field(default_factory=dict)
     compile_seconds: float = 0.0
     backend: dict | None = None
+    effect_reasons: dict | None = None
 
     def readout(self) -> dict[str, Any]:
         """The run's fields, to pass on to the kind's answer (``Answer(..., **raw.readout())``)."""

@@ -154,6 +154,9 @@ BODIES = {  # a minimal valid body of each kind (area: validated without a scene
     "goniometric": {"type": "goniometric", "position": [0, 0, 1], "format": "ies",
                     "data": (FIX / "rab_dled6r8y_7.ies").read_text(encoding="latin-1")},
     "area": {"type": "area", "instances": [0], "exitance_lm_m2": 1.0},
+    # three rays (mm) of fluxes 1, 2, 5 lm, the file's +z turned to −z
+    "rayfile": {"type": "rayfile", "position": [0, 0, 1], "direction": [0, 0, -1],
+                "data": "0 0 0 0 0 1 1\n1 0 0 0.6 0 0.8 2\n# a comment\n0 2 0 0 -3 4 5\n"},
 }
 
 
@@ -170,8 +173,8 @@ def test_every_kind_keeps_the_contract_and_its_id_is_its_position():
             assert module.NAME in module.WHY_NOT_CONNECTABLE
         assert isinstance(module.Spec.from_body(BODIES[module.NAME], "light 0"), module.Spec)
     d = lights_dispatch
-    assert [d.POINT, d.SPOT, d.COLLIMATED, d.GONIOMETRIC, d.AREA] == \
-        [kinds.index(m) for m in (d.point, d.spot, d.collimated, d.goniometric, d.area)]
+    assert [d.POINT, d.SPOT, d.COLLIMATED, d.GONIOMETRIC, d.AREA, d.RAYFILE] == \
+        [kinds.index(m) for m in (d.point, d.spot, d.collimated, d.goniometric, d.area, d.rayfile)]
     s, (panel,) = scene_of(quad((0, 0, 0), (1, 0, 0), (0, 1, 0)))
     bodies = [dict(BODIES[m.NAME], instances=[panel]) if m.NAME == "area" else BODIES[m.NAME] for m in kinds]
     assert list(pack_lights(bodies, s).kind) == list(range(len(kinds)))
@@ -274,6 +277,8 @@ def stated_flux(body, mesh):
     if t == "area":
         s, ids = mesh
         return body["exitance_lm_m2"] * sum(mesh_area(*s.geometry_arrays(s.instance_geometry(i))[:2]) for i in ids)
+    if t == "rayfile":
+        return body.get("flux_lm") or 8.0
     if t == "goniometric":
         table = parse_photometry(body["format"], body["data"])
         nc, ng = 1440, 720
@@ -443,5 +448,21 @@ def _goniometric(body, L, mesh, o, d, f, n, on_surface):
     assert not on_surface.any()
 
 
-WHERE = {"point": _point, "spot": _spot, "collimated": _collimated, "area": _area, "goniometric": _goniometric}
+def _rayfile(body, L, mesh, o, d, f, n, on_surface):
+    """Each photon is one of the file's rays, turned into the light's frame (+z to −z, +x kept: y to −y), drawn in
+    proportion to its flux (1 : 2 : 5)."""
+    assert not on_surface.any() and np.all(f == 1.0)
+    rays = {(0.0, 0.0, 1.0, 0.0, 0.0, -1.0): 1 / 8, (1e-3, 0.0, 1.0, 0.6, 0.0, -0.8): 2 / 8,
+            (0.0, -2e-3, 1.0, 0.0, 0.6, -0.8): 5 / 8}
+    got = np.concatenate([o, d], axis=1)
+    seen = np.zeros(len(o), bool)
+    for ray, p in rays.items():
+        this = np.all(np.abs(got - np.array(ray)) < 1e-12, axis=1)
+        seen |= this
+        assert abs(this.mean() - p) <= K * math.sqrt(p * (1 - p) / len(o)), (ray, this.mean(), p)
+    assert seen.all(), "a photon that is none of the file's rays"
+
+
+WHERE = {"point": _point, "spot": _spot, "collimated": _collimated, "area": _area, "goniometric": _goniometric,
+         "rayfile": _rayfile}
 

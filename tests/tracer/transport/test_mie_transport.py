@@ -39,7 +39,7 @@ def test_a_slab_of_spheres_transmits_exp_minus_n_c_ext_l():
     p = {"radius_um": 0.5, "ior": [1.59, 0.0], "number_per_m3": 1e12}
     scene, slab = _one([-5, -5, -0.1], [5, 5, 0])
     sim = Simulation(scene, {slab: {"type": "dielectric", "ior": 1.0, "particles": p}}, [_beam(0.01)])
-    assert sim.effects == ["lambertian", "fresnel", "spectral", "mie"]
+    assert sim.effects == ["lambertian", "fresnel", "spectral", "mie", "polarization"]   # Mie polarizes (issue 38)
     res = sim.illuminance([[0, 0, -10]], [[0, 0, 1]], radius=0.005, max_photons=200_000, seed=1)
     sigma_ext = mie_table(Particles(0.5, 1.59, 0.0, 1e12), np.ones(471)).sigma_ext[550 - 360]
     expected = 100.0 * math.exp(-sigma_ext * 0.1)

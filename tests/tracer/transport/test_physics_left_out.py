@@ -1,8 +1,9 @@
 """Physics left out, where asked (issue 24; `Simulation.left_out`): the lux an effect that is off would change,
 measured by a pilot with it forced on, against closed forms.
 
-- A lossless glass plate (n = 1.5, 1 cm) at Brewster's angle under unpolarized light. The scene needs no
-  polarization, so the run averages s and p at each interface: 2R / (1 + R) = 0.137740 of the beam reflects
+- A lossless glass plate (n = 1.5, 1 cm) at Brewster's angle under unpolarized light. The scene calls for
+  polarization (two Fresnel interfaces in a row, `tracer.effects`); the query forces it off (`force_effects_off`),
+  so the run averages s and p at each interface: 2R / (1 + R) = 0.137740 of the beam reflects
   (R = Rs / 2). Polarized Fresnel gives Rs / (1 + Rs) = 0.128867 (tests/tracer/optics/test_polarization.py). The
   reported difference must be their difference within 4 combined standard errors, and far from 0.
 - A Lambertian room: polarization changes nothing there, so the difference is 0 within 4σ (the pilot runs forward,
@@ -47,8 +48,10 @@ def plate(beam=0.005):
 def test_polarization_left_out_of_a_thick_plate_at_brewster_is_the_closed_form_difference():
     beam, a = 0.005, 0.3
     sim, pts, nrm = plate(beam)
-    assert "polarization" not in sim.effects
-    res = sim.illuminance(pts, nrm, radius=a, max_photons=400_000, seed=7, physics_left_out=["polarization"])
+    assert "polarization" in sim.effects
+    off = {"force_effects_off": ["polarization"]}
+    res = sim.illuminance(pts, nrm, radius=a, max_photons=400_000, seed=7, physics_left_out=["polarization"], **off)
+    assert "polarization" not in res.effects and res.effect_reasons["polarization"].startswith("off: forced off")
     to_fraction = a ** 2 / (100.0 * beam ** 2)          # lux at the receiver → fraction of the beam reflected
     assert abs(res.lux[0] * to_fraction - AVERAGED) <= 4 * res.stderr[0] * to_fraction
     e = res.physics_left_out["polarization"]
@@ -58,9 +61,10 @@ def test_polarization_left_out_of_a_thick_plate_at_brewster_is_the_closed_form_d
     assert abs(diff - (POLARIZED - AVERAGED)) <= 4 * err, (diff, err, POLARIZED - AVERAGED)
     assert abs(diff) > 4 * err          # the effect is resolved: 7 % of the value, ~10 σ here
     # bit-identical again (the pilot's seed is derived from the query's), and independent of the run's
-    again = sim.illuminance(pts, nrm, radius=a, max_photons=400_000, seed=7, physics_left_out=["polarization"])
+    again = sim.illuminance(pts, nrm, radius=a, max_photons=400_000, seed=7, physics_left_out=["polarization"],
+                            **off)
     assert np.array_equal(again.physics_left_out["polarization"]["difference"], e["difference"])
-    forced = sim.illuminance(pts, nrm, radius=a, max_photons=400_000, seed=7, force_effects=["polarization"])
+    forced = sim.illuminance(pts, nrm, radius=a, max_photons=400_000, seed=7)   # on by default
     assert not np.array_equal(forced.lux, res.lux + e["difference"])
 
 

@@ -13,13 +13,13 @@ import numpy as np
 from tracer.jit import kind_switch, njit
 from tracer.optics import spectra
 from tracer.optics.fields import BodyField
-from tracer.optics.lights import area, collimated, goniometric, point, spot
+from tracer.optics.lights import area, collimated, goniometric, point, rayfile, spot
 from tracer.optics.lights.base import FLUX_W, MAX_FLUX_LM, P_FLUX, LightArrays, LightError, Packing
 from tracer.optics.polarization import PolarizationError, light_polarization
 from tracer.optics.spectra import sample_grid
 
-KINDS = (point, spot, collimated, goniometric, area)
-POINT, SPOT, COLLIMATED, GONIOMETRIC, AREA = 0, 1, 2, 3, 4
+KINDS = (point, spot, collimated, goniometric, area, rayfile)
+POINT, SPOT, COLLIMATED, GONIOMETRIC, AREA, RAYFILE = 0, 1, 2, 3, 4, 5
 KIND_OF_NAME = {module.NAME: k for k, module in enumerate(KINDS)}
 
 

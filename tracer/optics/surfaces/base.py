@@ -57,7 +57,7 @@ from tracer.errors import TracerError
 from tracer.jit import njit
 from tracer.optics import spectra
 
-N_PAR = 6           # parameter row of a surface (a kind's `row` may be shorter: the rest is zero)
+N_PAR = 10          # parameter row of a surface (a kind's `row` may be shorter: the rest is zero)
 N_MPAR = 8          # parameter row of the medium inside a solid
 NONE = -1           # no material: a sensor instance or an id the scene does not hold
 NO_MEDIUM = -1      # the inside of a solid that neither absorbs nor scatters (or no solid at all)

@@ -140,6 +140,16 @@ def medium_phase(spec: Spec) -> np.ndarray | None:
     return None if spec.particles is None else packed(spec.mie())
 
 
+def polarizing(spec: Spec) -> tuple[int, float]:
+    """A solid is entered and left: 2 interfaces, each reflecting pure s at Brewster's angle (diattenuation 1);
+    none where n = 1 everywhere and nothing inside scatters with a Mie matrix (`tracer.effects`)."""
+    if spec.particles is not None:
+        return 2, 1.0
+    if not varies(spec.ior) and scalar(spec.ior) == 1.0 and spec.coating is None:
+        return 0, 0.0
+    return 2, 1.0
+
+
 def effects(spec: Spec) -> tuple[str, ...]:
     out = ["fresnel"]
     if varies(spec.absorption_per_m) or spec.absorption_per_m > 0:

@@ -25,7 +25,7 @@ from tracer.optics import mie, spectra
 from tracer.optics.coating import Coating
 from tracer.optics.elements import diffuser, polarizer, retarder
 from tracer.optics.polarization import depolarize
-from tracer.optics.surfaces import black, dielectric, lambertian, mirror, mix
+from tracer.optics.surfaces import black, dielectric, lambertian, microfacet, mirror, mix
 from tracer.optics.surfaces.base import (
     ABSORBED,
     CONTINUES,
@@ -41,8 +41,8 @@ from tracer.optics.surfaces.base import (
 )
 from tracer.rng import uniform
 
-KINDS = (black, lambertian, mirror, mix, dielectric, diffuser, polarizer, retarder)
-BLACK, LAMBERTIAN, MIRROR, MIX, DIELECTRIC, DIFFUSER, POLARIZER, RETARDER = range(len(KINDS))
+KINDS = (black, lambertian, mirror, mix, dielectric, diffuser, polarizer, retarder, microfacet)
+BLACK, LAMBERTIAN, MIRROR, MIX, DIELECTRIC, DIFFUSER, POLARIZER, RETARDER, MICROFACET = range(len(KINDS))
 KIND_OF = {m.NAME: k for k, m in enumerate(KINDS)}
 _MODULE_OF_SPEC = {m.Spec: m for m in KINDS}
 
@@ -94,6 +94,13 @@ def effects_of(specs) -> set[str]:
     for spec in specs:
         out.update(module_of(spec).effects(spec))
     return out
+
+
+def polarizing_of(spec) -> tuple[int, float]:
+    """How many polarizing interactions a path can meet at one surface of this material, and their largest
+    diattenuation (`tracer.effects.polarization_call`): the kind's ``polarizing(spec)``, (0, 0) where it has none."""
+    m = module_of(spec)
+    return m.polarizing(spec) if hasattr(m, "polarizing") else (0, 0.0)
 
 
 def backward_ok(specs) -> tuple[bool, str]:
@@ -344,6 +351,9 @@ def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, ke
         return polarizer.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol)
     if k == RETARDER:
         return retarder.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol)
+    if k == MICROFACET:
+        return microfacet.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam,
+                                  pol)
     return ABSORBED, dx, dy, dz, 0.0, depth, dim   # black, or an id without material
 
 

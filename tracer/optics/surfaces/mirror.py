@@ -88,6 +88,28 @@ def effects(spec: Spec) -> tuple[str, ...]:
     return ("specular", "spectral") if varies(spec.reflectance) else ("specular",)
 
 
+def polarizing(spec: Spec) -> tuple[int, float]:
+    """A metal reflects s and p apart: one interaction per surface, its largest diattenuation |Rs − Rp| / (Rs + Rp)
+    over the angles of incidence (from air), 1 (a bound) under a coating; a perfect reflector acts alike on s and p
+    (`tracer.effects`)."""
+    if spec.metal is None:
+        return 0, 0.0
+    if spec.coating is not None:
+        return 1, 1.0
+    return 1, metal_diattenuation(*spec.metal)
+
+
+def metal_diattenuation(n: float, k: float) -> float:
+    """max over θ of (Rs − Rp) / (Rs + Rp) for the complex index n − ik seen from air (aluminium: 0.139)."""
+    eps = complex(n, -k) ** 2
+    th = np.linspace(0.0, 0.5 * math.pi, 9001)[:-1]
+    c = np.cos(th)
+    w = np.sqrt(eps - np.sin(th) ** 2)
+    rs = np.abs((c - w) / (c + w)) ** 2
+    rp = np.abs((eps * c - w) / (eps * c + w)) ** 2
+    return float(np.max(np.abs(rs - rp) / np.maximum(rs + rp, 1e-300)))
+
+
 def diffuse_only(spec: Spec) -> bool:
     return False
 
