@@ -27,12 +27,12 @@ from tracer.accel.store import CACHE_MIN_TRIANGLES, Geometry, GeometryStore
 from tracer.accel.tlas import TopLevel, world_boxes
 from tracer.accel.top_levels import TopLevels
 from tracer.accel.traverse import SceneArrays
-from tracer.elements.microstructure import ElementError, Microstructure
+from tracer.elements.scene_elements import SceneElements
 from tracer.elements.table import Reliefs
 from tracer.errors import NotCommittedError, TracerError, UnknownIdError
 from tracer.geometry_id import canonical_arrays, hash_canonical, is_geometry_id
 from tracer.jit import njit
-from tracer.kinds import REGISTRY, SENSOR_KINDS, mesh, relief
+from tracer.kinds import REGISTRY, SENSOR_KINDS, mesh
 
 #: the kinds that have a placement of their own (sensor shapes), by name, for `Scene.add_shape`
 SHAPES = {m.__name__.rsplit(".", 1)[-1]: m for m in REGISTRY.values() if hasattr(m, "placement")}
@@ -135,7 +135,7 @@ def _check_matrix(transform: Any, what: str) -> tuple[np.ndarray, np.ndarray]:
     return m[:3].copy(), ofw
 
 
-class Scene(SceneQueries):
+class Scene(SceneElements, SceneQueries):
     """A two-level ray tracing scene (DESIGN.md, "The tracer's Python API").
 
     Parameters
@@ -298,42 +298,6 @@ class Scene(SceneQueries):
     def is_sensor(self, i: int) -> bool:
         """True when instance ``i`` is a sensor."""
         return int(self._kind[self._instance(i)]) in SENSOR_KINDS
-
-    def set_element(self, i: int, element: Microstructure | None, *, facing: Any = None, faces: Any = None,
-                    face_ids: Any = None, mm_per_unit: float = 1000.0, table: Any = None) -> None:
-        """Put `element` onto the planar support of mesh instance `i` (`tracer.elements.support.select`: the triangles
-        `facing` a direction of its frame, or the B-rep `faces` given each triangle's `face_ids`), or take it off
-        (None). Its instance id, transform and material stay; `mm_per_unit`: millimetres per object unit. With `table`
-        (`tracer.elements.bsdf.tabulate` of the element on the part's material) the element is used through its
-        tabulated BSDF: the plain support, whose hits scatter by the table, instead of its micro-geometry."""
-        i = self._instance(i)
-        if int(self._kind[i]) not in (mesh.KIND, relief.KIND):
-            raise ElementError(f"instance {i} is not a part (a sensor cannot carry an element)")
-        full = self._reliefs.full_of(i, self._blas.ids[int(self._igeom[i])])
-        kind, rest, box = self._reliefs.put(i, element, full, self._geometry(full), self.add_geometry, facing=facing,
-                                            faces=faces, face_ids=face_ids, mm_per_unit=mm_per_unit, table=table)
-        self._kind[i], self._igeom[i], self._obox[i] = kind, self._geometry(rest).index, box
-        self._touch(i, structural=True)
-
-    def element_support(self, i: int) -> dict[str, Any] | None:
-        """What carries instance `i`'s element: ``{"triangles": n, "size_mm": [lu, lv], "normal": [x, y, z]}`` (its
-        support's triangles of the part, its extent along u and v, its outward normal in the part's frame); None
-        where the instance carries none."""
-        row = self._reliefs.rows.get(self._instance(i))
-        if row is None:
-            return None
-        return {"triangles": int(len(row.support_prims)), "size_mm": [row.frame.lu, row.frame.lv],
-                "normal": [float(x) for x in row.frame.n]}
-
-    def element_of(self, i: int) -> tuple[Microstructure, np.ndarray, np.ndarray, np.ndarray] | None:
-        """The element instance `i` carries and where its support lies in the world: ``(model, origin, du, dv)``,
-        a point at ``(u, v)`` mm of the support's frame being ``origin + u du + v dv`` (world units); None where
-        it carries none."""
-        row = self._reliefs.rows.get(self._instance(i))
-        if row is None:
-            return None
-        fr, w = row.frame, self._wfo[i]
-        return (row.element, w[:, :3] @ fr.o + w[:, 3], w[:, :3] @ fr.u / fr.mm, w[:, :3] @ fr.v / fr.mm)
 
     # ---------------------------------------------------------------- shapes (sensors)
     def add_shape(self, kind: str, *placement: Any) -> int:

@@ -94,7 +94,8 @@ def test_point_source_over_black_floor_follows_inverse_square_cosine_law(world) 
                     json=query(pts, radius=0.005, target_relative_error=0.01, max_seconds=20.0))
     assert r.status_code == 200, r.text
     a = r.json()
-    assert set(a) == {"lux", "stderr", "photons", "seconds", "effects", "revision", "estimator", "stop_reason",
+    assert set(a) == {"lux", "stderr", "photons", "seconds", "effects", "effect_reasons", "revision", "estimator",
+                      "stop_reason",
                       "compile_seconds", "cost", "backend", "device", "radius"}
     assert a["radius"] == 0.005   # the receiver the values are means over, as asked
     assert 0.0 <= a["compile_seconds"] <= a["seconds"]

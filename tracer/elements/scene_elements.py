@@ -1,0 +1,68 @@
+"""Elements with an inside on a scene's parts: `SceneElements` is the half of `tracer.Scene` that puts an element
+onto a part's planar support (or takes it off) and says where it lies; the scene's own module keeps the rest of what
+edits it, `tracer.elements.table.Reliefs` the elements' rows.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from tracer.accel.store import Geometry, GeometryStore
+from tracer.elements.microstructure import ElementError, Microstructure
+from tracer.elements.table import Reliefs
+from tracer.kinds import mesh, relief
+
+
+class SceneElements:
+    """Provided by the class using it (`tracer.Scene`): its instance arrays, its element rows and its geometry
+    library."""
+
+    _kind: np.ndarray
+    _igeom: np.ndarray
+    _obox: np.ndarray
+    _wfo: np.ndarray
+    _reliefs: Reliefs
+    _blas: GeometryStore
+    add_geometry: Callable[..., str]
+    _instance: Callable[[Any], int]
+    _geometry: Callable[[str], Geometry]
+    _touch: Callable[[int, bool], None]
+
+    def set_element(self, i: int, element: Microstructure | None, *, facing: Any = None, faces: Any = None,
+                    face_ids: Any = None, mm_per_unit: float = 1000.0, table: Any = None) -> None:
+        """Put `element` onto the planar support of mesh instance `i` (`tracer.elements.support.select`: the triangles
+        `facing` a direction of its frame, or the B-rep `faces` given each triangle's `face_ids`), or take it off
+        (None). Its instance id, transform and material stay; `mm_per_unit`: millimetres per object unit. With `table`
+        (`tracer.elements.bsdf.tabulate` of the element on the part's material) the element is used through its
+        tabulated BSDF: the plain support, whose hits scatter by the table, instead of its micro-geometry."""
+        i = self._instance(i)
+        if int(self._kind[i]) not in (mesh.KIND, relief.KIND):
+            raise ElementError(f"instance {i} is not a part (a sensor cannot carry an element)")
+        full = self._reliefs.full_of(i, self._blas.ids[int(self._igeom[i])])
+        kind, rest, box = self._reliefs.put(i, element, full, self._geometry(full), self.add_geometry, facing=facing,
+                                            faces=faces, face_ids=face_ids, mm_per_unit=mm_per_unit, table=table)
+        self._kind[i], self._igeom[i], self._obox[i] = kind, self._geometry(rest).index, box
+        self._touch(i, True)
+
+    def element_support(self, i: int) -> dict[str, Any] | None:
+        """What carries instance `i`'s element: ``{"triangles": n, "size_mm": [lu, lv], "normal": [x, y, z]}`` (its
+        support's triangles of the part, its extent along u and v, its outward normal in the part's frame); None
+        where the instance carries none."""
+        row = self._reliefs.rows.get(self._instance(i))
+        if row is None:
+            return None
+        return {"triangles": int(len(row.support_prims)), "size_mm": [row.frame.lu, row.frame.lv],
+                "normal": [float(x) for x in row.frame.n]}
+
+    def element_of(self, i: int) -> tuple[Microstructure, np.ndarray, np.ndarray, np.ndarray] | None:
+        """The element instance `i` carries and where its support lies in the world: ``(model, origin, du, dv)``,
+        a point at ``(u, v)`` mm of the support's frame being ``origin + u du + v dv`` (world units); None where
+        it carries none."""
+        row = self._reliefs.rows.get(self._instance(i))
+        if row is None:
+            return None
+        fr, w = row.frame, self._wfo[i]
+        return (row.element, w[:, :3] @ fr.o + w[:, 3], w[:, :3] @ fr.u / fr.mm, w[:, :3] @ fr.v / fr.mm)
