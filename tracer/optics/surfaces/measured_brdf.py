@@ -218,9 +218,9 @@ def surface_block(spec: Spec) -> tuple[int, np.ndarray]:
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def tab(M, k):
-    """Element k of the flattened `M.tables`."""
-    return M.tables[k // GRID_N, k - (k // GRID_N) * GRID_N]
+def tab(M, n):
+    """Element n of the flattened `M.tables`."""
+    return M.tables[n // GRID_N, n - (n // GRID_N) * GRID_N]
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
