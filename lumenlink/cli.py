@@ -237,12 +237,16 @@ def simulate(
     max_seconds: Annotated[float | None, typer.Option(help="Time budget per sensor, s.")] = None,
     max_photons: Annotated[int | None, typer.Option(help="Photon budget per sensor.")] = None,
     seed: Annotated[int, typer.Option(help="Same seed and revision: the same numbers.")] = 0,
+    force_effects_off: Annotated[list[str] | None, typer.Option(
+        "--force-effects-off", help="An effect the physics turned on to leave out (repeatable), e.g. "
+                                    "`polarization`: faster, off by at most what its printed reason says.")] = None,
     server: Server = "http://127.0.0.1:8000",
 ) -> None:
-    """Simulate sensors as jobs with a progress bar; write each one's CSV (cells, lux, stderr) and map."""
+    """Simulate sensors as jobs with a progress bar; write each one's CSV (cells, lux, stderr) and map; print why
+    each effect the scene could call for is on or off."""
     raise typer.Exit(_call("lumenlink.commands", "simulate", 22, scene=scene, server=server, out=out,
                            sensor=sensor, target=target, max_seconds=max_seconds, max_photons=max_photons,
-                           seed=seed) or 0)
+                           seed=seed, force_effects_off=force_effects_off or None) or 0)
 
 
 @app.command()

@@ -97,6 +97,14 @@ def _warn(console: Console, answer: dict[str, Any]) -> None:
         console.print(f"[yellow]warning:[/] {escape(str(w))}")
 
 
+def _reasons(answer: dict[str, Any]) -> None:
+    """Why each effect is on, or off where that was a choice (forced off, or a physics call that could have gone the
+    other way), from the answer's ``effect_reasons``; effects no material calls for are left unsaid."""
+    for name, why in sorted((answer.get("effect_reasons") or {}).items()):
+        if why.startswith("on") or "no material of the scene calls for it" not in why:
+            print(f"  effect {name}: {why}")
+
+
 # ---------------------------------------------------------------- nodes
 
 def nodes(scene: str, server: str, create: bool = False, json_out: bool = False) -> int:
@@ -301,10 +309,12 @@ def _flat(x: Any) -> list[Any]:
 
 
 def simulate(scene: str, server: str, out: Path, sensor: str = "all", target: float | None = None,
-             max_seconds: float | None = None, max_photons: int | None = None, seed: int = 0) -> int:
+             max_seconds: float | None = None, max_photons: int | None = None, seed: int = 0,
+             force_effects_off: list[str] | None = None) -> int:
     """Simulate sensors as jobs (a progress bar per sensor); write <sensor>.csv and, for a grid, <sensor>.png (its map);
     for a camera <sensor>.exr (HDR, cd/m², with its standard error), <sensor>.png (tone-mapped) and
-    <sensor>_map.png."""
+    <sensor>_map.png. `force_effects_off`: effects the query leaves out (the service refuses one it cannot, 422 ->
+    exit 2). Each sensor's line is followed by the reasons its effects are on or off (`_reasons`)."""
     def work(console: Console) -> int:
         out_dir = Path(out)
         if out_dir.exists() and not out_dir.is_dir():
@@ -324,8 +334,8 @@ def simulate(scene: str, server: str, out: Path, sensor: str = "all", target: fl
                     task = progress.add_task(f"sensor {stem}", total=None, state="queued")
                     update = _progress_update(progress, task, target, max_seconds, max_photons)
                     result = ll.simulate(info, s["id"], target=target, max_seconds=max_seconds,
-                                         max_photons=max_photons, seed=seed,
-                                         progress=update)[s["id"]]
+                                         max_photons=max_photons, seed=seed, progress=update,
+                                         force_effects_off=force_effects_off)[s["id"]]
                 csv_path = out_dir / f"{stem}.csv"
                 csv_path.write_text(sensor_csv(result), encoding="utf-8")
                 written = [csv_path]
@@ -338,6 +348,7 @@ def simulate(scene: str, server: str, out: Path, sensor: str = "all", target: fl
                         (out_dir / f"{stem}.png").write_bytes(png)
                         written.append(out_dir / f"{stem}.png")
                 _warn(console, result)
+                _reasons(result)
                 if result.get("type") in ("luminance", "camera"):
                     if result["type"] == "camera":
                         for name, fmt in ((f"{stem}.exr", "exr"), (f"{stem}.png", "png"), (f"{stem}_map.png", "map")):

@@ -144,8 +144,24 @@ class ParticlesWire(_MaterialWire):
 
 Axis = Annotated[tuple[Annotated[float, Strict()], Annotated[float, Strict()], Annotated[float, Strict()]],
                  Field(description="a direction [x, y, z] in the node's frame, in the sheet's plane; not zero")]
+Angles = Annotated[list[float], Field(min_length=1, max_length=1000)]
+
+
+class BrdfTableWire(_MaterialWire):
+    """An isotropic BRDF as a goniophotometer measures it (`tracer.optics.surfaces.measured_brdf`)."""
+
+    theta_i_deg: Angles = Field(description="incidence angles measured, strictly increasing in [0, 90), degrees")
+    theta_o_deg: Angles = Field(description="outgoing polar bin edges, strictly increasing from 0 to 90, degrees")
+    dphi_deg: Angles = Field(description="azimuth-difference bin edges from 0 (towards the source) to 180 "
+                                         "(the specular side), strictly increasing, degrees")
+    brdf: list[list[list[float]]] = Field(description="[n_i][n_o][n_p] BRDF values, sr⁻¹, ≥ 0; each θi row's "
+                                                      "directional albedo at most 1")
+
+
+BrdfTable = BrdfTableWire | Annotated[str, Field(max_length=20_000_000, description=(
+    "the text of a table file (format: `tracer.optics.surfaces.measured_brdf`)"))]
 _OBJECTS: dict[str, Any] = {"coating": CoatingWire, "fluorescence": FluorescenceWire, "metal": Metal, "axis": Axis,
-                            "fast_axis": Axis, "particles": ParticlesWire}
+                            "fast_axis": Axis, "particles": ParticlesWire, "table": BrdfTable}
 
 
 def _number(meta: Mapping) -> Any:

@@ -253,6 +253,9 @@ def test_material_for_an_unknown_uuid(world, unchanged) -> None:
     ({"type": "microfacet", "alpha": 0.1, "alpha_y": 2.0, "reflectance": 0.9}, "alpha_y"),
     ({"type": "microfacet", "alpha": 0.1, "axis": [0, 0, 0], "metal": [0.96, 6.69]}, "axis"),
     ({"type": "microfacet", "alpha": 0.1, "metal": [0.96, -1]}, "metal"),
+    ({"type": "measured_brdf", "table": {"theta_i_deg": [0], "theta_o_deg": [0, 90], "dphi_deg": [0, 180],
+                                         "brdf": [[[0.4]]]}}, "table.brdf' reflects more than it receives"),
+    ({"type": "measured_brdf", "table": "theta_i_deg 0\ntheta_o_deg 0 90\ndphi_deg 0 180\n-1\n"}, "table.brdf"),
 ])
 def test_impossible_materials(world, unchanged, material: dict, field: str) -> None:
     c, sid = world["client"], world["scene"]
@@ -353,3 +356,16 @@ def test_a_rayfile_light_is_a_light_of_the_api(world) -> None:
                                                "data": "0 0 0 0 0 -1 1\n0.5 0 0 0 0.6 -0.8 1\n", "flux_lm": 10})
     assert r.status_code == 201, r.text
     assert c.delete(f"/scenes/{sid}/lights/{r.json()['id']}").status_code in (200, 204)
+
+
+def test_a_measured_brdf_is_a_material_of_the_api(world) -> None:
+    """Issue 38: a measured table (inline or as file text) is assigned through the API as it is."""
+    c, sid = world["client"], world["scene"]
+    table = {"theta_i_deg": [0.0, 60.0], "theta_o_deg": [0.0, 45.0, 90.0], "dphi_deg": [0.0, 180.0],
+             "brdf": [[[0.1], [0.2]], [[0.2], [0.1]]]}
+    for body in ({"type": "measured_brdf", "table": table},
+                 {"type": "measured_brdf", "table": "theta_i_deg 0\ntheta_o_deg 0 90\ndphi_deg 0 180\n0.3\n"}):
+        r = c.put(f"/scenes/{sid}/materials/{uid(2)}", json=body)
+        assert r.status_code == 200, r.text
+        assert r.json()["material"] == body
+    assert "measured_brdf" in c.get("/openapi.json").text

@@ -161,3 +161,40 @@ def test_bad_force_effects_off_is_a_422_naming_it(world, extra, match):
         r = client.post(url, json=body)
         assert r.status_code == 422 and match in r.text and "force_effects_off" in r.text, (url, r.status_code,
                                                                                             r.text)
+
+
+def test_the_client_and_the_cli_pass_force_effects_off_and_show_the_reasons(world, monkeypatch, tmp_path):
+    """Issue 38 through `lumenlink.Client` and `lumenlink simulate`: `force_effects_off` reaches the service, the
+    answer's `effect_reasons` come back (client) and are printed (CLI); a name it cannot force off exits 2."""
+    from typer.testing import CliRunner
+
+    import lumenlink.commands as commands
+    from lumenlink import Client
+    from lumenlink.cli import app
+
+    client, glass, sensor, _ = world
+
+    def on_app(server: str = "") -> Client:
+        return Client("http://testserver", transport=client._transport)
+
+    with on_app() as ll:
+        a = ll.illuminance(glass, [REFLECTED], [[-c for c in REFLECTED]], max_photons=2000,
+                           force_effects_off=["polarization"])
+        assert "polarization" not in a["effects"]
+        assert a["effect_reasons"]["polarization"].startswith("off: forced off by the query")
+        [res] = ll.simulate(glass, sensor, max_photons=2000, force_effects_off=["polarization"]).values()
+        assert res["effect_reasons"]["polarization"].startswith("off: forced off by the query")
+        [res] = ll.simulate(glass, sensor, max_photons=2000).values()
+        assert res["effect_reasons"]["polarization"].startswith("on: a path can meet")
+    monkeypatch.setattr(commands, "Client", on_app)
+    runner = CliRunner()
+    r = runner.invoke(app, ["simulate", "--scene", glass, "--sensor", sensor, "--out", str(tmp_path / "a"),
+                            "--max-photons", "2000", "--force-effects-off", "polarization"])
+    assert r.exit_code == 0, r.output
+    assert "effect polarization: off: forced off by the query" in r.output
+    r = runner.invoke(app, ["simulate", "--scene", glass, "--sensor", sensor, "--out", str(tmp_path / "b"),
+                            "--max-photons", "2000"])
+    assert r.exit_code == 0 and "effect polarization: on: a path can meet" in r.output, r.output
+    r = runner.invoke(app, ["simulate", "--scene", glass, "--sensor", sensor, "--out", str(tmp_path / "c"),
+                            "--max-photons", "2000", "--force-effects-off", "fresnel"])
+    assert r.exit_code == 2 and "force_effects_off" in r.output, r.output

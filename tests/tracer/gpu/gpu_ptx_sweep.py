@@ -32,7 +32,7 @@ MODULES = [
     "tracer.optics.thinfilm", "tracer.optics.coating", "tracer.optics.mie",
     "tracer.optics.surfaces.base", "tracer.optics.surfaces.black", "tracer.optics.surfaces.lambertian",
     "tracer.optics.surfaces.mirror", "tracer.optics.surfaces.dielectric", "tracer.optics.surfaces.mix",
-    "tracer.optics.surfaces.dispatch",
+    "tracer.optics.surfaces.measured_brdf", "tracer.optics.surfaces.dispatch",
     "tracer.optics.elements.base", "tracer.optics.elements.diffuser", "tracer.optics.elements.polarizer",
     "tracer.optics.elements.retarder",
     "tracer.optics.media.homogeneous", "tracer.optics.media.fluorescence", "tracer.optics.media.dispatch",

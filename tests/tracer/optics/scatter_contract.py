@@ -22,6 +22,7 @@ from tracer.optics.elements.base import parse_axis
 from tracer.optics.polarization import N_POL, ON, S1, S3, E
 from tracer.optics.surfaces import dispatch
 from tracer.optics.surfaces.base import ABSORBED, CONTINUES, STACK_FULL, MaterialError, spec_from_body
+from tracer.optics.surfaces.measured_brdf import parse_table
 from tracer.optics.surfaces.mirror import parse_metal
 from tracer.rng import path_key
 
@@ -32,7 +33,9 @@ NG = np.array([0.0, 0.0, 1.0])   # the quad's geometric normal (front side)
 
 # A sample value for a required (or optional) field validated by a parse function, keyed by that function: a new
 # kind with a field parsed by a new function fails `specs_of` until it is given one here.
-PARSE_SAMPLES = {parse_axis: [0.6, 0.8, 0.0], parse_metal: [0.96, 6.69]}   # an axis; aluminium's n − ik at 550 nm
+PARSE_SAMPLES = {parse_axis: [0.6, 0.8, 0.0], parse_metal: [0.96, 6.69],   # an axis; aluminium's n − ik at 550 nm
+                 parse_table: {"theta_i_deg": [0, 40, 80], "theta_o_deg": [0, 30, 60, 90], "dphi_deg": [0, 90, 180],
+                               "brdf": [[[0.2, 0.1]] * 3, [[0.1, 0.2]] * 3, [[0.0, 0.3]] * 3]}}   # a measured BRDF
 FRACTIONS = (0.15, 0.4, 1.0)   # where in a number field's range its sample values lie (1.0: its top, a white furnace)
 
 

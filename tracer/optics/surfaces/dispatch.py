@@ -25,7 +25,7 @@ from tracer.optics import mie, spectra
 from tracer.optics.coating import Coating
 from tracer.optics.elements import diffuser, polarizer, retarder
 from tracer.optics.polarization import depolarize
-from tracer.optics.surfaces import black, dielectric, lambertian, microfacet, mirror, mix
+from tracer.optics.surfaces import black, dielectric, lambertian, measured_brdf, microfacet, mirror, mix
 from tracer.optics.surfaces.base import (
     ABSORBED,
     CONTINUES,
@@ -41,8 +41,8 @@ from tracer.optics.surfaces.base import (
 )
 from tracer.rng import uniform
 
-KINDS = (black, lambertian, mirror, mix, dielectric, diffuser, polarizer, retarder, microfacet)
-BLACK, LAMBERTIAN, MIRROR, MIX, DIELECTRIC, DIFFUSER, POLARIZER, RETARDER, MICROFACET = range(len(KINDS))
+KINDS = (black, lambertian, mirror, mix, dielectric, diffuser, polarizer, retarder, microfacet, measured_brdf)
+BLACK, LAMBERTIAN, MIRROR, MIX, DIELECTRIC, DIFFUSER, POLARIZER, RETARDER, MICROFACET, MEASURED_BRDF = range(len(KINDS))
 KIND_OF = {m.NAME: k for k, m in enumerate(KINDS)}
 _MODULE_OF_SPEC = {m.Spec: m for m in KINDS}
 
@@ -160,6 +160,7 @@ class _Tables:
 
     def __init__(self):
         self.rows: dict[bytes, int] = {}
+        self.values: list[np.ndarray] = []
         self.layers: list[tuple[float, float]] = []
         self.phase: list[np.ndarray] = []
 
@@ -174,12 +175,24 @@ class _Tables:
 
     def add(self, values: np.ndarray) -> int:
         key = values.tobytes()
-        return self.rows.setdefault(key, len(self.rows))
+        if key not in self.rows:
+            self.rows[key] = len(self.values)
+            self.values.append(np.asarray(values, np.float64))
+        return self.rows[key]
+
+    def add_block(self, flat: np.ndarray) -> int:
+        """Append a kind's flat data (a measured table) as whole rows, contiguous and not shared; the first row."""
+        first = len(self.values)
+        n = -(-len(flat) // spectra.GRID_N)
+        padded = np.zeros(n * spectra.GRID_N)
+        padded[:len(flat)] = flat
+        self.values.extend(padded.reshape(n, spectra.GRID_N))
+        return first
 
     def array(self) -> np.ndarray:
-        if not self.rows:
+        if not self.values:
             return np.zeros((1, spectra.GRID_N))
-        return np.stack([np.frombuffer(k) for k in self.rows])
+        return np.stack(self.values)
 
     def layer_array(self) -> np.ndarray:
         return np.array(self.layers, np.float64).reshape(-1, 2) if self.layers else np.zeros((1, 2))
@@ -204,6 +217,9 @@ def _rows(spec, tables: _Tables):
             coat[:] = len(tables.layers), len(v.layers)
             tables.layers.extend(v.layers)
     mpar[MIE_ROW] = -1.0
+    if hasattr(m, "surface_block"):   # a kind's own flat data (a measured table), rows of `tables` from par[col]
+        col, flat = m.surface_block(spec)
+        par[col] = tables.add_block(flat)
     if hasattr(m, "medium_tables"):   # tables only the kind knows how to build (an emission spectrum's cdf)
         for col, values in m.medium_tables(spec).items():
             mtab[col] = tables.add(values)
@@ -354,6 +370,9 @@ def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, ke
     if k == MICROFACET:
         return microfacet.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam,
                                   pol)
+    if k == MEASURED_BRDF:
+        return measured_brdf.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam,
+                                     pol)
     return ABSORBED, dx, dy, dz, 0.0, depth, dim   # black, or an id without material
 
 
