@@ -251,3 +251,10 @@ def test_no_estimate_unless_asked_or_without_curved_surfaces():
     r = diffuse.illuminance([[0, 0, 0.6]], [[0, 0, -1.0]], max_photons=20_000, estimator="forward",
                             tessellation_estimate=True)
     assert r.error_budget is None
+
+
+def test_a_grid_gets_the_estimate_per_cell():
+    sim, _ = focus_dish(0.01, 0.5)
+    g = sim.grid([-0.2, -0.2, 3.0], [0.4, 0, 0], [0, -0.4, 0], 3, 2, max_photons=20_000, tessellation_estimate=True)
+    for key in ("tessellation", "tessellation_estimate", "tessellation_estimate_stderr"):
+        assert g.error_budget[key].shape == (2, 3) and np.all(g.error_budget[key] >= 0)
