@@ -135,7 +135,7 @@ class Simulation:
         if backend is not None and not is_backend(backend):
             raise SimulationError(f"backend must be a tracer.backends backend, got {type(backend).__name__}")
         self.backend = IN_PROCESS if backend is None else backend
-        self._inputs = (dict(materials), list(lights), default_material)   # what `refined` rebuilds from
+        self._inputs = (materials, lights, default_material)   # what `refined` rebuilds from (validated below)
         self._refined: Simulation | None = None
         self._shipments: dict[str, Shipment] = {}   # the snapshot each kernel reads, per photon state
         self.scene = scene
