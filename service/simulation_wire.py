@@ -127,6 +127,12 @@ class ErrorBudget(BaseModel):
 
     tessellation: list[Any] = Field(description="How far each value may move when the curved mirror and glass "
                                                 "surfaces are tessellated finely enough (a bound), lx.")
+    tessellation_estimate: list[Any] | None = Field(
+        None, description="An estimate (not a bound) of the tessellation's error, lx: 2·|E − E_refined|, the same "
+                          "query rerun on the curved meshes split 1→4 (`tracer.transport.tessellation_error."
+                          "ESTIMATE_METHOD`); present where the query asked for it (Python API).")
+    tessellation_estimate_stderr: list[Any] | None = Field(
+        None, description="The Monte Carlo standard error of `tessellation_estimate`, lx.")
 
 
 class PhysicsLeftOut(BaseModel):

@@ -86,7 +86,7 @@ from tracer.transport.rounds import (
     forward,
     radiance,
 )
-from tracer.transport.tessellation_error import grid_cells, lux_budget, scene_surfaces
+from tracer.transport.tessellation_error import RICHARDSON, grid_cells, lux_budget, refine, scene_surfaces
 
 __all__ = ["BACKWARD_BATCH", "DEFAULT_MAX_SECONDS", "DEFAULT_RADIUS", "ESTIMATORS", "FORWARD_BATCH", "LIT_FRACTION",
            "MAX_ROUND_BATCHES", "MAX_ROUND_BYTES", "MAX_SPECTRAL_TALLIES", "MIN_BATCHES", "OBSERVABLES",
@@ -135,6 +135,8 @@ class Simulation:
         if backend is not None and not is_backend(backend):
             raise SimulationError(f"backend must be a tracer.backends backend, got {type(backend).__name__}")
         self.backend = IN_PROCESS if backend is None else backend
+        self._inputs = (materials, lights, default_material)   # what `refined` rebuilds from (validated below)
+        self._refined: Simulation | None = None
         self._shipments: dict[str, Shipment] = {}   # the snapshot each kernel reads, per photon state
         self.scene = scene
         self.arrays = scene.arrays()   # the committed scene, read-only from here on
@@ -186,7 +188,7 @@ class Simulation:
 
     def run(self, sensor: dict, target_relative_error=None, max_seconds=None, max_photons=None, seed=0,
             estimator="auto", force_effects=(), progress=None, cancel=None, observe=(), reference=None,
-            physics_left_out=(), target_scope="worst", force_effects_off=()) -> Any:
+            physics_left_out=(), target_scope="worst", force_effects_off=(), tessellation_estimate=False) -> Any:
         """Measure one sensor: a body ``{"type": kind, ...}`` of a registered kind (`tracer.sensors.dispatch.KINDS`);
         its answer (the kind's result: `IlluminanceResult`, `GridResult`, `SurfaceResult`, `FarFieldResult`).
 
@@ -208,12 +210,17 @@ class Simulation:
             world x, or world y where x is within 25° of the receiver's normal.
         physics_left_out : effect names (`tracer.effects.EFFECTS`) whose share of the answer to measure: the result's
             `physics_left_out` (`left_out`).
+        tessellation_estimate : bool — where the scene has curved mirror or glass meshes, also run the query on
+            those meshes refined 1→4 (`refined`; the same stop rules and seed, so up to twice the time) and add
+            ``tessellation_estimate`` and ``tessellation_estimate_stderr`` (lx per value) to the result's
+            `error_budget`: 4/3·|E − E_refined|, an estimate of the tessellation's error, not a bound
+            (`tracer.transport.tessellation_error.ESTIMATE_METHOD`).
         """
         return sensors.run(self, sensor, target=target_relative_error, max_seconds=max_seconds,
                            max_photons=max_photons, seed=seed, estimator=estimator, force_effects=force_effects,
                            progress=progress, cancel=cancel, observe=observe, reference=reference,
                            physics_left_out=physics_left_out, target_scope=target_scope,
-                           force_effects_off=force_effects_off)
+                           force_effects_off=force_effects_off, tessellation_estimate=tessellation_estimate)
 
     def illuminance(self, points, normals, radius=None, **query) -> IlluminanceResult:
         """Illuminance (lx) on the front side of a disk receiver at each point ((k, 3) m; normals any non-zero
@@ -243,7 +250,8 @@ class Simulation:
 
     def measure(self, probe_of, body: dict, target=None, max_seconds=None, max_photons=None, seed=0,
                 estimator="auto", force_effects=(), progress=None, cancel=None, observe=(), reference=None,
-                physics_left_out=(), target_scope="worst", force_effects_off=()) -> tuple[Probe, IlluminanceResult]:
+                physics_left_out=(), target_scope="worst", force_effects_off=(),
+                tessellation_estimate=False) -> tuple[Probe, IlluminanceResult]:
         """A sensor's receivers (`probe_of(self, body)`) and the raw bins measured on them, with what each effect in
         `physics_left_out` would change (`left_out`): what `tracer.sensors.dispatch.run` shapes into an answer."""
         left_out = _left_out_names(physics_left_out)
@@ -256,7 +264,40 @@ class Simulation:
                 probe, target, max_seconds, max_photons, s, est, force, None, cancel, (), target_scope=target_scope,
                 force_effects_off=tuple(e for e in off if e not in force)),
                 force_effects, observe, seed, estimator, off)
+        if tessellation_estimate and res.error_budget and res.stop_reason != "cancelled":
+            fine = self.refined()._run(probe, target, max_seconds, max_photons, seed, estimator, force_effects, None,
+                                       cancel, observe, reference, target_scope=target_scope,
+                                       force_effects_off=force_effects_off)
+            res.error_budget["tessellation_estimate"] = RICHARDSON * np.abs(res.lux - fine.lux)
+            res.error_budget["tessellation_estimate_stderr"] = RICHARDSON * np.hypot(res.stderr, fine.stderr)
         return probe, res
+
+    def refined(self) -> Simulation:
+        """The same simulation with every curved mirror or glass mesh (`scene_surfaces`) split 1→4 along the
+        curve its vertex normals describe (`tracer.transport.tessellation_error.refine`); built once. An instance
+        that carries an element keeps its mesh."""
+        if self._refined is None:
+            import copy
+
+            materials, lights, default = self._inputs
+            scene = copy.deepcopy(self.scene)
+            materials = dict(materials)
+            done: dict[str, str] = {}
+            for s in self._curved:
+                i = s.instance
+                if i < 0 or scene.element_of(i) is not None:
+                    continue
+                gid = scene.instance_geometry(i)
+                if gid not in done:
+                    v, t, n = scene.geometry_arrays(gid)
+                    done[gid] = scene.add_geometry(*refine(v, t, n))
+                j = scene.add_instance(done[gid], scene.instance_transform(i))
+                scene.remove_instance(i)
+                if i in materials:
+                    materials[j] = materials.pop(i)
+            scene.commit()
+            self._refined = Simulation(scene, materials, lights, default, self.backend)
+        return self._refined
 
     # ------------------------------------------------------------------------------------------ physics left out
 
