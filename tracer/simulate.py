@@ -254,88 +254,23 @@ class Simulation:
                 tessellation_estimate=False) -> tuple[Probe, IlluminanceResult]:
         """A sensor's receivers (`probe_of(self, body)`) and the raw bins measured on them, with what each effect in
         `physics_left_out` would change (`left_out`): what `tracer.sensors.dispatch.run` shapes into an answer."""
-        left_out = _left_out_names(physics_left_out)
+        left_out_names = _left_out_names(physics_left_out)
         probe = probe_of(self, body)
         res = self._run(probe, target, max_seconds, max_photons, seed, estimator, force_effects, progress, cancel,
                         observe, reference, target_scope=target_scope, force_effects_off=force_effects_off)
-        if left_out:
+        if left_out_names:
             off = tuple(force_effects_off or ())
-            res.physics_left_out = self.left_out(left_out, res, lambda force, s, est: self._run(
+            res.physics_left_out = left_out(self, left_out_names, res, lambda force, s, est: self._run(
                 probe, target, max_seconds, max_photons, s, est, force, None, cancel, (), target_scope=target_scope,
                 force_effects_off=tuple(e for e in off if e not in force)),
                 force_effects, observe, seed, estimator, off)
         if tessellation_estimate and res.error_budget and res.stop_reason != "cancelled":
-            fine = self.refined()._run(probe, target, max_seconds, max_photons, seed, estimator, force_effects, None,
+            fine = refined(self)._run(probe, target, max_seconds, max_photons, seed, estimator, force_effects, None,
                                        cancel, observe, reference, target_scope=target_scope,
                                        force_effects_off=force_effects_off)
             res.error_budget["tessellation_estimate"] = RICHARDSON * np.abs(res.lux - fine.lux)
             res.error_budget["tessellation_estimate_stderr"] = RICHARDSON * np.hypot(res.stderr, fine.stderr)
         return probe, res
-
-    def refined(self) -> Simulation:
-        """The same simulation with every curved mirror or glass mesh (`scene_surfaces`) split 1→4 along the
-        curve its vertex normals describe (`tracer.transport.tessellation_error.refine`); built once. An instance
-        that carries an element keeps its mesh."""
-        if self._refined is None:
-            import copy
-
-            materials, lights, default = self._inputs
-            scene = copy.deepcopy(self.scene)
-            materials = dict(materials)
-            done: dict[str, str] = {}
-            for s in self._curved:
-                i = s.instance
-                if i < 0 or scene.element_of(i) is not None:
-                    continue
-                gid = scene.instance_geometry(i)
-                if gid not in done:
-                    v, t, n = scene.geometry_arrays(gid)
-                    done[gid] = scene.add_geometry(*refine(v, t, n))
-                j = scene.add_instance(done[gid], scene.instance_transform(i))
-                scene.remove_instance(i)
-                if i in materials:
-                    materials[j] = materials.pop(i)
-            scene.commit()
-            self._refined = Simulation(scene, materials, lights, default, self.backend)
-        return self._refined
-
-    # ------------------------------------------------------------------------------------------ physics left out
-
-    def left_out(self, names: tuple[str, ...], res: IlluminanceResult, rerun, force_effects, observe, seed: int,
-                 estimator: str, off: tuple[str, ...] = ()) -> dict:
-        """What each effect in `names` would change (DESIGN.md, "Accuracy is a quantity"): per effect ``{"difference":
-        lux with it forced on − res.lux, "stderr": √(σ_run² + σ_pilot²), "photons", "seconds", "estimator" of the
-        pilot, "ran"}``.
-
-        The pilot (`rerun(force_effects, seed, estimator)`) is the same query with the effect forced on, under the
-        query's own stop rules (its target error, photon and time budget: the difference's error is then about √2
-        times the run's own, and the answer takes up to 1 + len(names) times as long) and an independent seed
-        (`_pilot_seed`: the two estimates are independent, so their variances add). An effect that leaves the photon
-        state the same (`tracer.effects.photon_state`) changes nothing that runs: it is already on, or a branch on data
-        that acts wherever the scene's materials call for it (Fresnel wherever there is a dielectric); its difference
-        is exactly 0 ± 0 and no pilot runs (``"ran": false``). What a pilot can change today is therefore the light's
-        state: polarization (polarized Fresnel instead of the s/p average) and a wavelength per photon (spectral and
-        the effects that need it). An effect the query forced off (`force_effects_off`) is measured the same way: the
-        pilot turns it back on. A cancelled run runs no pilot (``{}``).
-        """
-        if res.stop_reason == "cancelled":
-            return {}
-        spectrum, stokes = _observe(observe)
-        asked = (*(force_effects or ()), *(("spectral",) if spectrum else ()), *(("polarization",) if stokes else ()))
-        base = with_forced(self.effects, asked, off)
-        pilot_estimator = "forward" if estimator == "forward" else "auto"
-        out = {}
-        for k, name in enumerate(names):
-            if photon_state(with_forced(base, name)) == photon_state(base):
-                zero = np.zeros_like(res.lux)
-                out[name] = {"difference": zero, "stderr": zero.copy(), "photons": 0, "seconds": 0.0,
-                             "estimator": None, "ran": False}
-                continue
-            pilot = rerun((*asked, name), _pilot_seed(seed, k), pilot_estimator)
-            out[name] = {"difference": pilot.lux - res.lux, "stderr": np.hypot(pilot.stderr, res.stderr),
-                         "photons": int(pilot.photons), "seconds": float(pilot.seconds),
-                         "estimator": pilot.estimator, "ran": True}
-        return out
 
     # ------------------------------------------------------------------------------------------ engine
 
@@ -467,3 +402,70 @@ def _is_sensor(scene, i: int) -> bool:
     except Exception:
         return True
     return False
+
+
+# ------------------------------------------------------------------------------------------ physics left out
+def left_out(sim: Simulation, names: tuple[str, ...], res: IlluminanceResult, rerun, force_effects, observe,
+             seed: int, estimator: str, off: tuple[str, ...] = ()) -> dict:
+    """What each effect in `names` would change (DESIGN.md, "Accuracy is a quantity"): per effect ``{"difference":
+    lux with it forced on − res.lux, "stderr": √(σ_run² + σ_pilot²), "photons", "seconds", "estimator" of the
+    pilot, "ran"}``.
+
+    The pilot (`rerun(force_effects, seed, estimator)`) is the same query with the effect forced on, under the
+    query's own stop rules (its target error, photon and time budget: the difference's error is then about √2
+    times the run's own, and the answer takes up to 1 + len(names) times as long) and an independent seed
+    (`_pilot_seed`: the two estimates are independent, so their variances add). An effect that leaves the photon
+    state the same (`tracer.effects.photon_state`) changes nothing that runs: it is already on, or a branch on data
+    that acts wherever the scene's materials call for it (Fresnel wherever there is a dielectric); its difference
+    is exactly 0 ± 0 and no pilot runs (``"ran": false``). What a pilot can change today is therefore the light's
+    state: polarization (polarized Fresnel instead of the s/p average) and a wavelength per photon (spectral and
+    the effects that need it). An effect the query forced off (`force_effects_off`) is measured the same way: the
+    pilot turns it back on. A cancelled run runs no pilot (``{}``).
+    """
+    if res.stop_reason == "cancelled":
+        return {}
+    spectrum, stokes = _observe(observe)
+    asked = (*(force_effects or ()), *(("spectral",) if spectrum else ()), *(("polarization",) if stokes else ()))
+    base = with_forced(sim.effects, asked, off)
+    pilot_estimator = "forward" if estimator == "forward" else "auto"
+    out = {}
+    for k, name in enumerate(names):
+        if photon_state(with_forced(base, name)) == photon_state(base):
+            zero = np.zeros_like(res.lux)
+            out[name] = {"difference": zero, "stderr": zero.copy(), "photons": 0, "seconds": 0.0,
+                         "estimator": None, "ran": False}
+            continue
+        pilot = rerun((*asked, name), _pilot_seed(seed, k), pilot_estimator)
+        out[name] = {"difference": pilot.lux - res.lux, "stderr": np.hypot(pilot.stderr, res.stderr),
+                     "photons": int(pilot.photons), "seconds": float(pilot.seconds),
+                     "estimator": pilot.estimator, "ran": True}
+    return out
+
+
+# ------------------------------------------------------------------------------------------ tessellation
+def refined(sim: Simulation) -> Simulation:
+    """The same simulation with every curved mirror or glass mesh (`scene_surfaces`) split 1→4 along the
+    curve its vertex normals describe (`tracer.transport.tessellation_error.refine`); built once. An instance
+    that carries an element keeps its mesh."""
+    if sim._refined is None:
+        import copy
+
+        materials, lights, default = sim._inputs
+        scene = copy.deepcopy(sim.scene)
+        materials = dict(materials)
+        done: dict[str, str] = {}
+        for s in sim._curved:
+            i = s.instance
+            if i < 0 or scene.element_of(i) is not None:
+                continue
+            gid = scene.instance_geometry(i)
+            if gid not in done:
+                v, t, n = scene.geometry_arrays(gid)
+                done[gid] = scene.add_geometry(*refine(v, t, n))
+            j = scene.add_instance(done[gid], scene.instance_transform(i))
+            scene.remove_instance(i)
+            if i in materials:
+                materials[j] = materials.pop(i)
+        scene.commit()
+        sim._refined = Simulation(scene, materials, lights, default, sim.backend)
+    return sim._refined
