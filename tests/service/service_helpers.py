@@ -100,3 +100,21 @@ def raw_glb(positions: np.ndarray, indices: np.ndarray) -> bytes:
     total = 12 + 8 + len(text) + 8 + len(binary)
     return (struct.pack("<4sII", b"glTF", 2, total) + struct.pack("<II", len(text), 0x4E4F534A) + text
             + struct.pack("<II", len(binary), 0x004E4942) + binary)
+
+
+def lit_floor(client: Any, side: float, reflectance: float, light: dict) -> str:
+    """A scene of one Lambertian floor of `reflectance`, `side` × `side` m centred on the origin in z = 0 (node
+    ``uid(1)``), under `light` (a light body); its id."""
+    sid = client.post("/scenes", json={"name": "floor"}).json()["id"]
+    v, f = grid_mesh(n=4, size=side)
+    gid, data = glb(v, f)
+    assert client.put(f"/geometries/{gid}", content=data, headers={"content-type": "model/gltf-binary"}
+                      ).status_code in (200, 201)
+    doc = {"base_revision": 0, "length_unit": "m",
+           "nodes": [node(uid(0), None, "room"), node(uid(1), uid(0), "floor", translation(-side / 2, -side / 2), gid)]}
+    assert client.put(f"/scenes/{sid}/document", json=doc).status_code == 200
+    assert client.put(f"/scenes/{sid}/materials/{uid(1)}", json={"type": "lambertian", "reflectance": reflectance}
+                      ).status_code in (200, 201)
+    assert client.post(f"/scenes/{sid}/lights", json=light).status_code == 201
+    return sid
+

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from service_helpers import glb, grid_mesh, make_client, node, translation, uid
+from service_helpers import glb, lit_floor, make_client, node, uid
 
 from tracer.photometry.glare import guth_position_index, ugr, uniformity
 
@@ -57,16 +57,7 @@ def _put(client: Any, v: np.ndarray, f: np.ndarray) -> str:
 
 @pytest.fixture(scope="module")
 def floor(client: Any) -> str:
-    sid = client.post("/scenes", json={"name": "floor"}).json()["id"]
-    gid = _put(client, *grid_mesh(n=4, size=SIDE))
-    doc = {"base_revision": 0, "length_unit": "m",
-           "nodes": [node(uid(0), None, "room"), node(uid(1), uid(0), "floor", translation(-SIDE / 2, -SIDE / 2), gid)]}
-    assert client.put(f"/scenes/{sid}/document", json=doc).status_code == 200
-    assert client.put(f"/scenes/{sid}/materials/{uid(1)}", json={"type": "lambertian", "reflectance": RHO}
-                      ).status_code in (200, 201)
-    assert client.post(f"/scenes/{sid}/lights", json={"type": "point", "position": LIGHT.tolist(),
-                                                      "intensity_cd": I_CD}).status_code == 201
-    return sid
+    return lit_floor(client, SIDE, RHO, {"type": "point", "position": LIGHT.tolist(), "intensity_cd": I_CD})
 
 
 def floor_luminance(x: np.ndarray) -> np.ndarray:

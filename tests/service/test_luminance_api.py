@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from service_helpers import glb, grid_mesh, make_client, node, translation, uid
+from service_helpers import lit_floor, make_client
 
 from service.images import read_exr, write_exr
 
@@ -33,19 +33,7 @@ def client(tmp_path_factory: Any) -> Any:
 @pytest.fixture(scope="module")
 def sid(client: Any) -> str:
     """A 4 m Lambertian floor (ρ = 0.6) centred under a 100 cd point 1.5 m up; nothing else."""
-    sid = client.post("/scenes", json={"name": "floor"}).json()["id"]
-    v, f = grid_mesh(n=4, size=SIDE)
-    gid, data = glb(v, f)
-    assert client.put(f"/geometries/{gid}", content=data, headers={"content-type": "model/gltf-binary"}
-                      ).status_code in (200, 201)
-    doc = {"base_revision": 0, "length_unit": "m",
-           "nodes": [node(uid(0), None, "room"), node(uid(1), uid(0), "floor", translation(-SIDE / 2, -SIDE / 2), gid)]}
-    assert client.put(f"/scenes/{sid}/document", json=doc).status_code == 200
-    assert client.put(f"/scenes/{sid}/materials/{uid(1)}", json={"type": "lambertian", "reflectance": RHO}
-                      ).status_code in (200, 201)
-    assert client.post(f"/scenes/{sid}/lights", json={"type": "point", "position": LIGHT.tolist(),
-                                                      "intensity_cd": I_CD}).status_code == 201
-    return sid
+    return lit_floor(client, SIDE, RHO, {"type": "point", "position": LIGHT.tolist(), "intensity_cd": I_CD})
 
 
 def floor_luminance(x: np.ndarray) -> np.ndarray:

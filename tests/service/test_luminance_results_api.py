@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from service_helpers import glb, grid_mesh, make_client, node, translation, uid
+from service_helpers import lit_floor, make_client
 
 from service.images import read_exr
 
@@ -27,17 +27,7 @@ PNG = b"\x89PNG\r\n\x1a\n"
 
 
 def _scene(client: Any) -> tuple[str, str, str]:
-    sid = client.post("/scenes", json={"name": "floor"}).json()["id"]
-    v, f = grid_mesh(n=4, size=SIDE)
-    gid, data = glb(v, f)
-    assert client.put(f"/geometries/{gid}", content=data, headers={"content-type": "model/gltf-binary"}
-                      ).status_code in (200, 201)
-    doc = {"base_revision": 0, "length_unit": "m",
-           "nodes": [node(uid(0), None, "room"), node(uid(1), uid(0), "floor", translation(-SIDE / 2, -SIDE / 2), gid)]}
-    assert client.put(f"/scenes/{sid}/document", json=doc).status_code == 200
-    assert client.put(f"/scenes/{sid}/materials/{uid(1)}", json={"type": "lambertian", "reflectance": 0.6}
-                      ).status_code in (200, 201)
-    assert client.post(f"/scenes/{sid}/lights", json=LIGHT).status_code == 201
+    sid = lit_floor(client, SIDE, 0.6, LIGHT)
     cam = client.post(f"/scenes/{sid}/sensors", json=CAMERA).json()["id"]
     meter = client.post(f"/scenes/{sid}/sensors", json=METER).json()["id"]
     return sid, cam, meter
