@@ -40,16 +40,20 @@ maximum from the Fresnel formulas of n − ik (aluminium [0.96, 6.69]: 0.139 at 
 by 1; particles in a medium 2 (Mie scattering polarizes, bounded by 1). Lambertian, perfect mirrors and
 Henyey–Greenstein media add nothing (they depolarize or act alike on s and p). With each surface counted once per
 instance that carries it, the bound is the product of the two largest diattenuations, and polarization is on where
-it exceeds `POLARIZATION_FLOOR` (0.2 %, the tightest relative error an answer's cost is quoted for). Geometry is not
-looked at: the bound is what the materials allow, the cheap and conservative reading of "could exceed". A single
-curved metal reflector that a path meets twice is the one case it misses (one instance: one interaction); a query
-may force polarization on, and `physics_left_out` measures it.
+it exceeds `POLARIZATION_FLOOR` (0.2 %, the tightest relative error an answer's cost is quoted for). Geometry is
+looked at once, where it can add a passage: a reflector that is neither planar nor a closed convex solid (a curved
+dish, a V groove, a faceted reflector in one mesh) can send a path back onto itself, so its one instance counts as
+two interactions (`surface_shape`, `met_twice`); a plane cannot, nor a convex body lit from outside. The rest is
+what the materials allow, the cheap and conservative reading of "could exceed"; a query may force polarization on,
+and `physics_left_out` measures the difference.
 """
 
 from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Iterable, Mapping
+
+import numpy as np
 
 from tracer.errors import TracerError
 from tracer.optics.surfaces.dispatch import effects_of, material_spec, module_of, polarizing_of
@@ -84,13 +88,82 @@ def derive_effects(materials: Iterable, lights: Iterable[dict] = (), counts: Map
     return explain_effects(materials, lights, counts)[0]
 
 
-def explain_effects(materials: Iterable, lights: Iterable[dict] = (),
-                    counts: Mapping | None = None) -> tuple[list[str], dict[str, str]]:
+def surface_shape(vertices, triangles, rel_tol: float = 1e-6) -> str:
+    """What a mesh's shape allows a light path: ``"planar"`` (its vertices (n, 3) lie in one plane), ``"convex"``
+    (its triangles (m, 3) close one convex solid: every edge shared by two triangles, one connected piece, and at
+    every edge each triangle's far corner behind the other's plane, within `rel_tol` of the mesh's size; a closed
+    connected surface convex at every edge bounds a convex body), or ``"other"``. Light leaving a plane never comes
+    back to it, nor light leaving a convex body from outside; a dish, a groove, a faceted reflector in one mesh or an
+    open curved sheet can send a path back onto itself (`met_twice`)."""
+    v = np.asarray(vertices, np.float64).reshape(-1, 3)
+    t = np.asarray(triangles, np.int64).reshape(-1, 3)
+    if len(v) < 4:
+        return "planar"
+    spread = np.linalg.svd(np.cov(v, rowvar=False), compute_uv=False)   # variances along the principal axes
+    size = float(np.sqrt(spread[0])) or 1.0
+    if np.sqrt(spread[-1]) <= 1e-3 * rel_tol * size:
+        return "planar"
+    rows = np.ascontiguousarray(v).view(np.dtype((np.void, 24))).ravel()
+    points, welded = np.unique(rows, return_inverse=True)   # faces meshed apart share their edges' points
+    v, t = points.view(np.float64).reshape(-1, 3), welded.reshape(-1)[t]
+    a, b = t.reshape(-1), t[:, [1, 2, 0]].reshape(-1)               # half-edge 3k + j: corner j to j + 1
+    far = t[:, [2, 0, 1]].reshape(-1)                               # the triangle's corner across that edge
+    key = np.minimum(a, b) * np.int64(len(v)) + np.maximum(a, b)
+    order = np.argsort(key, kind="stable")
+    if len(t) < 4 or len(order) % 2 or np.any(key[order[0::2]] != key[order[1::2]]) \
+            or np.any(key[order[2::2]] == key[order[1:-1:2]]):
+        return "other"                                                   # open, or not a manifold
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    if connected_components(coo_matrix((np.ones(len(a)), (a, b)), shape=(len(v), len(v))), directed=False)[0] != 1:
+        return "other"                                                   # bodies apart can light one another
+    normal = np.cross(v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]])
+    normal /= np.maximum(np.linalg.norm(normal, axis=1), 1e-300)[:, None]
+    h1, h2 = order[0::2], order[1::2]                                # the two half-edges of each edge
+    ahead = np.concatenate([np.einsum("ij,ij->i", normal[h1 // 3], v[far[h2]] - v[a[h1]]),
+                            np.einsum("ij,ij->i", normal[h2 // 3], v[far[h1]] - v[a[h2]])])
+    tol = rel_tol * size
+    return "convex" if np.all(ahead <= tol) or np.all(ahead >= -tol) else "other"   # either winding
+
+
+def met_twice(scene, spec_of: Mapping, counts: Mapping, lights: Iterable[dict] = ()) -> set:
+    """The specs (of `spec_of`: {instance id: spec or None} of a committed `tracer.Scene`) that polarize on one
+    surface per passage, are carried by one surface only (`counts`), and that one path may meet twice: its mesh is
+    neither planar nor convex (`surface_shape`), or convex with a light inside its box (`lights`: bodies, a
+    ``position`` or ``origin`` point, or emitting ``instances``), as in a closed metal box lit from within. Only
+    those specs are looked at, so a scene of many instances pays for a handful of meshes."""
+    lights = list(lights)
+    points = [np.asarray(b[k], np.float64) for b in lights for k in ("position", "origin") if k in b]
+    emitters = [int(j) for b in lights for j in b.get("instances", ())]
+    out = set()
+    for i, spec in spec_of.items():
+        if spec is None or spec in out or int(counts.get(spec, 1)) > 1 or polarizing_of(spec)[0] != 1:
+            continue
+        gid = scene.instance_geometry(i)
+        if gid not in _SHAPES:   # a geometry id names its content: the answer holds for good
+            if len(_SHAPES) >= 4096:
+                _SHAPES.clear()
+            _SHAPES[gid] = surface_shape(*scene.geometry_arrays(gid)[:2])
+        lo, hi = scene.instance_bounds(i)
+        lit_inside = any(np.all(p >= lo) and np.all(p <= hi) for p in points) or any(
+            np.all(scene.instance_bounds(j)[0] <= hi) and np.all(scene.instance_bounds(j)[1] >= lo) for j in emitters)
+        if _SHAPES[gid] == "other" or (_SHAPES[gid] == "convex" and lit_inside):
+            out.add(spec)
+    return out
+
+
+_SHAPES: dict[str, str] = {}   # `surface_shape` per geometry id (3 s for a 1.3M-triangle mesh, 5 ms for 5k)
+
+
+def explain_effects(materials: Iterable, lights: Iterable[dict] = (), counts: Mapping | None = None,
+                    twice: Iterable = ()) -> tuple[list[str], dict[str, str]]:
     """The effect set of a scene and, for every effect in `EFFECTS`, why it is on or off (a sentence that starts
     with ``"on: "`` or ``"off: "``).
 
     materials : bodies or specs, one per surface that carries it (an instance, or a node), or distinct ones with
         `counts` {spec: surfaces that carry it} beside (missing: 1 each).
+    twice : specs carried by a surface that one path may meet twice (`met_twice`): its one interaction counts
+        twice in `polarization_call`.
     """
     specs = [material_spec(m) for m in materials]
     if counts is None:
@@ -121,7 +194,7 @@ def explain_effects(materials: Iterable, lights: Iterable[dict] = (),
         what += [f"polarized light(s) {polarized_lights}"] if polarized_lights else []
         reasons["polarization"] = f"on: required by {' and '.join(what)} (cannot be forced off)"
     else:
-        call, why = polarization_call(specs, counts)
+        call, why = polarization_call(specs, counts, twice)
         if call:
             on.add("polarization")
         reasons["polarization"] = ("on: " if call else "off: ") + why
@@ -132,19 +205,25 @@ def _kinds(names: list[str]) -> str:
     return ", ".join(f"a {n!r} material" for n in names)
 
 
-def polarization_call(specs: Iterable, counts: Mapping | None = None) -> tuple[bool, str]:
+def polarization_call(specs: Iterable, counts: Mapping | None = None, twice: Iterable = ()) -> tuple[bool, str]:
     """Whether the scene's materials call for polarization by physics (the module docstring), and why: the two
     largest diattenuations a path can meet in a row, their product (the bound on the relative error of leaving
-    polarization out) against `POLARIZATION_FLOOR`."""
+    polarization out) against `POLARIZATION_FLOOR`. `twice`: specs on a surface one path may meet twice."""
     specs = list(specs)
     counts = Counter(specs) if counts is None else counts
+    twice = set(twice)
     found: list[tuple[float, str]] = []
+    again: list[str] = []   # kinds counted twice: their one surface can be met twice
     for spec in dict.fromkeys(specs):
         per, d = polarizing_of(spec)
         if per <= 0 or d <= 0.0:
             continue
         n = per * max(int(counts.get(spec, 1)), 1)
-        found += [(float(d), module_of(spec).NAME)] * min(n, 2)
+        name = module_of(spec).NAME
+        if spec in twice and n < 2:
+            n = 2
+            again.append(name)
+        found += [(float(d), name)] * min(n, 2)
     found.sort(key=lambda x: -x[0])
     if not found:
         return False, ("no material polarizes (diffuse, perfect mirrors and Henyey-Greenstein media act alike on s "
@@ -153,8 +232,10 @@ def polarization_call(specs: Iterable, counts: Mapping | None = None) -> tuple[b
         return False, (f"a path meets at most one polarizing interaction (one {found[0][1]!r} surface, largest "
                        f"diattenuation {found[0][0]:.3g}): one interface alone gives unpolarized light its right power")
     bound = found[0][0] * found[1][0]
+    twice_why = "".join(f"; a {n!r} surface can be met twice: it is not a plane nor a convex body lit from outside"
+                        for n in again)
     pair = f"a {found[0][1]!r} then a {found[1][1]!r} interaction (diattenuations up to {found[0][0]:.3g} and " \
-           f"{found[1][0]:.3g})"
+           f"{found[1][0]:.3g}{twice_why})"
     if bound > POLARIZATION_FLOOR:
         return True, (f"a path can meet {pair}: leaving polarization out could move the answer by up to "
                       f"{100 * bound:.3g} %, above the {100 * POLARIZATION_FLOOR:g} % any answer resolves "

@@ -52,6 +52,7 @@ from tracer.effects import (
     EffectError,
     check_off,
     explain_effects,
+    met_twice,
     photon_state,
     query_reasons,
     with_forced,
@@ -158,7 +159,8 @@ class Simulation:
         self._specs = list(dict.fromkeys(m for m in (mats.get(i, default_spec) for i in geometry_ids) if m is not None))
         counts = Counter(m for m in (mats.get(i, default_spec) for i in geometry_ids) if m is not None)
         # the one rule, as the service's summary: the effect set, and why each effect is on or off
-        self.effects, self.effect_reasons = explain_effects(self._specs, lights, counts)
+        twice = met_twice(scene, {i: mats.get(i, default_spec) for i in geometry_ids}, counts, lights)
+        self.effects, self.effect_reasons = explain_effects(self._specs, lights, counts, twice)
         self._curved = scene_surfaces(scene, {i: mats.get(i, default_spec) for i in geometry_ids}, geometry_ids)
 
     # ------------------------------------------------------------------------------------------ helpers

@@ -20,7 +20,7 @@ import math
 import numpy as np
 import pytest
 
-from tracer.effects import POLARIZATION_FLOOR, explain_effects, polarization_call
+from tracer.effects import POLARIZATION_FLOOR, explain_effects, polarization_call, surface_shape
 from tracer.optics.surfaces.dispatch import material_spec
 from tracer.optics.surfaces.mirror import metal_diattenuation
 from tracer.scene import Scene
@@ -147,3 +147,70 @@ def test_required_polarization_cannot_be_forced_off_and_bad_fields_name_themselv
                              [{"type": "point", "position": [0, 0, 1], "intensity_cd": 1.0,
                                "polarization": {"type": "circular", "handedness": "right"}}])
     assert why["polarization"].startswith("on: required by polarized light(s) [0]")
+
+
+# ------------------------------------------------------------------ geometry: one reflector met twice
+
+BREWSTER_METAL = {"type": "mirror", "metal": [N, 0.0]}   # reflects as glass does, transmits nothing: Rp = 0 at atan n
+
+
+def test_a_surface_is_met_once_only_where_it_is_a_plane_or_one_convex_solid():
+    ring = np.linspace(0.0, 2.0 * math.pi, 33)[:-1]
+    dish_v = np.array([[0.0, 0.0, 0.0]] + [[math.cos(a), math.sin(a), 0.5] for a in ring])   # a cone: concave inside
+    dish_t = np.array([[0, 1 + k, 1 + (k + 1) % 32] for k in range(32)])
+    cone_v = np.vstack([dish_v, [[0.0, 0.0, 0.5]]])                                          # closed with a lid
+    cone_t = np.vstack([dish_t, [[33, 1 + (k + 1) % 32, 1 + k] for k in range(32)]])
+    v, t = box([0, 0, 0], [1, 1, 0.01])
+    v2, t2 = box([0, 0, 0.5], [1, 0.1, 1])
+    assert surface_shape(v, t) == "convex"                                      # a thin plate
+    assert surface_shape(v[:4] * [1, 1, 0], [[0, 1, 2], [0, 2, 3]]) == "planar"
+    assert surface_shape(cone_v, cone_t) == surface_shape(cone_v, cone_t[:, ::-1]) == "convex"   # either winding
+    split = cone_v[cone_t].reshape(-1, 3)                                       # each triangle its own corners
+    assert surface_shape(split, np.arange(len(split)).reshape(-1, 3)) == "convex"
+    assert surface_shape(dish_v, dish_t) == "other"                             # an open dish
+    assert surface_shape(np.vstack([v, v2]), np.vstack([t, t2 + len(v)])) == "other"   # two bodies in one mesh
+    dented = cone_v.copy()
+    dented[33, 2] = 0.2                                                         # the lid pushed in
+    assert surface_shape(dented, cone_t) == "other"
+
+
+def metal_periscope():
+    """The Brewster periscope of `brewster(True)` made of one mesh (both plates, a metal of index 1.5 − 0i, which
+    reflects as the glass does and absorbs what glass would pass): one instance, one material, so the materials
+    alone allow one interaction; the geometry, two plates that light one another, allows two."""
+    s = Scene()
+    v1, t1 = box([-5, -5, -0.01], [5, 5, 0])
+    d = np.array([math.sin(THETA), 0.0, -math.cos(THETA)])
+    r = d * np.array([1.0, 1.0, -1.0])
+    n2 = -math.cos(THETA) * r + math.sin(THETA) * np.array([0.0, 1.0, 0.0])
+    f = _frame(n2)
+    f[:3, 3] = r
+    v2, t2 = box([-0.25, -0.25, -0.01], [0.25, 0.25, 0])
+    v2 = v2 @ f[:3, :3].T + f[:3, 3]
+    both = s.add_instance(s.add_geometry(np.vstack([v1, v2]), np.vstack([t1, t2 + len(v1)])), np.eye(4))
+    s.commit()
+    out = r - 2 * float(r @ n2) * n2
+    light = {"type": "collimated", "origin": list(-d), "direction": list(d), "radius": BEAM, "illuminance_lx": 100.0}
+    return Simulation(s, {both: BREWSTER_METAL}, [light]), [list(r + out)], [list(-out)]
+
+
+def test_one_metal_mesh_that_lights_itself_is_polarized_by_default():
+    sim, pts, nrm = metal_periscope()
+    assert "polarization" in sim.effects, sim.effect_reasons
+    assert "'mirror' surface can be met twice" in sim.effect_reasons["polarization"]
+    res = sim.illuminance(pts, nrm, radius=RECEIVER, max_photons=150_000, seed=5)
+    assert abs(res.lux[0]) <= 4 * res.stderr[0], (res.lux, res.stderr)
+    off = sim.illuminance(pts, nrm, radius=RECEIVER, max_photons=150_000, seed=5, force_effects_off=["polarization"])
+    f, e = off.lux[0] * TO_FRACTION, off.stderr[0] * TO_FRACTION
+    assert abs(f - (RS / 2) ** 2) <= 4 * e and f > 10 * e, (f, e, (RS / 2) ** 2)
+
+
+def test_a_convex_metal_body_counts_once_lit_from_outside_and_twice_lit_from_within():
+    s = Scene()
+    plate = s.add_instance(s.add_geometry(*box([-5, -5, -0.01], [5, 5, 2])), np.eye(4))
+    s.commit()
+    outside = Simulation(s, {plate: BREWSTER_METAL}, [{"type": "point", "position": [0, 0, 3], "intensity_cd": 1.0}])
+    assert "polarization" not in outside.effects
+    assert "at most one polarizing interaction" in outside.effect_reasons["polarization"]
+    inside = Simulation(s, {plate: BREWSTER_METAL}, [{"type": "point", "position": [0, 0, 1], "intensity_cd": 1.0}])
+    assert "polarization" in inside.effects, inside.effect_reasons
