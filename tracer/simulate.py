@@ -168,12 +168,12 @@ class Simulation:
     def backward_applies(self, effects: list[str] | None = None) -> tuple[bool, str]:
         """Whether the backward estimator can answer for this scene (and effect set), and if not why."""
         effects = self.effects if effects is None else effects
+        ok, why = backward_ok(self._specs)   # first: it names the material kind
+        if not ok:
+            return False, why
         if set(effects) - {"lambertian"}:
             return False, (f"the scene needs {sorted(set(effects) - {'lambertian'})}: point-like sources cannot be "
                            f"reached through specular or refractive surfaces by shadow rays")
-        ok, why = backward_ok(self._specs)
-        if not ok:
-            return False, why
         return connectable(self._lights)
 
     def _choose(self, estimator: str, effects: list[str], grid: bool) -> str:

@@ -102,10 +102,10 @@ def raw_glb(positions: np.ndarray, indices: np.ndarray) -> bytes:
             + struct.pack("<II", len(binary), 0x004E4942) + binary)
 
 
-def lit_floor(client: Any, side: float, reflectance: float, light: dict) -> str:
-    """A scene of one Lambertian floor of `reflectance`, `side` × `side` m centred on the origin in z = 0 (node
-    ``uid(1)``), under `light` (a light body); its id."""
-    sid = client.post("/scenes", json={"name": "floor"}).json()["id"]
+def lit_floor(client: Any, side: float, reflectance: float, light: dict, name: str = "floor") -> str:
+    """A scene `name` of one Lambertian floor of `reflectance`, `side` × `side` m centred on the origin in z = 0
+    (node ``uid(1)``), under `light` (a light body); its id."""
+    sid = client.post("/scenes", json={"name": name}).json()["id"]
     v, f = grid_mesh(n=4, size=side)
     gid, data = glb(v, f)
     assert client.put(f"/geometries/{gid}", content=data, headers={"content-type": "model/gltf-binary"}
