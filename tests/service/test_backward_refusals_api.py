@@ -13,6 +13,8 @@ from typing import Any
 import pytest
 from service_helpers import lit_floor, make_client, uid
 
+from tracer.sensors.points import DEFAULT_RADIUS
+
 POINT = {"type": "point", "position": [0.0, 0.0, 1.0], "intensity_cd": 100.0}
 RAYS = {"type": "rayfile", "position": [0.0, 0.0, 1.0], "units": "mm", "direction": [0.0, 0.0, -1.0],
         "data": "# x y z l m n flux\n0 0 0 0 0 1 0.5\n0.1 0 0 0.6 0 0.8 0.5\n"}
@@ -54,4 +56,8 @@ def test_the_lambertian_control_answers_backward(client: Any) -> None:
     assert r.status_code == 200, r.text
     out = r.json()
     assert out["estimator"] == "backward"
-    assert abs(out["lux"][0] - 100.0) <= 4 * out["stderr"][0] + 1e-9, out   # I / h² straight below the point light
+    # the receiver is a disk of radius a (the default) straight below the point light (I = 100 cd, h = 1 m): the mean
+    # of I h / (h² + r²)^(3/2) over it is 2 I h (1/h − 1/√(h² + a²)) / a²
+    a, h = DEFAULT_RADIUS, 1.0
+    exact = 2 * 100.0 * h * (1 / h - 1 / math.hypot(h, a)) / a ** 2
+    assert abs(out["lux"][0] - exact) <= 4 * out["stderr"][0] + 1e-9 * exact, (out, exact)
