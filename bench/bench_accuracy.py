@@ -504,7 +504,7 @@ def markdown(res: dict) -> str:
                   if t.get("estimate_informs") else "misses issue 42's aim where marked ✗ (between the error and 10× "
                   "it, or within 5 % of the value of it)")
                + ": the same query on the mesh split 1→4 two or three times (`tracer.transport.tessellation_error."
-               "refine`: new vertices on a cubic fitted to the positions and normals around each edge), "
+               "refine`: new vertices on a quartic fitted to the positions and normals around each edge), "
                "extrapolated with the observed convergence ratio r ≤ ½ and Roache's factor 1.25; its seconds are "
                "those it added to the query (the refinements and 2–3 more runs)."]
     md += ["", "### (c) Physics left out: lux difference and time with and without each effect", "",
