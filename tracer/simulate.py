@@ -266,6 +266,9 @@ class Simulation:
         """A sensor's receivers (`probe_of(self, body)`) and the raw bins measured on them, with what each effect in
         `physics_left_out` would change (`left_out`): what `tracer.sensors.dispatch.run` shapes into an answer."""
         left_out_names = _left_out_names(physics_left_out)
+        if tessellation_estimate and self._curved and curved_triangles(self) * 4 ** MIN_LEVELS > MAX_TRIANGLES:
+            raise SimulationError(f"tessellation_estimate: the curved meshes have {curved_triangles(self):,} "
+                                  f"triangles; {MIN_LEVELS} splits would make more than {MAX_TRIANGLES:,}")
         probe = probe_of(self, body)
         res = self._run(probe, target, max_seconds, max_photons, seed, estimator, force_effects, progress, cancel,
                         observe, reference, target_scope=target_scope, force_effects_off=force_effects_off)

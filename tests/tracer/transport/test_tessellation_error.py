@@ -318,3 +318,16 @@ def test_a_grid_gets_the_estimate_per_cell():
     g = sim.grid([-0.2, -0.2, 3.0], [0.4, 0, 0], [0, -0.4, 0], 3, 2, max_photons=20_000, tessellation_estimate=True)
     for key in ("tessellation", "tessellation_estimate", "tessellation_estimate_stderr"):
         assert g.error_budget[key].shape == (2, 3) and np.all(g.error_budget[key] >= 0)
+
+
+def test_an_estimate_too_large_to_refine_is_refused_before_anything_runs(monkeypatch):
+    """Two splits multiply the triangles by 16: past `MAX_TRIANGLES` the query is refused (a ValueError naming the
+    option), not run out of memory."""
+    import tracer.simulate as simulate
+    from tracer.simulate import SimulationError
+
+    sim, n = focus_dish(0.01, 0.5)
+    monkeypatch.setattr(simulate, "MAX_TRIANGLES", 16 * n - 1)
+    with pytest.raises(SimulationError, match="tessellation_estimate") as info:
+        sim.illuminance([[0, 0, 3.0]], [[0, 0, -1.0]], max_photons=1000, tessellation_estimate=True)
+    assert isinstance(info.value, ValueError)
