@@ -89,8 +89,9 @@ sequence E_0, E_1, E_2 (, E_3) to the limit of the splits.
   of both ends' `RING` nearest neighbours, with the fit's normal: off by O(h⁵) in position and O(h⁴) in normal,
   far below the O(h²) of what it replaces. A quartic, not a cubic: on the bench's 16 mm mesh (194 triangles) the
   new vertices' mean normal error is 0.13 mrad against 0.37 for a cubic (max 0.43 against 2.1), their mean
-  distance from the surface 1 µm against 37 µm. Measured on the coarse dish (572 triangles): the mean normal error of the interpolated normal
-  falls 0.75 → 0.18 → 0.044 mrad (4.1×, 4.2×) and the largest distance from the surface 2.5 → 0.64 → 0.16 mm
+  distance from the surface 1 µm against 37 µm. Measured on the coarse dish (572 triangles): the mean error of
+  the interpolated normal falls 0.75 → 0.18 → 0.044 mrad (4.1×, 4.2×) and the largest distance from the surface
+  2.5 → 0.64 → 0.16 mm
   (tests/tracer/transport/test_tessellation_error.py). Where the fit lacks points (fewer than `FIT_MIN_POINTS` with
   a normal) or answers implausibly, the PN midpoint stands in.
 - The observed order. The values converge like the geometry only once the blur the facets make is small next to
@@ -112,12 +113,14 @@ sequence E_0, E_1, E_2 (, E_3) to the limit of the splits.
 
 It is an estimate, not a bound. Measured (issue 42's aim: between the true error and 10× it, or within 5 % of the
 value of it): on the coarse dish with a point source at its focus (572 triangles, 7 receivers 3 m up, truth a
-6,360-triangle mesh) it meets the aim at every point, and on that fine mesh it is under 5 % of the value
-(tests/tracer/transport/test_tessellation_error.py); at the bench's focus disk (0.5 mm, collimated beam) it is 1.25×
-to 1.61× the error at all nine tolerances, 16 mm to 0.0625 mm, errors 97 % down to 0.003 % (bench/bench_accuracy.py
-section (b), bench/results/REPORT.md), where the earlier one-split difference gave 0.059×. Cost there: 2.5 s (3
-splits of 194 triangles) to 21 s (2 splits of 44,583: building and tracing 0.7 million triangles) beside a
-1 s query.
+6,360-triangle mesh, 2M photons) it meets the aim at every point: 1.22× to 1.43× the error at the six points where
+that exceeds 3σ (4 % to 10 % of the value; the bound there 6,400× to 20,000×), 0.7× at the seventh where the
+error is 0.4σ; on that fine mesh it is at most 2.0 % of the value (tests/tracer/transport/test_tessellation_error.py;
+cost 4.0 s with 3 splits beside a 0.8 s query, 5.3 s with 2 splits of the fine mesh); at the bench's focus disk
+(0.5 mm, collimated beam) it is 1.25× to 1.61× the error at all nine tolerances, 16 mm to 0.0625 mm, errors 97 %
+down to 0.003 % (bench/bench_accuracy.py section (b), bench/results/REPORT.md), where the earlier one-split
+difference gave 0.059×. Cost there: 2.5 s (3 splits of 194 triangles) to 21 s (2 splits of 44,583: building and
+tracing 0.7 million triangles) beside a 1 s query.
 """
 
 from __future__ import annotations
