@@ -330,7 +330,7 @@ class Client(ServiceClient):
                  max_seconds: float | None = None, max_photons: int | None = None, seed: int = 0,
                  progress: Callable[[dict[str, Any], dict[str, Any]], None] | None = None,
                  poll: float = 0.25, force_effects_off: Sequence[str] | None = None,
-                 **extra: Any) -> dict[str, dict[str, Any]]:
+                 tessellation_estimate: bool = False, **extra: Any) -> dict[str, dict[str, Any]]:
         """Simulate one sensor (by id or name) or ``"all"``, each as an async job followed to its end.
 
         `target` is the relative error to stop at (``target_relative_error``), `max_seconds` and `max_photons`
@@ -338,10 +338,15 @@ class Client(ServiceClient):
         (``job["progress"]``: photons, worst_relative_error, seconds, seconds_left). Answers ``{sensor id: the
         sensor's result}`` (``SensorPublic``: lux, stderr, photons, seconds, stop_reason, grid geometry…,
         ``effect_reasons``: why each effect is on or off). `force_effects_off`: effects the physics turned on that the
-        query leaves out (e.g. ``["polarization"]``). Interrupted (Ctrl-C), the running job is cancelled on the
+        query leaves out (e.g. ``["polarization"]``). `tessellation_estimate`: where the scene has curved mirror or
+        glass meshes, also estimate their tessellation's error (``error_budget.tessellation_estimate``, lx, beside
+        the bound ``error_budget.tessellation``; 3 to 4 times the query's time, stated in
+        ``error_budget.tessellation_estimate_seconds``). Interrupted (Ctrl-C), the running job is cancelled on the
         service."""
         sid = self._sid(scene)
         query: dict[str, Any] = {"seed": seed, **extra}
+        if tessellation_estimate:
+            query["tessellation_estimate"] = True
         if force_effects_off:
             query["force_effects_off"] = list(force_effects_off)
         for key, value in (("target_relative_error", target), ("max_seconds", max_seconds),
@@ -526,14 +531,19 @@ class Client(ServiceClient):
 
     def illuminance(self, scene: str | dict, points: Any, normals: Any, *, radius: float | None = None,
                     target: float | None = None, max_seconds: float | None = None, max_photons: int | None = None,
-                    seed: int = 0, force_effects_off: Sequence[str] | None = None, **extra: Any) -> dict[str, Any]:
+                    seed: int = 0, force_effects_off: Sequence[str] | None = None, tessellation_estimate: bool = False,
+                    **extra: Any) -> dict[str, Any]:
         """Illuminance (lx) ± standard error at `points` ([[x, y, z], …], metres) on receivers facing `normals`
         (one per point). Answers the service's ``{lux, stderr, photons, seconds, effects, effect_reasons, revision,
-        …}``; `force_effects_off` leaves out effects the physics turned on (e.g. ``["polarization"]``)."""
+        …}``; `force_effects_off` leaves out effects the physics turned on (e.g. ``["polarization"]``);
+        `tessellation_estimate` adds ``error_budget.tessellation_estimate`` where the scene has curved mirror or
+        glass meshes (see `simulate`)."""
         pts, nrm = triples(points, "points"), triples(normals, "normals")
         if len(pts) != len(nrm):
             raise LumenLinkError(f"give one normal per point: {len(pts)} points, {len(nrm)} normals", usage=True)
         body: dict[str, Any] = {"points": pts, "normals": nrm, "seed": seed, **extra}
+        if tessellation_estimate:
+            body["tessellation_estimate"] = True
         if force_effects_off:
             body["force_effects_off"] = list(force_effects_off)
         for key, value in (("radius", radius), ("target_relative_error", target), ("max_seconds", max_seconds),

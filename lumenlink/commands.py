@@ -308,13 +308,37 @@ def _flat(x: Any) -> list[Any]:
     return [z for y in x for z in _flat(y)] if isinstance(x, list) else [x]
 
 
+def _tessellation(result: dict[str, Any]) -> None:
+    """The answer's tessellation error, where it has one: the bound and, where asked, the estimate with its cost
+    (largest over the values, and at the brightest value), lx."""
+    budget = result.get("error_budget") or {}
+    if not budget.get("tessellation"):
+        return
+    lux = [float(x) for x in _flat(result.get("lux") or [])]
+    bound = [float(x) for x in _flat(budget["tessellation"])]
+    k = max(range(len(lux)), key=lambda i: lux[i]) if lux else 0
+    line = f"  tessellation: bound <= {max(bound):.4g} lx"
+    if budget.get("tessellation_estimate") is not None:
+        est = [float(x) for x in _flat(budget["tessellation_estimate"])]
+        se = [float(x) for x in _flat(budget["tessellation_estimate_stderr"])]
+        j = max(range(len(est)), key=lambda i: est[i])
+        line += (f"; estimate {est[j]:.4g} +- {se[j]:.2g} lx at most, {est[k]:.4g} lx at the brightest value "
+                 f"({lux[k]:.4g} lx) [{budget.get('tessellation_estimate_levels')} refinements, "
+                 f"{float(budget.get('tessellation_estimate_seconds') or 0):.2f} s]")
+    else:
+        line += " (a bound; --tessellation-estimate estimates the error itself)"
+    print(line)
+
+
 def simulate(scene: str, server: str, out: Path, sensor: str = "all", target: float | None = None,
              max_seconds: float | None = None, max_photons: int | None = None, seed: int = 0,
-             force_effects_off: list[str] | None = None) -> int:
+             force_effects_off: list[str] | None = None, tessellation_estimate: bool = False) -> int:
     """Simulate sensors as jobs (a progress bar per sensor); write <sensor>.csv and, for a grid, <sensor>.png (its map);
     for a camera <sensor>.exr (HDR, cd/m², with its standard error), <sensor>.png (tone-mapped) and
     <sensor>_map.png. `force_effects_off`: effects the query leaves out (the service refuses one it cannot, 422 ->
-    exit 2). Each sensor's line is followed by the reasons its effects are on or off (`_reasons`)."""
+    exit 2). Each sensor's line is followed by the reasons its effects are on or off (`_reasons`) and, where the
+    scene has curved mirror or glass meshes, the tessellation's error (`_tessellation`; `tessellation_estimate`
+    asks for the estimate beside the bound)."""
     def work(console: Console) -> int:
         out_dir = Path(out)
         if out_dir.exists() and not out_dir.is_dir():
@@ -335,7 +359,8 @@ def simulate(scene: str, server: str, out: Path, sensor: str = "all", target: fl
                     update = _progress_update(progress, task, target, max_seconds, max_photons)
                     result = ll.simulate(info, s["id"], target=target, max_seconds=max_seconds,
                                          max_photons=max_photons, seed=seed, progress=update,
-                                         force_effects_off=force_effects_off)[s["id"]]
+                                         force_effects_off=force_effects_off,
+                                         tessellation_estimate=tessellation_estimate)[s["id"]]
                 csv_path = out_dir / f"{stem}.csv"
                 csv_path.write_text(sensor_csv(result), encoding="utf-8")
                 written = [csv_path]
@@ -373,6 +398,7 @@ def simulate(scene: str, server: str, out: Path, sensor: str = "all", target: fl
                       f"max {result['max_lux']:.4g}; {result['photons']:,} photons in {result['seconds']:.2f} s "
                       f"({result['stop_reason']}), revision {result['revision']} -> "
                       + ", ".join(str(p) for p in written))
+                _tessellation(result)
         return EXIT_OK
     return _run(work)
 

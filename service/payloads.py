@@ -16,6 +16,13 @@ def finite_list(a: Any) -> list:
     return arr.tolist()
 
 
+def _budget_entry(v: Any) -> Any:
+    """An `error_budget` entry: lx per value, or a cost (the estimate's seconds, its levels)."""
+    if np.ndim(v):
+        return finite_list(v)
+    return int(v) if isinstance(v, int | np.integer) else float(v)
+
+
 def result_payload(result: Any, revision: int) -> dict[str, Any]:
     """An `IlluminanceResult` or `GridResult` as the JSON the routes answer with."""
     return {
@@ -32,7 +39,7 @@ def result_payload(result: Any, revision: int) -> dict[str, Any]:
         "cost": getattr(result, "cost", None),
         "backend": getattr(result, "backend", None),
         "device": device_name(getattr(result, "backend", None)),
-        **({"error_budget": {name: finite_list(v) for name, v in result.error_budget.items()}}
+        **({"error_budget": {name: _budget_entry(v) for name, v in result.error_budget.items()}}
            if getattr(result, "error_budget", None) else {}),
         **({"physics_left_out": {name: {**e, "difference": finite_list(e["difference"]),
                                         "stderr": finite_list(e["stderr"])}

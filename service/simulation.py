@@ -324,7 +324,8 @@ class SimulationHub:
                    budget: Budget, seed: int, estimator: str, force_effects: tuple[str, ...],
                    progress: Callable | None = None, cancel: Callable | None = None,
                    observe: tuple[str, ...] = (), reference: tuple | None = None,
-                   physics_left_out: tuple[str, ...] = (), force_effects_off: tuple[str, ...] = ()) -> dict[str, Any]:
+                   physics_left_out: tuple[str, ...] = (), force_effects_off: tuple[str, ...] = (),
+                   tessellation_estimate: bool = False) -> dict[str, Any]:
         """Illuminance at points; the JSON answer of ``POST /scenes/{id}/illuminance``."""
         with _refusals():
             result = prepared.simulation.illuminance(
@@ -333,14 +334,15 @@ class SimulationHub:
                 seed=seed, estimator=estimator,
                 force_effects=force_effects, progress=progress, cancel=cancel, observe=observe,
                 reference=reference, force_effects_off=force_effects_off,
-                **({"physics_left_out": physics_left_out} if physics_left_out else {}))
+                **({"physics_left_out": physics_left_out} if physics_left_out else {}),
+                **({"tessellation_estimate": True} if tessellation_estimate else {}))
         return result_payload(result, prepared.live.revision)
 
     def run_grid(self, prepared: Prepared, sensor: dict, budget: Budget, seed: int, estimator: str,
                  force_effects: tuple[str, ...], progress: Callable | None = None,
                  cancel: Callable | None = None, observe: tuple[str, ...] = (),
                  reference: tuple | None = None, physics_left_out: tuple[str, ...] = (),
-                 force_effects_off: tuple[str, ...] = ()) -> dict[str, Any]:
+                 force_effects_off: tuple[str, ...] = (), tessellation_estimate: bool = False) -> dict[str, Any]:
         """Simulate one sensor of any kind (`service.sensor_kinds`); keeps its result where its kind says (a grid's
         for ``map.png`` while the scene is unchanged, a far field's for its export)."""
         scene_id = prepared.live.scene_id
@@ -353,7 +355,8 @@ class SimulationHub:
                 target_scope=budget.target_scope, max_seconds=budget.max_seconds, max_photons=budget.max_photons,
                 seed=seed, estimator=estimator, force_effects=force_effects, progress=progress, cancel=cancel,
                 observe=observe, reference=reference, physics_left_out=physics_left_out,
-                force_effects_off=force_effects_off)
+                force_effects_off=force_effects_off,
+                **({"tessellation_estimate": True} if tessellation_estimate else {}))
         payload = kind.payload(result, sensor, prepared.live)
         if prepared.live.extras.get("elements"):   # the elements with an inside it traced, and their model
             payload["elements"] = prepared.live.extras["elements"]

@@ -77,6 +77,15 @@ class QueryBudget(BaseModel):
                                           "one more run's time; one already on, or acting wherever the scene's "
                                           "materials call for it, changes nothing: 0 ± 0 lx, no run.")
 
+    tessellation_estimate: Annotated[bool, Strict()] = Field(
+        default=False, description="Where the scene has curved mirror or glass meshes (the answer then carries "
+                                   "`error_budget.tessellation`, a bound): also estimate the tessellation's error "
+                                   "from the surface itself, `error_budget.tessellation_estimate` (lx per value, "
+                                   "with its standard error): the query reruns on those meshes split 1→4 two or "
+                                   "three times, so it takes 3 to 4 times as long; the answer's "
+                                   "`error_budget.tessellation_estimate_seconds` says what it cost. Ignored where "
+                                   "the scene has none.")
+
     @field_validator("observe", "physics_left_out", "force_effects_off")
     @classmethod
     def _once_each(cls, v: list[str], info: Any) -> list[str]:
@@ -128,11 +137,17 @@ class ErrorBudget(BaseModel):
     tessellation: list[Any] = Field(description="How far each value may move when the curved mirror and glass "
                                                 "surfaces are tessellated finely enough (a bound), lx.")
     tessellation_estimate: list[Any] | None = Field(
-        None, description="An estimate (not a bound) of the tessellation's error, lx: 2·|E − E_refined|, the same "
-                          "query rerun on the curved meshes split 1→4 (`tracer.transport.tessellation_error."
-                          "ESTIMATE_METHOD`); present where the query asked for it (Python API).")
+        None, description="Where the query asked (`tessellation_estimate: true`): an estimate (not a bound) of how "
+                          "far each value is from the one a finely tessellated surface gives, lx: the same query "
+                          "rerun on the curved meshes split 1→4 two or three times, extrapolated with the observed "
+                          "convergence and a safety factor 1.25 (`tracer.transport.tessellation_error."
+                          "ESTIMATE_METHOD`).")
     tessellation_estimate_stderr: list[Any] | None = Field(
         None, description="The Monte Carlo standard error of `tessellation_estimate`, lx.")
+    tessellation_estimate_seconds: float | None = Field(
+        None, description="What the estimate cost: the seconds its reruns and refinements added to the query, s.")
+    tessellation_estimate_levels: int | None = Field(
+        None, description="How many times the curved meshes were split (each split: one more run of the query).")
 
 
 class PhysicsLeftOut(BaseModel):

@@ -87,7 +87,17 @@ from tracer.transport.rounds import (
     forward,
     radiance,
 )
-from tracer.transport.tessellation_error import RICHARDSON, grid_cells, lux_budget, refine, scene_surfaces
+from tracer.transport.tessellation_error import (
+    MAX_LEVELS,
+    MAX_TRIANGLES,
+    MIN_LEVELS,
+    converged,
+    extrapolate,
+    grid_cells,
+    lux_budget,
+    refine,
+    scene_surfaces,
+)
 
 __all__ = ["BACKWARD_BATCH", "DEFAULT_MAX_SECONDS", "DEFAULT_RADIUS", "ESTIMATORS", "FORWARD_BATCH", "LIT_FRACTION",
            "MAX_ROUND_BATCHES", "MAX_ROUND_BYTES", "MAX_SPECTRAL_TALLIES", "MIN_BATCHES", "OBSERVABLES",
@@ -213,10 +223,11 @@ class Simulation:
         physics_left_out : effect names (`tracer.effects.EFFECTS`) whose share of the answer to measure: the result's
             `physics_left_out` (`left_out`).
         tessellation_estimate : bool — where the scene has curved mirror or glass meshes, also run the query on
-            those meshes refined 1→4 (`refined`; the same stop rules and seed, so up to twice the time) and add
-            ``tessellation_estimate`` and ``tessellation_estimate_stderr`` (lx per value) to the result's
-            `error_budget`: 4/3·|E − E_refined|, an estimate of the tessellation's error, not a bound
-            (`tracer.transport.tessellation_error.ESTIMATE_METHOD`).
+            those meshes refined 1→4, twice or three times (`tessellation_levels`; the same stop rules and seed, so
+            up to 3 or 4 times the time) and add to the result's `error_budget` ``tessellation_estimate`` and
+            ``tessellation_estimate_stderr`` (lx per value), an estimate of the tessellation's error, not a bound
+            (`tracer.transport.tessellation_error.ESTIMATE_METHOD`), with what it cost:
+            ``tessellation_estimate_seconds`` and ``tessellation_estimate_levels``.
         """
         return sensors.run(self, sensor, target=target_relative_error, max_seconds=max_seconds,
                            max_photons=max_photons, seed=seed, estimator=estimator, force_effects=force_effects,
@@ -257,6 +268,9 @@ class Simulation:
         """A sensor's receivers (`probe_of(self, body)`) and the raw bins measured on them, with what each effect in
         `physics_left_out` would change (`left_out`): what `tracer.sensors.dispatch.run` shapes into an answer."""
         left_out_names = _left_out_names(physics_left_out)
+        if tessellation_estimate and self._curved and curved_triangles(self) * 4 ** MIN_LEVELS > MAX_TRIANGLES:
+            raise SimulationError(f"tessellation_estimate: the curved meshes have {curved_triangles(self):,} "
+                                  f"triangles; {MIN_LEVELS} splits would make more than {MAX_TRIANGLES:,}")
         probe = probe_of(self, body)
         res = self._run(probe, target, max_seconds, max_photons, seed, estimator, force_effects, progress, cancel,
                         observe, reference, target_scope=target_scope, force_effects_off=force_effects_off)
@@ -267,11 +281,9 @@ class Simulation:
                 force_effects_off=tuple(e for e in off if e not in force)),
                 force_effects, observe, seed, estimator, off)
         if tessellation_estimate and res.error_budget and res.stop_reason != "cancelled":
-            fine = refined(self)._run(probe, target, max_seconds, max_photons, seed, estimator, force_effects, None,
-                                       cancel, observe, reference, target_scope=target_scope,
-                                       force_effects_off=force_effects_off)
-            res.error_budget["tessellation_estimate"] = RICHARDSON * np.abs(res.lux - fine.lux)
-            res.error_budget["tessellation_estimate_stderr"] = RICHARDSON * np.hypot(res.stderr, fine.stderr)
+            res.error_budget.update(tessellation_levels(self, res, lambda sim: sim._run(
+                probe, target, max_seconds, max_photons, seed, estimator, force_effects, None, cancel, observe,
+                reference, target_scope=target_scope, force_effects_off=force_effects_off)))
         return probe, res
 
     # ------------------------------------------------------------------------------------------ engine
@@ -445,6 +457,38 @@ def left_out(sim: Simulation, names: tuple[str, ...], res: IlluminanceResult, re
 
 
 # ------------------------------------------------------------------------------------------ tessellation
+def tessellation_levels(sim: Simulation, res: IlluminanceResult, rerun) -> dict:
+    """The tessellation estimate (`tracer.transport.tessellation_error.extrapolate`) of `res`, the query's answer
+    on `sim`: `rerun(s)` answers the same query on `s`, here `sim` refined once, twice (`MIN_LEVELS`) and, where
+    the values are not yet in the asymptotic range (`converged`), three times (`MAX_LEVELS`, while the refined
+    curved meshes stay under `MAX_TRIANGLES`). A cancelled rerun stops the estimate ({}). Returns the
+    ``error_budget`` entries: ``tessellation_estimate`` and ``_stderr`` (lx, like ``res.lux``),
+    ``tessellation_estimate_seconds`` (s: what the estimate added to the query, refinement included) and
+    ``tessellation_estimate_levels`` (the splits run)."""
+    t0 = time.perf_counter()
+    lux, err = [np.asarray(res.lux, np.float64)], [np.asarray(res.stderr, np.float64)]
+    s = sim
+    for level in range(1, MAX_LEVELS + 1):
+        if level > MIN_LEVELS and (converged(lux, err) or curved_triangles(s) * 4 > MAX_TRIANGLES):
+            break
+        s = refined(s)
+        r = rerun(s)
+        if r.stop_reason == "cancelled":
+            return {}
+        lux.append(np.asarray(r.lux, np.float64))
+        err.append(np.asarray(r.stderr, np.float64))
+    estimate, se, _ = extrapolate(lux, err)
+    shape = np.shape(res.lux)
+    return {"tessellation_estimate": estimate.reshape(shape), "tessellation_estimate_stderr": se.reshape(shape),
+            "tessellation_estimate_seconds": time.perf_counter() - t0, "tessellation_estimate_levels": len(lux) - 1}
+
+
+def curved_triangles(sim: Simulation) -> int:
+    """Triangles in the meshes of `sim`'s curved mirror and glass instances (each geometry once)."""
+    gids = {sim.scene.instance_geometry(s.instance) for s in sim._curved if s.instance >= 0}
+    return sum(len(sim.scene.geometry_arrays(g)[1]) for g in gids)
+
+
 def refined(sim: Simulation) -> Simulation:
     """The same simulation with every curved mirror or glass mesh (`scene_surfaces`) split 1→4 along the
     curve its vertex normals describe (`tracer.transport.tessellation_error.refine`); built once. An instance

@@ -136,7 +136,8 @@ def _points_query(scene_id: str, query: IlluminanceQuery, request: Request) -> t
         payload = hub.run_points(prepared, points, normals, query.radius, budget, query.seed, query.estimator,
                                  effects, progress=progress, cancel=cancel, observe=tuple(query.observe),
                                  reference=query.reference, physics_left_out=tuple(query.physics_left_out),
-                                 force_effects_off=tuple(query.force_effects_off))
+                                 force_effects_off=tuple(query.force_effects_off),
+                                 tessellation_estimate=query.tessellation_estimate)
         _targeted(payload, query.cost_targets)
         payload.update(radius=radius, **({"warnings": warnings} if warnings else {}))
         payload["current"] = hub.is_current(scene_id, prepared.generation)
@@ -181,7 +182,8 @@ def _sensor_query(scene_id: str, sensor_id: str, query: SensorSimulate, request:
         payload = hub.run_grid(prepared, sensor, budget, query.seed, query.estimator, effects,
                                progress=progress, cancel=cancel, observe=tuple(query.observe),
                                reference=query.reference, physics_left_out=tuple(query.physics_left_out),
-                               force_effects_off=tuple(query.force_effects_off))
+                               force_effects_off=tuple(query.force_effects_off),
+                               tessellation_estimate=query.tessellation_estimate)
         for part in payload.get("instances", ()):
             part["path"] = paths.get(part["node"])
         _targeted(payload, query.cost_targets)

@@ -123,3 +123,74 @@ def test_a_flat_floor_has_no_error_budget(client):
     r = client.post(f"/scenes/{sid}/illuminance", json=query([[0.0, 0.0, 0.0], [1.0, 0.5, 0.0]], max_photons=20_000))
     assert r.status_code == 200, r.text
     assert "error_budget" not in r.json() and r.json()["lux"][0] > 0
+
+
+# ------------------------------------------------------------------------------------------ the estimate (issue 42)
+
+ESTIMATE_KEYS = {"tessellation", "tessellation_estimate", "tessellation_estimate_stderr",
+                 "tessellation_estimate_seconds", "tessellation_estimate_levels"}
+
+
+def _estimate_ok(budget: dict, shape) -> None:
+    assert set(budget) == ESTIMATE_KEYS, budget
+    for key in ("tessellation", "tessellation_estimate", "tessellation_estimate_stderr"):
+        _budget_ok(budget[key], shape)
+    assert budget["tessellation_estimate_seconds"] > 0            # its cost, stated
+    assert budget["tessellation_estimate_levels"] in (2, 3)
+
+
+def test_a_query_asking_for_the_tessellation_estimate_gets_it_beside_the_bound_with_its_cost(client, dish_scene):
+    """``"tessellation_estimate": true`` on an illuminance query and on a grid sensor's simulation: the answer's
+    `error_budget` carries the estimate and its standard error per value (per cell), the seconds it added and the
+    splits it ran, beside the bound; the same through `lumenlink.Client` and `lumenlink simulate
+    --tessellation-estimate`, which prints it beside the bound."""
+    sid, sensor = dish_scene
+    r = client.post(f"/scenes/{sid}/illuminance", json=query(POINTS, DOWN, radius=0.05, max_photons=100_000,
+                                                             seed=1, tessellation_estimate=True))
+    assert r.status_code == 200, r.text
+    _estimate_ok(r.json()["error_budget"], (len(POINTS),))
+    r = client.post(f"/scenes/{sid}/sensors/{sensor}/simulate", json={"max_photons": 50_000,
+                                                                      "tessellation_estimate": True})
+    assert r.status_code == 200, r.text
+    _estimate_ok(r.json()["error_budget"], (2, 3))
+
+
+def test_the_client_and_the_cli_ask_for_the_estimate_and_show_it(client, dish_scene, monkeypatch, tmp_path):
+    from typer.testing import CliRunner
+
+    import lumenlink.commands as commands
+    from lumenlink import Client
+    from lumenlink.cli import app
+
+    sid, sensor = dish_scene
+
+    def on_app(server: str = "") -> Client:
+        return Client("http://testserver", transport=client._transport)
+
+    with on_app() as ll:
+        a = ll.illuminance(sid, POINTS, DOWN, max_photons=20_000, tessellation_estimate=True)
+        _estimate_ok(a["error_budget"], (len(POINTS),))
+        [res] = ll.simulate(sid, sensor, max_photons=20_000, tessellation_estimate=True).values()
+        _estimate_ok(res["error_budget"], (2, 3))
+    monkeypatch.setattr(commands, "Client", on_app)
+    runner = CliRunner()
+    r = runner.invoke(app, ["simulate", "--scene", sid, "--sensor", sensor, "--out", str(tmp_path / "a"),
+                            "--max-photons", "20000", "--tessellation-estimate"])
+    assert r.exit_code == 0, r.output
+    assert "tessellation: bound <= " in r.output and "; estimate " in r.output and " refinements, " in r.output
+    r = runner.invoke(app, ["simulate", "--scene", sid, "--sensor", sensor, "--out", str(tmp_path / "b"),
+                            "--max-photons", "20000"])
+    assert r.exit_code == 0 and "tessellation: bound <= " in r.output and "; estimate" not in r.output, r.output
+
+
+@pytest.mark.parametrize("value", ["yes", 1, None, [True]])
+def test_a_tessellation_estimate_that_is_not_a_boolean_is_a_422_naming_it(client, dish_scene, value):
+    sid, sensor = dish_scene
+    for url, body in ((f"/scenes/{sid}/illuminance", query(POINTS, DOWN, max_photons=1000,
+                                                           tessellation_estimate=value)),
+                      (f"/scenes/{sid}/illuminance?mode=async", query(POINTS, DOWN, max_photons=1000,
+                                                                      tessellation_estimate=value)),
+                      (f"/scenes/{sid}/sensors/{sensor}/simulate", {"max_photons": 1000,
+                                                                    "tessellation_estimate": value})):
+        r = client.post(url, json=body)
+        assert r.status_code == 422 and "tessellation_estimate" in r.text, (url, r.status_code, r.text)

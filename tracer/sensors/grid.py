@@ -74,7 +74,7 @@ def answer(sim, probe: Probe, res: IlluminanceResult) -> GridResult:
                      cells(res.spectral_stderr), cells(res.cie_xy), cells(res.stokes), cells(res.stokes_stderr),
                      cells(res.dop), res.cost, **res.readout())
     if res.error_budget is not None:
-        out.error_budget = {name: cells(v) for name, v in res.error_budget.items()}
+        out.error_budget = {name: cells(v) if np.ndim(v) else v for name, v in res.error_budget.items()}  # costs stay
     if res.physics_left_out is not None:
         out.physics_left_out = {name: {**e, "difference": cells(e["difference"]), "stderr": cells(e["stderr"])}
                                 for name, e in res.physics_left_out.items()}

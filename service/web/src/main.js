@@ -411,6 +411,19 @@ function showPick(hit) {
   if (hit.surface && !hit.sensor) panel.append(measureButton(hit.surface));
 }
 
+/** The answer's tessellation error beside its Monte Carlo one: the bound and, where asked, the estimate and its
+ * cost (error_budget, lx; issue 42). Empty where the scene has no curved mirror or glass mesh. */
+function tessellationText(a) {
+  const b = a.error_budget;
+  if (!b?.tessellation) return "";
+  let text = `tessellation: at most ${formatLux(b.tessellation[0])} (bound)`;
+  if (b.tessellation_estimate) {
+    text += `, estimated ${formatLux(b.tessellation_estimate[0])} ± ${formatLux(b.tessellation_estimate_stderr[0])}` +
+      ` (${b.tessellation_estimate_levels} refinements, ${b.tessellation_estimate_seconds.toFixed(1)} s)`;
+  }
+  return text;
+}
+
 /** Lux ± error at a picked surface point: a short illuminance query (2 s at most) on the side facing the viewer. */
 function measureButton(surface) {
   const button = document.createElement("button");
@@ -425,9 +438,12 @@ function measureButton(surface) {
       const a = await postJSON(`/scenes/${sceneId}/illuminance`, {
         points: [surface.point.map((x, k) => x + eps * n[k])], normals: [n], radius, max_seconds: 2,
       });
-      button.replaceWith(Object.assign(document.createElement("p"), {
+      const p = Object.assign(document.createElement("p"), {
         textContent: `${formatLux(a.lux[0])} ± ${formatLux(a.stderr[0])} on a disk of ${radius.toFixed(3)} m (${a.photons.toLocaleString()} photons, ${a.estimator})`,
-      }));
+      });
+      button.replaceWith(p);
+      const budget = tessellationText(a);
+      if (budget) p.after(Object.assign(document.createElement("p"), { className: "budget", textContent: budget }));
       if (ll.lastPick) Object.assign(ll.lastPick, { lux: a.lux[0], stderr: a.stderr[0] });
     } catch (err) {
       button.replaceWith(Object.assign(document.createElement("p"), { className: "error", textContent: err.message }));

@@ -25,7 +25,15 @@ import pytest
 cq = pytest.importorskip("cadquery")
 
 from cad_adapter.tessellate import mesh_shape  # noqa: E402
-from tracer.transport.tessellation_error import from_mesh, from_settings, refine  # noqa: E402
+from tracer.transport.tessellation_error import (  # noqa: E402
+    R_MAX,
+    SAFETY,
+    converged,
+    extrapolate,
+    from_mesh,
+    from_settings,
+    refine,
+)
 
 R = 10.0              # sphere radius (mesh units)
 F = 5.0               # paraboloid focal length: z = ρ² / 4F, smallest radius of curvature 2F at the apex
@@ -202,30 +210,81 @@ def focus_dish(linear, angular):
     return Simulation(s, {i: {"type": "mirror", "reflectance": 1.0}}, [FOCUS_LIGHT]), len(mesh.triangles)
 
 
-def test_refine_splits_each_triangle_into_four_closer_to_the_surface():
-    mesh, _ = mesh_shape(paraboloid_shape(DISH_F, DISH_RIM), 0.005, 0.5)
-    v, t, n = refine(mesh.vertices, mesh.triangles, mesh.normals)
-    assert len(t) == 4 * len(mesh.triangles) and len(v) == len(n)
-    truth = lambda p: paraboloid_truth(p, DISH_F)   # noqa: E731
-    coarse_pos, _ = measured(mesh, truth, 3)
+def _mean_normal_error(v, t, n, truth, steps=3) -> float:
+    """Mean angle (rad) between the interpolated vertex normal and the true one, over `samples`."""
+    v, n, t = np.asarray(v, np.float64), np.asarray(n, np.float64), np.asarray(t, np.int64)
+    w, p = samples(v, t, steps)
+    _, true_n = truth(p)
+    sn = np.einsum("sk,mkd->msd", w, n[t])
+    sn /= np.linalg.norm(sn, axis=-1, keepdims=True)
+    true_n = true_n * np.sign(np.sum(sn * true_n, axis=-1, keepdims=True))
+    return float(np.mean(np.arctan2(np.linalg.norm(np.cross(sn, true_n), axis=-1), np.sum(sn * true_n, axis=-1))))
 
-    class M:
-        vertices, triangles, normals = v, t, n
-    fine_pos, _ = measured(M, truth, 3)
-    assert fine_pos <= coarse_pos / 3           # position error O(h²): 4× measured
+
+def test_refine_converges_to_the_true_surface_positions_and_normals():
+    """Each split puts the new vertices on the surface the mesh's positions and normals describe, with its normal:
+    the position error falls as h² (4× a split) and so does the interpolated normal's (second order), i.e. the
+    refined meshes approach the true paraboloid, not a surface of their own (the PN midpoints did not: 0.75 → 0.67
+    → 0.53 mrad). Measured on the coarse dish (572 triangles): position 2.5 → 0.64 → 0.16 mm, mean normal error
+    0.75 → 0.18 → 0.044 mrad; asserted ≥ 3× a split (4× is h²; the fit's own error is O(h⁴))."""
+    mesh, _ = mesh_shape(paraboloid_shape(DISH_F, DISH_RIM), 0.005, 0.5)
+    truth = lambda p: paraboloid_truth(p, DISH_F)   # noqa: E731
+    v, t, n = mesh.vertices, mesh.triangles, mesh.normals
+    levels = []
+    for _ in range(3):
+        class M:
+            vertices, triangles, normals = v, t, n
+        levels.append((measured(M, truth, 3)[0], _mean_normal_error(v, t, n, truth)))
+        v, t, n = refine(v, t, n)
+    assert len(t) == 16 * 4 * len(mesh.triangles) and len(v) == len(n)
+    (p0, n0), (p1, n1), (p2, n2) = levels
+    assert p1 <= p0 / 3 and p2 <= p1 / 3, levels
+    assert n1 <= n0 / 3 and n2 <= n1 / 3, levels
     with pytest.raises(ValueError, match="normals"):
         refine(mesh.vertices, mesh.triangles, mesh.normals[:-1])
+
+
+def test_extrapolate_is_richardson_with_the_observed_order_and_the_gci_factor():
+    """Values converging geometrically (E_k = E∞ + C·r^k): with r ≤ ½ the estimate is SAFETY·|E∞ − E_0|, exactly;
+    converging slower than first order (r > ½), r is taken as ½ (the tail |d_L|); a sign change (oscillation) or
+    a first difference within noise takes r = ½ too and adds the tail's size. Bad shapes are a ValueError."""
+    truth, c = 100.0, np.array([40.0, -8.0, 3.0])
+    for r in (0.25, 0.5, 0.1):
+        lux = truth + c[None] * r ** np.arange(3)[:, None]
+        est, se, used = extrapolate(lux, np.zeros_like(lux))
+        assert np.allclose(used, r) and np.allclose(est, SAFETY * np.abs(c)), (r, est)
+        assert np.all(se == 0)
+    lux = truth + c[None] * 0.9 ** np.arange(4)[:, None]          # pre-asymptotic: r clipped to ½
+    est, _, used = extrapolate(lux, np.zeros_like(lux))
+    assert np.allclose(used, R_MAX) and not converged(lux, np.zeros_like(lux))
+    last = np.abs(lux[-1] - lux[-2])
+    assert np.allclose(est, SAFETY * (np.abs(lux[-1] - lux[0]) + last))
+    lux = np.array([[0.0], [10.0], [8.0]])                          # oscillating
+    est, _, used = extrapolate(lux, np.zeros_like(lux))
+    assert used[0] == R_MAX and est[0] == pytest.approx(SAFETY * (8.0 + 2.0))
+    noisy = np.array([[0.0], [1.0], [1.5]])
+    est, se, used = extrapolate(noisy, np.ones_like(noisy))       # the first difference is noise: r = ½
+    assert used[0] == R_MAX and se[0] > 0 and converged(noisy, np.ones_like(noisy))
+    with pytest.raises(ValueError, match="L >= 2"):
+        extrapolate(lux[:2], lux[:2])
+
+
+def informs(estimate, error, value, noise):
+    """Issue 42's aim, per value: the estimate lies between the true error and 10× it, or within 5 % of the value of
+    it; `noise` (3 combined standard errors of the measured error) widens each side by what the measurement allows."""
+    return (((error - noise <= estimate) & (estimate <= 10 * (error + noise)))
+            | (np.abs(estimate - error) <= 0.05 * value + noise))
 
 
 def test_the_tessellation_estimate_tracks_the_true_error_of_a_coarse_dish():
     """A point source at the focus of the dish (f 0.25 m, rim 0.5 m): the reflected beam is collimated, lighting a
     plane 3 m up (receivers of 5 cm facing down). Truth: a 6,360-triangle mesh (linear 0.5 mm, angular 0.05). The
-    coarse mesh (linear 5 mm, angular 0.5: 572 triangles) is off by several %; where that error exceeds 3σ the
-    estimate lies within [1/5, 5]× it, and today's bound is over 1000× it. On the fine mesh the estimate is < 5 % of
-    the value."""
+    coarse mesh (linear 5 mm, angular 0.5: 572 triangles) is off by several %; at every point its estimate meets
+    issue 42's aim (`informs`, with 3σ of the measured error), where that error exceeds 3σ today's bound is over
+    1000× it, and on the fine mesh the estimate is < 5 % of the value."""
     pts = np.array([[x, 0.0, 3.0] for x in np.linspace(0.0, 0.45, 7)])
     nrm = np.tile([0, 0, -1.0], (len(pts), 1))
-    q = {"radius": 0.05, "max_photons": 4_000_000, "estimator": "forward", "tessellation_estimate": True}
+    q = {"radius": 0.05, "max_photons": 2_000_000, "estimator": "forward", "tessellation_estimate": True}
     fine_sim, n_fine = focus_dish(0.0005, 0.05)
     coarse_sim, n_coarse = focus_dish(0.005, 0.5)
     assert n_coarse < 600 < 6000 < n_fine
@@ -236,10 +295,11 @@ def test_the_tessellation_estimate_tracks_the_true_error_of_a_coarse_dish():
     real = err > 3 * se
     assert real.sum() >= 4, (err, se)                 # the coarse dish is measurably wrong at most points
     est = c.error_budget["tessellation_estimate"]
-    ratio = est[real] / err[real]
-    assert np.all((ratio >= 0.2) & (ratio <= 5.0)), (ratio, est, err)
+    assert np.all(informs(est, err, f.lux, 3 * se)), (est / err, est, err, se)
     assert np.all(c.error_budget["tessellation"][real] / err[real] > 1000)   # the bound: says nothing
     assert np.all(c.error_budget["tessellation_estimate_stderr"] > 0)
+    assert c.error_budget["tessellation_estimate_levels"] in (2, 3)
+    assert c.error_budget["tessellation_estimate_seconds"] > 0
     assert np.all(f.error_budget["tessellation_estimate"] < 0.05 * f.lux), f.error_budget
 
 
@@ -258,3 +318,16 @@ def test_a_grid_gets_the_estimate_per_cell():
     g = sim.grid([-0.2, -0.2, 3.0], [0.4, 0, 0], [0, -0.4, 0], 3, 2, max_photons=20_000, tessellation_estimate=True)
     for key in ("tessellation", "tessellation_estimate", "tessellation_estimate_stderr"):
         assert g.error_budget[key].shape == (2, 3) and np.all(g.error_budget[key] >= 0)
+
+
+def test_an_estimate_too_large_to_refine_is_refused_before_anything_runs(monkeypatch):
+    """Two splits multiply the triangles by 16: past `MAX_TRIANGLES` the query is refused (a ValueError naming the
+    option), not run out of memory."""
+    import tracer.simulate as simulate
+    from tracer.simulate import SimulationError
+
+    sim, n = focus_dish(0.01, 0.5)
+    monkeypatch.setattr(simulate, "MAX_TRIANGLES", 16 * n - 1)
+    with pytest.raises(SimulationError, match="tessellation_estimate") as info:
+        sim.illuminance([[0, 0, 3.0]], [[0, 0, -1.0]], max_photons=1000, tessellation_estimate=True)
+    assert isinstance(info.value, ValueError)
