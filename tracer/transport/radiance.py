@@ -26,6 +26,20 @@ mirror or through glass, a caustic on a wall): the kernel counts, per view, the 
 on through a specular surface before any diffuse one (`through_specular`), and the paths that met a specular
 surface after a diffuse one (counter `caustic_paths`); the sensor's answer states what is missing from them.
 
+Light tracing (`trace_light`, where `light_paths` says the scene needs it: a point-like light and a specular
+surface, or a collimated or rayfile light). Photons leave the lights that are not area lights in proportion to their
+flux and follow the scene by `scatter`, as the forward photons do. Each diffuse vertex x of an eligible photon is
+joined to the eye (`join_eye`, pbrt-v3's `LightTracer` with the camera's `Sample_Wi`): the photon's flux Φ × ρ/π ×
+cosθ_x / d² × W goes to the view that sees x unoccluded, W the view's importance (1/Ω for a meter's cone, 1/(cos³θ ×
+film area) for the pixel x projects to, through a lens point where the camera has a lens). Eligible: every photon
+of a collimated or rayfile light (no shadow ray reaches them); a photon of a point-like light once its first bounce
+was specular. So the two strategies split the paths: paths from the eye take those whose vertex next to the light
+scatters diffusely (the shadow ray), light tracing those whose vertex next to the light scatters specularly and whose
+vertex next to the eye diffusely; a photon whose first bounce is diffuse ends there. Both are unbiased, and a
+batch's value of a view is their sum, so the batch means' standard error holds for both. What neither finds: light
+from a point-like or collimated source whose vertex next to the eye is specular too (a lamp, or its caustic, seen in
+a mirror or through glass); `through_specular` still flags the views that may miss it.
+
 Media (absorption or scattering inside solids), spectra and polarization are not followed here: the query refuses
 scenes that need them (`tracer.simulate`).
 """
