@@ -194,7 +194,10 @@ def demo_car(sizes: list[tuple[int, int, float]]) -> dict:
         server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
         thread = threading.Thread(target=server.run, daemon=True)
         thread.start()
+        deadline = time.monotonic() + 60.0
         while not server.started:
+            if not thread.is_alive() or time.monotonic() > deadline:
+                raise RuntimeError("the service did not start")
             time.sleep(0.02)
         base = f"http://127.0.0.1:{port}"
         try:
