@@ -245,7 +245,7 @@ def demo_car(sizes: list[tuple[int, int, float]]) -> dict:
                         "first_image_paths": int(first["photons"]), "budget_seconds": budget, "run_seconds": run_s,
                         "paths": int(r["photons"]), "median_rel": m,
                         "seconds_to_2pct": run_s * (m / TARGET) ** 2 if m > TARGET else run_s,
-                        "light_paths": int((r.get("counters") or {}).get("light_paths", 0)),
+                        "light_tracing": "light tracing" in r["strategy"],
                         "strategy": r["strategy"], "unreachable": r["unreachable"],
                         "mean_cd_m2": float(np.mean(lum))})
                 w, h = sizes[0][:2]
@@ -304,13 +304,13 @@ def markdown(cases: list[dict], edit: dict | None = None, car: dict | None = Non
         if "error" in car:
             md.append(f"Did not run: {car['error']}")
         else:
-            md += ["", "| image | first image s (paths) | budget run s: median error | to 2 % s | light paths | "
+            md += ["", "| image | first image s (paths) | budget run s: median error | to 2 % s | light tracing ran | "
                    "rpict |", "| --- | --- | --- | --- | --- | --- |"]
             for c in car["sizes"]:
                 md.append(f"| {c['width']}×{c['height']} | {c['first_image_seconds']:.2f} "
                           f"({c['first_image_paths']:,}) | {c['run_seconds']:.1f}: {100 * c['median_rel']:.1f} % | "
-                          f"{c['seconds_to_2pct']:.0f} | {c['light_paths']:,} | not exported (glass, chrome, IES "
-                          f"downlight: no Radiance export of the car yet) |")
+                          f"{c['seconds_to_2pct']:.0f} | {'yes' if c['light_tracing'] else 'no'} | not exported "
+                          f"(glass, chrome, IES downlight: no Radiance export of the car yet) |")
             e = car.get("edit")
             if e:
                 md += ["", f"Car edit to first image ({e['edit']}, through REST as the page): push {e['push_s']:.2f} s "
