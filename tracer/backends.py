@@ -124,8 +124,8 @@ def run_kernel(kernel_id: KernelId, scene: tuple, query: tuple, batch0: int, n_b
     """Run batches of the kernel `kernel_id` here: ``("forward", state)`` takes scene = (scene arrays,
     materials, lights) and query = (receiver arrays, sensor arrays, bins, seed); ``("backward",)`` takes
     scene = (scene arrays, materials, lights) and query = (query arrays, seed); ``("radiance",)`` takes the
-    same scene and query = (view arrays, emitters, seed) (`tracer.transport.radiance`). Module-level, so a Dask
-    worker runs it by import; the kernel is compiled once per process (numba's dispatcher and disk cache)."""
+    same scene and query = (view arrays, emitters, light paths, seed) (`tracer.transport.radiance`). Module-level,
+    so a Dask worker runs it by import; the kernel is compiled once per process (numba's dispatcher and disk cache)."""
     sa, mats, lights = scene
     if kernel_id[0] == "forward":
         from tracer.transport.forward import forward_kernel
@@ -140,8 +140,8 @@ def run_kernel(kernel_id: KernelId, scene: tuple, query: tuple, batch0: int, n_b
     if kernel_id[0] == "radiance":
         from tracer.transport.radiance import radiance_batches
 
-        views, emit, seed = query
-        return radiance_batches(sa, mats, lights, views, emit, seed, batch0, n_batches, size)
+        views, emit, traced, seed = query
+        return radiance_batches(sa, mats, lights, views, emit, traced, seed, batch0, n_batches, size)
     raise ValueError(f"unknown kernel {kernel_id!r}")
 
 

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from service_helpers import lit_floor, make_client
+from service_helpers import glb, grid_mesh, lit_floor, make_client, node, translation, uid
 
 from service.images import read_exr, write_exr
 
@@ -194,3 +194,36 @@ def test_csv_of_a_meter_and_a_camera() -> None:
     rows = sensor_csv({"type": "camera", "luminance": [[1.0, 2.0], [3.0, 4.0]],
                        "stderr": [[0.1, 0.2], [0.3, 0.4]]}).splitlines()
     assert rows[1:] == ["0,0,1,0.1", "0,1,2,0.2", "1,0,3,0.3", "1,1,4,0.4"]
+
+
+def test_caustic_of_a_point_source_in_a_mirror_is_light_traced(client: Any) -> None:
+    """A point source beside a vertical mirror over a floor (tests/tracer/sensors/test_light_tracing.py): the floor's
+    pixels read ρ(E + E')/π, E' from the source's image in the mirror, within 4σ; the answer names light tracing
+    as a strategy that ran and no longer says the caustic is unreachable."""
+    from tests.tracer.sensors import test_light_tracing as lt
+
+    sid = client.post("/scenes", json={"name": "mirror"}).json()["id"]
+    floor_v, floor_f = grid_mesh(n=4, size=10.0)
+    mirror_v = np.array([[0.0, -5, 0], [0, 5, 0], [0, 5, 5], [0, -5, 5]])
+    mirror_f = np.array([[0, 1, 2], [0, 2, 3]])               # front +x
+    nodes = [node(uid(0), None, "room")]
+    for i, (v, f, name, t) in enumerate([(floor_v, floor_f, "floor", translation(0.0, -5.0)),
+                                         (mirror_v, mirror_f, "mirror", None)], start=1):
+        gid, data = glb(v, f)
+        assert client.put(f"/geometries/{gid}", content=data, headers={"content-type": "model/gltf-binary"}
+                          ).status_code in (200, 201)
+        nodes.append(node(uid(i), uid(0), name, t, gid))
+    assert client.put(f"/scenes/{sid}/document", json={"base_revision": 0, "length_unit": "m", "nodes": nodes}
+                      ).status_code == 200
+    for i, mat in ((1, {"type": "lambertian", "reflectance": lt.RHO}),
+                   (2, {"type": "mirror", "reflectance": lt.R_MIRROR})):
+        assert client.put(f"/scenes/{sid}/materials/{uid(i)}", json=mat).status_code in (200, 201)
+    light = {"type": "point", "position": lt.SOURCE.tolist(), "intensity_cd": lt.I_CD}
+    assert client.post(f"/scenes/{sid}/lights", json=light).status_code == 201
+    cid = _add(client, sid, lt.CAMERA)
+    r = client.post(f"/scenes/{sid}/sensors/{cid}/simulate", json={"max_photons": 60_000, "seed": 3})
+    assert r.status_code == 200, r.text
+    out = r.json()
+    assert "light tracing" in out["strategy"] and out["unreachable"] is None
+    z = (np.asarray(out["luminance"]) - lt.pixel_means(lt.CAMERA)) / np.asarray(out["stderr"])
+    assert np.all(np.abs(z) <= Z), z

@@ -19,7 +19,12 @@ STRATEGY = ("paths from the eye: next-event estimation to every light at diffuse
             "picked by flux), multiple importance sampling (power heuristic) with BSDF sampling where a light has "
             "area, specular chains followed through mirrors and glass, Russian roulette after 3 diffuse bounces; "
             "point-like lights in view added exactly")
+LIGHT_TRACING = ("; light tracing from the point-like, collimated and rayfile lights where the scene has what the "
+                 "paths from the eye miss (a caustic: photons through specular surfaces; a beam): each diffuse vertex "
+                 "of a photon whose first bounce was specular (any photon of a beam) joined to the eye, the paths "
+                 "split so that none is counted by both; both unbiased")
 POINT_LIKE = ("point", "spot", "goniometric")
+BEAMS = ("collimated", "rayfile")
 BODY_COMMON = frozenset({"type", "id", "name", "attached_to"})   # kept by the service, ignored here
 
 
@@ -30,7 +35,7 @@ class LuminanceResult(Readout):
     luminance, stderr : cd/m² — the mean luminance over the meter's cone or each pixel, and its standard error
         (batch means over independent batches).
     cost : dict — what tighter errors would cost (`tracer.transport.estimate.cost_of`), over the pixels.
-    strategy : str — the estimator that ran, in words (`STRATEGY`).
+    strategy : str — the estimator that ran, in words (`STRATEGY`, with `LIGHT_TRACING` where it ran too).
     through_specular : float or (height, width) — share of the view's paths whose view ray went on through a mirror
         or glass before any diffuse surface.
     unreachable : dict or None — the light paths from the eye cannot find, where the scene has them (None: nothing
@@ -46,23 +51,35 @@ class LuminanceResult(Readout):
     unreachable: dict | None = None
 
 
-def unreachable(sim, share: np.ndarray, caustic_paths: int) -> dict | None:
-    """What the paths from the eye could not find in this scene (see `LuminanceResult.unreachable`)."""
+def unreachable(sim, share: np.ndarray, caustic_paths: int, light_traced: bool = False) -> dict | None:
+    """What the paths from the eye (and light tracing, where it ran: `light_traced`) could not find in this scene
+    (see `LuminanceResult.unreachable`)."""
     bodies = sim.light_bodies
-    collimated = [j for j, b in enumerate(bodies) if b.get("type") == "collimated"]
+    beams = [j for j, b in enumerate(bodies) if b.get("type") in BEAMS]
     point_like = [j for j, b in enumerate(bodies) if b.get("type") in POINT_LIKE]
     top = float(np.max(share)) if share.size else 0.0
-    lights: list[int] = list(collimated)
+    lights: list[int] = []
     why = []
-    if collimated:
-        why.append(f"collimated light(s) {collimated} cannot be sampled from a point (no shadow ray finds a beam): "
-                   f"their light is missing from every view")
-    if point_like and (top > 0.0 or caustic_paths > 0):
-        lights += point_like
-        why.append(f"point-like light(s) {point_like} seen through a specular chain (in a mirror, through glass: "
-                   f"{top:.0%} of the paths of the most affected view went on through one), or lighting a diffuse "
-                   f"surface only through one (a caustic: {caustic_paths} paths met a specular surface after a "
-                   f"diffuse one), cannot be reached by paths from the eye: that light is missing")
+    if light_traced:
+        # light tracing joins diffuse vertices to the eye: what is missing is a delta light reached only through a
+        # specular chain that ends at the eye (a lamp, a caustic or a beam seen in a mirror or through glass)
+        if top > 0.0 and (point_like or beams):
+            lights += point_like + beams
+            why.append(f"point-like or collimated light(s) {sorted(point_like + beams)} seen through a specular "
+                       f"chain from the eye (in a mirror, through glass: {top:.0%} of the paths of the most affected "
+                       f"view went on through one) cannot be reached by paths from the eye nor joined by light "
+                       f"tracing: that light (the lamp, or a caustic, seen in the mirror) is missing")
+    else:
+        if beams:
+            lights += beams
+            why.append(f"collimated light(s) {beams} cannot be sampled from a point (no shadow ray finds a beam): "
+                       f"their light is missing from every view")
+        if point_like and (top > 0.0 or caustic_paths > 0):
+            lights += point_like
+            why.append(f"point-like light(s) {point_like} seen through a specular chain (in a mirror, through glass: "
+                       f"{top:.0%} of the paths of the most affected view went on through one), or lighting a diffuse "
+                       f"surface only through one (a caustic: {caustic_paths} paths met a specular surface after a "
+                       f"diffuse one), cannot be reached by paths from the eye: that light is missing")
     if not lights:
         return None
     return {"lights": sorted(set(lights)), "why": "; ".join(why), "through_specular": top,
@@ -78,9 +95,10 @@ def luminance_result(sim, res: IlluminanceResult, shape: tuple[int, ...] | None)
     def shaped(a: np.ndarray) -> Any:
         return float(a[0]) if shape is None else a.reshape(shape)
 
+    traced = bool(getattr(res, "light_traced", False))
     return LuminanceResult(**res.readout(), luminance=shaped(res.lux), stderr=shaped(res.stderr), cost=res.cost,
-                           through_specular=shaped(share),
-                           unreachable=unreachable(sim, share, int(res.counters.get("caustic_paths", 0))))
+                           strategy=STRATEGY + (LIGHT_TRACING if traced else ""), through_specular=shaped(share),
+                           unreachable=unreachable(sim, share, int(res.counters.get("caustic_paths", 0)), traced))
 
 
 def check_fields(body: dict, kind: str, fields: Any) -> None:

@@ -28,7 +28,7 @@ from tracer.transport.backward import QueryArrays, disk_queries
 from tracer.transport.estimate import Estimate, cost_of
 from tracer.transport.forward import COUNTERS, SensorArrays, tally_columns
 from tracer.transport.radiance import COUNTERS as RADIANCE_COUNTERS
-from tracer.transport.radiance import emitters
+from tracer.transport.radiance import PIXEL, emitters, light_paths
 from tracer.warmup import wait_background
 
 log = logging.getLogger(__name__)
@@ -310,9 +310,11 @@ class ViewBins(IlluminanceResult):
     specular surface before any diffuse one."""
 
     through_specular: np.ndarray | None = None
+    light_traced: bool = False   # light tracing ran beside the paths from the eye (`tracer.transport.radiance`)
 
 
 VIEW_PATHS = 4096   # paths per batch over all the views together, at least one per view (a camera: one a pixel)
+MIN_LIGHT_PATHS = 1024   # light paths per batch at least, where light tracing runs (`tracer.transport.radiance`)
 VIEW_EFFECTS = ("lambertian", "specular", "fresnel")   # what paths from the eye follow (`tracer.transport.radiance`)
 
 
@@ -342,7 +344,11 @@ def radiance(sim, probe: Probe, budget: Budget, seed: int, estimator: str, effec
         paths = int(min(paths, max(1, budget.max_photons // (4 * shape.first_round * k))))
     per_batch = paths * k
     emit = emitters(sim.light_bodies, len(sim.snapshot("backward").parts[1].kind))
-    scene, query = sim.snapshot("backward"), Shipment((views, emit, seed))
+    shape_2d = (probe.keep or {}).get("shape")
+    width = int(shape_2d[1]) if shape_2d is not None and int(views.kind[0]) == PIXEL else 0
+    lights = sim.snapshot("backward").parts[2]
+    traced = light_paths(lights, effects, max(per_batch, MIN_LIGHT_PATHS), width)
+    scene, query = sim.snapshot("backward"), Shipment((views, emit, traced, seed))
     compile_s = warm(("radiance",), scene, query, backend)
 
     def run_round(b0, nb):
@@ -353,7 +359,7 @@ def radiance(sim, probe: Probe, budget: Budget, seed: int, estimator: str, effec
     res = ViewBins(est.mean[:k], est.stderr[:k], photons=batches * per_batch, seconds=time.perf_counter() - t0,
                    effects=effects, estimator="backward", stop_reason=stop, batches=batches,
                    rejected=cdict["rejected"], counters=cdict, compile_seconds=compile_s,
-                   through_specular=est.mean[k:])
+                   through_specular=est.mean[k:], light_traced=int(traced.photons[0]) > 0)
     res.cost = cost_of(res.lux, res.stderr, res.photons, res.seconds - res.compile_seconds)
     res.backend = backend.describe()
     return res

@@ -72,3 +72,44 @@ def test_ugr_from_image_sums_the_bright_pixels():
     want = ugr(img[sl].ravel(), omega[sl].ravel(), guth_position_index(alpha[sl], beta[sl]).ravel(), 50.0)
     assert got["source_pixels"] == 4 and got["background"] == pytest.approx(50.0)
     assert got["ugr"] == pytest.approx(want["ugr"])
+
+
+# CIE 117-1995, Table 4.1 (the Luckiesh–Guth position index p by H/R across, T/R down; R the distance along the
+# horizontal line of sight, T across it, H the height above the eye), rows T/R = 0, 0.5, 1.0, H/R = 0.0 … 1.7 in
+# steps of 0.1; as transcribed in 123VincentB/eulumdat-ugr, src/eulumdat_ugr/guth.py (docs/LUMINANCE.md, References).
+CIE117_TABLE_4_1 = {
+    0.0: [1.00, 1.26, 1.53, 1.90, 2.35, 2.86, 3.50, 4.20, 5.00, 6.00, 7.00, 8.10, 9.25, 10.35, 11.70, 13.15, 14.70,
+          16.20],
+    0.5: [1.43, 1.60, 1.82, 2.10, 2.48, 2.91, 3.40, 3.98, 4.70, 5.50, 6.40, 7.30, 8.30, 9.40, 10.50, 11.75, 13.00,
+          14.40],
+    1.0: [2.11, 2.40, 2.75, 3.10, 3.50, 3.91, 4.40, 5.00, 5.60, 6.20, 7.00, 7.90, 8.80, 9.75, 10.80, 11.90, 12.95,
+          14.00],
+}
+
+
+def test_guth_closed_form_reproduces_cie_117_table_4_1():
+    """The closed form `guth_position_index` against the published table, for T/R ≤ 1 (the luminaires near the line
+    of sight, which dominate a UGR): within 6.5 % in every cell (the closed form is a fit to the table; 6.5 % of p
+    is 16 log₁₀ 1.065 = 0.44 UGR units for a single luminaire, under the half unit the published UGR tables round
+    to), and exact at p(0, 0) = 1."""
+    worst = 0.0
+    for tr, row in CIE117_TABLE_4_1.items():
+        for i, p_table in enumerate(row):
+            hr = 0.1 * i
+            beta = math.degrees(math.acos(1.0 / math.sqrt(1.0 + tr * tr + hr * hr)))
+            alpha = math.degrees(math.atan2(tr, hr)) if (tr or hr) else 0.0
+            worst = max(worst, abs(float(guth_position_index(alpha, beta)) / p_table - 1.0))
+    assert worst <= 0.065, worst
+    assert float(guth_position_index(0.0, 0.0)) == 1.0
+
+
+def test_ugr_of_one_luminaire_with_the_tabulated_index():
+    """One luminaire of L = 10 000 cd/m², ω = 0.01 sr at H/R = 0.5, T/R = 0 (p = 2.86 in Table 4.1) against
+    L_b = 40 cd/m²: UGR = 8 log₁₀(0.25/40 × 10⁸ × 0.01 / 2.86²) = 23.07 by hand; with the closed-form p the rating
+    moves by 16 log₁₀(p/2.86), under 0.05 here."""
+    by_hand = 8 * math.log10(0.25 / 40 * 1e8 * 0.01 / 2.86 ** 2)
+    assert by_hand == pytest.approx(23.07, abs=0.005)
+    assert ugr([1e4], [0.01], [2.86], 40.0)["ugr"] == pytest.approx(by_hand, abs=1e-9)
+    beta = math.degrees(math.atan(0.5))
+    p = float(guth_position_index(0.0, beta))
+    assert abs(ugr([1e4], [0.01], [p], 40.0)["ugr"] - by_hand) <= 0.05
