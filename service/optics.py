@@ -37,6 +37,9 @@ MATERIAL_EXAMPLES: dict[str, list[dict[str, Any]]] = {
     "diffuser": [{"type": "diffuser", "transmittance": 0.6, "reflectance": 0.3}],
     "polarizer": [{"type": "polarizer", "axis": [1.0, 0.0, 0.0], "transmittance": 0.85, "extinction_ratio": 1000.0}],
     "retarder": [{"type": "retarder", "fast_axis": [1.0, 0.0, 0.0], "retardance_deg": 90.0}],
+    "rough_dielectric": [{"type": "rough_dielectric", "ior": 1.49, "alpha": 0.2},
+                         {"type": "rough_dielectric", "ior": 1.5, "alpha": 0.05, "alpha_y": 0.3,
+                          "axis": [1.0, 0.0, 0.0]}],
 }
 
 

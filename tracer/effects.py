@@ -4,7 +4,7 @@
 | --- | --- |
 | `lambertian` | always (diffuse reflection is the baseline; a `diffuser` needs nothing more) |
 | `specular` | a `mirror` material, or a `mix` with specular > 0 |
-| `fresnel` | a `dielectric` material (Fresnel interfaces, refraction, total internal reflection) |
+| `fresnel` | a `dielectric` or `rough_dielectric` (Fresnel interfaces, refraction, total internal reflection) |
 | `absorption` | a `dielectric` with absorption_per_m > 0 |
 | `scattering` | a `dielectric` with scattering_per_m > 0 |
 | `spectral` | any value that depends on the wavelength (below), or a query that observes the spectrum |
@@ -34,8 +34,9 @@ interaction on the same path can turn the first one's polarization into a differ
 diattenuations D₁ = (Ts − Tp)/(Ts + Tp) (or the same for reflection) and D₂, the polarized answer is the averaged one
 times 1 + D₁ D₂ cos 2φ (φ the angle between their planes of incidence): the relative error of leaving polarization
 out is at most D₁ D₂. Each kind declares, from its spec, how many polarizing interactions a path can meet at one of
-its surfaces and their largest diattenuation over all angles (`polarizing(spec)` in its module): a dielectric solid 2
-(entered and left), diattenuation 1 (its reflection at Brewster's angle is pure s); a metal mirror 1, its own
+its surfaces and their largest diattenuation over all angles (`polarizing(spec)` in its module): a dielectric solid
+(smooth or rough, `rough_dielectric`: each facet is a Fresnel interface) 2 (entered and left), diattenuation 1
+(its reflection at Brewster's angle is pure s); a metal mirror 1, its own
 maximum from the Fresnel formulas of n − ik (aluminium [0.96, 6.69]: 0.139 at 81.7°); a coated mirror 1, bounded
 by 1; particles in a medium 2 (Mie scattering polarizes, bounded by 1). Lambertian, perfect mirrors and
 Henyey–Greenstein media add nothing (they depolarize or act alike on s and p). With each surface counted once per

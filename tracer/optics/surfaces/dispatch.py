@@ -25,7 +25,16 @@ from tracer.optics import mie, spectra
 from tracer.optics.coating import Coating
 from tracer.optics.elements import diffuser, polarizer, retarder
 from tracer.optics.polarization import depolarize
-from tracer.optics.surfaces import black, dielectric, lambertian, measured_brdf, microfacet, mirror, mix
+from tracer.optics.surfaces import (
+    black,
+    dielectric,
+    lambertian,
+    measured_brdf,
+    microfacet,
+    mirror,
+    mix,
+    rough_dielectric,
+)
 from tracer.optics.surfaces.base import (
     ABSORBED,
     CONTINUES,
@@ -41,8 +50,10 @@ from tracer.optics.surfaces.base import (
 )
 from tracer.rng import uniform
 
-KINDS = (black, lambertian, mirror, mix, dielectric, diffuser, polarizer, retarder, microfacet, measured_brdf)
-BLACK, LAMBERTIAN, MIRROR, MIX, DIELECTRIC, DIFFUSER, POLARIZER, RETARDER, MICROFACET, MEASURED_BRDF = range(len(KINDS))
+KINDS = (black, lambertian, mirror, mix, dielectric, diffuser, polarizer, retarder, microfacet, measured_brdf,
+         rough_dielectric)
+(BLACK, LAMBERTIAN, MIRROR, MIX, DIELECTRIC, DIFFUSER, POLARIZER, RETARDER, MICROFACET, MEASURED_BRDF,
+ ROUGH_DIELECTRIC) = range(len(KINDS))
 KIND_OF = {m.NAME: k for k, m in enumerate(KINDS)}
 _MODULE_OF_SPEC = {m.Spec: m for m in KINDS}
 
@@ -373,6 +384,9 @@ def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, ke
     if k == MEASURED_BRDF:
         return measured_brdf.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam,
                                      pol)
+    if k == ROUGH_DIELECTRIC:
+        return rough_dielectric.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim,
+                                        lam, pol)
     return ABSORBED, dx, dy, dz, 0.0, depth, dim   # black, or an id without material
 
 

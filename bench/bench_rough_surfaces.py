@@ -1,0 +1,139 @@
+"""The cost of the rough surfaces (issue 38) against the smooth kinds they generalise, and the numba compile time of a
+kind's `scatter`. Writes bench/results/rough_surfaces.json.
+
+1. Reflectors: a box room (4 x 4 x 2.5 m, bench_transport's) of `mirror`, `microfacet` (isotropic, brushed metal)
+   and `lambertian`, all of reflectance 0.8, under a 1000 cd point light: photons/s of the forward kernel on one
+   thread, interleaved rounds, ratios to `mirror`.
+2. Glass: 25 cubes (n = 1.5, 10 cm) over a Lambertian floor (bench_polarization_default's glass-heavy scene) of
+   `dielectric` and of `rough_dielectric` (α = 0.2, and brushed 0.05/0.3): photons/s, ratios to `dielectric`, with
+   polarization left out (`force_effects_off`) and by default (polarized: both kinds call for it).
+3. Compile: in a fresh process with an empty numba cache, the scatter contract's driver (`scatter_contract._run`)
+   compiled with each kind's own `scatter` in turn (mirror first, so the shared helpers are compiled before the
+   others are timed): seconds per kind.
+
+Run: ``flock /tmp/ll-cpu.lock .venv/bin/python -m bench.bench_rough_surfaces [--quick]``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from bench.bench_spectral import _interleaved, _ratios
+
+OUT = Path(__file__).parent / "results" / "rough_surfaces.json"
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def reflectors(rounds: int, photons: int) -> dict:
+    from bench.bench_transport import floor_points, room_scene
+    from tracer.simulate import Simulation
+
+    s, room = room_scene()
+    pts, nrm = floor_points(3)
+    lamp = [{"type": "point", "position": [2.0, 2.0, 2.5], "intensity_cd": 1000.0}]
+    mats = {"mirror": {"type": "mirror", "reflectance": 0.8},
+            "microfacet": {"type": "microfacet", "alpha": 0.3, "reflectance": 0.8},
+            "microfacet brushed Al": {"type": "microfacet", "alpha": 0.1, "alpha_y": 0.4, "axis": [1, 0, 0],
+                                      "metal": [0.96, 6.69]},
+            "lambertian": {"type": "lambertian", "reflectance": 0.8}}
+    sims = {n: Simulation(s, {room: m}, lamp) for n, m in mats.items()}
+    for sim in sims.values():
+        sim.illuminance(pts, nrm, max_photons=2000, estimator="forward")
+    times = _interleaved({n: (lambda sim=sim: sim.illuminance(pts, nrm, max_photons=photons, estimator="forward"))
+                          for n, sim in sims.items()}, rounds)
+    return {"scene": "box room 4 x 4 x 2.5 m of one kind (reflectance 0.8), 1000 cd point light, 9 floor points",
+            "photons": photons,
+            "photons_per_second": {n: photons / statistics.median(t) for n, t in times.items()},
+            "time_ratio_to_mirror": _ratios(times, "mirror")}
+
+
+def glass(rounds: int, photons: int) -> dict:
+    from tracer.scene import Scene
+    from tracer.simulate import Simulation
+    from tracer.warmup import box
+
+    kinds = {"dielectric": {"type": "dielectric", "ior": 1.5},
+             "rough_dielectric": {"type": "rough_dielectric", "ior": 1.5, "alpha": 0.2},
+             "rough_dielectric brushed": {"type": "rough_dielectric", "ior": 1.5, "alpha": 0.05, "alpha_y": 0.3,
+                                          "axis": [1, 0, 0]}}
+    pts = [[0.0, 0.0, 0.0], [0.3, 0.0, 0.0], [0.45, 0.45, 0.0], [0.15, -0.6, 0.0], [-0.9, 0.2, 0.0]]
+    nrm = [[0.0, 0.0, 1.0]] * len(pts)
+    q = {"max_photons": photons, "estimator": "forward", "radius": 0.25}
+    runs = {}
+    for name, body in kinds.items():
+        s = Scene()
+        floor = s.add_instance(s.add_geometry(*box([-3, -3, -0.1], [3, 3, 0.0])), np.eye(4))
+        cube = s.add_geometry(*box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.1]))
+        mats = {floor: {"type": "lambertian", "reflectance": 0.5}}
+        for i in range(5):
+            for j in range(5):
+                t = np.eye(4)
+                t[:3, 3] = [0.3 * (i - 2), 0.3 * (j - 2), 0.3]
+                mats[s.add_instance(cube, t)] = body
+        s.commit()
+        sim = Simulation(s, mats, [{"type": "point", "position": [0.1, 0.05, 1.5], "intensity_cd": 1000.0}])
+        for kw in ({}, {"force_effects_off": ["polarization"]}):
+            sim.illuminance(pts, nrm, max_photons=2000, estimator="forward", **kw)     # compiled before timing
+        runs[f"{name} (polarized)"] = lambda sim=sim: sim.illuminance(pts, nrm, **q)
+        runs[f"{name} (unpolarized)"] = lambda sim=sim: sim.illuminance(pts, nrm, force_effects_off=["polarization"],
+                                                                        **q)
+    times = _interleaved(runs, rounds)
+    rates = {n: photons / statistics.median(t) for n, t in times.items()}
+    return {"scene": "25 glass cubes (n = 1.5, 10 cm) 0.3 m over a Lambertian floor, 1000 cd point at 1.5 m; the kind "
+                     "of the cubes varies", "photons": photons, "photons_per_second": rates,
+            "time_ratio_to_dielectric": {
+                mode: {n: statistics.median(times[f"{n} ({mode})"]) / statistics.median(times[f"dielectric ({mode})"])
+                       for n in kinds} for mode in ("unpolarized", "polarized")}}
+
+
+COMPILE_SCRIPT = r"""
+import json, sys, time
+sys.path.insert(0, "tests/tracer/optics")
+import numpy as np
+from scatter_contract import Case, specs_of
+from tracer.optics.surfaces import dielectric, measured_brdf, microfacet, mirror, rough_dielectric
+out = {}
+for m in (mirror, dielectric, microfacet, rough_dielectric, measured_brdf):
+    case = Case(m, specs_of(m)[0], "front", 0.0, np.array([0.0, 0.0, -1.0]), ("white", 0.0, 0.0, 0.0, 0.0))
+    t0 = time.perf_counter()
+    case.run(m.scatter, n=1)
+    out[m.NAME] = time.perf_counter() - t0
+print(json.dumps(out))
+"""
+
+
+def compile_seconds() -> dict:
+    """Seconds to compile the contract's driver with each kind's `scatter`, in a fresh process and numba cache."""
+    with tempfile.TemporaryDirectory() as cache:
+        env = {**os.environ, "NUMBA_CACHE_DIR": cache}
+        r = subprocess.run([sys.executable, "-c", COMPILE_SCRIPT], cwd=ROOT, env=env, capture_output=True, text=True,
+                           check=True)
+    secs = json.loads(r.stdout.strip().splitlines()[-1])
+    return {"seconds": secs, "note": "each: the driver `scatter_contract._run` specialised on the kind's scatter, "
+                                     "compiled in order (mirror first pays for the shared helpers)"}
+
+
+def run(quick: bool = False) -> dict:
+    import numba
+
+    numba.set_num_threads(1)
+    rounds = 3 if quick else 5
+    return {"reflectors": reflectors(rounds, 100_000 if quick else 500_000),
+            "glass": glass(rounds, 50_000 if quick else 200_000),
+            "compile": compile_seconds(), "machine_threads": 1,
+            "command": "flock /tmp/ll-cpu.lock .venv/bin/python -m bench.bench_rough_surfaces"
+                       + (" --quick" if quick else "")}
+
+
+if __name__ == "__main__":
+    result = run(quick="--quick" in sys.argv)
+    OUT.write_text(json.dumps(result, indent=2, default=float) + "\n")
+    print(json.dumps(result, indent=2, default=float))
