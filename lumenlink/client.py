@@ -619,6 +619,9 @@ def _flatten(x: Any) -> Iterable[Any]:
         yield x
 
 
+ZEMAX_HEADS = ("Source", "Symmetry", "SpectralContent", "ScatterType", "SampleRotation", "AngleOfIncidence")
+
+
 def _optical_format(path: Path) -> str:
     """An optical file's format from its first bytes: ``tm25``, ``brdf`` or ``rays``."""
     with open(path, "rb") as fh:
@@ -627,4 +630,4 @@ def _optical_format(path: Path) -> str:
         return "tm25"
     words = [line.split("#", 1)[0].split() for line in head.decode("utf-8", errors="replace").splitlines()]
     first = next((w[0] for w in words if w), "")
-    return "brdf" if first in ("theta_i_deg", "theta_o_deg", "dphi_deg") else "rays"
+    return "brdf" if first in ("theta_i_deg", "theta_o_deg", "dphi_deg") + ZEMAX_HEADS else "rays"

@@ -28,7 +28,8 @@ from tracer.errors import TracerError
 from tracer.optics import files
 
 FORMATS = {"tm25": "a binary ANSI/IES TM-25 ray file", "rays": "a text ray file (x y z l m n flux per line)",
-           "brdf": "a measured BRDF table in the text format of tracer.optics.surfaces.measured_brdf"}
+           "brdf": "a measured BRDF table: the text format of tracer.optics.surfaces.measured_brdf, or a Zemax / "
+                   "Radiant BSDF Data Interchange (.bsdf) file (tracer.optics.surfaces.zemax_bsdf)"}
 
 
 def _check(path: Path, fmt: str) -> dict[str, Any]:

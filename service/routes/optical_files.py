@@ -17,7 +17,8 @@ FileId = Annotated[str, Path(pattern=r"^[0-9a-f]{64}$",
                              description="an optical file's id: the SHA-256 of its bytes, 64 lowercase hex digits")]
 Format = Annotated[Literal["tm25", "rays", "brdf"], Query(description=(
     "what the file holds: `tm25` a binary ANSI/IES TM-25 ray file, `rays` a text ray file (x y z l m n flux per "
-    "line, `tracer.optics.lights.rayfile`), `brdf` a measured BRDF table (`tracer.optics.surfaces.measured_brdf`)"))]
+    "line, `tracer.optics.lights.rayfile`), `brdf` a measured BRDF table (`tracer.optics.surfaces.measured_brdf`, "
+    "or a Zemax / Radiant `.bsdf` file)"))]
 
 
 def _store(request: Request):

@@ -50,6 +50,7 @@ from tracer.jit import njit
 from tracer.optics.frames import onb
 from tracer.optics.polarization import depolarize
 from tracer.optics.spectra import GRID_N
+from tracer.optics.surfaces import zemax_bsdf
 from tracer.optics.surfaces.base import ABSORBED, CONTINUES, MaterialError, arrival_normal, optional, specular_normal
 from tracer.rng import uniform
 
@@ -139,7 +140,7 @@ def parse_table(v, name: str, where: str) -> Table:
     """Validate a table (inline dict or text): shapes, angles, finite non-negative values, albedo ≤ 1 per θi."""
     at = f"{where}: {name}"
     if isinstance(v, str):
-        v = parse_text(v, at)
+        v = zemax_bsdf.parse(v, at) if zemax_bsdf.is_zemax(v) else parse_text(v, at)
     if not isinstance(v, dict):
         raise MaterialError(f"{where}: {name!r} must be an object (theta_i_deg, theta_o_deg, dphi_deg, brdf) or "
                             f"the text of a table file, got {type(v).__name__}")
