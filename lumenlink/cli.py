@@ -166,6 +166,18 @@ def element(
                            node=node, facing=facing, element_id=element_id, create=create) or 0)
 
 
+@app.command("optical-file")
+def optical_file(
+    file: Annotated[Path | None, typer.Argument(help="A ray file (TM-25 or text columns) or a measured BRDF table; "
+                                                     "none: list the uploaded files.")] = None,
+    format: Annotated[str | None, typer.Option(  # noqa: A002 (the wire's name)
+        help="tm25, rays or brdf (default: from the file's first bytes).")] = None,
+    server: Server = "http://127.0.0.1:8000",
+) -> None:
+    """Upload a ray file or a measured BRDF table once; lights and materials then name it by the printed id."""
+    raise typer.Exit(_call("lumenlink.commands", "optical_file", 38, server=server, file=file, format=format) or 0)
+
+
 @app.command()
 def pack(
     element_id: Annotated[str, typer.Argument(help="The density element to pack (its library id).")],

@@ -222,6 +222,30 @@ class Client(ServiceClient):
             body["name"] = name
         return dict(self._call("POST", f"/scenes/{self._sid(scene)}/lights", "adding a light", json=body))
 
+    # ------------------------------------------------------------ optical files (ray files, BRDF tables)
+
+    def upload_optical_file(self, path: str | Path, format: str | None = None) -> dict[str, Any]:  # noqa: A002
+        """Upload a ray file or a measured BRDF table once (``POST /optical-files``), streamed from disk; answers
+        ``{id, format, bytes, ...}``. Name it by its id in a light (``{"type": "rayfile", "file": id, ...}``) or a
+        material (``{"type": "measured_brdf", "file": id}``). `format`: ``tm25``, ``rays`` (text columns) or
+        ``brdf``; by default TM-25 where the file begins with ``TM25``, a BRDF table where its first words name
+        ``theta_i_deg``, else a text ray file."""
+        p = Path(path)
+        if not p.is_file():
+            raise LumenLinkError(f"no file {str(p)!r} to upload", usage=True)
+        fmt = format or _optical_format(p)
+
+        def chunks():
+            with open(p, "rb") as fh:
+                while block := fh.read(1 << 20):
+                    yield block
+        return dict(self._call("POST", "/optical-files", f"uploading {p.name}", params={"format": fmt},
+                               content=chunks(), headers={"Content-Type": "application/octet-stream"}))
+
+    def optical_files(self) -> list[dict[str, Any]]:
+        """Every uploaded optical file's summary."""
+        return list(self._call("GET", "/optical-files", "listing optical files"))
+
     # ------------------------------------------------------------ elements with an inside
 
     def add_element(self, body: dict[str, Any]) -> dict[str, Any]:
@@ -605,3 +629,15 @@ def _flatten(x: Any) -> Iterable[Any]:
         yield x
 
 
+ZEMAX_HEADS = ("Source", "Symmetry", "SpectralContent", "ScatterType", "SampleRotation", "AngleOfIncidence")
+
+
+def _optical_format(path: Path) -> str:
+    """An optical file's format from its first bytes: ``tm25``, ``brdf`` or ``rays``."""
+    with open(path, "rb") as fh:
+        head = fh.read(4096)
+    if head[:4] == b"TM25":
+        return "tm25"
+    words = [line.split("#", 1)[0].split() for line in head.decode("utf-8", errors="replace").splitlines()]
+    first = next((w[0] for w in words if w), "")
+    return "brdf" if first in ("theta_i_deg", "theta_o_deg", "dphi_deg") + ZEMAX_HEADS else "rays"

@@ -226,6 +226,22 @@ def element(scene: str | None, server: str, body: str | None = None, file: Path 
     return _run(work)
 
 
+def optical_file(server: str, file: Path | None = None, format: str | None = None) -> int:  # noqa: A002
+    """Upload a ray file or BRDF table once and print its id; with no file, list the uploaded ones."""
+    def work(console: Console) -> int:
+        with Client(server) as ll:
+            if file is None:
+                for f in ll.optical_files():
+                    print(f"{f['id']}  {f['format']}  {f['bytes']} bytes")
+                return EXIT_OK
+            answer = ll.upload_optical_file(file, format)
+            what = (f"{answer['rays']} rays, {answer['flux']:.6g} {answer['flux_unit']}" if "rays" in answer
+                    else f"table {answer.get('shape')}")
+            print(f"optical file {answer['id']}  ({answer['format']}, {answer['bytes']} bytes, {what})")
+        return EXIT_OK
+    return _run(work)
+
+
 def pack(element_id: str, scene: str, assignment: str, sensor: str, server: str, target: float = 0.8,
          figure: str = "min_max", photons: int = 100_000, max_photons: int = 1_600_000, max_iterations: int = 10,
          max_seconds: float = 600.0, seed: int = 1, switch: bool = False, png: Path | None = None) -> int:

@@ -20,7 +20,8 @@ from service.db import open_engine
 from service.errors import install_handlers
 from service.meshes import MeshStore
 from service.middleware import BearerToken, BodyLimit, RequestLog
-from service.routes import assignments, elements, geometries, pages, scenes
+from service.optical_files import OpticalFiles
+from service.routes import assignments, elements, geometries, optical_files, pages, scenes
 from service.state import SceneManager
 
 log = logging.getLogger("lumenlink.service")
@@ -69,6 +70,8 @@ def create_app(settings: Settings | None = None, scene_factory: Callable[[], Any
     app.include_router(geometries.router, responses=PROBLEM_RESPONSES)
     app.include_router(assignments.router, responses=PROBLEM_RESPONSES)
     app.include_router(elements.router, responses=PROBLEM_RESPONSES)
+    app.state.optical_files = OpticalFiles(settings.data_dir / "optical-files")   # registered with the tracer
+    app.include_router(optical_files.router, responses=PROBLEM_RESPONSES)
     if importlib.util.find_spec("service.routes.simulation") is not None:
         from service.routes import simulation
 

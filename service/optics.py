@@ -163,8 +163,10 @@ class BrdfTableWire(_MaterialWire):
 
 BrdfTable = BrdfTableWire | Annotated[str, Field(max_length=20_000_000, description=(
     "the text of a table file (format: `tracer.optics.surfaces.measured_brdf`)"))]
+FileId = Annotated[str, Field(pattern=r"^[0-9a-f]{64}$", description=(
+    "an uploaded file's id (POST /optical-files): the SHA-256 of its bytes, 64 lowercase hex digits"))]
 _OBJECTS: dict[str, Any] = {"coating": CoatingWire, "fluorescence": FluorescenceWire, "metal": Metal, "axis": Axis,
-                            "fast_axis": Axis, "particles": ParticlesWire, "table": BrdfTable}
+                            "fast_axis": Axis, "particles": ParticlesWire, "table": BrdfTable, "file": FileId}
 
 
 def _number(meta: Mapping) -> Any:

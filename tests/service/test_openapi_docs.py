@@ -21,7 +21,8 @@ from service.routes.simulation import IlluminanceQuery, SensorSimulate
 from service.simulation import Limits, resolve_budget
 
 #: request bodies that have no example, and why
-NO_EXAMPLE = {("put", "/geometries/{gid}"): "a binary GLB (its id is its SHA-256): no example fits in a text box"}
+NO_EXAMPLE = {("put", "/geometries/{gid}"): "a binary GLB (its id is its SHA-256): no example fits in a text box",
+              ("post", "/optical-files"): "a ray file's or a BRDF table's raw bytes (its id is its SHA-256)"}
 #: component properties that may lack a description, and why (none left)
 NO_DESCRIPTION: dict[str, str] = {}
 #: what a valid example may answer, per operation (beyond 200/201): a second scene of the same name is a conflict

@@ -84,6 +84,8 @@ def light_spec(body: dict, where: str) -> tuple:
     if k < 0:
         raise LightError(f"{where}: unknown light type {t!r}; known: {sorted(KIND_OF_NAME)}")
     module = KINDS[k]
+    if hasattr(module, "resolve"):   # what a file the body names says where the body is silent (rayfile)
+        body = module.resolve(body, where)
     s = light_spectrum(body, where)
     try:
         pol = light_polarization(body.get("polarization"), where)

@@ -2,7 +2,8 @@
 
 | field | type | unit | range | default |
 | --- | --- | --- | --- | --- |
-| table | object or text (below): the BRDF over incidence angle and outgoing bins | sr⁻¹ | ≥ 0, albedo ≤ 1 | required |
+| table | object or text (below): the BRDF over incidence angle and outgoing bins | sr⁻¹ | ≥ 0, albedo ≤ 1 | or file |
+| file | an uploaded table file's id (``POST /optical-files?format=brdf``), text format below | — | 64 hex | or table |
 
 The table, inline (``"table": {...}``) or as the text of a file (``"table": "<file text>"``, format below):
 
@@ -49,6 +50,7 @@ from tracer.jit import njit
 from tracer.optics.frames import onb
 from tracer.optics.polarization import depolarize
 from tracer.optics.spectra import GRID_N
+from tracer.optics.surfaces import zemax_bsdf
 from tracer.optics.surfaces.base import ABSORBED, CONTINUES, MaterialError, arrival_normal, optional, specular_normal
 from tracer.rng import uniform
 
@@ -138,7 +140,7 @@ def parse_table(v, name: str, where: str) -> Table:
     """Validate a table (inline dict or text): shapes, angles, finite non-negative values, albedo ≤ 1 per θi."""
     at = f"{where}: {name}"
     if isinstance(v, str):
-        v = parse_text(v, at)
+        v = zemax_bsdf.parse(v, at) if zemax_bsdf.is_zemax(v) else parse_text(v, at)
     if not isinstance(v, dict):
         raise MaterialError(f"{where}: {name!r} must be an object (theta_i_deg, theta_o_deg, dphi_deg, brdf) or "
                             f"the text of a table file, got {type(v).__name__}")
@@ -174,17 +176,44 @@ def parse_table(v, name: str, where: str) -> Table:
     return table
 
 
+def parse_file(v, name: str, where: str) -> Table:
+    """The table of an uploaded file (its id, `tracer.optics.files`), in the text format; read once while cached."""
+    from tracer.optics import files
+
+    try:
+        path = files.path_of(v, where, name)
+    except files.OpticalFileError as exc:
+        raise MaterialError(str(exc)) from None
+    return files.cached(v, NAME, lambda: parse_table(path.read_text(encoding="utf-8", errors="replace"), name,
+                                                      where))
+
+
 @dataclass(frozen=True)
 class Spec:
     """A measured, isotropic BRDF table."""
 
-    table: Table = field(metadata=optional(parse_table, "the BRDF table (inline object or file text), sr⁻¹"))
+    table: Table | None = field(default=None, metadata=optional(
+        parse_table, "the BRDF table (inline object or file text), sr⁻¹; or `file`"))
+    file: Table | None = field(default=None, metadata=optional(
+        parse_file, "an uploaded table file's id (POST /optical-files?format=brdf: 64 hex digits); or `table`"))
+
+    def check(self) -> str | None:
+        if (self.table is None) == (self.file is None):
+            return "give the BRDF as 'table' (inline) or as 'file' (an uploaded file's id), exactly one"
+        return None
+
+    @property
+    def measured(self) -> Table:
+        """The table, inline or from its file."""
+        t = self.table if self.table is not None else self.file
+        assert t is not None
+        return t
 
 
 def block(spec: Spec) -> np.ndarray:
     """The kernel's flat data: [cos θi (n_i), cos² of θo edges (n_o + 1), Δφ edges rad (n_p + 1), albedo (n_i),
     running sums of each row's f × projected solid angle over its n_o·n_p cells, normalised to 1 (n_i · n_o · n_p)]."""
-    t = spec.table
+    t = spec.measured
     n_i, n_o, n_p = t.shape
     mu = np.cos(np.radians(t.theta_o_deg))
     mu[-1] = 0.0
@@ -197,7 +226,7 @@ def block(spec: Spec) -> np.ndarray:
 
 def row(spec: Spec) -> np.ndarray:
     """[first row of the block in `MaterialArrays.tables` (set by `dispatch`), n_i, n_o, n_p]."""
-    n_i, n_o, n_p = spec.table.shape
+    n_i, n_o, n_p = spec.measured.shape
     return np.array([0.0, n_i, n_o, n_p])
 
 
