@@ -12,10 +12,13 @@ flattened BVH), each kind of ray (incoherent, camera) and each query (closest hi
   build;
 * **instructions and cache misses per ray**, ours and Embree's: this machine's VM exposes no hardware counters
   (``perf stat`` answers ``<not supported>`` for ``instructions``, ``cycles``, cache events: "PMU not available
-  due to virtualization"), so they are counted by valgrind's callgrind with its cache simulator, collection
-  switched on around the tracing call only (``callgrind_control -i on/off``) and the cost of switching (a run
-  of zero rays) subtracted. The caches simulated are this CPU's L1d (32 KiB, 8-way) and L2 (1 MiB, 8-way,
-  as the "last level": a miss there goes to the shared L3 or memory). Under valgrind both engines run their
+  due to virtualization"), so they are counted by valgrind's callgrind with its cache simulator. Counted: what
+  runs inside Embree's ``rtcIntersect1`` / ``rtcOccluded1`` and inside numba's call of our compiled batch
+  (:func:`serial_batch`: the lanes' blocks of ``Scene.intersect``, one after the other in the calling thread);
+  not the Python and Cython around them. Instrumentation is switched on around each measurement only
+  (``callgrind_control -i on/off``), the simulated caches filled by 2,000 of the rays first, then the counters
+  zeroed. The caches simulated are this CPU's L1d (32 KiB, 8-way) and L2 (1 MiB, 8-way, as the "last
+  level": a miss there goes to the shared L3 or memory). Under valgrind both engines run their
   AVX2 code (valgrind has no AVX-512; numba is compiled for ``haswell`` there, in its own cache), natively
   both may use AVX-512: the counts compare code paths, the native times compare what a user gets.
 
@@ -47,7 +50,7 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from tracer.accel import rows8  # noqa: E402
+from tracer.accel import lanes, rows8  # noqa: E402
 from tracer.accel.rows4 import up32  # noqa: E402
 from tracer.accel.traverse import TOP8_BASE, TOP8_DIST, new_stacks, to_object  # noqa: E402
 from tracer.accel.triangle import intersect_triangle, ray_setup  # noqa: E402
@@ -60,6 +63,8 @@ KINDS = ("incoherent", "camera")
 QUERIES = ("closest", "any")
 #: counters of :func:`count_walk`
 TOP_ROWS, ENTERED, ROWS, LEAVES, TRIS = range(5)
+#: rays traced under callgrind before its counters are zeroed, to fill the simulated caches
+WARM = 2000
 #: callgrind's events with --cache-sim=yes, in its order
 EVENTS = ("Ir", "Dr", "Dw", "I1mr", "D1mr", "D1mw", "ILmr", "DLmr", "DLmw")
 
@@ -163,6 +168,26 @@ def count_walk(sa, o, d, t_max, any_hit):
     return c, hit, t
 
 
+@njit(cache=True, error_model="numpy")
+def serial_batch(sa, o, d, t_max, any_hit, out_t, out_inst, out_prim, out_u, out_v, out_n):
+    """:func:`tracer.accel.lanes.batch`'s work block after block in the calling thread (no parallel launch): what
+    callgrind counts for ours, inside numba's ``call_cfunc`` (its worker threads would be outside it)."""
+    k = o.shape[0]
+    for lo in range(0, k, lanes.BLOCK):
+        hi = min(k, lo + lanes.BLOCK)
+        lanes._trace_block(sa, o, d, t_max, any_hit, lo, hi, out_t, out_inst, out_prim, out_u, out_v)
+        if not any_hit:
+            lanes._finish_closest(sa, lo, hi, out_t, out_inst, out_prim, out_u, out_v, out_n)
+
+
+def _serial_call(s, o, d, tm, any_hit):
+    sa = s.arrays()
+    k = len(o)
+    out = (np.empty(k), np.empty(k, np.int64), np.empty(k, np.int64), np.empty(k), np.empty(k), np.empty((k, 3)))
+    tm = np.ascontiguousarray(tm, np.float64)
+    return lambda: serial_batch(sa, o, d, tm, any_hit, *out)
+
+
 # ---------------------------------------------------------------- the worker (one scene, one process)
 def scene_rays(name: str, n: int):
     """``(our scene, world triangles (m, 3, 3), {kind: (o, d)}, {kind: shadow t_max})`` as the tracer bench
@@ -197,10 +222,15 @@ def scene_rays(name: str, n: int):
     return s, tri, rays, shadow
 
 
-def _calls(s, es, o, d, tm, query):
+def _calls(s, es, o, d, tm, query, serial=False):
     o32 = np.ascontiguousarray(o, np.float32)
     d32 = np.ascontiguousarray(d, np.float32)
     t32 = np.ascontiguousarray(tm, np.float32)
+    if serial:   # under callgrind
+        ours = _serial_call(s, np.ascontiguousarray(o), np.ascontiguousarray(d), tm, query == "any")
+        if query == "closest":
+            return {"ours": ours, "embree": lambda: es.run(o32, d32, output=1)}
+        return {"ours": ours, "embree": lambda: es.run(o32, d32, dists=t32, query="OCCLUDED")}
     if query == "closest":
         return {"ours": lambda: s.intersect(o, d, threads=1).instance >= 0,
                 "embree": lambda: es.run(o32, d32, output=1)["geomID"] >= 0}
@@ -209,8 +239,10 @@ def _calls(s, es, o, d, tm, query):
 
 
 def _toggle(what: str) -> None:
-    """Ask callgrind (this process runs under it) to switch collection or dump, and keep executing guest code
-    until it has: callgrind reads its commands between basic blocks, never while the process waits in a call."""
+    """Ask callgrind (this process runs under it) to switch instrumentation, zero or dump, and keep executing guest
+    code until it has: callgrind reads its commands between basic blocks (a process waiting in a system call
+    keeps it waiting for a minute). The spinning is not counted: collection is on only inside the engines'
+    entry points (:func:`run_callgrind`'s ``--toggle-collect``)."""
     p = subprocess.Popen(["callgrind_control", *what.split(), str(os.getpid())], stdout=subprocess.DEVNULL,
                          stderr=subprocess.DEVNULL)
     while p.poll() is None:
@@ -228,11 +260,12 @@ def worker(name: str, n: int, rounds: int, under_callgrind: bool) -> dict:
     if under_callgrind:
         for k, (o, d) in rays.items():   # warm: load every kernel before collection starts
             for q in QUERIES:
-                for call in _calls(s, es, o[:64], d[:64], shadow[k][:64], q).values():
+                for call in _calls(s, es, o[:64], d[:64], shadow[k][:64], q, True).values():
                     call()
         _toggle("-i on")
+        _toggle("-z")
+        _toggle("-d empty")   # the cost of switching alone (none expected): subtracted by the parent
         _toggle("-i off")
-        _toggle("-d empty")   # the cost of switching alone: subtracted by the parent
         out["dumps"] = [["empty", 1]]
     for k, (o, d) in rays.items():
         n = len(o)   # a camera's are a square number
@@ -241,11 +274,14 @@ def worker(name: str, n: int, rounds: int, under_callgrind: bool) -> dict:
             calls = _calls(s, es, o, d, tm, q)
             row = {"rays": k, "query": q, "n_rays": n}
             if under_callgrind:
-                for eng, call in calls.items():
+                warm = _calls(s, es, o[:WARM], d[:WARM], tm[:WARM], q, True)
+                for eng, call in _calls(s, es, o, d, tm, q, True).items():
                     _toggle("-i on")
+                    warm[eng]()   # fills the simulated caches (instrumentation starts them empty)
+                    _toggle("-z")
                     call()
-                    _toggle("-i off")
                     _toggle(f"-d {k}-{q}-{eng}")
+                    _toggle("-i off")
                     out["dumps"].append([f"{k}-{q}-{eng}", n])
             else:
                 times: dict = {e: [] for e in calls}
@@ -267,12 +303,13 @@ def worker(name: str, n: int, rounds: int, under_callgrind: bool) -> dict:
 
 # ---------------------------------------------------------------- callgrind
 def _cg_totals(path: str) -> dict:
-    """The event totals of one callgrind dump."""
+    """The event totals of one callgrind dump (its ``totals:`` line: the costs in the file; its ``summary:`` is
+    measured from the previous dump, and goes negative after a ``-z``)."""
     events = None
     for line in Path(path).read_text().splitlines():
         if line.startswith("events:"):
             events = line.split()[1:]
-        elif line.startswith(("summary:", "totals:")):
+        elif line.startswith("totals:"):
             vals = [int(x) for x in line.split()[1:]]
             return dict(zip(events or EVENTS, vals, strict=False))
     raise RuntimeError(f"no totals in {path}")
@@ -287,7 +324,9 @@ def run_callgrind(name: str, n: int, cache_dir: str) -> dict:
     subprocess.run(me + ["--warm"], env=env, check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
     with tempfile.TemporaryDirectory() as tmp:
         base = os.path.join(tmp, "cg")
-        cmd = ["valgrind", "--tool=callgrind", "--collect-atstart=no", "--cache-sim=yes",
+        # counted: inside numba's call of a compiled function (ours: serial_batch) and Embree's per-ray entries
+        cmd = ["valgrind", "--tool=callgrind", "--instr-atstart=no", "--cache-sim=yes", "--toggle-collect=call_cfunc*",
+               "--toggle-collect=rtcIntersect1", "--toggle-collect=rtcOccluded1",
                "--D1=32768,8,64", "--I1=32768,8,64", "--LL=1048576,8,64", f"--callgrind-out-file={base}.%p"] + me
         res = subprocess.run(cmd + ["--callgrind"], env=env, cwd=ROOT, capture_output=True, text=True)
         if res.returncode != 0:
@@ -391,9 +430,13 @@ def main(argv: list[str]) -> None:
             return
         print(json.dumps(worker(name, n, rounds, "--callgrind" in argv), default=float))
         return
-    if argv and argv[0] == "--report":
-        from bench import run
+    if argv and argv[0] == "--report":   # the tracer section again, with this profile (no measurement)
+        from bench import bench_tracer, run
 
+        path = run.RESULTS / "tracer.json"
+        data = json.loads(path.read_text())
+        data["markdown"] = bench_tracer.markdown(data)
+        path.write_text(json.dumps(data, indent=2, default=float))
         print(run.write_report())
         return
 
