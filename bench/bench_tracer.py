@@ -441,7 +441,7 @@ def run(quick: bool = False, throughput_only: bool = False, rays: int | None = N
     # 3. throughput
     k = rays or (40_000 if quick else 1_000_000)
     reps = 1 if quick else 5
-    tm_rays = 200 if quick else 2_000
+    tm_rays = 200 if (quick or throughput_only) else 2_000   # trimesh takes minutes for 2,000 rays
     nu = 200 if quick else 1000
     v, f = bumpy_sphere(nu, nu // 2)
     big = tracer.Scene()
@@ -592,6 +592,8 @@ def markdown(r: dict) -> str:
 
 if __name__ == "__main__":
     import json
+
+    sys.path.insert(0, str(ROOT))   # this checkout's bench package, not an installed one
 
     if "--throughput-only" in sys.argv:   # section 3 only, written into tracer.json and REPORT.md as bench/run.py does
         from bench import run as bench_run
