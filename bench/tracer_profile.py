@@ -443,6 +443,20 @@ def markdown(p: dict) -> str:
     return "\n".join(lines).rstrip()
 
 
+def replace_section(report: Path, name: str, data: dict) -> Path:
+    """Rewrite only section ``## name`` of the report (as :func:`bench.run.write_report` writes it), leaving the
+    others as they are."""
+    text = report.read_text()
+    head = f"## {name}\n"
+    start = text.index(head)
+    end = text.find("\n## ", start + len(head))
+    end = len(text) if end < 0 else end + 1
+    section = "\n".join([head.rstrip("\n"), "", f"_run {data.get('date', '?')} on {data.get('machine', {})}_", "",
+                          data.get("markdown", "(no summary)"), ""]) + "\n"
+    report.write_text(text[:start] + section + text[end:])
+    return report
+
+
 def main(argv: list[str]) -> None:
     if argv and argv[0] == "--worker":
         name, n = argv[1], int(argv[2])
@@ -459,7 +473,7 @@ def main(argv: list[str]) -> None:
         data = json.loads(path.read_text())
         data["markdown"] = bench_tracer.markdown(data)
         path.write_text(json.dumps(data, indent=2, default=float))
-        print(run.write_report())
+        print(replace_section(run.RESULTS / "REPORT.md", "tracer", data))
         return
 
     def opt(flag: str, default: int) -> int:
