@@ -155,6 +155,12 @@ def incoherent_rays(rng, k: int, lo: np.ndarray, hi: np.ndarray) -> tuple[np.nda
     return o, d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
+def shadow_t_max(rng, k: int, length: float) -> np.ndarray:
+    """Shadow segments' lengths for any-hit rows: uniform in ``(0, length)``, float32 values (so Embree's float32
+    ``tfar`` is the same segment)."""
+    return rng.uniform(0.0, length, k).astype(np.float32).astype(np.float64)
+
+
 def camera_rays(k: int, eye: np.ndarray, target: np.ndarray, fov_deg: float) -> tuple[np.ndarray, np.ndarray]:
     """Pinhole camera rays, row by row (coherent)."""
     n = int(round(np.sqrt(k)))
@@ -240,7 +246,8 @@ def interleaved(calls: dict, repeats: int) -> tuple[dict, dict]:
 
 def throughput(name: str, scene: tracer.Scene, rays: dict, repeats: int, tri_world: np.ndarray,
                trimesh_rays: int, instanced: bool = False) -> list[dict]:
-    """Rows of the throughput table; with ``instanced``, Embree also traces the scene's instances."""
+    """Rows of the throughput table, closest hit then any hit (the same rays as shadow segments,
+    :func:`shadow_t_max`); with ``instanced``, Embree also traces the scene's instances (closest hit)."""
     es = embree_scene(tri_world)
     ei = embree_instanced(scene) if instanced else None
     rows = [throughput_row(name, kind, scene, o, d, es, ei, repeats) for kind, (o, d) in rays.items()]
@@ -250,7 +257,35 @@ def throughput(name: str, scene: tracer.Scene, rays: dict, repeats: int, tri_wor
             row["trimesh_rays"] = trimesh_rays
     if ei is not None:
         ei[0].close()
+    rng = np.random.default_rng(39)   # apart from the rays' generator: the closest-hit rays stay as they were
+    diag = float(np.linalg.norm(tri_world.max((0, 1)) - tri_world.min((0, 1))))
+    rows += [any_hit_row(name, kind, scene, o, d, shadow_t_max(rng, len(o), diag), es, repeats)
+             for kind, (o, d) in rays.items()]
     return rows
+
+
+def any_hit_row(name: str, kind: str, scene: tracer.Scene, o: np.ndarray, d: np.ndarray, t_max: np.ndarray, es,
+                repeats: int) -> dict:
+    """One any-hit row: ``Scene.occluded`` against Embree's ``OCCLUDED`` query (``rtcOccluded1``) on the segments
+    ``o + t d``, ``0 < t < t_max``; rates and ratio as in :func:`throughput_row`."""
+    o32 = np.ascontiguousarray(o, np.float32)
+    d32 = np.ascontiguousarray(d, np.float32)
+    t32 = np.ascontiguousarray(t_max, np.float32)
+    calls = {"ours_1t": lambda: scene.occluded(o, d, t_max, threads=1),
+             "ours_2t": lambda: scene.occluded(o, d, t_max, threads=2)}
+    if es is not None:
+        calls["embree"] = lambda: es.run(o32, d32, dists=t32, query="OCCLUDED") >= 0
+    times, last = interleaved(calls, repeats)
+    rate = {k: len(o) / statistics.median(ts) / 1e6 for k, ts in times.items()}
+    row = {"scene": name, "rays": kind, "query": "any", "n_rays": len(o), "rounds": repeats,
+           "ours_1t_mrays": rate["ours_1t"], "ours_2t_mrays": rate["ours_2t"],
+           "hit_fraction": float(np.mean(last["ours_1t"]))}
+    if es is not None:
+        row.update(embree_1t_mrays=rate["embree"],
+                   ratio_1t=statistics.median(tp / to for to, tp in zip(times["ours_1t"], times["embree"],
+                                                                        strict=True)),
+                   hit_agreement=float(np.mean(last["embree"] == last["ours_1t"])))
+    return row
 
 
 def instancing_overhead(flat: dict, two_levels: dict) -> float:
@@ -285,7 +320,8 @@ def throughput_row(name: str, kind: str, scene: tracer.Scene, o: np.ndarray, d: 
         return statistics.median(tp / to for to, tp in zip(times["ours_1t"], times[k], strict=True))
 
     h = last["ours_1t"]
-    row = {"scene": name, "rays": kind, "n_rays": len(o), "rounds": repeats, "ours_1t_mrays": rate("ours_1t"),
+    row = {"scene": name, "rays": kind, "query": "closest", "n_rays": len(o), "rounds": repeats,
+           "ours_1t_mrays": rate("ours_1t"),
            "ours_2t_mrays": rate("ours_2t"), "hit_fraction": float(np.mean(h.instance >= 0))}
     if es is not None:
         res = last["embree"]
@@ -360,39 +396,52 @@ def _warm_up() -> None:
     scene.intersect(o, d)
 
 
-def run(quick: bool = False) -> dict:
+def run(quick: bool = False, throughput_only: bool = False, rays: int | None = None) -> dict:
+    """The whole benchmark; ``throughput_only`` re-measures section 3 alone and keeps sections 1, 2 and 4 from
+    ``bench/results/tracer.json`` (their date in ``build_from``); ``rays`` overrides the rays per row."""
     rng = np.random.default_rng(2008)
     _warm_up()
     out: dict = {"quick": quick, "load_average_start": os.getloadavg(), "numba_threads": _numba_threads()}
+    old = None
+    if throughput_only:
+        import json
 
-    # 1. paper scenes
-    paper = []
-    scene3 = None
-    scene3_world = 0.0
-    for idx, (name, n_obj, n_tri, paper_build, paper_move) in enumerate(PAPER_SCENES):
-        if quick and idx < 2:
-            continue
-        v, f, m, world = synth_scene(idx + 1, n_obj, n_tri)
-        r, scene = measure_scene(v, f, m, 1 if quick else 3, 5 if quick else 21, rng)
-        r.update(name=name, paper_full_build_s=paper_build, paper_move_commit_s=paper_move)
-        paper.append(r)
-        if idx == 2:
-            scene3, scene3_world = scene, world
-    out["paper_scenes"] = paper
+        old = json.loads((ROOT / "bench" / "results" / "tracer.json").read_text())
+        out.update(paper_scenes=old["paper_scenes"], scaling=old["scaling"], build_from=old.get("date", "?"))
+        if "cold_start" in old:
+            out["cold_start"] = old["cold_start"]
+        v, f, m, scene3_world = synth_scene(3, *PAPER_SCENES[2][1:3])
+        scene3, _, _ = load_scene(v, f, m)
+        scene3.commit()
+    else:
+        # 1. paper scenes
+        paper = []
+        scene3 = None
+        scene3_world = 0.0
+        for idx, (name, n_obj, n_tri, paper_build, paper_move) in enumerate(PAPER_SCENES):
+            if quick and idx < 2:
+                continue
+            v, f, m, world = synth_scene(idx + 1, n_obj, n_tri)
+            r, scene = measure_scene(v, f, m, 1 if quick else 3, 5 if quick else 21, rng)
+            r.update(name=name, paper_full_build_s=paper_build, paper_move_commit_s=paper_move)
+            paper.append(r)
+            if idx == 2:
+                scene3, scene3_world = scene, world
+        out["paper_scenes"] = paper
 
-    # 2. scaling
-    sizes = [1_000, 5_000] if quick else [1_000, 5_000, 20_000, 50_000, 100_000, 200_000]
-    scaling = []
-    for n in sizes:
-        v, f, m, _ = synth_scene(100 + n, n, int(n * 14.44))
-        r, _ = measure_scene(v, f, m, 1 if (quick or n > 50_000) else 3, 5 if quick else 11, rng)
-        scaling.append(r)
-    out["scaling"] = scaling
+        # 2. scaling
+        sizes = [1_000, 5_000] if quick else [1_000, 5_000, 20_000, 50_000, 100_000, 200_000]
+        scaling = []
+        for n in sizes:
+            v, f, m, _ = synth_scene(100 + n, n, int(n * 14.44))
+            r, _ = measure_scene(v, f, m, 1 if (quick or n > 50_000) else 3, 5 if quick else 11, rng)
+            scaling.append(r)
+        out["scaling"] = scaling
 
     # 3. throughput
-    k = 40_000 if quick else 1_000_000
+    k = rays or (40_000 if quick else 1_000_000)
     reps = 1 if quick else 5
-    tm_rays = 200 if quick else 2_000
+    tm_rays = 200 if (quick or throughput_only) else 2_000   # trimesh takes minutes for 2,000 rays
     nu = 200 if quick else 1000
     v, f = bumpy_sphere(nu, nu // 2)
     big = tracer.Scene()
@@ -422,17 +471,29 @@ def run(quick: bool = False) -> dict:
     flat.add_instance(flat.add_geometry(tri3.reshape(-1, 3), np.arange(len(tri3) * 3).reshape(-1, 3)), np.eye(4))
     flat.commit()
     flat_rows = throughput("paper scene 3, one flattened BVH", flat, s3_rays, reps, tri3, 0)
-    for r2, r1 in zip(flat_rows, rows[-2:], strict=True):
+    for r2, r1 in zip(flat_rows, rows[-4:], strict=True):   # closest hit, then any hit
         r2["instancing_overhead"] = instancing_overhead(r2, r1)
     rows += flat_rows
     out["throughput"] = rows
 
     # 4. cold start
-    if not quick:
+    if not quick and not throughput_only:
         out["cold_start"] = cold_start()
     out["load_average_end"] = os.getloadavg()
     out["markdown"] = markdown(out)
     return out
+
+
+def profile_markdown() -> str | None:
+    """The "Profile" subsection, from ``bench/results/tracer_profile.json`` (:mod:`bench.tracer_profile`)."""
+    import json
+
+    path = ROOT / "bench" / "results" / "tracer_profile.json"
+    if not path.exists():
+        return None
+    from bench import tracer_profile
+
+    return tracer_profile.markdown(json.loads(path.read_text()))
 
 
 def _numba_threads() -> int:
@@ -482,11 +543,15 @@ def markdown(r: dict) -> str:
               "Embree scene per geometry, an instance per object with its transform; `bench/embree_instances.py`, "
               "`rtcIntersect1` per ray from a compiled loop), the peer with our structure. trimesh = "
               "`trimesh.ray.ray_triangle` (pure numpy) on a subset.", "",
-              "| scene | rays | ours 1 thread | ours 2 threads | Embree flat, 1 thread | ratio | "
+              "*Any hit*: the same rays as shadow segments (`shadow_t_max`: lengths uniform up to the scene's "
+              "diagonal), `Scene.occluded` (first hit found ends the walk) against Embree's `OCCLUDED` query "
+              "(`rtcOccluded1`); its agreement column compares the occluded flags.", "",
+              "| scene | rays | query | ours 1 thread | ours 2 threads | Embree flat, 1 thread | ratio | "
               "Embree 2 levels, 1 thread | ratio | trimesh | hit agreement |",
-              "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
+              "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
     for t in r["throughput"]:
-        lines.append(f"| {t['scene']} | {t['rays']} ({t['n_rays']:,}) | {_f(t['ours_1t_mrays'], 2)} | "
+        lines.append(f"| {t['scene']} | {t['rays']} ({t['n_rays']:,}) | {t.get('query', 'closest')} hit | "
+                     f"{_f(t['ours_1t_mrays'], 2)} | "
                      f"{_f(t['ours_2t_mrays'], 2)} | {_f(t.get('embree_1t_mrays'), 2)} | {_f(t.get('ratio_1t'), 2)} | "
                      f"{_f(t.get('embree_inst_1t_mrays'), 2)} | {_f(t.get('ratio_inst_1t'), 2)} | "
                      f"{_f(t.get('trimesh_mrays'), 4)} | {_f(t.get('hit_agreement'), 5)} |")
@@ -494,7 +559,8 @@ def markdown(r: dict) -> str:
     if over:
         lines += ["", "Instancing overhead (one flattened BVH over the same world-space triangles vs two levels, "
                   "one thread; from each row's ratio to Embree's flat BVH, which cancels a change of load between "
-                  "the rows): " + ", ".join(f"{t['rays']} ×{t['instancing_overhead']:.2f}" for t in over) + "."]
+                  "the rows): " + ", ".join(f"{t['rays']} {t.get('query', 'closest')} hit "
+                                           f"×{t['instancing_overhead']:.2f}" for t in over) + "."]
     inst = [t for t in r["throughput"] if "embree_inst_1t_mrays" in t]
     if inst:
         lines += ["", "Embree's own instancing overhead on this scene (its flat BVH vs its two levels, one thread): "
@@ -505,6 +571,12 @@ def markdown(r: dict) -> str:
     if "embree_build_1m_s" in r:
         lines += ["", f"BVH build of the {r['throughput'][0]['scene']}: ours {r['ours_build_1m_s']:.2f} s, "
                   f"Embree {r['embree_build_1m_s']:.2f} s (embreex default device)."]
+    if r.get("build_from"):
+        lines += ["", f"_Build, scaling and cold start above: from the full run of {r['build_from']} (this run, "
+                  "`--throughput-only`, re-measured the ray throughput only)._"]
+    prof = profile_markdown()
+    if prof:
+        lines += ["", prof]
     if "cold_start" in r:
         c = r["cold_start"]
         lines += ["", "### Cold start", "",
@@ -521,6 +593,21 @@ def markdown(r: dict) -> str:
 if __name__ == "__main__":
     import json
 
+    sys.path.insert(0, str(ROOT))   # this checkout's bench package, not an installed one
+
+    if "--throughput-only" in sys.argv:   # section 3 only, written into tracer.json and REPORT.md as bench/run.py does
+        from bench import run as bench_run
+
+        t_start = time.perf_counter()
+        n_rays = int(sys.argv[sys.argv.index("--rays") + 1]) if "--rays" in sys.argv else None
+        res = run(quick="--quick" in sys.argv, throughput_only=True, rays=n_rays)
+        res.update(date=time.strftime("%Y-%m-%d %H:%M:%S"), machine=bench_run.machine(),
+                   wall_seconds=time.perf_counter() - t_start)
+        (bench_run.RESULTS / "tracer.json").write_text(json.dumps(res, indent=2, default=float))
+        from bench.tracer_profile import replace_section
+
+        print(replace_section(bench_run.RESULTS / "REPORT.md", "tracer", res))   # the other sections as they are
+        sys.exit(0)
     res = run(quick="--quick" in sys.argv)
     print(res["markdown"])
     print(json.dumps({k: v for k, v in res.items() if k != "markdown"}, indent=1, default=float)[:4000])

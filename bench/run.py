@@ -40,6 +40,8 @@ def write_report() -> Path:
              "peers run in the same process on the same inputs.", ""]
     for path in sorted(RESULTS.glob("*.json")):
         data = json.loads(path.read_text())
+        if data.get("part_of"):   # a part of another section (tracer_profile.json: the tracer's "Profile")
+            continue
         parts += [f"## {path.stem}", "", f"_run {data.get('date', '?')} on {data.get('machine', {})}_", "",
                   data.get("markdown", "(no summary)"), ""]
     report = RESULTS / "REPORT.md"

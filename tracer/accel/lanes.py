@@ -34,8 +34,10 @@ from tracer.accel.wide import MISS, STACK_BASE, pop_nearer, prefetch, prefetch_r
 from tracer.jit import njit, prange
 from tracer.kinds import dispatch, mesh
 
-#: rays in flight per core
-LANES = 4
+#: rays in flight per core. Eight, not four (issue 39): an incoherent ray misses the cache on most rows, and four
+#: other lanes' steps were too few to cover the wait (``bench/ab.py``, one thread, 200,000 incoherent rays, 4 -> 8:
+#: wall time x0.78 on the 1M-triangle mesh, x0.85 on scene 3 with two levels, x0.84 on it flattened; answers alike)
+LANES = 8
 #: rays per parallel block
 BLOCK = 256
 #: a block is coherent when the mean squared distance between neighbours' unit directions is below
