@@ -121,16 +121,36 @@ def compile_seconds() -> dict:
                                      "compiled in order (mirror first pays for the shared helpers)"}
 
 
+def markdown(result: dict) -> str:
+    """The report's section: photons/s and time ratios of each kind against the one it generalises."""
+    r, g, c = result["reflectors"], result["glass"], result["compile"]["seconds"]
+    out = [f"One thread; `{result['command']}`.", "",
+           f"**Reflectors** ({r['scene']}, {r['photons']:,} photons; time per photon against `mirror`, lower is "
+           f"cheaper; a rough reflector loses energy to single scattering, so its photons bounce fewer times):", "",
+           "| kind | photons/s | time ÷ mirror |", "| --- | ---: | ---: |"]
+    out += [f"| {k} | {v:,.0f} | {r['time_ratio_to_mirror'][k]:.2f} |" for k, v in r["photons_per_second"].items()]
+    out += ["", f"**Glass** ({g['scene']}, {g['photons']:,} photons; few photons meet the cubes, so the kind's own "
+                f"cost is diluted):", "", "| kind | unpolarized: time ÷ dielectric | polarized: time ÷ dielectric |",
+            "| --- | ---: | ---: |"]
+    un, po = g["time_ratio_to_dielectric"]["unpolarized"], g["time_ratio_to_dielectric"]["polarized"]
+    out += [f"| {k} | {un[k]:.2f} | {po[k]:.2f} |" for k in un]
+    out += ["", "Compile of each kind's `scatter` (s, fresh cache, in this order: the first pays for the shared "
+                "helpers): " + ", ".join(f"{k} {v:.1f}" for k, v in c.items()) + "."]
+    return "\n".join(out)
+
+
 def run(quick: bool = False) -> dict:
     import numba
 
     numba.set_num_threads(1)
     rounds = 3 if quick else 5
-    return {"reflectors": reflectors(rounds, 100_000 if quick else 500_000),
-            "glass": glass(rounds, 50_000 if quick else 200_000),
-            "compile": compile_seconds(), "machine_threads": 1,
-            "command": "flock /tmp/ll-cpu.lock .venv/bin/python -m bench.bench_rough_surfaces"
-                       + (" --quick" if quick else "")}
+    result = {"reflectors": reflectors(rounds, 100_000 if quick else 500_000),
+              "glass": glass(rounds, 50_000 if quick else 200_000),
+              "compile": compile_seconds(), "machine_threads": 1,
+              "command": "flock /tmp/ll-cpu.lock .venv/bin/python -m bench.bench_rough_surfaces"
+                         + (" --quick" if quick else "")}
+    result["markdown"] = markdown(result)
+    return result
 
 
 if __name__ == "__main__":
