@@ -58,9 +58,12 @@ _METER = ("position", "direction", "aperture_deg")
 
 
 def state_digest(live: LiveScene, sensor: dict[str, Any]) -> str:
-    """A digest of what a sensor's result depends on besides geometry: materials, lights and the sensor."""
+    """A digest of what a sensor's result depends on besides geometry: materials, lights and the sensor. The lights
+    are a set: a service that reloads them (by creation time, then id) may list two made in the same instant in
+    another order than the process that made them, and the digest must not change with it."""
+    lights = sorted(json.dumps(b, sort_keys=True, default=str) for b in live.lights)
     payload = json.dumps([sorted((int(k), v) for k, v in live.materials.items()), live.default_material,
-                          live.lights, sensor], sort_keys=True, default=str)
+                          lights, sensor], sort_keys=True, default=str)
     return hashlib.sha256(payload.encode()).hexdigest()
 
 

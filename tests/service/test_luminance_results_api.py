@@ -106,3 +106,22 @@ def test_luminance_results_are_kept_compared_and_outlive_a_restart(tmp_path: Pat
         # an edit after the restart: the kept image no longer describes the scene
         assert fresh.post(f"/scenes/{sid}/lights", json=LIGHT).status_code == 201
         assert fresh.get(f"{base}/image.exr").status_code == 404
+
+
+def test_the_state_a_result_is_kept_under_does_not_depend_on_the_order_lights_are_listed_in() -> None:
+    """A restarted service lists lights by creation time, then id: two made in the same instant may come back in
+    another order than the process that made them held them. The kept results must still describe the scene
+    (this made the restart test above fail about one run in two when the two lights shared a timestamp)."""
+    from types import SimpleNamespace
+
+    from service.results import state_digest
+
+    a = {"id": "b-second-by-id", "type": "point", "position": [0.0, 0.0, 1.0], "intensity_cd": 10.0}
+    b = {"id": "a-first-by-id", "type": "point", "position": [0.0, 0.0, 1.0], "intensity_cd": 10.0}
+    sensor = {"id": "cam", "type": "camera"}
+    one = SimpleNamespace(materials={1: {"type": "lambertian"}}, default_material=None, lights=[a, b])
+    other = SimpleNamespace(materials={1: {"type": "lambertian"}}, default_material=None, lights=[b, a])
+    assert state_digest(one, sensor) == state_digest(other, sensor)
+    changed = SimpleNamespace(materials={1: {"type": "lambertian"}}, default_material=None,
+                              lights=[a, {**b, "intensity_cd": 20.0}])
+    assert state_digest(changed, sensor) != state_digest(one, sensor)
