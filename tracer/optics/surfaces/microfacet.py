@@ -147,10 +147,10 @@ def sample_visible_normal(x, y, z, ax, ay, u1, u2):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol):
-    fx, fy, fz = arrival_normal(ngx, ngy, ngz, dx, dy, dz)
-    nx, ny, nz = specular_normal(sa, inst, prim, hu, hv, fx, fy, fz)
-    ax, ay = M.par[inst, 4], M.par[inst, 5]
+def facet_frame(sa, M, inst, nx, ny, nz):
+    """The tangent t and bitangent b of the GGX frame (t, b, n) at shading normal n: t along the node's brushing axis
+    (parameter columns 6–8, flag 9) taken onto the tangent plane where the surface is brushed, any tangent else.
+    Shared by every GGX kind (`microfacet`, `rough_dielectric`), whose parameter rows keep these columns."""
     if M.par[inst, 9] > 0.0:   # brushed: alpha along the node's axis, taken onto the tangent plane
         tx, ty, tz = sheet_axis(sa, inst, M.par[inst, 6], M.par[inst, 7], M.par[inst, 8], nx, ny, nz)
         c = tx * nx + ty * ny + tz * nz
@@ -162,7 +162,15 @@ def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, ke
             (tx, ty, tz), _ = onb(nx, ny, nz)
     else:
         (tx, ty, tz), _ = onb(nx, ny, nz)
-    bx, by, bz = ny * tz - nz * ty, nz * tx - nx * tz, nx * ty - ny * tx
+    return tx, ty, tz, ny * tz - nz * ty, nz * tx - nx * tz, nx * ty - ny * tx
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol):
+    fx, fy, fz = arrival_normal(ngx, ngy, ngz, dx, dy, dz)
+    nx, ny, nz = specular_normal(sa, inst, prim, hu, hv, fx, fy, fz)
+    ax, ay = M.par[inst, 4], M.par[inst, 5]
+    tx, ty, tz, bx, by, bz = facet_frame(sa, M, inst, nx, ny, nz)
     # wi = −d in the frame (t, b, n)
     wx, wy, wz = -(dx * tx + dy * ty + dz * tz), -(dx * bx + dy * by + dz * bz), -(dx * nx + dy * ny + dz * nz)
     if wz <= 0.0:   # grazing the shading normal from below: no facet is visible

@@ -53,8 +53,7 @@ import numpy as np
 
 from tracer.jit import njit
 from tracer.optics.coating import Coating, coated_reflectance, parse_coating
-from tracer.optics.elements.base import parse_axis, sheet_axis
-from tracer.optics.frames import onb
+from tracer.optics.elements.base import parse_axis
 from tracer.optics.media.fluorescence import Fluorescence, parse_fluorescence
 from tracer.optics.mie import Particles, parse_particles
 from tracer.optics.polarization import ON, enter_plane, interface_power, leave_plane
@@ -71,7 +70,7 @@ from tracer.optics.surfaces.base import (
     specular_normal,
 )
 from tracer.optics.surfaces.dielectric import fresnel_dielectric, refract
-from tracer.optics.surfaces.microfacet import ALPHA_MIN, ggx_lambda, sample_visible_normal
+from tracer.optics.surfaces.microfacet import ALPHA_MIN, facet_frame, ggx_lambda, sample_visible_normal
 from tracer.optics.thinfilm import stack_mueller
 from tracer.rng import uniform
 
@@ -149,18 +148,7 @@ def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, ke
             n2 = 1.0
     nx, ny, nz = specular_normal(sa, inst, prim, hu, hv, fx, fy, fz)
     ax, ay = M.par[inst, 4], M.par[inst, 5]
-    if M.par[inst, 9] > 0.0:   # brushed: alpha along the node's axis, taken onto the tangent plane
-        tx, ty, tz = sheet_axis(sa, inst, M.par[inst, 6], M.par[inst, 7], M.par[inst, 8], nx, ny, nz)
-        c = tx * nx + ty * ny + tz * nz
-        tx, ty, tz = tx - c * nx, ty - c * ny, tz - c * nz
-        ln = math.sqrt(tx * tx + ty * ty + tz * tz)
-        if ln > 1e-9:
-            tx, ty, tz = tx / ln, ty / ln, tz / ln
-        else:
-            (tx, ty, tz), _ = onb(nx, ny, nz)
-    else:
-        (tx, ty, tz), _ = onb(nx, ny, nz)
-    bx, by, bz = ny * tz - nz * ty, nz * tx - nx * tz, nx * ty - ny * tx
+    tx, ty, tz, bx, by, bz = facet_frame(sa, M, inst, nx, ny, nz)
     wx, wy, wz = -(dx * tx + dy * ty + dz * tz), -(dx * bx + dy * by + dz * bz), -(dx * nx + dy * ny + dz * nz)
     if wz <= 0.0:   # grazing the shading normal from below: no facet is visible
         return ABSORBED, dx, dy, dz, 0.0, depth, dim + 4
