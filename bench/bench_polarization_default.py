@@ -47,7 +47,12 @@ def diffuse_room() -> dict:
             "explain_microseconds": 1e6 * (time.perf_counter() - t0) / n}
 
 
-def glass_heavy(rounds: int, photons: int) -> dict:
+GLASS_POINTS = [[0.0, 0.0, 0.0], [0.3, 0.0, 0.0], [0.45, 0.45, 0.0], [0.15, -0.6, 0.0], [-0.9, 0.2, 0.0]]
+
+
+def glass_cubes(body: dict):
+    """The glass-heavy scene: 25 cubes (10 cm, material `body`) on a 0.3 m lattice 0.3 m over a Lambertian floor
+    (ρ 0.5), a 1000 cd point light at 1.5 m; its `Simulation` (floor points: `GLASS_POINTS`)."""
     from tracer.scene import Scene
     from tracer.simulate import Simulation
     from tracer.warmup import box
@@ -60,10 +65,14 @@ def glass_heavy(rounds: int, photons: int) -> dict:
         for j in range(5):
             t = np.eye(4)
             t[:3, 3] = [0.3 * (i - 2), 0.3 * (j - 2), 0.3]
-            mats[s.add_instance(cube, t)] = {"type": "dielectric", "ior": 1.5}
+            mats[s.add_instance(cube, t)] = body
     s.commit()
-    sim = Simulation(s, mats, [{"type": "point", "position": [0.1, 0.05, 1.5], "intensity_cd": 1000.0}])
-    pts = [[0.0, 0.0, 0.0], [0.3, 0.0, 0.0], [0.45, 0.45, 0.0], [0.15, -0.6, 0.0], [-0.9, 0.2, 0.0]]
+    return Simulation(s, mats, [{"type": "point", "position": [0.1, 0.05, 1.5], "intensity_cd": 1000.0}])
+
+
+def glass_heavy(rounds: int, photons: int) -> dict:
+    sim = glass_cubes({"type": "dielectric", "ior": 1.5})
+    pts = GLASS_POINTS
     nrm = [[0.0, 0.0, 1.0]] * len(pts)
     q = {"max_photons": photons, "estimator": "forward", "radius": 0.25}
     for kw in ({}, {"force_effects_off": ["polarization"]}):

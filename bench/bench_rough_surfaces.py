@@ -24,8 +24,6 @@ import sys
 import tempfile
 from pathlib import Path
 
-import numpy as np
-
 from bench.bench_spectral import _interleaved, _ratios
 
 OUT = Path(__file__).parent / "results" / "rough_surfaces.json"
@@ -56,30 +54,18 @@ def reflectors(rounds: int, photons: int) -> dict:
 
 
 def glass(rounds: int, photons: int) -> dict:
-    from tracer.scene import Scene
-    from tracer.simulate import Simulation
-    from tracer.warmup import box
+    from bench.bench_polarization_default import GLASS_POINTS, glass_cubes
 
     kinds = {"dielectric": {"type": "dielectric", "ior": 1.5},
              "rough_dielectric": {"type": "rough_dielectric", "ior": 1.5, "alpha": 0.2},
              "rough_dielectric brushed": {"type": "rough_dielectric", "ior": 1.5, "alpha": 0.05, "alpha_y": 0.3,
                                           "axis": [1, 0, 0]}}
-    pts = [[0.0, 0.0, 0.0], [0.3, 0.0, 0.0], [0.45, 0.45, 0.0], [0.15, -0.6, 0.0], [-0.9, 0.2, 0.0]]
+    pts = GLASS_POINTS
     nrm = [[0.0, 0.0, 1.0]] * len(pts)
     q = {"max_photons": photons, "estimator": "forward", "radius": 0.25}
     runs = {}
     for name, body in kinds.items():
-        s = Scene()
-        floor = s.add_instance(s.add_geometry(*box([-3, -3, -0.1], [3, 3, 0.0])), np.eye(4))
-        cube = s.add_geometry(*box([-0.05, -0.05, 0.0], [0.05, 0.05, 0.1]))
-        mats = {floor: {"type": "lambertian", "reflectance": 0.5}}
-        for i in range(5):
-            for j in range(5):
-                t = np.eye(4)
-                t[:3, 3] = [0.3 * (i - 2), 0.3 * (j - 2), 0.3]
-                mats[s.add_instance(cube, t)] = body
-        s.commit()
-        sim = Simulation(s, mats, [{"type": "point", "position": [0.1, 0.05, 1.5], "intensity_cd": 1000.0}])
+        sim = glass_cubes(body)
         for kw in ({}, {"force_effects_off": ["polarization"]}):
             sim.illuminance(pts, nrm, max_photons=2000, estimator="forward", **kw)     # compiled before timing
         runs[f"{name} (polarized)"] = lambda sim=sim: sim.illuminance(pts, nrm, **q)
