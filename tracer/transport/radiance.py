@@ -160,34 +160,48 @@ def lens_ray(V, q, dx, dy, dz, u0, u1):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
+def light_along(L, j, ox, oy, oz, ax, ay, az):
+    """Light j as a view at o with axis a sees it directly: (E⊥ at o, lx; the offset to it (3); the shadow ray's
+    t_max; its distance; the cosine of its angle from the axis). E⊥ is 0 where the view sees none of it: an area
+    light (the paths themselves find it), a light that gives o nothing, or one behind the view."""
+    if L.kind[j] == AREA:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0
+    e, sx, sy, sz, t_max = light_connect(L, j, ox, oy, oz, ax, ay, az, 0.5, 0.5, 0.5)
+    if e <= 0.0:
+        return 0.0, sx, sy, sz, t_max, 1.0, 0.0
+    dist = math.sqrt(sx * sx + sy * sy + sz * sz)
+    cos_a = (sx * ax + sy * ay + sz * az) / dist
+    return (e if cos_a > 0.0 else 0.0), sx, sy, sz, t_max, dist, cos_a
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def in_pixel(V, q, fx, fy, fz):
+    """Whether the film point at offset f from pixel q's corner lies in the pixel: its coordinates along the
+    pixel's edges a and b in [0, 1)."""
+    a2 = V.a[q, 0] ** 2 + V.a[q, 1] ** 2 + V.a[q, 2] ** 2
+    b2 = V.b[q, 0] ** 2 + V.b[q, 1] ** 2 + V.b[q, 2] ** 2
+    s = (fx * V.a[q, 0] + fy * V.a[q, 1] + fz * V.a[q, 2]) / a2
+    t = (fx * V.b[q, 0] + fy * V.b[q, 1] + fz * V.b[q, 2]) / b2
+    return 0.0 <= s < 1.0 and 0.0 <= t < 1.0
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
 def lens_point_lights(sa, L, V, q, ox, oy, oz, stack, tstack):
     """The point-like lights one lens point (ox, oy, oz) of pixel q sees: for each light, the film point its light
     reaches through that lens point (through the light's image on the plane of focus); where that falls in the pixel,
     E⊥ / (cos³θ' × film area), θ' the ray's angle from the axis (the lens-point form of `seen_point_lights`). Its mean
     over the lens points of a pixel's paths is the pixel's mean luminance of the lights, unbiased."""
-    ax, ay, az = V.axis[q, 0], V.axis[q, 1], V.axis[q, 2]
     total = 0.0
     for j in range(L.kind.shape[0]):
-        if L.kind[j] == AREA:
-            continue
-        e, sx, sy, sz, t_max = light_connect(L, j, ox, oy, oz, ax, ay, az, 0.5, 0.5, 0.5)
+        e, sx, sy, sz, t_max, dist, cos_a = light_along(L, j, ox, oy, oz, V.axis[q, 0], V.axis[q, 1], V.axis[q, 2])
         if e <= 0.0:
-            continue
-        dist = math.sqrt(sx * sx + sy * sy + sz * sz)
-        cos_a = (sx * ax + sy * ay + sz * az) / dist
-        if cos_a <= 0.0:
             continue
         k = V.focus[q] / (cos_a * dist)   # the ray from the lens point reaches the plane of focus here
         px = ox + k * sx - V.o[q, 0]
         py = oy + k * sy - V.o[q, 1]
         pz = oz + k * sz - V.o[q, 2]
         f = 1.0 / V.focus[q]              # … which the pinhole ray through this film point meets
-        fx, fy, fz = px * f - V.c[q, 0], py * f - V.c[q, 1], pz * f - V.c[q, 2]
-        a2 = V.a[q, 0] ** 2 + V.a[q, 1] ** 2 + V.a[q, 2] ** 2
-        b2 = V.b[q, 0] ** 2 + V.b[q, 1] ** 2 + V.b[q, 2] ** 2
-        s = (fx * V.a[q, 0] + fy * V.a[q, 1] + fz * V.a[q, 2]) / a2
-        t = (fx * V.b[q, 0] + fy * V.b[q, 1] + fz * V.b[q, 2]) / b2
-        if not (0.0 <= s < 1.0 and 0.0 <= t < 1.0):
+        if not in_pixel(V, q, px * f - V.c[q, 0], py * f - V.c[q, 1], pz * f - V.c[q, 2]):
             continue
         if any_with_stacks(sa, ox, oy, oz, sx, sy, sz, t_max, stack, tstack):
             continue
@@ -228,19 +242,12 @@ def seen_point_lights(sa, L, V, q, stack, tstack):
     """The luminance (cd/m²) view q sees of the point-like lights in its field, exactly: E⊥/Ω for a cone that holds
     a light, E⊥/(cos³θ × film area) for the pixel a light falls in (module docstring); 0 where it is occluded."""
     ox, oy, oz = V.o[q, 0], V.o[q, 1], V.o[q, 2]
-    ax, ay, az = V.axis[q, 0], V.axis[q, 1], V.axis[q, 2]
     total = 0.0
     if V.lens[q] > 0.0:
         return 0.0     # a thin lens: each path adds them from its own lens point (`lens_point_lights`)
     for j in range(L.kind.shape[0]):
-        if L.kind[j] == AREA:
-            continue   # seen by the paths themselves (emission on hit)
-        e, sx, sy, sz, t_max = light_connect(L, j, ox, oy, oz, ax, ay, az, 0.5, 0.5, 0.5)
+        e, sx, sy, sz, t_max, dist, cos_a = light_along(L, j, ox, oy, oz, V.axis[q, 0], V.axis[q, 1], V.axis[q, 2])
         if e <= 0.0:
-            continue
-        dist = math.sqrt(sx * sx + sy * sy + sz * sz)
-        cos_a = (sx * ax + sy * ay + sz * az) / dist
-        if cos_a <= 0.0:
             continue
         if V.kind[q] == CONE:
             if cos_a < V.cos_max[q]:
@@ -248,12 +255,7 @@ def seen_point_lights(sa, L, V, q, stack, tstack):
             val = e / cos_a / V.size[q]
         else:
             on_film = 1.0 / (dist * cos_a)   # the light's direction scaled onto the film (unit distance along axis)
-            fx, fy, fz = sx * on_film - V.c[q, 0], sy * on_film - V.c[q, 1], sz * on_film - V.c[q, 2]
-            a2 = V.a[q, 0] ** 2 + V.a[q, 1] ** 2 + V.a[q, 2] ** 2
-            b2 = V.b[q, 0] ** 2 + V.b[q, 1] ** 2 + V.b[q, 2] ** 2
-            s = (fx * V.a[q, 0] + fy * V.a[q, 1] + fz * V.a[q, 2]) / a2
-            t = (fx * V.b[q, 0] + fy * V.b[q, 1] + fz * V.b[q, 2]) / b2
-            if not (0.0 <= s < 1.0 and 0.0 <= t < 1.0):
+            if not in_pixel(V, q, sx * on_film - V.c[q, 0], sy * on_film - V.c[q, 1], sz * on_film - V.c[q, 2]):
                 continue
             val = e / cos_a / (cos_a ** 3 * V.size[q])
         if any_with_stacks(sa, ox, oy, oz, sx, sy, sz, t_max, stack, tstack):
