@@ -9,7 +9,8 @@ It prints the median ratio (< 1: B is faster) and its range::
 
     .venv/bin/python bench/ab.py /path/to/checkout_a /path/to/checkout_b scene3 incoherent 8
 
-Scene ``room`` with rays ``photons`` (or ``photons:N``) times forward photon tracing instead: 200,000 (N)
+Rays ``KIND/any`` (``camera/any``) time ``Scene.occluded`` on them as shadow segments instead (lengths uniform up
+to 1.5 times the farthest closest hit, as the tracer bench's any-hit rows). Scene ``room`` with rays ``photons`` (or ``photons:N``) times forward photon tracing instead: 200,000 (N)
 photons through the diffuse room of ``bench/bench_transport.py`` (``Simulation.illuminance``, nine floor points).
 
 Each checkout needs ``bench/instructions.py`` (``bench/bench_transport.py`` for the room) and its own
@@ -44,8 +45,18 @@ def one_pass(scene: str, rays: str) -> Callable[[], object]:
         return lambda: sim.illuminance(pts, nrm, max_photons=photons, estimator="forward")
     from bench.instructions import scene_and_rays
 
-    sc, o, d = scene_and_rays(scene, rays)
+    kind, _, query = rays.partition("/")
+    sc, o, d = scene_and_rays(scene, kind)
     sc.intersect(o[:100], d[:100], threads=1)
+    if query == "any":   # shadow segments as the bench's any-hit rows: lengths uniform up to the farthest hit
+        import numpy as np
+
+        from bench.bench_tracer import shadow_t_max
+
+        t = sc.intersect(o, d, threads=1).t
+        tm = shadow_t_max(np.random.default_rng(2), len(o), 1.5 * float(np.max(t[np.isfinite(t)])))
+        sc.occluded(o[:100], d[:100], tm[:100], threads=1)
+        return lambda: sc.occluded(o, d, tm, threads=1)
     return lambda: sc.intersect(o, d, threads=1)
 
 

@@ -53,7 +53,7 @@ if str(ROOT) not in sys.path:
 from tracer.accel import lanes, rows8  # noqa: E402
 from tracer.accel.rows4 import up32  # noqa: E402
 from tracer.accel.traverse import TOP8_BASE, TOP8_DIST, new_stacks, to_object  # noqa: E402
-from tracer.accel.triangle import intersect_triangle, ray_setup  # noqa: E402
+from tracer.accel.triangle import intersect_triangle, origin_setup, ray_setup  # noqa: E402
 from tracer.accel.wide import MISS, STACK_BASE, order4, pop_nearer, push3, ray_inverse, slab4  # noqa: E402
 from tracer.jit import njit  # noqa: E402
 
@@ -75,6 +75,7 @@ def _count_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hit,
     """:func:`tracer.accel.wide.walk_rows` with counters added (``c``: see TOP_ROWS ...)."""
     ix, iy, iz, ixe, iye, ize, xl, yl, zl = ray_inverse(dx, dy, dz)
     kx, ky, kz, sx, sy, sz = ray_setup(dx, dy, dz)
+    okx, oky, okz = origin_setup(ox, oy, oz, kx, ky, kz)
     best_t = t_max
     best = -1
     sp = STACK_BASE
@@ -95,7 +96,7 @@ def _count_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hit,
             first = tri0 + (x >> 4)
             for j in range(first, first + (x & 15)):
                 c[TRIS] += 1
-                hit, t, u, v = intersect_triangle(tri, j, ox, oy, oz, kx, ky, kz, sx, sy, sz, best_t)
+                hit, t, u, v = intersect_triangle(tri, j, okx, oky, okz, kx, ky, kz, sx, sy, sz, best_t)
                 if hit:
                     best_t = t
                     best = j

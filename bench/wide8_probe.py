@@ -36,7 +36,7 @@ from bench.instructions import scene_and_rays  # noqa: E402
 from tracer.accel import blas, rows4  # noqa: E402
 from tracer.accel.rows8 import ROW, descend8, pack8, ray8, slab8  # noqa: E402
 from tracer.accel.traverse import TOP8_BASE, TOP8_DIST, new_stacks  # noqa: E402
-from tracer.accel.triangle import intersect_triangle, ray_setup  # noqa: E402
+from tracer.accel.triangle import intersect_triangle, origin_setup, ray_setup  # noqa: E402
 from tracer.accel.wide import MISS, pop_nearer, prefetch, traverse_rows  # noqa: E402
 
 ROUNDS = 7
@@ -46,6 +46,7 @@ ROUNDS = 7
 def walk8(nf, ni, tri, ox, oy, oz, dx, dy, dz, stack, tstack):
     """Closest-hit distance along the ray through the 8-wide rows (nearest child first)."""
     kx, ky, kz, sx, sy, sz = ray_setup(dx, dy, dz)
+    okx, oky, okz = origin_setup(ox, oy, oz, kx, ky, kz)
     onx, ony, onz, ofx, ofy, ofz, fx, fy, fz, fxe, fye, fze, xl, yl, zl = ray8(ox, oy, oz, dx, dy, dz)
     best_t = np.inf
     t32 = np.inf
@@ -67,7 +68,7 @@ def walk8(nf, ni, tri, ox, oy, oz, dx, dy, dz, stack, tstack):
         else:
             x = -ref - 1
             for j in range(x >> 4, (x >> 4) + (x & 15)):
-                hit, t, _, _ = intersect_triangle(tri, j, ox, oy, oz, kx, ky, kz, sx, sy, sz, best_t)
+                hit, t, _, _ = intersect_triangle(tri, j, okx, oky, okz, kx, ky, kz, sx, sy, sz, best_t)
                 if hit:
                     best_t = t
                     t32 = np.float64(rows4.up32(t))

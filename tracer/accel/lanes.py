@@ -26,10 +26,10 @@ import math
 
 import numpy as np
 
-from tracer.accel import rows8
+from tracer.accel import packets, rows8
 from tracer.accel.rows4 import up32
-from tracer.accel.traverse import STACK_LEN, TOP8_BASE, TOP8_DIST, new_stacks, public_hit, to_object, walk_scene
-from tracer.accel.triangle import intersect_triangle, ray_setup
+from tracer.accel.traverse import STACK_LEN, TOP8_BASE, TOP8_DIST, new_stacks, public_hit, to_object
+from tracer.accel.triangle import intersect_triangle, origin_setup, ray_setup
 from tracer.accel.wide import MISS, STACK_BASE, pop_nearer, prefetch, prefetch_ref, push3, ray_inverse, slab4_sorted
 from tracer.jit import njit, prange
 from tracer.kinds import dispatch, mesh
@@ -277,10 +277,11 @@ def _step_bottom(sa, F, I, L, stack, tstack, any_hit):
         ox = F[L, CO]
         oy = F[L, CO + 1]
         oz = F[L, CO + 2]
+        okx, oky, okz = origin_setup(ox, oy, oz, kx, ky, kz)
         x = -ref - 1
         first = tri0 + (x >> 4)
         for j in range(first, first + (x & 15)):
-            hit, t, u, v = intersect_triangle(tri, j, ox, oy, oz, kx, ky, kz, sx, sy, sz, F[L, BEST_T])
+            hit, t, u, v = intersect_triangle(tri, j, okx, oky, okz, kx, ky, kz, sx, sy, sz, F[L, BEST_T])
             if hit:
                 _set_best(F, L, t)
                 F[L, BU] = u
@@ -347,14 +348,6 @@ def _block(sa, o, d, t_max, any_hit, lo, hi, F, I, stack, tstack, scratch, tscra
             L = 0
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
-def _serial_block(sa, o, d, t_max, any_hit, lo, hi, stack, tstack, out_t, out_inst, out_slot, out_u, out_v):
-    """:func:`_block` one ray after the other (a camera's rays, see the module's docstring)."""
-    for i in range(lo, hi):
-        out_t[i], out_inst[i], out_slot[i], out_u[i], out_v[i] = walk_scene(
-            sa, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t_max[i], any_hit, stack, tstack, True)
-
-
 @njit(cache=True, error_model="numpy", inline="always")
 def is_coherent(o, d, lo, hi):
     """True when rays ``lo .. hi-1`` all start at one point and neighbours point nearly the same way
@@ -376,7 +369,9 @@ def _trace_block(sa, o, d, t_max, any_hit, lo, hi, out_t, out_inst, out_slot, ou
     """Rays ``lo .. hi-1`` in lanes, or one after the other when they are coherent."""
     F, I, stack, tstack, scratch, tscratch = _lane_state()
     if is_coherent(o, d, lo, hi):
-        _serial_block(sa, o, d, t_max, any_hit, lo, hi, scratch, tscratch, out_t, out_inst, out_slot, out_u, out_v)
+        P, PI = packets.new_packet()
+        packets.packet_block(sa, o, d, t_max, any_hit, lo, hi, P, PI, scratch, tscratch, stack, tstack, out_t, out_inst,
+                             out_slot, out_u, out_v)
     else:
         _block(sa, o, d, t_max, any_hit, lo, hi, F, I, stack, tstack, scratch, tscratch, out_t, out_inst, out_slot,
                out_u, out_v)

@@ -13,6 +13,8 @@ triangles give ``det == 0`` and never hit; no division by zero happens before th
 
 from __future__ import annotations
 
+import numpy as np
+
 from tracer.jit import njit
 
 
@@ -50,8 +52,19 @@ def ray_setup(dx, dy, dz):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def intersect_triangle(tri, j, o0, o1, o2, kx, ky, kz, sx, sy, sz, t_max):
-    """Test ray ``(o, d)`` (``d`` given through :func:`ray_setup`) against triangle row ``tri[j]``.
+def origin_setup(o0, o1, o2, kx, ky, kz):
+    """The ray origin in the axis order of :func:`ray_setup`: ``(okx, oky, okz)``, once per ray, not per
+    triangle (selected in the triangle loop, it cost three branches per triangle)."""
+    okx = o0 if kx == 0 else (o1 if kx == 1 else o2)
+    oky = o0 if ky == 0 else (o1 if ky == 1 else o2)
+    okz = o0 if kz == 0 else (o1 if kz == 1 else o2)
+    return okx, oky, okz
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def intersect_triangle(tri, j, okx, oky, okz, kx, ky, kz, sx, sy, sz, t_max):
+    """Test ray ``(o, d)`` (``d`` given through :func:`ray_setup`, ``o`` through :func:`origin_setup`) against
+    triangle row ``tri[j]``.
 
     Parameters
     ----------
@@ -59,9 +72,9 @@ def intersect_triangle(tri, j, o0, o1, o2, kx, ky, kz, sx, sy, sz, t_max):
         Triangle vertices ``v0, v1, v2`` in the ray's space, flat, 9 per triangle (arithmetic is
         float64 either way).
     j : int
-        Triangle to test.
-    o0, o1, o2 : float
-        Ray origin (x, y, z).
+        Triangle to test (>= 0).
+    okx, oky, okz : float
+        Ray origin, permuted (:func:`origin_setup`).
     kx, ky, kz, sx, sy, sz
         From :func:`ray_setup`.
     t_max : float
@@ -71,19 +84,20 @@ def intersect_triangle(tri, j, o0, o1, o2, kx, ky, kz, sx, sy, sz, t_max):
     -------
     (hit, t, u, v) : (bool, float, float, float)
     """
-    okx = o0 if kx == 0 else (o1 if kx == 1 else o2)
-    oky = o0 if ky == 0 else (o1 if ky == 1 else o2)
-    okz = o0 if kz == 0 else (o1 if kz == 1 else o2)
-    q = 9 * j
-    akz = tri[q + kz] - okz
-    bkz = tri[q + 3 + kz] - okz
-    ckz = tri[q + 6 + kz] - okz
-    ax = (tri[q + kx] - okx) - sx * akz
-    ay = (tri[q + ky] - oky) - sy * akz
-    bx = (tri[q + 3 + kx] - okx) - sx * bkz
-    by = (tri[q + 3 + ky] - oky) - sy * bkz
-    cx = (tri[q + 6 + kx] - okx) - sx * ckz
-    cy = (tri[q + 6 + ky] - oky) - sy * ckz
+    # unsigned offsets: numba then checks no index for wraparound (three instructions per load)
+    q = np.uint64(9 * j)
+    ux = np.uint64(kx)
+    uy = np.uint64(ky)
+    uz = np.uint64(kz)
+    akz = tri[q + uz] - okz
+    bkz = tri[q + np.uint64(3) + uz] - okz
+    ckz = tri[q + np.uint64(6) + uz] - okz
+    ax = (tri[q + ux] - okx) - sx * akz
+    ay = (tri[q + uy] - oky) - sy * akz
+    bx = (tri[q + np.uint64(3) + ux] - okx) - sx * bkz
+    by = (tri[q + np.uint64(3) + uy] - oky) - sy * bkz
+    cx = (tri[q + np.uint64(6) + ux] - okx) - sx * ckz
+    cy = (tri[q + np.uint64(6) + uy] - oky) - sy * ckz
     uu = cx * by - cy * bx
     vv = ax * cy - ay * cx
     ww = bx * ay - by * ax

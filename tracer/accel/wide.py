@@ -19,7 +19,7 @@ from numba.core import cgutils
 from numba.extending import intrinsic
 
 from tracer.accel import rows8
-from tracer.accel.triangle import intersect_triangle, ray_setup
+from tracer.accel.triangle import intersect_triangle, origin_setup, ray_setup
 from tracer.jit import njit
 
 #: float64 rounding allowance on the slab test's far distance (pbrt: 1 + 2 gamma(3))
@@ -195,16 +195,24 @@ def order4(t0, t1, t2, t3, bi, r):
     """Sort the four entry distances of wide row ``r`` (from :func:`slab4`) with their references:
     ``(nearest, r1, r2, r3, t1, t2, t3)``, nearest :data:`MISS` when no box is hit. (LLVM compiles
     the network to branches, which the CPU predicts well along one ray's walk.)"""
-    r0 = np.int64(bi[r + 12])
-    r1 = np.int64(bi[r + 13])
-    r2 = np.int64(bi[r + 14])
-    r3 = np.int64(bi[r + 15])
+    u = np.uint64(r + 12)   # an unsigned index: no wraparound check for negative values
+    r0 = np.int64(bi[u])
+    r1 = np.int64(bi[u + np.uint64(1)])
+    r2 = np.int64(bi[u + np.uint64(2)])
+    r3 = np.int64(bi[u + np.uint64(3)])
+    t0, r0, t1, r1, t2, r2, t3, r3 = sort4(t0, r0, t1, r1, t2, r2, t3, r3)
+    return (r0 if t0 < np.inf else MISS), r1, r2, r3, t1, t2, t3
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def sort4(t0, r0, t1, r1, t2, r2, t3, r3):
+    """Four (distance, reference) pairs, nearest first: a 5-comparator network."""
     t0, r0, t1, r1 = _order(t0, r0, t1, r1)
     t2, r2, t3, r3 = _order(t2, r2, t3, r3)
     t0, r0, t2, r2 = _order(t0, r0, t2, r2)
     t1, r1, t3, r3 = _order(t1, r1, t3, r3)
     t1, r1, t2, r2 = _order(t1, r1, t2, r2)
-    return (r0 if t0 < np.inf else MISS), r1, r2, r3, t1, t2, t3
+    return t0, r0, t1, r1, t2, r2, t3, r3
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -213,8 +221,8 @@ def pop_nearer(stack, tstack, sp, base, best_t):
     (entries beyond it are dropped), or :data:`MISS` when none is left."""
     while sp > base:
         sp -= 1
-        if tstack[sp] <= best_t:
-            return stack[sp], sp
+        if tstack[np.uint64(sp)] <= best_t:   # (unsigned: no wraparound check)
+            return stack[np.uint64(sp)], sp
     return MISS, sp
 
 
@@ -291,6 +299,12 @@ def traverse_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hi
     return walk_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack)
 
 
+@njit(cache=True, error_model="numpy", _nrt=False)
+def traverse_from(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack, ref0, base):
+    """:func:`walk_from` as a real function, compiled once (for :mod:`tracer.accel.packets`)."""
+    return walk_from(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack, ref0, base)
+
+
 @njit(cache=True, error_model="numpy", inline="always")
 def walk_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
     """:func:`tracer.kinds.mesh.traverse` on explicit arrays (LLVM optimises the loop better on plain array arguments
@@ -304,16 +318,24 @@ def walk_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hit, s
     ``stack``, ``tstack``: as from :func:`tracer.accel.traverse.new_stacks`; a bottom level uses the entries
     from :data:`STACK_BASE` on (the top level those below), so no view of the arrays is made per ray.
     """
+    return walk_from(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack, 0, STACK_BASE)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def walk_from(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack, ref0, base):
+    """:func:`walk_rows` from the row (or leaf) ``ref0`` down, with the stack entries from ``base`` on: a packet
+    walk (:mod:`tracer.accel.packets`) hands a ray that left its packet over to it."""
     ix, iy, iz, ixe, iye, ize, xl, yl, zl = ray_inverse(dx, dy, dz)
     kz = -1   # the triangle test's setup, made at the first leaf (most instances entered have none)
     kx = ky = 0
     sx = sy = sz = 0.0
+    okx = oky = okz = 0.0
     best_t = t_max
     best = -1
     bu = 0.0
     bv = 0.0
-    sp = STACK_BASE
-    ref = 0
+    sp = base
+    ref = ref0
     while True:
         if ref >= 0:
             r = 16 * (row0 + ref)
@@ -327,10 +349,11 @@ def walk_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hit, s
         else:
             if kz < 0:
                 kx, ky, kz, sx, sy, sz = ray_setup(dx, dy, dz)
+                okx, oky, okz = origin_setup(ox, oy, oz, kx, ky, kz)
             x = -ref - 1
             first = tri0 + (x >> 4)
             for j in range(first, first + (x & 15)):
-                hit, t, u, v = intersect_triangle(tri, j, ox, oy, oz, kx, ky, kz, sx, sy, sz, best_t)
+                hit, t, u, v = intersect_triangle(tri, j, okx, oky, okz, kx, ky, kz, sx, sy, sz, best_t)
                 if hit:
                     best_t = t
                     best = j
@@ -338,7 +361,7 @@ def walk_rows(bf, bi, tri, row0, tri0, ox, oy, oz, dx, dy, dz, t_max, any_hit, s
                     bv = v
                     if any_hit:
                         return True, best_t, best, bu, bv
-        ref, sp = pop_nearer(stack, tstack, sp, STACK_BASE, best_t)
+        ref, sp = pop_nearer(stack, tstack, sp, base, best_t)
         if ref == MISS:
             break
     return best >= 0, best_t, best, bu, bv
