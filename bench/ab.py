@@ -10,7 +10,8 @@ It prints the median ratio (< 1: B is faster) and its range::
     .venv/bin/python bench/ab.py /path/to/checkout_a /path/to/checkout_b scene3 incoherent 8
 
 Rays ``KIND/any`` (``camera/any``) time ``Scene.occluded`` on them as shadow segments instead (lengths uniform up
-to 1.5 times the farthest closest hit, as the tracer bench's any-hit rows). Scene ``room`` with rays ``photons`` (or ``photons:N``) times forward photon tracing instead: 200,000 (N)
+to 1.5 times the farthest closest hit, as the tracer bench's any-hit rows). Scene ``room`` with rays ``photons``
+(or ``photons:N``) times forward photon tracing instead: 200,000 (N)
 photons through the diffuse room of ``bench/bench_transport.py`` (``Simulation.illuminance``, nine floor points).
 
 Each checkout needs ``bench/instructions.py`` (``bench/bench_transport.py`` for the room) and its own
