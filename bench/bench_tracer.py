@@ -555,6 +555,19 @@ def markdown(r: dict) -> str:
                      f"{_f(t['ours_2t_mrays'], 2)} | {_f(t.get('embree_1t_mrays'), 2)} | {_f(t.get('ratio_1t'), 2)} | "
                      f"{_f(t.get('embree_inst_1t_mrays'), 2)} | {_f(t.get('ratio_inst_1t'), 2)} | "
                      f"{_f(t.get('trimesh_mrays'), 4)} | {_f(t.get('hit_agreement'), 5)} |")
+    short = [t for t in r["throughput"] if t.get("ratio_1t") is not None and t["ratio_1t"] < 1.0]
+    if short:
+        lo = min(short, key=lambda t: t["ratio_1t"])
+        lines += ["", f"Short of Embree's flat BVH on one thread: {len(short)} of {len(r['throughput'])} rows, down to "
+                  f"{lo['ratio_1t']:.2f} ({lo['scene']}, {lo['rays']} rays, {lo.get('query', 'closest')} hit). The "
+                  "profile below says why: ours executes 2.5-4.6x Embree's instructions per ray with as many cache "
+                  "misses or fewer (float64 tests of 8-bit quantised 4-wide rows and one triangle at a time, against "
+                  "float32 8-wide nodes and four triangles per test). Tried against that and measured with "
+                  "`bench/ab.py` (README, ray tracing core): eight lanes in flight (kept), packets of eight camera "
+                  "rays in scenes of one mesh (kept: x0.86-0.95 time), the triangle test's setup once per ray "
+                  "(kept, neutral), 8-wide float32 bottom rows (slower in the lanes), spatial splits "
+                  "(`bench/results/sbvh39.json`: x0.96-0.98 for a 2.8x build), sorted ray streams "
+                  "(`docs/RAYSORT.md`: x1.10 slower on incoherent rays)."]
     over = [t for t in r["throughput"] if "instancing_overhead" in t]
     if over:
         lines += ["", "Instancing overhead (one flattened BVH over the same world-space triangles vs two levels, "

@@ -14,9 +14,10 @@ its stacks in its own part of the flat stack arrays (top level, then bottom leve
 intersected in one go through :mod:`tracer.kinds.dispatch`, so a new kind needs no change here.
 
 A block of rays that start at one point and point nearly the same way, neighbour after neighbour (a
-camera's), is traced one ray after the other instead: such rays walk the same rows in the same order,
-find them in the cache, and would only pay for the lanes' bookkeeping (measured: 10-15 % slower for
-camera rays). Rays from one point in scattered directions (a point source's) are as incoherent as any
+camera's), skips the lanes: such rays walk the same rows in the same order, find them in the cache, and
+would only pay for the lanes' bookkeeping (measured: 10-15 % slower for camera rays); they walk in packets
+of eight instead (:mod:`tracer.accel.packets`; one by one across a top level of many instances). Rays
+from one point in scattered directions (a point source's) are as incoherent as any
 and take the lanes.
 """
 
@@ -366,7 +367,7 @@ def is_coherent(o, d, lo, hi):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _trace_block(sa, o, d, t_max, any_hit, lo, hi, out_t, out_inst, out_slot, out_u, out_v):
-    """Rays ``lo .. hi-1`` in lanes, or one after the other when they are coherent."""
+    """Rays ``lo .. hi-1`` in lanes, or in packets (:mod:`tracer.accel.packets`) when they are coherent."""
     F, I, stack, tstack, scratch, tscratch = _lane_state()
     if is_coherent(o, d, lo, hi):
         P, PI = packets.new_packet()
