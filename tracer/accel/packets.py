@@ -174,6 +174,16 @@ def _farthest(P, mask):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _record(P, PI, k, t, u, v, inst, slot):
+    """Ray ``k``'s new best hit: distance ``t``, barycentrics ``(u, v)``, instance and the kind's slot."""
+    P[TB, k] = t
+    P[BU, k] = u
+    P[BV, k] = v
+    PI[INST, k] = inst
+    PI[SLOT, k] = slot
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _leaf(P, PI, tri, first, count, ox, oy, oz, mask, inst, any_hit):
     """Test the triangles ``first .. first+count-1`` against the rays ``mask`` (object space: origin ``o``);
     returns the rays of ``mask`` still looking (with ``any_hit``: those without a hit)."""
@@ -197,11 +207,7 @@ def _leaf(P, PI, tri, first, count, ox, oy, oz, mask, inst, any_hit):
             hit, t, u, v = intersect_triangle(tri, j, P[OKX, k], P[OKY, k], P[OKZ, k], PI[KX, k], PI[KY, k],
                                               PI[KZ, k], P[SX, k], P[SY, k], P[SZ, k], P[TB, k])
             if hit:
-                P[TB, k] = t
-                P[BU, k] = u
-                P[BV, k] = v
-                PI[INST, k] = inst
-                PI[SLOT, k] = j
+                _record(P, PI, k, t, u, v, inst, j)
                 if any_hit:
                     mask &= ~(np.int64(1) << k)
                     break
@@ -259,11 +265,7 @@ def walk_rows_packet(P, PI, bf, bu, bi, tri, row0, tri0, ox, oy, oz, mask, inst,
                 hit, t, slot, u, v = wide.traverse_from(bf, bi, tri, row0, tri0, ox, oy, oz, P[RDX, k], P[RDY, k],
                                                     P[RDZ, k], P[TB, k], any_hit, solo, tsolo, ref, wide.STACK_BASE)
                 if hit:
-                    P[TB, k] = t
-                    P[BU, k] = u
-                    P[BV, k] = v
-                    PI[INST, k] = inst
-                    PI[SLOT, k] = slot
+                    _record(P, PI, k, t, u, v, inst, slot)
                     if any_hit:
                         live &= ~(np.int64(1) << k)
             if live == 0:
@@ -343,11 +345,7 @@ def _enter(sa, P, PI, inst, row0, tri0, ox, oy, oz, mask, any_hit, stack, tstack
         hit, t, slot, u, v = wide.traverse_rows(sa.bvh_f, sa.bvh_i, sa.tri_v, row0, tri0, rox, roy, roz, P[RDX, k],
                                                 P[RDY, k], P[RDZ, k], P[TB, k], any_hit, stack, tstack)
         if hit:
-            P[TB, k] = t
-            P[BU, k] = u
-            P[BV, k] = v
-            PI[INST, k] = inst
-            PI[SLOT, k] = slot
+            _record(P, PI, k, t, u, v, inst, slot)
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
