@@ -14,6 +14,9 @@ to 1.5 times the farthest closest hit, as the tracer bench's any-hit rows). Scen
 (or ``photons:N``) times forward photon tracing instead: 200,000 (N)
 photons through the diffuse room of ``bench/bench_transport.py`` (``Simulation.illuminance``, nine floor points).
 
+``AB_ENV_B="NUMBA_OPT=1 NUMBA_CACHE_DIR=/tmp/o1"`` adds settings to checkout B's worker alone (A and B may then be one
+checkout: an LLVM level against the default; give B its own numba cache, whose index does not key the level).
+
 Each checkout needs ``bench/instructions.py`` (``bench/bench_transport.py`` for the room) and its own
 ``.venv`` (a symbolic link to this one will do); ``git worktree add`` makes a checkout of an older
 commit. One thread each.
@@ -77,8 +80,10 @@ def worker(checkout: str, scene: str, rays: str) -> None:
 def pairs(a: str, b: str, scene: str, rays: str, n: int) -> tuple[list[float], list[float]]:
     """CPU seconds of `n` passes in each checkout, taken in turn (A B B A ...); (times of A, times of B)."""
     env = dict(os.environ, NUMBA_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
-    procs = [subprocess.Popen([f"{r}/.venv/bin/python", __file__, "--worker", r, scene, rays], cwd=r, env=env,
-                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True) for r in (a, b)]
+    env_b = dict(env, **dict(kv.split("=", 1) for kv in os.environ.get("AB_ENV_B", "").split()))
+    procs = [subprocess.Popen([f"{r}/.venv/bin/python", __file__, "--worker", r, scene, rays], cwd=r, env=e,
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+             for r, e in ((a, env), (b, env_b))]
     for p in procs:
         if p.stdout is None or p.stdout.readline().strip() != "ready":
             raise SystemExit(f"worker {p.args[0]} did not start")

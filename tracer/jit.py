@@ -1,4 +1,4 @@
-"""The tracer's ``njit``: numba's, with one change that halves what a first query compiles.
+"""The tracer's ``njit``: numba's, with two changes that cut what a first query compiles.
 
 numba compiles a callee anew for every literal constant a caller passes it: ``uniform(key, 0)`` …
 ``uniform(key, 5)`` in the photon loop were six compiles of one function, each surface kind's ``scatter`` two
@@ -6,6 +6,14 @@ numba compiles a callee anew for every literal constant a caller passes it: ``un
 kernels is typed here with its arguments made plain (``Literal[int](0)`` → ``int64``, ``Literal[bool]`` →
 ``bool``), so each kernel compiles once per argument *types*, as it would from Python. None of the tracer's
 kernels needs a literal argument (none calls ``numba.literally``); numba's own overloads keep theirs.
+
+Inlining is LLVM's, not numba's. ``inline="always"`` asks numba to paste the callee's IR into every caller and
+type it again there: 72 small helpers of the walks and the optics were, and typing the two-level walk
+(`tracer.accel.traverse.closest_with_stacks`) alone took 23 s of a 153 s first forward query (bench/compile_probe.py).
+Here it means ``forceinline``: the helper compiles once per argument types, like any callee, and LLVM's always-inliner
+pastes its optimised code into each caller, so the machine code is the same shape (bench/bench_compile.py measures
+both, compile seconds and rays and photons per second). Every other kernel is compiled with ``forceinline=False``
+said explicitly, since numba lets a callee inherit the flag from the caller it is compiled for.
 
 Import ``njit`` (and ``prange``) from here, never from numba, in every tracer module that defines kernels:
 the change is made once, when this module is first imported, before any kernel compiles.
@@ -16,13 +24,29 @@ from __future__ import annotations
 
 from typing import Any
 
-from numba import njit, prange
+import numba
+from numba import prange
 from numba.core import dispatcher, types
 
-__all__ = ["kind_switch", "njit", "prange"]
+__all__ = ["inlined", "kind_switch", "njit", "prange"]
 
 #: the modules whose kernels are called without literal arguments
 PACKAGE = "tracer."
+
+
+def njit(*args: Any, **options: Any):
+    """numba's ``njit`` (same arguments), with ``inline="always"`` made LLVM's ``forceinline`` (module docstring)."""
+    if options.get("inline") == "always":
+        options["inline"] = "never"
+        options["forceinline"] = True
+    else:
+        options.setdefault("forceinline", False)
+    return numba.njit(*args, **options)
+
+
+def inlined(kernel) -> bool:
+    """Whether a kernel of the tracer is pasted into its callers (asked ``inline="always"``)."""
+    return bool(kernel.targetoptions.get("forceinline"))
 
 
 def _plain_call_template(original):

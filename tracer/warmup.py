@@ -87,13 +87,15 @@ def kernel_types() -> dict[str, Any]:
 
 def forward_callees() -> list[tuple[Any, tuple]]:
     """``(kernel, signature)`` of every function the forward kernel (`tracer.transport.forward.trace_photons`) calls
-    that numba compiles on its own (not inlined), with the argument types the forward kernel passes: each surface
-    kind's ``scatter`` and each light kind's ``sample`` (from their registrations, so a new kind is included),
-    the media's switch, the receivers' crossings and tallies, the random numbers."""
+    with the argument types the forward kernel passes: the surface and light switches, each surface kind's
+    ``scatter`` and each light kind's ``sample`` (from their registrations, so a new kind is included), the media's
+    switch, the receivers' crossings and tallies, the random numbers. Helpers that LLVM inlines (`tracer.jit`) are
+    compiled on their own too, once per argument types, so they are here as well."""
     from tracer import rng
     from tracer.accel import spawn, traverse
     from tracer.optics import frames, polarization, spectra
     from tracer.optics.lights import dispatch as lights
+    from tracer.optics.lights import pick_light
     from tracer.optics.media import dispatch as media
     from tracer.optics.media import homogeneous
     from tracer.optics.surfaces import dispatch as surfaces
@@ -105,6 +107,9 @@ def forward_callees() -> list[tuple[Any, tuple]]:
     sample = (t["lights"], i8, *[f8] * 5)
     own = [(kind.scatter, scatter) for kind in surfaces.KINDS]
     own += [(kind.sample, sample) for kind in lights.KINDS]
+    own += [(surfaces.scatter, scatter), (surfaces.bsdf_row, (sa, i8, i8)), (surfaces.feature_surface, (sa, i8, i8)),
+            (pick_light, (t["lights"], f8)), (lights.sample_emission, (t["lights"], i8, *[f8] * 5)),
+            (lights.emit_wavelength, (t["lights"], i8, f8))]
     own += [(surfaces.bsdf_scatter, (sa, i8, i8, f8, f8, f8, vi, i8, u8, i8, vf)),   # an element's table
             (media.medium_coefficients, (mats, i8, f8)), (media.medium_event, (mats, i8, *[f8] * 6, u8, i8, vf)),
             (homogeneous.sample_free_flight, (f8, f8)), (homogeneous.transmittance, (f8, f8)),
@@ -114,7 +119,7 @@ def forward_callees() -> list[tuple[Any, tuple]]:
             (transport.record_far, (vf, vf, f8, f8, f8, f8)), (transport.record_spectrum, (vf, i8, i8, f8, f8)),
             (transport.record_stokes, (vf, i8, i8, f8, vf, f8, f8, f8, mf, i8)),
             (rng.path_key, (i8, i8, i8)), (rng.uniform, (u8, i8)), (spawn.offset_ray_origin, tuple([f8] * 9))]
-    return [(kernel, sig) for kernel, sig in own if kernel.targetoptions.get("inline") != "always"]
+    return own
 
 
 def compile_stage(stage: str, reverse: bool = False) -> None:

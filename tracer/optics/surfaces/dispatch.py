@@ -2,7 +2,8 @@
 on a surface kind (`scatter`, `albedo`). Adding a kind: its module, one entry in `KINDS`, one branch in
 each switch below.
 
-`scatter` is inlined into the transport kernel (numba's ``inline="always"``), and so is the Lambertian kind's:
+`scatter` is inlined into the transport kernel (``inline="always"``, which `tracer.jit` makes LLVM's forceinline),
+and so is the Lambertian kind's:
 a real call per bounce passes the scene's and the materials' tuples, a few hundred words, and made the diffuse
 room 1.25x slower than the switch written inline; the other kinds stay calls (they cost a compile each where
 inlined, and do more work per call).

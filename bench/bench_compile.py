@@ -1,0 +1,121 @@
+"""Where a first session's compile time goes: each kernel's cold compile, by phase and by kind (issue 49).
+
+Each configuration runs `bench/compile_probe.py` in a fresh process with an empty numba cache: commit a room (the
+builders), then a forward lux query, a backward one, a luminance meter and a camera, each step's seconds split
+into numba's phases (type inference, lowering, LLVM) and into the functions compiled. Configurations, side by side
+in one run: numba's default LLVM level (``NUMBA_OPT=3``, what the tracer uses) and lower ones, so that compile
+seconds can be weighed against the rays and photons per second that `bench/ab.py` measures at each level.
+
+What a kind adds: the seconds spent compiling the functions of each kind's own module (a surface's ``scatter``, a
+light's ``sample`` and ``connect``, a geometry kind's ``intersect``), from the same events. They are a floor: a
+kind's code is also linked into, optimised and emitted again with every kernel that calls it (the LLVM seconds of
+``dispatch.scatter``, ``trace_photons``, ``forward_batches``, the luminance kernels), which these figures count
+for the caller.
+
+Run: ``lumenlink bench --only compile`` (about 10 minutes on 2 cores; ``--quick``: the default level only).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from collections import defaultdict
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PROBE = ROOT / "bench" / "compile_probe.py"
+STEPS = ("scene", "forward", "backward", "luminance", "camera")
+#: configuration name → environment; the first is what the tracer runs today
+CONFIGS = {"O3": {}, "O1": {"NUMBA_OPT": "1"}}
+#: module prefixes whose functions are a kind's own, and the family each names
+KIND_FAMILIES = {"tracer.optics.surfaces.": "surface", "tracer.optics.lights.": "light",
+                 "tracer.optics.media.": "medium", "tracer.optics.elements.": "element", "tracer.kinds.": "geometry"}
+NOT_KINDS = ("dispatch", "base")
+
+
+def probe(env: dict[str, str], steps=STEPS) -> dict:
+    """One cold run of the probe in a child with an empty numba cache and `env` added."""
+    with tempfile.TemporaryDirectory(prefix="lumenlink-compile-") as cache:
+        child = {**os.environ, **env, "NUMBA_CACHE_DIR": cache, "PYTHONPATH": str(ROOT)}
+        r = subprocess.run([sys.executable, str(PROBE), *steps], env=child, capture_output=True, text=True,
+                           timeout=1800, cwd=ROOT)
+    if r.returncode:
+        raise RuntimeError(f"compile probe failed: {r.stderr[-2000:]}")
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def kind_of(function: str) -> tuple[str, str] | None:
+    """(family, kind) of a function in a kind's own module, else None."""
+    for prefix, family in KIND_FAMILIES.items():
+        if function.startswith(prefix):
+            kind = function[len(prefix):].split(".")[0]
+            return None if kind in NOT_KINDS else (family, kind)
+    return None
+
+
+def per_kind(result: dict) -> dict[str, float]:
+    """Seconds compiling each kind's own functions, over all steps: {"surface microfacet": s, ...}."""
+    out: dict[str, float] = defaultdict(float)
+    for step in result["steps"].values():
+        for function, phases in step["functions"].items():
+            k = kind_of(function)
+            if k:
+                out[" ".join(k)] += sum(phases.values())
+    return dict(sorted(out.items(), key=lambda kv: -kv[1]))
+
+
+def run(quick: bool = False) -> dict:
+    configs = {"O3": CONFIGS["O3"]} if quick else CONFIGS
+    results = {}
+    for name, env in configs.items():
+        print(f"bench_compile: {name} (fresh process, empty numba cache)", file=sys.stderr, flush=True)
+        results[name] = probe(env)
+    out = {"configs": {name: {"env": configs[name], "import_seconds": r["import_seconds"],
+                              "steps": {s: {"seconds": v["seconds"], "phases": v["phases"]}
+                                        for s, v in r["steps"].items()},
+                              "kinds": per_kind(r),
+                              "functions": {s: v["functions"] for s, v in r["steps"].items()}}
+                       for name, r in results.items()}}
+    out["markdown"] = markdown(out)
+    return out
+
+
+def markdown(out: dict) -> str:
+    configs = out["configs"]
+    md = ["Cold compile of a first session, each configuration in a fresh process with an empty numba cache "
+          "(`bench/compile_probe.py`: commit a room, then a forward lux query, a backward one, a luminance meter "
+          "and a 16×12 camera). Seconds per step; in brackets numba's phases, counted exclusively: typing, "
+          "lowering (numba IR → LLVM IR, with LLVM work done under a lock numba already held), LLVM (optimisation "
+          "and machine code), other passes.", "",
+          "| configuration | " + " | ".join(STEPS) + " | total |", "| --- |" + " ---: |" * (len(STEPS) + 1)]
+    for name, c in configs.items():
+        cells = []
+        for s in STEPS:
+            v = c["steps"].get(s)
+            if v is None:
+                cells.append("–")
+                continue
+            p = v["phases"]
+            cells.append(f"{v['seconds']:.1f} ({p.get('typing', 0):.0f} / {p.get('lowering', 0):.0f} / "
+                         f"{p.get('llvm', 0):.0f} / {p.get('other', 0):.0f})")
+        total = sum(v["seconds"] for v in c["steps"].values())
+        md.append(f"| {name} {c['env'] or '(default)'} | " + " | ".join(cells) + f" | {total:.1f} |")
+    first = next(iter(configs.values()))
+    md += ["", "What each kind's own functions cost to compile (s, default level; a floor: their code is optimised "
+           "and emitted again inside every kernel that calls them, counted for the caller):", "",
+           "| kind | seconds |", "| --- | ---: |"]
+    md += [f"| {k} | {s:.2f} |" for k, s in first["kinds"].items()]
+    for step in ("forward", "luminance"):
+        funcs = first["functions"].get(step, {})
+        top = sorted(funcs.items(), key=lambda kv: -sum(kv[1].values()))[:8]
+        if top:
+            md += ["", f"Costliest functions of the {step} step (s, exclusive): " + "; ".join(
+                f"`{f.removeprefix('tracer.')}` {sum(p.values()):.1f}" for f, p in top)]
+    return "\n".join(md)
+
+
+if __name__ == "__main__":
+    print(json.dumps(run("--quick" in sys.argv), indent=1))
