@@ -3,8 +3,10 @@
 Each configuration runs `bench/compile_probe.py` in a fresh process with an empty numba cache: commit a room (the
 builders), then a forward lux query, a backward one, a luminance meter and a camera, each step's seconds split
 into numba's phases (type inference, lowering, LLVM) and into the functions compiled. Configurations, side by side
-in one run: numba's default LLVM level (``NUMBA_OPT=3``, what the tracer uses) and lower ones, so that compile
-seconds can be weighed against the rays and photons per second that `bench/ab.py` measures at each level.
+in one run: the tracer before issue 49 (commit `BEFORE`, checked out in a temporary git worktree) and the tracer
+now; ``python bench/bench_compile.py --o1`` adds the tracer now at a lower LLVM level (``NUMBA_OPT=1``), whose
+compile seconds are weighed against the rays and photons per second that `bench/ab.py` measures (README, "Compile
+time").
 
 What a kind adds: the seconds spent compiling the functions of each kind's own module (a surface's ``scatter``, a
 light's ``sample`` and ``connect``, a geometry kind's ``intersect``), from the same events. They are a floor: a
@@ -12,7 +14,7 @@ kind's code is also linked into, optimised and emitted again with every kernel t
 ``dispatch.scatter``, ``trace_photons``, ``forward_batches``, the luminance kernels), which these figures count
 for the caller.
 
-Run: ``lumenlink bench --only compile`` (about 10 minutes on 2 cores; ``--quick``: the default level only).
+Run: ``lumenlink bench --only compile`` (about 9 minutes on 2 cores; ``--quick``: now only).
 """
 
 from __future__ import annotations
@@ -28,8 +30,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 PROBE = ROOT / "bench" / "compile_probe.py"
 STEPS = ("scene", "forward", "backward", "luminance", "camera")
-#: configuration name → environment; the first is what the tracer runs today
-CONFIGS = {"O3": {}, "O1": {"NUMBA_OPT": "1"}}
+#: the last commit before issue 49's changes to the kernels
+BEFORE = "0c32a36"
+#: configuration name → environment; "before" runs the probe over a worktree of `BEFORE`; `--o1` adds the tracer now
+#: at LLVM level 1
+CONFIGS = {"before": {}, "now": {}}
+O1 = {"now, NUMBA_OPT=1": {"NUMBA_OPT": "1"}}
 #: module prefixes whose functions are a kind's own, and the family each names
 KIND_FAMILIES = {"tracer.optics.surfaces.": "surface", "tracer.optics.lights.": "light",
                  "tracer.optics.media.": "medium", "tracer.optics.elements.": "element", "tracer.kinds.": "geometry"}
@@ -67,12 +73,26 @@ def per_kind(result: dict) -> dict[str, float]:
     return dict(sorted(out.items(), key=lambda kv: -kv[1]))
 
 
-def run(quick: bool = False) -> dict:
-    configs = {"O3": CONFIGS["O3"]} if quick else CONFIGS
+def before_checkout(where: Path) -> Path:
+    """A worktree of `BEFORE` under `where` (git worktree add, detached)."""
+    path = where / "before"
+    subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(path), BEFORE], check=True,
+                   capture_output=True)
+    return path
+
+
+def run(quick: bool = False, o1: bool = False) -> dict:
+    configs = {"now": CONFIGS["now"]} if quick else {**CONFIGS, **(O1 if o1 else {})}
     results = {}
-    for name, env in configs.items():
-        print(f"bench_compile: {name} (fresh process, empty numba cache)", file=sys.stderr, flush=True)
-        results[name] = probe(env)
+    with tempfile.TemporaryDirectory(prefix="lumenlink-before-") as tmp:
+        for name, env in configs.items():
+            print(f"bench_compile: {name} (fresh process, empty numba cache)", file=sys.stderr, flush=True)
+            if name == "before":
+                env = {"LUMENLINK_PROBE_ROOT": str(before_checkout(Path(tmp)))}
+            results[name] = probe(env)
+        if "before" in configs:
+            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(Path(tmp) / "before")],
+                           capture_output=True)
     out = {"configs": {name: {"env": configs[name], "import_seconds": r["import_seconds"],
                               "steps": {s: {"seconds": v["seconds"], "phases": v["phases"]}
                                         for s, v in r["steps"].items()},
@@ -102,9 +122,14 @@ def markdown(out: dict) -> str:
             cells.append(f"{v['seconds']:.1f} ({p.get('typing', 0):.0f} / {p.get('lowering', 0):.0f} / "
                          f"{p.get('llvm', 0):.0f} / {p.get('other', 0):.0f})")
         total = sum(v["seconds"] for v in c["steps"].values())
-        md.append(f"| {name} {c['env'] or '(default)'} | " + " | ".join(cells) + f" | {total:.1f} |")
-    first = next(iter(configs.values()))
-    md += ["", "What each kind's own functions cost to compile (s, default level; a floor: their code is optimised "
+        label = f"before (commit {BEFORE})" if name == "before" else name
+        md.append(f"| {label} | " + " | ".join(cells) + f" | {total:.1f} |")
+    md += ["", "`NUMBA_OPT=1` (LLVM level 1) is not kept: it compiles a cold session in 178 s (2026-11-28, `--o1`), "
+           "but its kernels run slower than the issue's 0.95x floor allows (`AB_ENV_B=\"NUMBA_OPT=1 "
+           "NUMBA_CACHE_DIR=/tmp/o1\" python bench/ab.py . . room photons:100000 6`, and `mesh incoherent`, "
+           "`scene3 camera`: time ratios 1.151, 1.108, 1.057)."]
+    first = configs["now"]
+    md += ["", "What each kind's own functions cost to compile (s, now; a floor: their code is optimised "
            "and emitted again inside every kernel that calls them, counted for the caller):", "",
            "| kind | seconds |", "| --- | ---: |"]
     md += [f"| {k} | {s:.2f} |" for k, s in first["kinds"].items()]
@@ -118,4 +143,4 @@ def markdown(out: dict) -> str:
 
 
 if __name__ == "__main__":
-    print(json.dumps(run("--quick" in sys.argv), indent=1))
+    print(json.dumps(run("--quick" in sys.argv, "--o1" in sys.argv), indent=1))

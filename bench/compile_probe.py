@@ -14,12 +14,15 @@ the time numba holds its LLVM lock), ``other`` (numba's remaining passes). The s
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 from collections import defaultdict
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+#: the checkout whose tracer is compiled: this one, or another named by LUMENLINK_PROBE_ROOT (an older commit's
+#: worktree, for a side-by-side run in `bench/bench_compile.py`)
+ROOT = Path(os.environ.get("LUMENLINK_PROBE_ROOT") or Path(__file__).resolve().parents[1])
 sys.path.insert(0, str(ROOT))
 
 from numba.core import event  # noqa: E402

@@ -10,10 +10,14 @@ kernels needs a literal argument (none calls ``numba.literally``); numba's own o
 Inlining is LLVM's, not numba's. ``inline="always"`` asks numba to paste the callee's IR into every caller and
 type it again there: 72 small helpers of the walks and the optics were, and typing the two-level walk
 (`tracer.accel.traverse.closest_with_stacks`) alone took 23 s of a 153 s first forward query (bench/compile_probe.py).
-Here it means ``forceinline``: the helper compiles once per argument types, like any callee, and LLVM's always-inliner
-pastes its optimised code into each caller, so the machine code is the same shape (bench/bench_compile.py measures
-both, compile seconds and rays and photons per second). Every other kernel is compiled with ``forceinline=False``
-said explicitly, since numba lets a callee inherit the flag from the caller it is compiled for.
+Here it means ``forceinline``: the helper compiles once per argument types, like any callee, and LLVM's
+always-inliner pastes its optimised code into each caller, so the machine code keeps its shape (answers
+bit-identical, rays and photons per second unchanged within `bench/ab.py`'s noise; README, "Compile time"). Such a
+helper that takes one of the kernels' tuples (`TUPLES`) does so without reference counts (``_nrt=False``,
+docs/CONTRACTS.md), unless it says otherwise because it allocates. Every other kernel is
+compiled with ``forceinline=False`` said explicitly, since numba lets a callee inherit the flag from the caller it
+is compiled for. No kernel is called through a C function pointer, so none gets numba's cfunc wrapper
+(``no_cfunc_wrapper``): 6 % of a cold compile.
 
 Import ``njit`` (and ``prange``) from here, never from numba, in every tracer module that defines kernels:
 the change is made once, when this module is first imported, before any kernel compiles.
@@ -28,25 +32,36 @@ import numba
 from numba import prange
 from numba.core import dispatcher, types
 
-__all__ = ["inlined", "kind_switch", "njit", "prange"]
+__all__ = ["kind_switch", "njit", "prange"]
 
 #: the modules whose kernels are called without literal arguments
 PACKAGE = "tracer."
 
 
+#: first parameters that name one of the kernels' tuples (scene, lights, materials, sensors, queries)
+TUPLES = ("sa", "L", "M", "S", "Q")
+
+
 def njit(*args: Any, **options: Any):
-    """numba's ``njit`` (same arguments), with ``inline="always"`` made LLVM's ``forceinline`` (module docstring)."""
-    if options.get("inline") == "always":
+    """numba's ``njit`` (same arguments), with ``inline="always"`` made LLVM's ``forceinline`` and no cfunc wrapper
+    (module docstring)."""
+    if args and callable(args[0]):
+        return njit(**options)(args[0])
+    inline = options.get("inline") == "always"
+    if inline:
         options["inline"] = "never"
         options["forceinline"] = True
     else:
         options.setdefault("forceinline", False)
-    return numba.njit(*args, **options)
+    options.setdefault("no_cfunc_wrapper", True)
 
+    def decorate(fn):
+        params = fn.__code__.co_varnames[:fn.__code__.co_argcount]
+        if inline and params and params[0] in TUPLES:
+            return numba.njit(**{"_nrt": False, **options})(fn)
+        return numba.njit(**options)(fn)
 
-def inlined(kernel) -> bool:
-    """Whether a kernel of the tracer is pasted into its callers (asked ``inline="always"``)."""
-    return bool(kernel.targetoptions.get("forceinline"))
+    return decorate
 
 
 def _plain_call_template(original):

@@ -365,7 +365,7 @@ def is_coherent(o, d, lo, hi):
     return s <= COHERENT * (hi - lo - 1)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline="always", _nrt=True)   # allocates its lanes, once per block
 def _trace_block(sa, o, d, t_max, any_hit, lo, hi, out_t, out_inst, out_slot, out_u, out_v):
     """Rays ``lo .. hi-1`` in lanes, or in packets (:mod:`tracer.accel.packets`) when they are coherent."""
     F, I, stack, tstack, scratch, tscratch = _lane_state()

@@ -15,14 +15,15 @@ import pkgutil
 from numba.core.registry import CPUDispatcher
 
 import tracer
+from tracer.jit import TUPLES
 
-TUPLES = {"sa", "L", "M", "S", "Q"}
 #: entry points that allocate (their stacks, their outputs): called once per batch, or for convenience
 ALLOCATING = {"tracer.transport.backward.backward_batches", "tracer.accel.lanes.batch",
               "tracer.transport.radiance.radiance_batches",
              "tracer.transport.forward.forward_batches",
               "tracer.accel.traverse.intersect_closest", "tracer.accel.traverse.intersect_any",
-              "tracer.accel.traverse.sensor_crossings", "tracer.accel.traverse.closest_each"}
+              "tracer.accel.traverse.sensor_crossings", "tracer.accel.traverse.closest_each",
+              "tracer.accel.lanes._trace_block"}   # its lanes' state, once per block of rays
 
 
 def _kernels_taking_tuples() -> dict[str, CPUDispatcher]:
@@ -32,7 +33,7 @@ def _kernels_taking_tuples() -> dict[str, CPUDispatcher]:
         for name, obj in vars(mod).items():
             if isinstance(obj, CPUDispatcher) and obj.__module__ == mod.__name__:
                 params = list(inspect.signature(obj.py_func).parameters)
-                if params and params[0] in TUPLES and obj.targetoptions.get("inline") != "always":
+                if params and params[0] in TUPLES:
                     found[f"{mod.__name__}.{name}"] = obj
     return found
 
