@@ -3,7 +3,9 @@ the first steps of a new user's session and say where numba's time went in each.
 
 Usage: ``python bench/compile_probe.py STEP [STEP ...]``; prints one JSON object. Steps, in the order a user meets
 them: ``scene`` (commit a room: the bottom- and top-level builders), ``forward`` (a forward lux query), ``backward``
-(a backward one), ``luminance`` (a luminance meter: paths from the eye), ``camera`` (a 16×12 image). Each step's
+(a backward one), ``luminance`` (a luminance meter: paths from the eye), ``camera`` (a 16×12 image); then, for a
+warm install (a second process on the cache the first filled), ``novel-lux`` (a room with effects the first never
+met: rough metal, Mie particles in glass; its first forward lux) and ``novel-image`` (its first camera). Each step's
 figure is its wall seconds and, from numba's own events (`numba.core.event`), the seconds spent in each phase,
 counted exclusively (a callee compiled while its caller was being typed counts for the callee, not twice):
 ``typing`` (type inference), ``lowering`` (numba IR to LLVM IR), ``llvm`` (LLVM's optimisation and code generation,
@@ -37,7 +39,6 @@ class PhaseTimer(event.Listener):
         self.stack: list[list] = []                 # [phase, function, start, children seconds]
         self.seconds: dict[tuple[str, str], float] = defaultdict(float)
         self.function = ["(outside)"]
-        self.passes: dict[str, float] = {}
 
     def on_start(self, ev):
         if ev.kind == "numba:compile":
@@ -48,7 +49,6 @@ class PhaseTimer(event.Listener):
             phase = "llvm"
         else:
             name = ev.data.get("name", "").split(" [")[0]
-            self.passes[name] = self.passes.get(name, 0)   # seen
             phase = PHASE_OF_PASS.get(name, "other")
         self.stack.append([phase, self.function[-1], time.perf_counter(), 0.0])
 
@@ -80,6 +80,26 @@ def room():
     return Simulation(scene, mats, [{"type": "point", "position": [2.0, 2.0, 2.5], "intensity_cd": 100.0}])
 
 
+def novel_room():
+    """The room with effects the room of `room` never met: a block of rough metal (``microfacet``) and a glass block
+    holding Mie particles (spectral light), the same point light; the simulation."""
+    import numpy as np
+
+    from tracer.scene import Scene
+    from tracer.simulate import Simulation
+    from tracer.warmup import box
+
+    scene = Scene()
+    ids = [scene.add_instance(scene.add_geometry(*box(lo, hi)), np.eye(4))
+           for lo, hi in (((0, 0, 0), (4, 4, 3)), ((1, 1, 0), (2, 2, 1)), ((2.5, 1, 0), (3.5, 2, 0.6)))]
+    scene.commit()
+    mats = {ids[0]: {"type": "lambertian", "reflectance": 0.5},
+            ids[1]: {"type": "microfacet", "alpha": 0.3, "reflectance": 0.9},
+            ids[2]: {"type": "dielectric", "ior": 1.5,
+                     "particles": {"radius_um": 0.5, "ior": [1.59, 0.0], "number_per_m3": 1e15}}}
+    return Simulation(scene, mats, [{"type": "point", "position": [2.0, 2.0, 2.5], "intensity_cd": 100.0}])
+
+
 def main(steps: list[str]) -> dict:
     t0 = time.perf_counter()
     import tracer.simulate  # noqa: F401  (imports counted apart)
@@ -103,8 +123,15 @@ def main(steps: list[str]) -> dict:
             elif step == "camera":
                 sim.run({"type": "camera", "position": [3.5, 3.5, 1.5], "look_at": [2.0, 2.0, 0.5], "fov_deg": 40.0,
                          "width": 16, "height": 12}, max_photons=200)
+            elif step == "novel-lux":
+                sim = novel_room()
+                sim.illuminance([[3.0, 3.0, 0.0]], [[0, 0, 1]], max_photons=2000, estimator="forward")
+            elif step == "novel-image":
+                sim.run({"type": "camera", "position": [3.5, 3.5, 1.5], "look_at": [2.0, 2.0, 0.5], "fov_deg": 40.0,
+                         "width": 16, "height": 12}, max_photons=200)
             elif step != "scene":
-                raise SystemExit(f"unknown step {step!r}; steps: scene forward backward luminance camera")
+                raise SystemExit(f"unknown step {step!r}; steps: scene forward backward luminance camera "
+                                 "novel-lux novel-image")
         phases: dict[str, float] = defaultdict(float)
         functions: dict[str, dict[str, float]] = defaultdict(dict)
         for (function, phase), s in timer.seconds.items():

@@ -15,32 +15,46 @@ reports each on its standard output as it ends ("STAGE SECONDS KERNEL ...", the 
   so that the forward kernel loads them instead of compiling them;
 - ``forward``: the forward photon kernel (`tracer.transport.forward.forward_kernel`);
 - ``backward``: the backward kernel (`tracer.transport.backward.backward_batches`);
-- ``scene``: the builders of a small room scene (what a later first push needs).
+- ``scene``: the builders of a small room scene (what a later first push needs);
+- ``radiance``: the luminance kernel (`tracer.transport.radiance`: paths from the eye, light tracing), by running a
+  luminance meter in that room, at the lowest CPU priority (`LOW_PRIORITY`): about 50 s of a core cold, which a
+  first luminance meter or camera would otherwise wait for.
 
-Child 1 compiles probe, optics, forward; child 2 optics, backward, scene (`CHILDREN`). Both compile the optics,
-from opposite ends of the list: each kernel the other child has already compiled is loaded from numba's cache
-instead (numba looks there before it compiles), so the two share that work whatever else keeps either core busy,
-and child 1 starts the forward kernel as soon as both have met. Every stage but ``scene`` compiles by signature
-(`kernel_types`) and runs nothing, so no child compiles the scene builders the service's push compiles anyway
-(`tests/tracer/test_warmup.py` checks that a first query after the children compiles nothing). A query calls
-`wait_background(stage)` before a kernel's first use: it waits for that stage of a child in flight, so no kernel
-is compiled twice, and returns at once where there is none (or its children failed: then the query compiles for
+Child 1 compiles probe, optics, forward; child 2 optics, backward, scene, radiance (`CHILDREN`). Both compile the
+optics, from opposite ends of the list: each kernel the other child has already compiled is loaded from numba's
+cache instead (numba looks there before it compiles), so the two share that work whatever else keeps either core
+busy, and child 1 starts the forward kernel as soon as both have met. Every stage but ``scene`` and ``radiance``
+compiles by signature (`kernel_types`) and runs nothing, so no child compiles the scene builders the service's push
+compiles anyway before the push needs them (`tests/tracer/test_warmup.py` checks that a first query after the
+children compiles nothing). A query's first use of a kernel goes through `first_use(stage)`: it waits for that stage
+of this process's child in flight, then holds the kernel's machine-wide compile lock (`compiling`) while it compiles
+or loads it, so that no kernel is compiled twice, by this process or another (a second service, a Dask worker, a
+test worker); it goes on at once where nothing holds it (or the children failed: then the query compiles for
 itself, as it would have).
 """
 
 from __future__ import annotations
 
+import contextlib
+import logging
+import os
 import subprocess
 import sys
 import threading
 import time
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
 
+log = logging.getLogger(__name__)
+
 #: the stages each child compiles, in order, and whether it compiles the optics from the end of their list
-CHILDREN = ((("probe", "optics", "forward"), True), (("optics", "backward", "scene"), False))
-STAGES = ("probe", "optics", "forward", "backward", "scene")
+CHILDREN = ((("probe", "optics", "forward"), True), (("optics", "backward", "scene", "radiance"), False))
+STAGES = ("probe", "optics", "forward", "backward", "scene", "radiance")
+#: stages a child compiles at the lowest CPU priority (``nice``): what a first query of another kind needs, compiled
+#: with what the cores have left, so that it never slows the compile a running query waits for, nor the query
+LOW_PRIORITY = ("radiance",)
 
 
 def box(lo, hi):
@@ -122,19 +136,75 @@ def forward_callees() -> list[tuple[Any, tuple]]:
     return own
 
 
+#: the stages whose compile `compiling` makes one process's at a time (the optics are shared kernel by kernel
+#: instead, each child from its own end of the list; the scene's builders are each process's own push)
+LOCKED_STAGES = ("probe", "forward", "backward")
+
+
+@contextlib.contextmanager
+def compiling(kernel: str, timeout: float = 600.0, poll: float = 0.1) -> Iterator[None]:
+    """Hold the machine-wide lock of a kernel's first compile (or load) in this process: a second process that needs
+    the same kernel meanwhile (a warm-up child, a second service, a Dask worker, a test worker) waits for it and
+    then loads it from numba's cache instead of compiling it too (a cold forward kernel is about 2 minutes of a core).
+
+    The lock is ``flock`` on ``<numba cache>/compiling-<kernel>.lock``; where there is no cache directory or no
+    ``fcntl``, or the lock is still held after `timeout` seconds, it goes on without (numba's own cache writes stay
+    atomic, so the worst is the compile done twice)."""
+    try:
+        import fcntl
+
+        from numba.core import config
+        folder = config.CACHE_DIR or os.environ.get("NUMBA_CACHE_DIR", "")
+        if not folder:
+            raise OSError("no numba cache directory")
+        os.makedirs(folder, exist_ok=True)
+        handle = open(os.path.join(folder, f"compiling-{kernel}.lock"), "a")   # noqa: SIM115 - held below
+    except (ImportError, OSError):
+        yield
+        return
+    try:
+        t0 = time.monotonic()
+        while True:
+            try:
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if time.monotonic() - t0 > timeout:
+                    log.warning("the %s kernel's compile lock is still held after %.0f s: compiling it here too",
+                                kernel, timeout)
+                    break
+                time.sleep(poll)
+        yield
+    finally:
+        handle.close()   # releases the lock
+
+
 def compile_stage(stage: str, reverse: bool = False) -> None:
     """Compile (or load) the kernels of one stage (`STAGES`): by signature, without running them, but for the
-    builders of ``scene``, which run on a small room; `reverse`: the optics from the end of their list."""
+    builders of ``scene``, which run on a small room; `reverse`: the optics from the end of their list. The stages of
+    `LOCKED_STAGES` under `compiling`, so that no other process compiles them at the same time."""
+    with compiling(stage) if stage in LOCKED_STAGES else contextlib.nullcontext():
+        _compile_stage(stage, reverse)
+
+
+def _compile_stage(stage: str, reverse: bool) -> None:
     from tracer.accel.traverse import closest_each
     from tracer.scene import Scene
     from tracer.transport.backward import backward_batches
     from tracer.transport.forward import forward_kernel
 
-    if stage == "scene":
+    if stage in ("scene", "radiance"):
         scene = Scene()
-        for lo, hi in (((0, 0, 0), (4, 4, 3)), ((1, 1, 0.5), (2, 2, 1))):
-            scene.add_instance(scene.add_geometry(*box(lo, hi)), np.eye(4))
+        ids = [scene.add_instance(scene.add_geometry(*box(lo, hi)), np.eye(4))
+               for lo, hi in (((0, 0, 0), (4, 4, 3)), ((1, 1, 0.5), (2, 2, 1)))]
         scene.commit()
+        if stage == "radiance":   # run, not typed: its arguments are built per query (views, emitters, light paths)
+            from tracer.simulate import Simulation
+
+            sim = Simulation(scene, {i: {"type": "lambertian", "reflectance": 0.5} for i in ids},
+                             [{"type": "point", "position": [2.0, 2.0, 2.5], "intensity_cd": 100.0}])
+            sim.run({"type": "luminance", "position": [3.5, 3.5, 1.5], "direction": [-1.0, -1.0, -1.0]},
+                    max_photons=200)
         return
     if stage == "optics":
         callees = forward_callees()
@@ -153,9 +223,10 @@ def compile_stage(stage: str, reverse: bool = False) -> None:
         raise ValueError(f"no warm-up stage {stage!r}; the stages are {', '.join(STAGES)}")
 
 
-def compile_query_kernels(report=print, stages=STAGES, reverse: bool = False) -> None:
+def compile_query_kernels(report=print, stages=STAGES, reverse: bool = False, nice: int = 0) -> None:
     """Compile (or load) the kernels of `stages` in order; `report(line)` says "STAGE SECONDS KERNEL ..." after
-    each: the kernels it compiled (not those it loaded), by module and name."""
+    each: the kernels it compiled (not those it loaded), by module and name. `nice` > 0: this process's CPU
+    priority is lowered by that much before the first stage of `LOW_PRIORITY` (for good: a child's last stages)."""
     from numba.core import event
 
     compiled: list[str] = []
@@ -170,6 +241,9 @@ def compile_query_kernels(report=print, stages=STAGES, reverse: bool = False) ->
 
     with event.install_listener("numba:compile", Compiles()):
         for stage in stages:
+            if nice > 0 and stage in LOW_PRIORITY and hasattr(os, "nice"):
+                os.nice(nice)
+                nice = 0
             t = time.perf_counter()
             compiled.clear()
             compile_stage(stage, reverse)
@@ -180,17 +254,21 @@ class Background:
     """The child processes compiling the query kernels (`CHILDREN`); `wait(stage)` until that stage is compiled (or
     every child that compiles it has ended)."""
 
-    def __init__(self) -> None:
+    def __init__(self, children=CHILDREN, nice: int = 10) -> None:
+        """`children`: the stages of each child (`CHILDREN`); `nice`: how much lower the CPU priority of the
+        `LOW_PRIORITY` stages is (0: as the service's)."""
         self.seconds: dict[str, float] = {}
+        self.stages = tuple(dict.fromkeys(stage for stages, _ in children for stage in stages))
         #: the kernels each stage compiled (in either child)
         self.compiled: dict[str, list[str]] = {}
-        self._events = {stage: threading.Event() for stage in STAGES}
-        self._left = {stage: sum(stage in stages for stages, _ in CHILDREN) for stage in STAGES}
+        self._events = {stage: threading.Event() for stage in self.stages}
+        self._left = {stage: sum(stage in stages for stages, _ in children) for stage in self.stages}
         self._lock = threading.Lock()
         self._procs: list[subprocess.Popen] = []
-        for stages, reverse in CHILDREN:
+        for stages, reverse in children:
             proc = subprocess.Popen([sys.executable, "-m", "tracer.warmup", *(["--reverse"] if reverse else []),
-                                     *stages], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+                                     f"--nice={nice}", *stages], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                                    text=True)
             self._procs.append(proc)
             threading.Thread(target=self._read, args=(proc, stages), name="lumenlink-warmup", daemon=True).start()
 
@@ -213,7 +291,7 @@ class Background:
 
     def wait(self, stage: str, timeout: float | None = None) -> bool:
         """Wait until `stage` is compiled or every child compiling it has ended; False on timeout. A kernel no child
-        compiles (not one of `STAGES`: the luminance kernel, say) has nothing to wait for."""
+        compiles (not one of its stages) has nothing to wait for."""
         event = self._events.get(stage)
         return True if event is None else event.wait(timeout)
 
@@ -223,7 +301,7 @@ class Background:
         if None in codes:
             state = "warming"
         else:
-            state = "ready" if not any(codes) and len(self.seconds) == len(STAGES) else "failed"
+            state = "ready" if not any(codes) and len(self.seconds) == len(self.stages) else "failed"
         return {"state": state, "seconds": dict(self.seconds)}
 
     def join(self, timeout: float | None = None) -> int:
@@ -249,17 +327,29 @@ def start_background() -> Background:
 
 
 def wait_background(stage: str, timeout: float = 600.0) -> None:
-    """Before a kernel's first use: wait for the child compiling it, if there is one."""
+    """Before a kernel's first use: wait for this process's child compiling it, if there is one."""
     if _BACKGROUND is not None:
         _BACKGROUND.wait(stage, timeout)
 
 
+@contextlib.contextmanager
+def first_use(kernel: str, timeout: float = 600.0) -> Iterator[None]:
+    """Around a kernel's first call in this process: wait for this process's child compiling it (`wait_background`),
+    then hold the kernel's machine-wide compile lock (`compiling`) while the call compiles or loads it. In that order:
+    a child needs the same lock to compile the stage being waited for."""
+    wait_background(kernel, timeout)
+    with compiling(kernel, timeout):
+        yield
+
+
 def main(args: list[str]) -> None:
-    """A child: ``python -m tracer.warmup [--reverse] [STAGE ...]`` compiles the stages named (all of `STAGES` where
-    none is), the optics from the end of their list with ``--reverse``."""
+    """A child: ``python -m tracer.warmup [--reverse] [--nice=N] [STAGE ...]`` compiles the stages named (all of
+    `STAGES` where none is), the optics from the end of their list with ``--reverse``, the `LOW_PRIORITY` ones N
+    lower in CPU priority."""
     reverse = "--reverse" in args
-    stages = tuple(a for a in args if a != "--reverse") or STAGES
-    compile_query_kernels(report=lambda line: print(line, flush=True), stages=stages, reverse=reverse)
+    nice = max([int(a.split("=", 1)[1]) for a in args if a.startswith("--nice=")] or [0])
+    stages = tuple(a for a in args if a != "--reverse" and not a.startswith("--nice=")) or STAGES
+    compile_query_kernels(report=lambda line: print(line, flush=True), stages=stages, reverse=reverse, nice=nice)
 
 
 if __name__ == "__main__":

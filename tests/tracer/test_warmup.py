@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numba
@@ -45,8 +47,12 @@ materials = {room: {"type": "lambertian", "reflectance": 0.5}, mirror: {"type": 
 sim = Simulation(scene, materials, [{"type": "point", "position": [2, 2, 2.5], "intensity_cd": 1000.0}])
 pts, nrm = np.array([[2.5, 2.5, 0.0], [3.0, 1.5, 0.0]]), np.array([[0, 0, 1.0], [0, 0, 1.0]])
 forward = sim.illuminance(pts, nrm, max_photons=20_000, estimator="forward")
+meter = sim.run({"type": "luminance", "position": [3.5, 3.5, 1.5], "direction": [-1, -1, -1]}, max_photons=2000)
+camera = sim.run({"type": "camera", "position": [3.5, 3.5, 1.5], "look_at": [2, 2, 0.5], "fov_deg": 40.0,
+                  "width": 8, "height": 6}, max_photons=2000)
 print(json.dumps({"compiled": sorted(set(c for c in compiled if c.startswith("tracer."))),
-                  "lux": forward.lux.tolist()}))
+                  "lux": forward.lux.tolist(),
+                  "cd_m2": [float(np.max(meter.luminance)), float(np.max(camera.luminance))]}))
 """
 
 
@@ -65,10 +71,11 @@ def test_after_the_children_a_first_query_compiles_nothing(tmp_path, monkeypatch
     """From an empty numba cache: the two children report every stage and end well, and the forward stage, after
     the probe and the optics, compiles the forward kernel alone: the optics stage compiled the very signatures the
     forward kernel calls (a kernel of its left out of `forward_callees`, or a type that differs, would be compiled
-    there again). Then a first forward query in a new process (a Lambertian room, a mirror, a glass block, a point
-    light) loads every kernel it runs and compiles none."""
+    there again). Then a first forward query, a first luminance meter and a first camera in a new process (a
+    Lambertian room, a mirror, a glass block, a point light) load every kernel they run and compile none. (The
+    children at the service's priority here: under a busy test run a lowered one could wait minutes for a core.)"""
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
-    child = warmup.Background()
+    child = warmup.Background(nice=0)
     try:
         for stage in warmup.STAGES:
             assert child.wait(stage, timeout=600)
@@ -88,3 +95,47 @@ def test_after_the_children_a_first_query_compiles_nothing(tmp_path, monkeypatch
     out = json.loads(r.stdout.strip().splitlines()[-1])
     assert out["compiled"] == [], out["compiled"]
     assert all(lux > 0 for lux in out["lux"])
+    assert all(cd > 0 for cd in out["cd_m2"])
+
+
+def test_two_processes_that_need_the_same_kernel_at_once_compile_it_once(tmp_path):
+    """Two warm-up children started together on an empty cache, both for the probe's walk: one compiles it, the other
+    waits on its compile lock (`warmup.compiling`) and loads it from numba's cache (without the lock both compile
+    it: a minute of a core each for the forward kernel, in a test suite's workers or a service's replicas)."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path), "PYTHONPATH": str(ROOT)}
+    children = [subprocess.Popen([sys.executable, "-m", "tracer.warmup", "probe"], cwd=ROOT, env=env,
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    reports = []
+    for child in children:
+        out, err = child.communicate(timeout=600)
+        assert child.returncode == 0, err[-3000:]
+        stage, seconds, *compiled = out.split()
+        assert stage == "probe" and float(seconds) >= 0
+        reports.append(compiled)
+    walk = "tracer.accel.traverse.closest_each"
+    assert sorted(walk in compiled for compiled in reports) == [False, True], reports
+
+
+def test_a_held_compile_lock_is_waited_for_then_given_up_on_with_a_warning(tmp_path, monkeypatch, caplog):
+    import fcntl
+
+    monkeypatch.setattr(numba.config, "CACHE_DIR", str(tmp_path))
+    with open(tmp_path / "compiling-forward.lock", "a") as other:   # another process's hold, as flock sees it
+        fcntl.flock(other, fcntl.LOCK_EX)
+        t = time.perf_counter()
+        with warmup.compiling("forward", timeout=0.3, poll=0.05):
+            waited = time.perf_counter() - t
+    assert 0.3 <= waited < 5.0
+    assert "still held after" in caplog.text
+    with warmup.compiling("forward", timeout=0.3):   # released: taken at once
+        pass
+
+
+def test_without_a_usable_cache_directory_there_is_no_lock_and_no_error(tmp_path, monkeypatch):
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a directory")
+    monkeypatch.setattr(numba.config, "CACHE_DIR", str(blocker / "cache"))
+    t = time.perf_counter()
+    with warmup.compiling("forward", timeout=30):
+        pass
+    assert time.perf_counter() - t < 1.0

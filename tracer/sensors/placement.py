@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from tracer.accel.traverse import closest_each
-from tracer.warmup import wait_background
+from tracer.warmup import first_use
 
 
 def sensor_offset(p: np.ndarray) -> float:
@@ -40,12 +40,12 @@ def place_receivers(sa, points: np.ndarray, normals: np.ndarray, radius: float) 
     than 1e-3 rad (float32 rounding of a facet the point lies on), 2 r sin(tilt), so that the whole
     disk of radius r stays in front of the facet the rays meet.
     """
-    wait_background("probe")
     k = len(points)
     h = np.array([probe_distance(p) for p in points])
     origins = np.ascontiguousarray(points + h[:, None] * normals)
     hit_t, hit_inst, hit_normal = np.empty(k), np.empty(k, np.int64), np.empty((k, 3))
-    closest_each(sa, origins, np.ascontiguousarray(-normals), np.full(k, np.inf), hit_t, hit_inst, hit_normal)
+    with first_use("probe"):
+        closest_each(sa, origins, np.ascontiguousarray(-normals), np.full(k, np.inf), hit_t, hit_inst, hit_normal)
     out = np.empty_like(points)
     for i in range(k):
         base = points[i]

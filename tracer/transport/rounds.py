@@ -9,6 +9,7 @@ one shape ran (see `tracer.simulate`'s docstring for the rules). Python orchestr
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import time
@@ -29,7 +30,7 @@ from tracer.transport.estimate import Estimate, cost_of
 from tracer.transport.forward import COUNTERS, SensorArrays, tally_columns
 from tracer.transport.radiance import COUNTERS as RADIANCE_COUNTERS
 from tracer.transport.radiance import PIXEL, emitters, light_paths
-from tracer.warmup import wait_background
+from tracer.warmup import first_use
 
 log = logging.getLogger(__name__)
 
@@ -126,9 +127,8 @@ def warm(kernel_id: tuple, scene: Shipment, query: Shipment, backend: QueryBacke
     if variant in _COMPILE_SECONDS:
         return 0.0
     t = time.perf_counter()
-    if local:
-        wait_background(kernel_id[0])
-    backend.run(kernel_id, scene, query, 0, 1, 1)
+    with first_use(kernel_id[0]) if local else contextlib.nullcontext():
+        backend.run(kernel_id, scene, query, 0, 1, 1)
     if backend.fallback is not None:   # it compiled for this process's CPU, not where it was asked
         variant = kernel_id
     _COMPILE_SECONDS.setdefault(variant, time.perf_counter() - t)

@@ -1,10 +1,11 @@
-"""Compiles the ray kernels of tracer/gpu/traverse.py (closest hit, any hit: the CPU's two-level walk with stacks in
-``cuda.local.array``) to sm_90 PTX without a GPU, with the test-only driver stubs of gpu_ptx_sweep.py: run by
-tests/tracer/gpu/test_gpu_traverse.py in a child; prints one JSON object {kernel: "ok" | error, kernel +
-"_ptx_bytes": n}. With the argument ``batches``: the photon batch kernels of tracer/gpu/transport.py instead
-(forward, backward: one thread per batch), with the argument types a real `Simulation`'s snapshot and query give them
-(tests/tracer/gpu/test_gpu_transport.py). Each kernel's PTX is then assembled by ptxas for sm_90 where a CUDA toolkit
-has it, as a card's driver does before a launch: NVVM's PTX is not always ptxas's (issue 40).
+"""Compiles to sm_90 PTX without a GPU, with the test-only driver stubs of gpu_ptx_sweep.py, the parts named on its
+command line, in one process (tests/tracer/gpu/test_gpu_ptx.py runs ``sweep rays batches``): ``sweep``, every device
+function of the optics seam (gpu_ptx_sweep.py); ``rays``, the ray kernels of tracer/gpu/traverse.py (closest hit, any
+hit: the CPU's two-level walk with stacks in ``cuda.local.array``); ``batches``, the photon batch kernels of
+tracer/gpu/transport.py (forward, backward: one thread per batch), with the argument types a real `Simulation`'s
+snapshot and query give them. Prints one JSON object {part: {name: "ok" | error, ...}}, each kernel with its
+"_ptx_bytes" and "_local_stack", and, where a CUDA toolkit has ptxas, what ptxas for sm_90 made of its PTX, as a
+card's driver does before a launch: NVVM's PTX is not always ptxas's (issue 40).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from gpu_ptx_sweep import CC, stub_driver  # noqa: E402
+from gpu_ptx_sweep import CC, stub_driver, sweep_report  # noqa: E402
 
 
 def batch_kernels():
@@ -47,16 +48,18 @@ def batch_kernels():
             ("backward_threads", backward_threads, (t(sa), t(M), t(L), t(q), i, i, i, out)))
 
 
-def main():
-    stub_driver()
-    if sys.argv[1:] == ["batches"]:
-        from tracer.gpu.transport import cuda
+def batches_report() -> dict:
+    """The photon batch kernels' report."""
+    from tracer.gpu.transport import cuda
 
-        report = {}
-        for name, fn, sig in batch_kernels():
-            compile_one(report, cuda, name, fn, sig)
-        print(json.dumps(report))
-        return
+    report: dict = {}
+    for name, fn, sig in batch_kernels():
+        compile_one(report, cuda, name, fn, sig)
+    return report
+
+
+def rays_report() -> dict:
+    """The ray kernels' report."""
     import numba
     import numpy as np
 
@@ -71,7 +74,16 @@ def main():
     for name, fn, sig in (("closest_rays", closest_rays, (sa, f2, f2, f1, f1, i1, i1, f1, f1, f2)),
                           ("any_rays", any_rays, (sa, f2, f2, f1, b1))):
         compile_one(report, cuda, name, fn, sig)
-    print(json.dumps(report))
+    return report
+
+
+def main(parts: list[str]) -> None:
+    stub_driver()
+    make = {"sweep": sweep_report, "rays": rays_report, "batches": batches_report}
+    unknown = [p for p in parts if p not in make]
+    if unknown or not parts:
+        raise SystemExit(f"usage: gpu_ptx_kernels.py PART [PART ...], PART one of {sorted(make)}; got {parts}")
+    print(json.dumps({part: make[part]() for part in parts}))
 
 
 def ptxas() -> str | None:
@@ -116,4 +128,4 @@ def compile_one(report, cuda, name, fn, sig):
 
 
 if __name__ == "__main__":
-    main()
+    main(sys.argv[1:])

@@ -1,6 +1,7 @@
 """Compiles the device functions of the optics seam (and the rng, frames, spectra, polarization, thin films, the
-sensors' crossings and tallies) to PTX for sm_90 with numba-cuda, without a GPU or a driver: run by
-tests/tracer/gpu/test_gpu_ptx.py in a child process, prints one JSON object {name: "ok" | error}.
+sensors' crossings and tallies) to PTX for sm_90 with numba-cuda, without a GPU or a driver: `sweep_report`, run by
+gpu_ptx_kernels.py ``sweep`` in tests/tracer/gpu/test_gpu_ptx.py's child; alone, it prints one JSON object
+{name: "ok" | error}.
 
 Each function goes in as numba-cuda's ``cuda.jit(device=True)`` would take it: its plain Python (``.py_func``)
 with argument types of the values the CPU kernels pass (the tuples from a real ``Simulation``'s snapshot, the
@@ -146,8 +147,9 @@ def device_functions(mods, only):
             yield qual, obj
 
 
-def main(only):
-    stub_driver()
+def sweep_report(only=()) -> dict:
+    """{module.function: "ok" | the error} for every device function of `MODULES` (those naming a substring of
+    `only`, where given); each one's seconds go to standard error."""
     from tracer.gpu import cuda
 
     numba_cuda = cuda()
@@ -163,8 +165,9 @@ def main(only):
             msg = str(e).strip().splitlines()
             report[qual] = f"{type(e).__name__}: " + " | ".join(line.strip() for line in msg[:6] if line.strip())
         print(f"{qual}: {report[qual][:200]} ({time.perf_counter() - t:.1f} s)", file=sys.stderr)
-    print(json.dumps(report))
+    return report
 
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    stub_driver()
+    print(json.dumps(sweep_report(sys.argv[1:])))

@@ -6,7 +6,7 @@ In numba-cuda's simulator (``NUMBA_ENABLE_CUDASIM=1``): a forward and a backward
 batches (the simulator runs the kernels' njit callees as the CPU's code; a card may round differently); a point
 source over a black floor gives E = I cosθ / r² within 4 of the estimate's own standard errors; a card reported
 full answers on the CPU with the reason, nothing raised; two concurrent queries never run on the card at once.
-And both batch kernels compile to sm_90 PTX (one thread per batch, scratch in local memory).
+That both batch kernels compile to sm_90 PTX is tests/tracer/gpu/test_gpu_ptx.py's.
 
 Each part runs in a child process (the simulator is chosen at numba-cuda's import). Skipped, saying why, where
 numba-cuda (or, for PTX, NVVM) is missing.
@@ -20,7 +20,7 @@ import os
 import numpy as np
 import pytest
 
-from tests.tracer.gpu.test_gpu_ptx import ROOT, ptx_env
+from tests.tracer.gpu.test_gpu_ptx import ROOT
 from tests.tracer.gpu.test_gpu_traverse import run_child
 
 Z = 4.0   # combined standard errors allowed between two estimates (the issue's |ΔE| ≤ 4σ)
@@ -129,12 +129,3 @@ def test_device_of_a_cuda_answer():
 
     assert device_of({"name": "cuda", "device": "cuda:0 NVIDIA H100 80GB HBM3"}) == "cuda:0 NVIDIA H100 80GB HBM3"
     assert device_of({"name": "in-process", "threads": 2, "fallback": "ran on the CPU because …"}) == "cpu:2 threads"
-
-
-def test_batch_kernels_compile_to_ptx():
-    report = run_child("gpu_ptx_kernels.py", ptx_env(), "batches")
-    for name in ("forward_threads", "backward_threads"):
-        assert report[name] == "ok", report[name]
-        assert report[name + "_local_stack"], report
-        assembled = report[name + "_assembled"]   # ptxas, as a card's driver (issue 40)
-        assert assembled == "ok" or assembled.startswith("skipped"), (name, assembled)
