@@ -296,8 +296,12 @@ class Client(ServiceClient):
         on (``POST /elements/{id}/pack``); options: target, figure, photons, max_photons, max_iterations,
         max_seconds, damping, max_fill, pitch_mm, seed. With `wait`, follows the job (Ctrl-C cancels it; a cancelled
         pack keeps what it measured) and answers its last state, whose ``result`` names the packed ``element``;
-        otherwise the 202 answer (``url``)."""
-        body = {"scene": self._sid(scene), "assignment": assignment, "sensor": sensor, **options}
+        otherwise the 202 answer (``url``). `sensor`: the grid's id or its name."""
+        sid = self._sid(scene)
+        if sensor == "all":
+            raise LumenLinkError("a pack measures one grid sensor: name it (its id or its name), not 'all'",
+                                 usage=True)
+        body = {"scene": sid, "assignment": assignment, "sensor": self._sensor_ids(sid, sensor)[0]["id"], **options}
         accepted = dict(self._call("POST", f"/elements/{element}/pack", "starting a pack", ok=(202,), json=body))
         if not wait:
             return accepted

@@ -47,17 +47,31 @@ def _run(work: Callable[[Console], int]) -> int:
         return EXIT_FAILED
 
 
-def vec3(text: str, option: str) -> list[float]:
-    """``X,Y,Z`` as three floats; a usage error that shows the form otherwise."""
+DIRECTION = "a direction, any length"
+
+
+def vec3(text: str, option: str, meaning: str = "metres") -> list[float]:
+    """``X,Y,Z`` as three floats; a usage error that shows the form otherwise, saying what the numbers are
+    (`meaning`: "metres" for a position or an edge, a direction's words for a direction)."""
     parts = [p for p in re.split(r"[,\s]+", text.strip()) if p]
     try:
         values = [float(p) for p in parts]
     except ValueError:
         values = []
     if len(values) != 3 or not all(abs(v) < float("inf") for v in values):
-        raise LumenLinkError(f"{option} takes X,Y,Z (three numbers, metres), e.g. {option} 0,0,2.5; got {text!r}",
-                             usage=True)
+        raise LumenLinkError(f"{option} takes X,Y,Z (three numbers, {meaning}), e.g. {option} "
+                             f"{'0,0,2.5' if meaning == 'metres' else '0,0,-1'}; got {text!r}", usage=True)
     return values
+
+
+#: what a body of each kind looks like, for the error that says a body is not JSON
+JSON_EXAMPLES = {
+    "material": '{"type": "lambertian", "reflectance": 0.8}',
+    "light body": '{"type": "point", "position": [0, 0, 2.5], "intensity_cd": 1000}',
+    "element": '{"type": "microstructure", "feature": {"shape": "dome", "radius_mm": 0.3, "height_mm": 0.15}, '
+               '"layout": {"type": "grid", "pitch_mm": [1.0, 1.0]}}',
+    "sensor body": '{"type": "grid", "origin": [-1, -1, 0], "u": [2, 0, 0], "v": [0, 2, 0], "nu": 10, "nv": 10}',
+}
 
 
 def _json_arg(text: str | None, file: Path | None, what: str) -> dict[str, Any]:
@@ -72,8 +86,7 @@ def _json_arg(text: str | None, file: Path | None, what: str) -> dict[str, Any]:
     try:
         body = json.loads(text)
     except ValueError as exc:
-        raise LumenLinkError(f"the {what} is not JSON ({exc}); e.g. '{{\"type\": \"lambertian\", "
-                             f"\"reflectance\": 0.8}}'", usage=True) from exc
+        raise LumenLinkError(f"the {what} is not JSON ({exc}); e.g. '{JSON_EXAMPLES[what]}'", usage=True) from exc
     if not isinstance(body, dict):
         raise LumenLinkError(f"the {what} must be a JSON object, got {type(body).__name__}", usage=True)
     return body
@@ -186,7 +199,7 @@ def light(scene: str, server: str, ies: Path | None = None, at: str | None = Non
             if not Path(ies).is_file():
                 raise LumenLinkError(f"{ies}: no such file", usage=True)
             position = vec3(at, "--at")
-            aim = vec3(direction, "--direction") if direction is not None else None
+            aim = vec3(direction, "--direction", DIRECTION) if direction is not None else None
             with Client(server) as ll:
                 info = ll.scene(scene, create=create)
                 answer = ll.add_light(info, ies=ies, at=position, attach=attach, name=name, direction=aim)
@@ -219,7 +232,8 @@ def element(scene: str | None, server: str, body: str | None = None, file: Path 
             if node is not None:
                 if scene is None or facing is None:
                     raise LumenLinkError("--node needs --scene and --facing X,Y,Z", usage=True)
-                answer = ll.put_element(ll.scene(scene, create=create), node, eid, facing=vec3(facing, "--facing"))
+                along = vec3(facing, "--facing", DIRECTION)
+                answer = ll.put_element(ll.scene(scene, create=create), node, eid, facing=along)
                 state = "applied" if answer["applied"] else f"not applied: {answer['problem']}"
                 print(f"on {node} ({answer['body']['node']}): assignment {answer['id']}, {state}")
         return EXIT_OK
@@ -251,10 +265,11 @@ def pack(element_id: str, scene: str, assignment: str, sensor: str, server: str,
         seen: set[int] = set()
 
         def show(job: dict[str, Any]) -> None:
-            p = job["progress"]
-            if p.get("uniformity") is not None and p.get("iteration") not in seen:
-                seen.add(p["iteration"])
-                console.print(f"  after iteration {p['iteration']}: {figure} {p['uniformity']:.3f} ± "
+            p = job["progress"]   # the uniformity is iteration "measured"'s ("iteration" is the one running)
+            measured = p.get("measured")
+            if p.get("uniformity") is not None and measured is not None and measured not in seen:
+                seen.add(measured)
+                console.print(f"  after iteration {measured}: {figure} {p['uniformity']:.3f} ± "
                               f"{p['uniformity_stderr']:.3f}, {p['seconds']:.1f} s")
 
         with Client(server) as ll:
@@ -534,7 +549,7 @@ def uniformity(scene: str, server: str, direction: str, nine_points: tuple[str, 
     def work(console: Console) -> int:
         if (nine_points is None) == (not points):
             raise LumenLinkError("give --nine-points ORIGIN U V or one or more --point X,Y,Z", usage=True)
-        d = vec3(direction, "--direction")
+        d = vec3(direction, "--direction", DIRECTION)
         kwargs: dict[str, Any] = {}
         if nine_points is not None:
             kwargs["nine_points"] = [vec3(t, "--nine-points") for t in nine_points]

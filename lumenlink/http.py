@@ -104,11 +104,12 @@ class ServiceClient:
         return self.error(message, status=resp.status_code, problem=problem,
                           usage=400 <= resp.status_code < 500 and resp.status_code != 409)
 
-    def _call(self, method: str, url: str, what: str, ok: tuple[int, ...] = (200, 201), **kwargs: Any) -> Any:
-        """A request whose answer is JSON (None for an empty answer); `error` for a status not in `ok`."""
+    def _call(self, method: str, url: str, what: str, ok: tuple[int, ...] = (200, 201, 204), **kwargs: Any) -> Any:
+        """A request whose answer is JSON (None for an empty answer: 204 No Content, a removal's); `error` for a
+        status not in `ok`."""
         return self._answer(self._request(method, url, **kwargs), what, ok)
 
-    def _answer(self, resp: httpx.Response, what: str, ok: tuple[int, ...] = (200, 201)) -> Any:
+    def _answer(self, resp: httpx.Response, what: str, ok: tuple[int, ...] = (200, 201, 204)) -> Any:
         """The JSON of an answer (None for an empty one); `error` for a status not in `ok` or a body not JSON."""
         if resp.status_code not in ok:
             raise self._refused(resp, what)

@@ -8,7 +8,8 @@ prefixes), both 32-bit float; the standard attribute ``whiteLuminance`` 1 says t
 is the top of the image, as in the JSON answer.
 
 PNG. `tone_mapped_png`: Reinhard's global operator on luminance (Reinhard et al. 2002, "Photographic tone
-reproduction for digital images", eq. 1–3): the log-average luminance L̄ = exp(mean(ln(δ + L))), the scaled
+reproduction for digital images", eq. 1–3): the log-average luminance L̄ = exp(mean(ln(δ + L))) over the pixels
+that see light (L > 0: a black background or border must not set the exposure of the rest), the scaled
 luminance Lm = a·L/L̄ with key a = 0.18, the display value Ld = Lm / (1 + Lm), then sRGB encoding (IEC 61966-2-1)
 to 8-bit grey, one PNG pixel per image pixel.
 """
@@ -23,7 +24,7 @@ from typing import Any
 import numpy as np
 
 REINHARD_KEY = 0.18       # the "middle grey" key of Reinhard's operator
-REINHARD_DELTA = 1e-6     # cd/m²: keeps ln() finite on black pixels
+REINHARD_DELTA = 1e-6     # cd/m²: Reinhard's δ (keeps ln() finite; black pixels are left out of the average)
 CHANNELS = ("Y", "stderr.Y")
 
 
@@ -62,9 +63,14 @@ def read_exr(data: bytes) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
 
 
 def reinhard(luminance: Any) -> np.ndarray:
-    """Reinhard's global operator (module docstring): (h, w) cd/m² → display values in [0, 1)."""
+    """Reinhard's global operator (module docstring): (h, w) cd/m² → display values in [0, 1). The key is set by
+    the log-average of the pixels that see light: black pixels (a background, a border) would pull a log-average
+    taken over all of them towards δ and turn the rest white. An image with no light at all stays black."""
     lum = np.clip(np.asarray(luminance, dtype=float), 0.0, None)
-    log_average = float(np.exp(np.mean(np.log(REINHARD_DELTA + lum))))
+    lit = lum[lum > 0.0]
+    if lit.size == 0:
+        return np.zeros_like(lum)
+    log_average = float(np.exp(np.mean(np.log(REINHARD_DELTA + lit))))
     scaled = REINHARD_KEY * lum / log_average
     return scaled / (1.0 + scaled)
 

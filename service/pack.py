@@ -91,8 +91,8 @@ def start(manager: Any, hub: Any, element_id: str, req: dict[str, Any]) -> tuple
         def report(s: dict[str, Any]) -> None:
             if progress is not None:
                 u = s["uniformity"]
-                progress(s["photons"], math.nan, s["seconds"], iteration=s["iteration"], uniformity=u,
-                         uniformity_stderr=s["stderr"])
+                progress(s["photons"], math.nan, s["seconds"], iteration=s["iteration"], measured=s["measured"],
+                         uniformity=u, uniformity_stderr=s["stderr"])
 
         try:
             result = pack(own.tracer, instance, start_model, sensor, simulation, assign=assign, progress=report,

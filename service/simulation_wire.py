@@ -388,7 +388,10 @@ class JobProgress(BaseModel):
     compile_seconds: float | None = Field(None, description="Seconds the job spent compiling (or loading) its "
                                                             "kernel before the first round, s; null until known.")
     iteration: int | None = Field(None, description="Pack jobs: the iteration being measured (0: the start).")
-    uniformity: float | None = Field(None, description="Pack jobs: the last measured figure (min/max or min/mean).")
+    measured: int | None = Field(None, description="Pack jobs: the iteration whose figure `uniformity` is (the one "
+                                                   "before `iteration` while that one measures); null before any.")
+    uniformity: float | None = Field(None, description="Pack jobs: the figure (min/max or min/mean) of iteration "
+                                                       "`measured`.")
     uniformity_stderr: float | None = Field(None, description="Pack jobs: its standard error.")
 
 

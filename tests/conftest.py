@@ -16,6 +16,27 @@ ROOT = Path(__file__).resolve().parents[1]
 SHARED_FIXTURES = ROOT.parent / "shared" / "fixtures"
 
 
+#: the warm-up children the controller started (`pytest_configure`)
+WARM_UP = pytest.StashKey()
+
+
+def pytest_configure(config):
+    """With pytest-xdist's workers (``make test``: ``-n 2``), the controller starts the service's warm-up children
+    (`tracer.warmup.start_background`) before the workers start: they compile the query kernels into the session's
+    numba cache in parallel, one per core, while the first test files run, and a worker whose test needs a kernel
+    meanwhile waits on its compile lock (`tracer.compile_locks`) and loads it, instead of compiling it as well."""
+    if getattr(config.option, "numprocesses", None) and not hasattr(config, "workerinput"):
+        from tracer.warmup import start_background
+
+        config.stash[WARM_UP] = start_background()
+
+
+def pytest_unconfigure(config):
+    background = config.stash.get(WARM_UP, None)
+    if background is not None:
+        background.stop()
+
+
 def pytest_collection_modifyitems(session, config, items):
     """The benchmarks' smoke tests (tests/bench) last: their child processes then load the tracer's kernels from
     numba's cache, which the tests before them filled, instead of compiling them all again on a cold machine

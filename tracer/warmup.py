@@ -36,18 +36,20 @@ itself, as it would have).
 from __future__ import annotations
 
 import contextlib
-import logging
 import os
 import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
 
-log = logging.getLogger(__name__)
+from tracer import compile_locks
+from tracer.compile_locks import compiling, first_use, wait_background
+
+__all__ = ["Background", "compile_query_kernels", "compile_stage", "compiling", "first_use", "start_background",
+           "wait_background"]
 
 #: the stages each child compiles, in order, and whether it compiles the optics from the end of their list
 CHILDREN = ((("probe", "optics", "forward"), True), (("optics", "backward", "scene", "radiance"), False))
@@ -139,44 +141,6 @@ def forward_callees() -> list[tuple[Any, tuple]]:
 #: the stages whose compile `compiling` makes one process's at a time (the optics are shared kernel by kernel
 #: instead, each child from its own end of the list; the scene's builders are each process's own push)
 LOCKED_STAGES = ("probe", "forward", "backward")
-
-
-@contextlib.contextmanager
-def compiling(kernel: str, timeout: float = 600.0, poll: float = 0.1) -> Iterator[None]:
-    """Hold the machine-wide lock of a kernel's first compile (or load) in this process: a second process that needs
-    the same kernel meanwhile (a warm-up child, a second service, a Dask worker, a test worker) waits for it and
-    then loads it from numba's cache instead of compiling it too (a cold forward kernel is about 2 minutes of a core).
-
-    The lock is ``flock`` on ``<numba cache>/compiling-<kernel>.lock``; where there is no cache directory or no
-    ``fcntl``, or the lock is still held after `timeout` seconds, it goes on without (numba's own cache writes stay
-    atomic, so the worst is the compile done twice)."""
-    try:
-        import fcntl
-
-        from numba.core import config
-        folder = config.CACHE_DIR or os.environ.get("NUMBA_CACHE_DIR", "")
-        if not folder:
-            raise OSError("no numba cache directory")
-        os.makedirs(folder, exist_ok=True)
-        handle = open(os.path.join(folder, f"compiling-{kernel}.lock"), "a")   # noqa: SIM115 - held below
-    except (ImportError, OSError):
-        yield
-        return
-    try:
-        t0 = time.monotonic()
-        while True:
-            try:
-                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-                break
-            except BlockingIOError:
-                if time.monotonic() - t0 > timeout:
-                    log.warning("the %s kernel's compile lock is still held after %.0f s: compiling it here too",
-                                kernel, timeout)
-                    break
-                time.sleep(poll)
-        yield
-    finally:
-        handle.close()   # releases the lock
 
 
 def compile_stage(stage: str, reverse: bool = False) -> None:
@@ -323,23 +287,8 @@ def start_background() -> Background:
     global _BACKGROUND
     if _BACKGROUND is None:
         _BACKGROUND = Background()
+        compile_locks.waits_for(_BACKGROUND)
     return _BACKGROUND
-
-
-def wait_background(stage: str, timeout: float = 600.0) -> None:
-    """Before a kernel's first use: wait for this process's child compiling it, if there is one."""
-    if _BACKGROUND is not None:
-        _BACKGROUND.wait(stage, timeout)
-
-
-@contextlib.contextmanager
-def first_use(kernel: str, timeout: float = 600.0) -> Iterator[None]:
-    """Around a kernel's first call in this process: wait for this process's child compiling it (`wait_background`),
-    then hold the kernel's machine-wide compile lock (`compiling`) while the call compiles or loads it. In that order:
-    a child needs the same lock to compile the stage being waited for."""
-    wait_background(kernel, timeout)
-    with compiling(kernel, timeout):
-        yield
 
 
 def main(args: list[str]) -> None:

@@ -84,12 +84,31 @@ def purge_orphans(scene_id: SceneId, manager: Manager) -> list[dict[str, str]]:
     return manager.purge_orphans(scene_id)
 
 
+def _answerable(sensor: dict, request: Request) -> None:
+    """422 for a camera that no query of this service could answer: more pixels than one query may ask
+    (``max_points``), said at creation rather than at its first simulate, with nothing stored. (A grid or a camera
+    stored before the limit was lowered is still refused by its simulate, 413.)"""
+    from service.errors import Invalid
+    from service.simulation import hub_for
+
+    limit = hub_for(request.app).limits.max_points
+    if sensor.get("type") == "camera":
+        w, h = int(sensor["width"]), int(sensor["height"])
+        if w * h > limit:
+            side = int((limit * 4 / 3) ** 0.5)
+            raise Invalid(f"a camera of {w} × {h} = {w * h} pixels: this service answers at most {limit} points per "
+                          f"query (its max_points setting, LUMENLINK_MAX_POINTS); ask for at most {limit} pixels, "
+                          f"e.g. {side} × {side * 3 // 4}", limit=limit)
+
+
 def _routes(kind: str, plural: str, schema: Any) -> None:
     @router.post(f"/scenes/{{scene_id}}/{plural}", status_code=201, response_model=AssignmentAdded,
                  name=f"add_{kind}")
     def add(scene_id: SceneId, body: schema, manager: Manager,  # type: ignore[valid-type]
             request: Request) -> dict[str, Any]:
         clean = _resolve_anchors(manager, scene_id, kind, validate_body(kind, body))
+        if kind == "sensor":
+            _answerable(clean, request)
         added = manager.add_assignment(scene_id, kind, clean)
         if kind in ("light", "sensor") and not added.get("orphaned"):
             added = {**added, "warnings": _far(request, scene_id, kind, str(added["id"]))}

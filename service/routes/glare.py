@@ -85,6 +85,18 @@ class NinePoints(BaseModel):
     u: Vec3 = Field(description="One edge, m.")
     v: Vec3 = Field(description="The other edge, m.")
 
+    @model_validator(mode="after")
+    def _check(self) -> NinePoints:
+        """A rectangle with an area: its 9 points would otherwise fall on a line or on one point."""
+        u, v = np.asarray(self.u, float), np.asarray(self.v, float)
+        for name, edge in (("u", u), ("v", v)):
+            if not np.any(edge):
+                raise ValueError(f"nine_points.{name} is the zero vector: give the rectangle's two edges, in metres")
+        if np.linalg.norm(np.cross(u, v)) <= 1e-9 * np.linalg.norm(u) * np.linalg.norm(v):
+            raise ValueError("nine_points.u and nine_points.v are parallel: the rectangle has no area; give two "
+                             "edges at an angle (perpendicular for a display's 9-point figure)")
+        return self
+
 
 class UniformityQuery(QueryBudget):
     """Body of ``POST /scenes/{id}/luminance/uniformity``: meters that look at points."""

@@ -215,7 +215,17 @@ def test_bad_usage_says_what_to_do(service, cars, tmp_path) -> None:
     r = cli(service, "light", "--scene", "cli-car", "--ies", str(IES), "--at", "1,2")
     assert r.exit_code == 2 and "--at takes X,Y,Z" in r.stderr, r.output
     r = cli(service, "assign", "--scene", "cli-car", "car/body", "{type: black}")
-    assert r.exit_code == 2 and "is not JSON" in r.stderr, r.output
+    assert r.exit_code == 2 and "is not JSON" in r.stderr and '"lambertian"' in r.stderr, r.output
+    # a body that is not JSON is shown what its own kind of body looks like, not a material's
+    r = cli(service, "light", "--scene", "cli-car", "--body", "{type: point}")
+    assert r.exit_code == 2 and "is not JSON" in r.stderr and '"intensity_cd"' in r.stderr, r.output
+    assert "lambertian" not in r.stderr, r.output
+    r = cli(service, "element", "--scene", "cli-car", "--body", "{dots}")
+    assert r.exit_code == 2 and '"microstructure"' in r.stderr and "lambertian" not in r.stderr, r.output
+    # a direction is not in metres
+    r = cli(service, "element", "--scene", "cli-car", "--id", "0" * 64, "--node", "car/body", "--facing", "0,1")
+    assert r.exit_code == 2 and "--facing takes X,Y,Z (three numbers, a direction" in r.stderr, r.output
+    assert "metres" not in r.stderr, r.output
     r = cli(service, "assign", "--scene", "cli-car", "car/body", '{"type": "mirror", "reflectance": 7}')
     assert r.exit_code == 2 and "reflectance" in r.stderr, r.output
     r = cli(service, "simulate", "--scene", "cli-car", "--out", str(tmp_path / "m"), "--sensor", "flor")

@@ -33,9 +33,14 @@ def test_lumenlink_pack_packs_switches_and_writes_the_plot(tmp_path: Path) -> No
             sensor = ll.add_sensor(sid, GRID)["id"]
             png = tmp_path / "pack.png"
             out = CliRunner().invoke(app, ["pack", eid, "--scene", "guide-cli", "--assignment", aid, "--sensor",
-                                           sensor, "--target", "0.8", "--photons", "50000", "--max-iterations", "3",
-                                           "--switch", "--png", str(png), "--server", url])
+                                           GRID["name"], "--target", "0.8", "--photons", "50000", "--max-iterations",
+                                           "3", "--switch", "--png", str(png), "--server", url])   # by its name
             assert out.exit_code == 0, out.output
+            # the progress lines number the iterations as the final table does
+            lines = out.output.splitlines()
+            shown = {ln.split(":")[0].split()[-1]: ln.split()[4] for ln in lines if ln.strip().startswith("after ")}
+            table = {ln.split(":")[0].split()[-1]: ln.split()[3] for ln in lines if ln.startswith("iteration ")}
+            assert table and all(table[k] == u for k, u in shown.items()), (shown, table)   # (polled: may be none)
             new = next(line.split()[1].rstrip(":") for line in out.output.splitlines()
                        if line.startswith("element "))
             assert "iteration 0: min_max" in out.output and f"assignment {aid} now carries {new}" in out.output
@@ -43,7 +48,10 @@ def test_lumenlink_pack_packs_switches_and_writes_the_plot(tmp_path: Path) -> No
             assert png.read_bytes()[:4] == b"\x89PNG"
             assert ll.pack_record(new)["packed_from"] == eid
             bad = CliRunner().invoke(app, ["pack", eid, "--scene", "guide-cli", "--assignment", aid, "--sensor",
-                                           sensor, "--target", "1.5", "--server", url])
+                                           sensor, "--target", "1.5", "--server", url])   # by its id
             assert bad.exit_code == 2 and "target" in bad.output, bad.output
+            typo = CliRunner().invoke(app, ["pack", eid, "--scene", "guide-cli", "--assignment", aid, "--sensor",
+                                            "lit face (9 pionts)", "--server", url])
+            assert typo.exit_code == 2 and "did you mean 'lit face (9 points)'" in typo.output, typo.output
     finally:
         shutil.rmtree(data, ignore_errors=True)

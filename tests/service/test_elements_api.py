@@ -163,3 +163,22 @@ def test_the_docs_example_names_its_element_by_the_id_its_body_gets() -> None:
     from tracer.elements import prepare
 
     assert prepare(DOTS_EXAMPLE).id == DOTS_EXAMPLE_ID
+
+
+def test_the_python_client_puts_switches_lists_and_removes_an_element(client: Any) -> None:
+    """Through `lumenlink.Client` (on the app's transport): taking an element off answers None once the service
+    answered 204 (it raised "HTTP 204: No Content" although the removal had happened), the scene's list is empty
+    again, and removing it twice is the service's 404, said as an error."""
+    from lumenlink import Client
+    from lumenlink.errors import LumenLinkError
+
+    sid = _guide(client)
+    lumen = Client("http://testserver", transport=client._transport)
+    eid = lumen.add_element(DOTS)["id"]
+    put = lumen.put_element(sid, "backlight/guide", eid, facing=[0, 0, -1])
+    assert put["applied"] and [e["id"] for e in lumen.scene_elements(sid)] == [put["id"]]
+    assert lumen.switch_element(sid, put["id"], eid)["id"] == put["id"]
+    assert lumen.remove_element(sid, put["id"]) is None
+    assert lumen.scene_elements(sid) == []
+    with pytest.raises(LumenLinkError, match="404"):
+        lumen.remove_element(sid, put["id"])

@@ -111,6 +111,9 @@ def test_uniformity_of_listed_points(client: Any, floor: str) -> None:
     ({"points": [[0, 0, 0]], "direction": [0, 0, -1], "observe": ["spectrum"]}, "observe"),
     ({"points": [[0, 0, "x"]], "direction": [0, 0, -1]}, "points"),
     ({"points": [[0, 0, 0]], "direction": [0, 0, -1], "max_photons": 10**12}, "max_photons"),
+    ({"nine_points": {**NINE, "u": [0, 0, 0]}, "direction": [0, 0, -1]}, "nine_points.u is the zero vector"),
+    ({"nine_points": {**NINE, "v": [0, 0, 0]}, "direction": [0, 0, -1]}, "nine_points.v is the zero vector"),
+    ({"nine_points": {**NINE, "v": [2 * x for x in NINE["u"]]}, "direction": [0, 0, -1]}, "parallel"),
 ])
 def test_bad_uniformity_queries_say_which_field(client: Any, floor: str, body: dict, says: str) -> None:
     before = client.get(f"/scenes/{floor}").json()

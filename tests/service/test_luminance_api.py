@@ -158,6 +158,9 @@ def test_exr_says_what_its_values_are_and_keeps_them_exactly(tmp_path: Path) -> 
     ({**METER, "aperture_deg": 0}, "aperture_deg"),
     ({**METER, "aperture_deg": 181}, "aperture_deg"),
     ({**METER, "direction": [0, 0, 0]}, "direction"),
+    # more pixels than one query may ask (max_points, 100000 by default): said when it is made, not at simulate
+    ({**CAMERA, "width": 4096, "height": 4096}, "at most 100000 points per query"),
+    ({**CAMERA, "width": 640, "height": 480}, "640 × 480 = 307200 pixels"),
 ])
 def test_bad_bodies_are_refused_and_change_nothing(client: Any, sid: str, body: dict, field: str) -> None:
     before = client.get(f"/scenes/{sid}/sensors").json()

@@ -125,3 +125,24 @@ def test_the_state_a_result_is_kept_under_does_not_depend_on_the_order_lights_ar
     changed = SimpleNamespace(materials={1: {"type": "lambertian"}}, default_material=None,
                               lights=[a, {**b, "intensity_cd": 20.0}])
     assert state_digest(changed, sensor) != state_digest(one, sensor)
+
+
+def test_a_black_border_does_not_turn_the_tone_mapped_image_white() -> None:
+    """Reinhard's global operator on a uniform 1000 cd/m² field inside a black border: the field shows at its key,
+    Ld = a / (1 + a) with a = 0.18 (sRGB 8-bit 110), as it does without the border; with the border's pixels in the
+    log-average (δ = 1e-6 cd/m²) it showed at 0.99 (sRGB 254)."""
+    from PIL import Image
+
+    from service.images import REINHARD_KEY, tone_mapped_png
+
+    field = np.full((12, 16), 1000.0)
+    framed = np.zeros((16, 20))
+    framed[2:14, 2:18] = field
+    key = REINHARD_KEY / (1.0 + REINHARD_KEY)
+    expected = round(255 * (1.055 * key ** (1 / 2.4) - 0.055))
+    for image, inside in ((field, np.s_[:, :]), (framed, np.s_[2:14, 2:18])):
+        shown = np.asarray(Image.open(io.BytesIO(tone_mapped_png(image))))
+        assert np.all(shown[inside] == expected), (shown[inside].min(), shown[inside].max(), expected)
+    border = np.asarray(Image.open(io.BytesIO(tone_mapped_png(framed))))
+    assert border[0, 0] == 0 and border[-1, -1] == 0
+    assert not np.asarray(Image.open(io.BytesIO(tone_mapped_png(np.zeros((4, 4)))))).any()   # no light: black

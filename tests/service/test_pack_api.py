@@ -51,10 +51,13 @@ def guide(tmp_path_factory: Any) -> Any:
         yield client, sid, put.json()["id"], sensor, dark, eid
 
 
-def _follow(client: Any, url: str, until: Any = None, timeout: float = 240.0) -> dict:
+def _follow(client: Any, url: str, until: Any = None, timeout: float = 240.0, seen: list | None = None) -> dict:
+    """The job once it ends (or `until(job)`); each progress polled goes to `seen`."""
     t0 = time.monotonic()
     while time.monotonic() - t0 < timeout:
         job = client.get(url).json()
+        if seen is not None:
+            seen.append(dict(job["progress"]))
         if job["status"] in ("succeeded", "failed", "cancelled") or (until is not None and until(job)):
             return job
         time.sleep(0.2)
@@ -66,10 +69,15 @@ def test_a_uniform_pattern_is_packed_to_the_target_and_a_fresh_seed_confirms_it(
     r = client.post(f"/elements/{eid}/pack", json={"scene": sid, "assignment": aid, "sensor": sensor,
                                                     "target": 0.8, "photons": 100_000, "max_iterations": 5})
     assert r.status_code == 202, r.text
-    job = _follow(client, r.headers["location"])
+    polled: list[dict] = []
+    job = _follow(client, r.headers["location"], seen=polled)
     assert job["status"] == "succeeded" and job["kind"] == "pack", job
     res = job["result"]
     history = res["history"]
+    # every uniformity the progress showed is the one the final table gives the iteration it names as measured
+    shown = [p for p in polled if p.get("uniformity") is not None]
+    assert shown and all(history[p["measured"]]["uniformity"] == p["uniformity"] for p in shown), shown
+    assert all(p["measured"] in (p["iteration"], p["iteration"] - 1) for p in shown), shown
     start, last = history[0], history[-1]
     # the uniform start is stated by its own measurement: fill 1.0 takes most light out near the LED
     assert start["uniformity"] + 4 * start["stderr"] < 0.8

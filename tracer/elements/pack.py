@@ -180,8 +180,10 @@ def pack(scene: Any, instance: int, start: Microstructure, sensor: dict, simulat
     """Pack `start`'s fill map on `instance` of `scene` (a `tracer.Scene` the caller owns: the pack changes its
     element) against the grid sensor body `sensor` (world units); `simulation(scene)` makes a
     `tracer.simulate.Simulation` of the committed scene; `assign` holds `Scene.set_element`'s keywords (facing or
-    faces, mm_per_unit). See the module docstring. `progress(state)` gets ``{"iteration", "photons", "uniformity",
-    "stderr", "seconds"}`` between photon rounds and after each iteration; `cancel()` is polled between rounds.
+    faces, mm_per_unit). See the module docstring. `progress(state)` gets ``{"iteration", "photons", "measured",
+    "uniformity", "stderr", "seconds"}`` between photon rounds and after each iteration: "iteration" is the one
+    running, "uniformity" ± "stderr" that of iteration "measured" (the one before while an iteration measures, None
+    before the first has); `cancel()` is polled between rounds.
 
     Raises
     ------
@@ -219,8 +221,9 @@ def pack(scene: Any, instance: int, start: Microstructure, sensor: dict, simulat
         def report(p: int, worst: float, seconds: float, it: int = it, done: int = done) -> None:
             if progress is not None:
                 last = history[-1] if history else None
-                progress({"iteration": it, "photons": done + int(p), "uniformity": last and last.uniformity,
-                          "stderr": last and last.stderr, "seconds": time.perf_counter() - t_start})
+                progress({"iteration": it, "photons": done + int(p), "measured": last and last.iteration,
+                          "uniformity": last and last.uniformity, "stderr": last and last.stderr,
+                          "seconds": time.perf_counter() - t_start})
 
         res = sim.run(sensor, max_photons=n, seed=int(seed) * 1009 + it, estimator="forward", progress=report,
                       cancel=cancel)
@@ -238,7 +241,7 @@ def pack(scene: Any, instance: int, start: Microstructure, sensor: dict, simulat
         history.append(PackIteration(it, fill.tolist(), int(model.features or 0), int(res.photons), u, s, u0,
                                      lux.tolist(), err.tolist(), t1 - t0, t2 - t1, time.perf_counter() - t0))
         if progress is not None:
-            progress({"iteration": it, "photons": total, "uniformity": u, "stderr": s,
+            progress({"iteration": it, "photons": total, "measured": it, "uniformity": u, "stderr": s,
                       "seconds": time.perf_counter() - t_start})
         if cancel is not None and cancel():
             stopped = "cancelled"

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from tracer.accel.traverse import closest_each
-from tracer.warmup import first_use
+from tracer.compile_locks import first_use
 
 
 def sensor_offset(p: np.ndarray) -> float:

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from tracer.backends import CPU_SHAPE, IN_PROCESS, InProcess, Shipment
+from tracer.compile_locks import first_use
 from tracer.effects import photon_state
 from tracer.errors import SimulationError
 from tracer.gpu.device import DeviceUnavailable
@@ -30,7 +31,6 @@ from tracer.transport.estimate import Estimate, cost_of
 from tracer.transport.forward import COUNTERS, SensorArrays, tally_columns
 from tracer.transport.radiance import COUNTERS as RADIANCE_COUNTERS
 from tracer.transport.radiance import PIXEL, emitters, light_paths
-from tracer.warmup import first_use
 
 log = logging.getLogger(__name__)
 

@@ -166,8 +166,8 @@ async function pack(assignment, grid) {
       await new Promise((r) => setTimeout(r, 500));
       job = await getJSON(job.url);
       const p = job.progress ?? {};
-      if (p.uniformity != null) {
-        show({ busy: true, text: `iteration ${p.iteration}: min/max ${p.uniformity.toFixed(3)} ± ` +
+      if (p.uniformity != null) {   // the uniformity of iteration p.measured (p.iteration is the one running)
+        show({ busy: true, text: `iteration ${p.measured ?? p.iteration}: min/max ${p.uniformity.toFixed(3)} ± ` +
           `${(p.uniformity_stderr ?? 0).toFixed(3)}, ${(p.seconds ?? 0).toFixed(1)} s` });
       }
     }
