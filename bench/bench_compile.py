@@ -14,8 +14,9 @@ kind's code is also linked into, optimised and emitted again with every kernel t
 ``dispatch.scatter``, ``trace_photons``, ``forward_batches``, the luminance kernels), which these figures count
 for the caller.
 
-Then, on each configuration's filled cache (a warm install), a second process meets a never-met effect set (rough
-metal, Mie particles in glass) and takes its first lux and its first image: the seconds and what they compiled.
+Then, on each configuration's filled cache (a warm install), a second process meets never-met effect sets: the first
+lux of a room with rough metal and Mie particles in glass, the first image of one with a mirror and a glass block
+(cameras answer Lambertian, specular and Fresnel scenes only): the seconds and what they compiled.
 
 Run: ``lumenlink bench --only compile`` (about 10 minutes on 2 cores; ``--quick``: now only).
 """
@@ -145,8 +146,9 @@ def markdown(out: dict) -> str:
         label = f"before (commit {BEFORE})" if name == "before" else name
         md.append(f"| {label} | " + " | ".join(cells) + f" | {total:.1f} |")
     md += ["", "On a warm install (a second process on the cache the first session filled), a room with effects "
-           "the first never met (rough metal, Mie particles in glass: spectral light): seconds to its first forward "
-           "lux and its first 16×12 image, and how many functions each compiled (issue 49's target: 10 s each).", "",
+           "the first never met: seconds to the first forward lux of a room with rough metal and Mie particles in "
+           "glass (spectral light), and to the first 16×12 image of one with a mirror and a glass block, and how many "
+           "functions each compiled (issue 49's target: 10 s each).", "",
            "| configuration | first lux, s | compiled | first image, s | compiled |",
            "| --- | ---: | ---: | ---: | ---: |"]
     for name, c in configs.items():

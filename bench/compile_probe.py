@@ -5,7 +5,8 @@ Usage: ``python bench/compile_probe.py STEP [STEP ...]``; prints one JSON object
 them: ``scene`` (commit a room: the bottom- and top-level builders), ``forward`` (a forward lux query), ``backward``
 (a backward one), ``luminance`` (a luminance meter: paths from the eye), ``camera`` (a 16×12 image); then, for a
 warm install (a second process on the cache the first filled), ``novel-lux`` (a room with effects the first never
-met: rough metal, Mie particles in glass; its first forward lux) and ``novel-image`` (its first camera). Each step's
+met: rough metal, Mie particles in glass; its first forward lux) and ``novel-image`` (the first camera of a room
+with a mirror and a glass block: a camera answers Lambertian, specular and Fresnel scenes only). Each step's
 figure is its wall seconds and, from numba's own events (`numba.core.event`), the seconds spent in each phase,
 counted exclusively (a callee compiled while its caller was being typed counts for the callee, not twice):
 ``typing`` (type inference), ``lowering`` (numba IR to LLVM IR), ``llvm`` (LLVM's optimisation and code generation,
@@ -100,6 +101,24 @@ def novel_room():
     return Simulation(scene, mats, [{"type": "point", "position": [2.0, 2.0, 2.5], "intensity_cd": 100.0}])
 
 
+def mirror_room():
+    """The room with what paths from the eye follow beyond a Lambertian room: a mirror and a glass block (specular,
+    Fresnel); the simulation. (A camera answers only such scenes: Mie particles are refused, `VIEW_EFFECTS`.)"""
+    import numpy as np
+
+    from tracer.scene import Scene
+    from tracer.simulate import Simulation
+    from tracer.warmup import box
+
+    scene = Scene()
+    ids = [scene.add_instance(scene.add_geometry(*box(lo, hi)), np.eye(4))
+           for lo, hi in (((0, 0, 0), (4, 4, 3)), ((3.9, 1, 0.5), (3.95, 3, 2.5)), ((1, 1, 0), (2, 2, 1)))]
+    scene.commit()
+    mats = {ids[0]: {"type": "lambertian", "reflectance": 0.5}, ids[1]: {"type": "mirror", "reflectance": 0.9},
+            ids[2]: {"type": "dielectric", "ior": 1.5}}
+    return Simulation(scene, mats, [{"type": "point", "position": [2.0, 2.0, 2.5], "intensity_cd": 100.0}])
+
+
 def main(steps: list[str]) -> dict:
     t0 = time.perf_counter()
     import tracer.simulate  # noqa: F401  (imports counted apart)
@@ -127,6 +146,7 @@ def main(steps: list[str]) -> dict:
                 sim = novel_room()
                 sim.illuminance([[3.0, 3.0, 0.0]], [[0, 0, 1]], max_photons=2000, estimator="forward")
             elif step == "novel-image":
+                sim = mirror_room()
                 sim.run({"type": "camera", "position": [3.5, 3.5, 1.5], "look_at": [2.0, 2.0, 0.5], "fov_deg": 40.0,
                          "width": 16, "height": 12}, max_photons=200)
             elif step != "scene":
