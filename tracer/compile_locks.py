@@ -22,6 +22,8 @@ log = logging.getLogger(__name__)
 
 #: this process's warm-up children (`tracer.warmup.Background`), once started: anything with ``wait(stage, timeout)``
 _BACKGROUND: Any = None
+#: kernels this process has used once already: later uses take no lock (a query's probe is not a lock file per call)
+_USED: set[str] = set()
 
 
 def waits_for(background: Any) -> None:
@@ -78,7 +80,11 @@ def compiling(kernel: str, timeout: float = 600.0, poll: float = 0.1) -> Iterato
 def first_use(kernel: str, timeout: float = 600.0) -> Iterator[None]:
     """Around a kernel's first call in this process: wait for this process's child compiling it (`wait_background`),
     then hold the kernel's machine-wide compile lock (`compiling`) while the call compiles or loads it. In that order:
-    a child needs the same lock to compile the stage being waited for."""
+    a child needs the same lock to compile the stage being waited for. Later uses go straight through."""
+    if kernel in _USED:
+        yield
+        return
     wait_background(kernel, timeout)
     with compiling(kernel, timeout):
         yield
+    _USED.add(kernel)
