@@ -12,7 +12,8 @@ It prints the median ratio (< 1: B is faster) and its range::
 Rays ``KIND/any`` (``camera/any``) time ``Scene.occluded`` on them as shadow segments instead (lengths uniform up
 to 1.5 times the farthest closest hit, as the tracer bench's any-hit rows). Scene ``room`` with rays ``photons``
 (or ``photons:N``) times forward photon tracing instead: 200,000 (N)
-photons through the diffuse room of ``bench/bench_transport.py`` (``Simulation.illuminance``, nine floor points).
+photons through the diffuse room of ``bench/bench_transport.py`` (``Simulation.illuminance``, nine floor points);
+``mixed`` (``mixed:N``) adds a mirror block and a glass block to it.
 
 ``AB_ENV_B="NUMBA_OPT=1 NUMBA_CACHE_DIR=/tmp/o1"`` adds settings to checkout B's worker alone (A and B may then be one
 checkout: an LLVM level against the default; give B its own numba cache, whose index does not key the level).
@@ -35,15 +36,24 @@ from collections.abc import Callable
 def one_pass(scene: str, rays: str) -> Callable[[], object]:
     """The work of one timed pass, loaded with the code on ``sys.path`` and run once outside the timing."""
     if scene == "room":
-        if rays.split(":")[0] != "photons":
-            raise SystemExit("scene room takes rays 'photons' or 'photons:N'")
+        import numpy as np
+
+        if rays.split(":")[0] not in ("photons", "mixed"):
+            raise SystemExit("scene room takes rays 'photons', 'photons:N', 'mixed' or 'mixed:N'")
         photons = int(rays.split(":")[1]) if ":" in rays else 200_000
         from bench.bench_transport import floor_points, room_scene
         from tracer.simulate import Simulation
 
         s, room = room_scene()
-        sim = Simulation(s, {room: {"type": "lambertian", "reflectance": 0.5}},
-                         [{"type": "point", "position": [2.0, 2.0, 2.5], "intensity_cd": 1000.0}])
+        materials = {room: {"type": "lambertian", "reflectance": 0.5}}
+        if rays.startswith("mixed"):   # a mirror block and a glass block on the floor: every bounce kind met
+            from tracer.warmup import box
+
+            for (lo, hi), body in ((((0.5, 0.5, 0.0), (1.5, 1.5, 1.0)), {"type": "mirror", "reflectance": 0.9}),
+                                   (((2.5, 2.5, 0.0), (3.5, 3.5, 1.0)), {"type": "dielectric", "ior": 1.5})):
+                materials[s.add_instance(s.add_geometry(*box(lo, hi)), np.eye(4))] = body
+            s.commit()
+        sim = Simulation(s, materials, [{"type": "point", "position": [2.0, 2.0, 2.5], "intensity_cd": 1000.0}])
         pts, nrm = floor_points(3)
         sim.illuminance(pts, nrm, max_photons=1000, estimator="forward")
         return lambda: sim.illuminance(pts, nrm, max_photons=photons, estimator="forward")

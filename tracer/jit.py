@@ -17,7 +17,8 @@ helper that takes one of the kernels' tuples (`TUPLES`) does so without referenc
 docs/CONTRACTS.md), unless it says otherwise because it allocates. Every other kernel is
 compiled with ``forceinline=False`` said explicitly, since numba lets a callee inherit the flag from the caller it
 is compiled for. No kernel is called through a C function pointer, so none gets numba's cfunc wrapper
-(``no_cfunc_wrapper``): 6 % of a cold compile.
+(``no_cfunc_wrapper``): 6 % of a cold compile (`kind_table` calls a kind at its address with numba's own
+calling convention, which needs none).
 
 Import ``njit`` (and ``prange``) from here, never from numba, in every tracer module that defines kernels:
 the change is made once, when this module is first imported, before any kernel compiles.
@@ -32,7 +33,7 @@ import numba
 from numba import prange
 from numba.core import dispatcher, types
 
-__all__ = ["kind_switch", "njit", "prange"]
+__all__ = ["kind_switch", "kind_table", "njit", "prange"]
 
 #: the modules whose kernels are called without literal arguments
 PACKAGE = "tracer."
@@ -109,3 +110,90 @@ def kind_switch(name: str, params: str, tag: str, cases: dict[int, Any], default
     fn.__qualname__ = f"{name}_{digest}"
     fn.__doc__ = doc
     return njit(**options)(fn)
+
+
+def kind_table(name: str, cases: dict[int, Any], signature, *, doc: str = ""):
+    """The call of a family's kinds through a table of addresses: ``name(table, k, args)`` returns ``cases[k](*args)``,
+    where `table` (int64 array) holds, at index k, the address of ``cases[k]`` compiled for the argument types
+    ``signature(head)`` (`head`: the types of the leading arguments that are the kernels' tuples), which
+    ``name.addresses(head)`` gives (compiling or loading each kind from numba's cache).
+
+    On the CPU the call goes through the address: a kind's code is compiled once, on its own, and no kernel that
+    calls it holds a copy to type, lower and optimise again (a new kind adds no compile to any kernel). The
+    addresses are data, so a kernel is cached as usual. On a CUDA device, which cannot call the CPU's code, the same
+    call is the branch chain over the cases (`kind_switch`'s), compiled into the kernel as before. Scalar arguments
+    are converted to `signature`'s types; an array or tuple of another type is a typing error, never a call with
+    the wrong layout.
+    """
+    import sys
+
+    import numpy as np
+    from numba.core import cgutils, errors
+    from numba.core.cpu import CPUContext
+    from numba.extending import intrinsic
+
+    caller = sys._getframe(1).f_globals
+    ordered = sorted(int(k) for k in cases)
+    names = {k: f"_case_{k}" for k in ordered}
+    lines = [f"    if k == {k}:\n        return {names[k]}(*args)\n" for k in ordered[:-1]]
+    source = f"def {name}(table, k, args):\n{''.join(lines)}    return {names[ordered[-1]]}(*args)\n"
+    scope = {names[k]: cases[k] for k in ordered}
+    exec(compile(source, caller["__file__"], "exec"), scope)   # noqa: S102 - the source is built above, from names
+    chain = scope[name]
+    reference = cases[ordered[0]]
+
+    def entry(table, k):
+        return table[k]
+
+    @intrinsic
+    def call(typingctx, table, k, args):
+        if not isinstance(table, types.Array) or not isinstance(k, types.Integer) \
+                or not isinstance(args, types.BaseTuple):
+            return None
+        want = tuple(signature(tuple(args)))
+        if len(want) != len(args):
+            raise errors.TypingError(f"{name}: {len(args)} arguments, the kinds take {len(want)}")
+        for i, (got, need) in enumerate(zip(args, want, strict=True)):
+            if got != need and not (isinstance(got, types.Number) and isinstance(need, types.Number)):
+                raise errors.TypingError(f"{name}: argument {i} is {got}, the kinds take {need}")
+        restype = typingctx.resolve_function_type(types.Dispatcher(reference), want, {}).return_type
+
+        def codegen(context, builder, sig, llargs):
+            values = [context.cast(builder, builder.extract_value(llargs[2], i), got, need)
+                      for i, (got, need) in enumerate(zip(args, want, strict=True))]
+            if not isinstance(context, CPUContext):   # a device: the chain, compiled in
+                packed = context.make_tuple(builder, types.Tuple(want), values)
+                return context.compile_internal(builder, chain, restype(table, k, types.Tuple(want)),
+                                                [llargs[0], llargs[1], packed])
+            address = context.compile_internal(builder, entry, types.int64(table, k), llargs[:2])
+            with cgutils.if_unlikely(builder, cgutils.is_null(builder, address)):
+                context.call_conv.return_user_exc(builder, RuntimeError, (
+                    f"{name}: the kind table holds no address; bind it in this process first",))
+            fnty = context.call_conv.get_function_type(restype, want)
+            pointer = builder.inttoptr(address, fnty.as_pointer())
+            status, result = context.call_conv.call_function(builder, pointer, restype, want, values)
+            with cgutils.if_unlikely(builder, status.is_error):
+                context.call_conv.return_status_propagate(builder, status)
+            return result
+
+        return restype(table, k, args), codegen
+
+    def addresses(head: tuple) -> np.ndarray:
+        """(max kind + 1,) int64: each case's address for the argument types ``signature(head)``, 0 elsewhere."""
+        want = tuple(signature(tuple(head)))
+        restype = None
+        out = np.zeros(ordered[-1] + 1, np.int64)
+        for k in ordered:
+            kernel = cases[k]
+            kernel.compile(want)
+            cres = kernel.overloads[want]
+            restype = restype or cres.signature.return_type
+            if cres.signature.return_type != restype:
+                raise TypeError(f"{name}: {kernel.py_func.__qualname__} returns {cres.signature.return_type}, "
+                                f"the family's kinds {restype}")
+            out[k] = cres.library.get_pointer_to_function(cres.fndesc.llvm_func_name)
+        return out
+
+    call.addresses = addresses
+    call.__doc__ = doc
+    return call

@@ -142,7 +142,7 @@ class Case:
     def __init__(self, module, spec, side, theta, d, state):
         self.module, self.spec, self.side, self.theta, self.d, self.state = module, spec, side, theta, d, state
         self.sa, self.inst = quad_scene()
-        self.M = dispatch.pack_materials({self.inst: spec}, None, [self.inst], set())
+        self.M = dispatch.bind(self.sa, dispatch.pack_materials({self.inst: spec}, None, [self.inst], set()))
         self.inside = is_solid(module) and side == "back"
         self.med0 = np.full(4, -7, np.int64)
         self.depth0 = 0

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from tests.tracer.transport_scenes import box, quad, scene_of
+from tracer.optics.surfaces.dispatch import bind
 from tracer.photometry.files import parse_photometry
 from tracer.scene import Scene
 from tracer.simulate import Simulation, SimulationError, far_field_bins
@@ -130,7 +131,7 @@ def test_far_field_changes_nothing():
     far = np.array([64 + len(ft), 6, 7, 0, 0, -1, 1, 0, 0, 0, 1, 0], np.float64)
     tallied = plain._replace(surf=surf)
     both = tallied._replace(far=far)
-    args = (s.arrays(), receivers.arrays(), sim._mats, sim._lights)
+    args = (s.arrays(), receivers.arrays(), bind(s.arrays(), sim._mats), sim._lights)
     out0, c0 = forward_batches(*args, plain, 64, 11, 0, 3, 20_000)
     out1, c1 = forward_batches(*args, tallied, 64 + len(ft), 11, 0, 3, 20_000)
     out2, c2 = forward_batches(*args, both, 64 + len(ft) + 43, 11, 0, 3, 20_000)

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from tests.tracer.transport_scenes import box, quad, scene_of
+from tracer.optics.surfaces.dispatch import bind
 from tracer.scene import Scene
 from tracer.simulate import Simulation, SimulationError
 from tracer.transport.forward import SensorArrays, forward_batches
@@ -99,7 +100,7 @@ def test_surface_tally_changes_nothing():
     surf = np.full(max(floor, block) + 1, -1, np.int64)
     surf[floor], surf[block] = 64, 64 + len(ft)
     tallied = plain._replace(surf=surf)
-    args = (s.arrays(), receivers.arrays(), sim._mats, sim._lights)
+    args = (s.arrays(), receivers.arrays(), bind(s.arrays(), sim._mats), sim._lights)
     out0, c0 = forward_batches(*args, plain, 64, 11, 0, 3, 20_000)
     out1, c1 = forward_batches(*args, tallied, 64 + len(ft) + 12, 11, 0, 3, 20_000)
     assert np.array_equal(out0, out1[:, :64]) and np.array_equal(c0, c1)

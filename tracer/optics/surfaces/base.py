@@ -83,6 +83,9 @@ class MaterialArrays(NamedTuple):
     coat : (n_inst, 2) int32 — first layer and layer count of the instance's coating (count 0: none).
     phase : (n_rows, mie.N_MU) float64 — the packed Mie tables of every particle medium (`tracer.optics.mie.packed`);
         a medium's first row is its row's column `MIE_ROW` (−1: no particles, Henyey–Greenstein).
+    scatter_at : (n_kinds,) int64 — the address of each kind's ``scatter`` in this process, filled by
+        `tracer.optics.surfaces.dispatch.bind` before a CPU kernel runs (zeros as packed and shipped: an address
+        means nothing in another process).
     """
 
     kind: np.ndarray
@@ -95,6 +98,7 @@ class MaterialArrays(NamedTuple):
     layers: np.ndarray
     coat: np.ndarray
     phase: np.ndarray
+    scatter_at: np.ndarray = np.zeros(0, np.int64)
 
 
 # ------------------------------------------------------------------------------------------ specs

@@ -1,12 +1,14 @@
 """The registration of surface kinds and thin elements: kind id = position in `KINDS`, and the one switch
-on a surface kind (`scatter`, `albedo`). Adding a kind: its module, one entry in `KINDS`, one branch in
-each switch below.
+on a surface kind (`scatter`, `albedo`). Adding a kind: its module and one entry in `KINDS` (and a branch in
+`albedo` if the backward estimator may follow it).
 
-`scatter` is inlined into the transport kernel (``inline="always"``, which `tracer.jit` makes LLVM's forceinline),
-and so is the Lambertian kind's:
-a real call per bounce passes the scene's and the materials' tuples, a few hundred words, and made the diffuse
-room 1.25x slower than the switch written inline; the other kinds stay calls (they cost a compile each where
-inlined, and do more work per call).
+`scatter` is inlined into the transport kernels (``inline="always"``, which `tracer.jit` makes LLVM's
+forceinline), and so is the Lambertian kind's: a real call per bounce passes the scene's and the materials'
+tuples, a few hundred words, and made the diffuse room 1.25x slower than the switch written inline. Every other
+kind is called through its address in `MaterialArrays.scatter_at` (`scatter_by_address`, `tracer.jit.kind_table`):
+compiled once on its own and cached on its own, it is no part of any kernel, so a new kind adds no compile time to
+the forward, backward or luminance kernels (on a CUDA device the same call is a branch chain compiled in).
+`bind` fills the table for this process; `tracer.backends.run_kernel` does it before every CPU run.
 
 Python side: `material_spec` turns a wire body (or a spec) into the kind's typed spec, `pack_materials`
 builds the kernels' `MaterialArrays` for every instance id, `effects_of` and `backward_ok` answer from the
@@ -18,10 +20,12 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import numba
 import numpy as np
+from numba import types
 
 from tracer.elements import features as fx
-from tracer.jit import njit
+from tracer.jit import kind_table, njit
 from tracer.optics import mie, spectra
 from tracer.optics.coating import Coating
 from tracer.optics.elements import diffuser, polarizer, retarder
@@ -164,7 +168,7 @@ def pack_materials(materials: dict, default, instance_ids: list[int], sensor_ids
             rows[spec] = _rows(spec, tables)
         kind[i], par[i], medium[i], mpar[i], ptab[i], mtab[i], coat[i] = rows[spec]
     return MaterialArrays(kind, par, medium, mpar, ptab, mtab, tables.array(), tables.layer_array(), coat,
-                          tables.phase_array())
+                          tables.phase_array(), np.zeros(len(KINDS), np.int64))
 
 
 class _Tables:
@@ -243,6 +247,30 @@ def _rows(spec, tables: _Tables):
 
 
 # ----------------------------------------------------------------------------------------- the switch
+
+
+
+def _scatter_signature(head):
+    """The argument types every kind's `scatter` is compiled for (`base` has the contract), from those of the
+    scene's and the materials' tuples (`head`)."""
+    i8, u8, f8 = types.int64, types.uint64, types.float64
+    return (head[0], head[1], i8, i8, *[f8] * 8, types.int64[::1], i8, u8, i8, f8, types.float64[::1])
+
+
+#: the kinds past the Lambertian one, called through `MaterialArrays.scatter_at` (`tracer.jit.kind_table`)
+scatter_by_address = kind_table("scatter_by_address", {k: m.scatter for k, m in enumerate(KINDS) if k > LAMBERTIAN},
+                                _scatter_signature)
+_BOUND: dict = {}
+
+
+def bind(sa, M):
+    """`M` with its table of `scatter` addresses (`MaterialArrays.scatter_at`) for the types of `sa` and `M`:
+    what a kernel on this process's CPU needs before it runs (`tracer.backends.run_kernel`)."""
+    head = (numba.typeof(sa), numba.typeof(M))
+    table = _BOUND.get(head)
+    if table is None:
+        table = _BOUND[head] = scatter_by_address.addresses(head)
+    return M._replace(scatter_at=table)
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -367,27 +395,9 @@ def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, ke
     k = M.kind[inst]
     if k == LAMBERTIAN:
         return lambertian.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol)
-    if k == MIRROR:
-        return mirror.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol)
-    if k == MIX:
-        return mix.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol)
-    if k == DIELECTRIC:
-        return dielectric.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol)
-    if k == DIFFUSER:
-        return diffuser.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol)
-    if k == POLARIZER:
-        return polarizer.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol)
-    if k == RETARDER:
-        return retarder.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol)
-    if k == MICROFACET:
-        return microfacet.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam,
-                                  pol)
-    if k == MEASURED_BRDF:
-        return measured_brdf.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam,
-                                     pol)
-    if k == ROUGH_DIELECTRIC:
-        return rough_dielectric.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim,
-                                        lam, pol)
+    if k > LAMBERTIAN and k < len(M.scatter_at):
+        return scatter_by_address(M.scatter_at, k, (sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth,
+                                                     key, dim, lam, pol))
     return ABSORBED, dx, dy, dz, 0.0, depth, dim   # black, or an id without material
 
 
