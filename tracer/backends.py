@@ -126,10 +126,11 @@ def run_kernel(kernel_id: KernelId, scene: tuple, query: tuple, batch0: int, n_b
     scene = (scene arrays, materials, lights) and query = (query arrays, seed); ``("radiance",)`` takes the
     same scene and query = (view arrays, emitters, light paths, seed) (`tracer.transport.radiance`). Module-level,
     so a Dask worker runs it by import; the kernel is compiled once per process (numba's dispatcher and disk cache)."""
+    from tracer.optics.lights.dispatch import bind as bind_lights
     from tracer.optics.surfaces.dispatch import bind
 
     sa, mats, lights = scene
-    mats = bind(sa, mats)   # this process's addresses of the surface kinds (`tracer.jit.kind_table`)
+    mats, lights = bind(sa, mats), bind_lights(lights)   # this process's kind addresses (`tracer.jit.kind_table`)
     if kernel_id[0] == "forward":
         from tracer.transport.forward import forward_kernel
 

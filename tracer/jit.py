@@ -156,7 +156,7 @@ def kind_table(name: str, cases: dict[int, Any], signature, *, doc: str = ""):
         for i, (got, need) in enumerate(zip(args, want, strict=True)):
             if got != need and not (isinstance(got, types.Number) and isinstance(need, types.Number)):
                 raise errors.TypingError(f"{name}: argument {i} is {got}, the kinds take {need}")
-        restype = typingctx.resolve_function_type(types.Dispatcher(reference), want, {}).return_type
+        restype = _plain(typingctx.resolve_function_type(types.Dispatcher(reference), want, {}).return_type)
 
         def codegen(context, builder, sig, llargs):
             values = [context.cast(builder, builder.extract_value(llargs[2], i), got, need)
@@ -180,20 +180,30 @@ def kind_table(name: str, cases: dict[int, Any], signature, *, doc: str = ""):
 
     def addresses(head: tuple) -> np.ndarray:
         """(max kind + 1,) int64: each case's address for the argument types ``signature(head)``, 0 elsewhere."""
+        from numba.core.registry import cpu_target
+
         want = tuple(signature(tuple(head)))
-        restype = None
+        layout = None
         out = np.zeros(ordered[-1] + 1, np.int64)
         for k in ordered:
             kernel = cases[k]
             kernel.compile(want)
             cres = kernel.overloads[want]
-            restype = restype or cres.signature.return_type
-            if cres.signature.return_type != restype:
+            returned = str(cpu_target.target_context.get_value_type(cres.signature.return_type))
+            layout = layout or str(cpu_target.target_context.get_value_type(_plain(cres.signature.return_type)))
+            if returned != layout:   # the caller reads the result with the first kind's layout
                 raise TypeError(f"{name}: {kernel.py_func.__qualname__} returns {cres.signature.return_type}, "
-                                f"the family's kinds {restype}")
+                                f"laid out as {returned}; the family's first kind returns {layout}")
             out[k] = cres.library.get_pointer_to_function(cres.fndesc.llvm_func_name)
         return out
 
     call.addresses = addresses
     call.__doc__ = doc
     return call
+
+
+def _plain(t):
+    """`t` without literal types, inside tuples too: kinds that return ``True`` and ``False`` return one type."""
+    if isinstance(t, types.BaseTuple):
+        return types.Tuple([_plain(x) for x in t])
+    return types.unliteral(t)

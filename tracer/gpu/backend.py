@@ -172,9 +172,10 @@ class CudaBackend:
             try:
                 card = _to_card(out)
                 if SIMULATOR:   # the kernel's njit callees run as the CPU's code: they call kinds by address
+                    from tracer.optics.lights.dispatch import bind as bind_lights
                     from tracer.optics.surfaces.dispatch import bind
 
-                    m = bind(ds._kernel_arrays(), m)
+                    m, lt = bind(ds._kernel_arrays(), m), bind_lights(lt)
                 if kernel_id[0] == "forward":
                     ra, sens, n_bins, seed = q
                     w0 = lights.flux_total[0] / size   # as forward_batches

@@ -197,6 +197,7 @@ def test_spot_emission_stays_in_the_cone_and_puts_the_flux_where_the_profile_doe
     L = pack_lights([{"type": "spot", "position": [1, 2, 3], "direction": list(axis), "cone_deg": cone,
                       "falloff_deg": fall, "intensity_cd": i0}])
     rng = np.random.default_rng(3)
+    L = lights_dispatch.bind(L)
     out = np.array([sample_emission(L, 0, *rng.random(5)) for _ in range(40_000)])
     np.testing.assert_array_equal(out[:, 0:3], np.tile([1.0, 2.0, 3.0], (len(out), 1)))
     d, f = out[:, 3:6], out[:, 6]
@@ -259,7 +260,7 @@ def _emit(L, j, n, seed, out):
 
 def emit(L, n=200_000, seed=9):
     out = np.zeros((n, 11))
-    _emit(L, 0, n, seed, out)
+    _emit(lights_dispatch.bind(L), 0, n, seed, out)
     return out
 
 

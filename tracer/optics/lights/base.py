@@ -90,6 +90,8 @@ class LightArrays(NamedTuple):
     `spectra.sampling_table`; `efficacy` (n,) lm/W.
     Polarization (`tracer.optics.polarization`): `pol` (n, 4) each light's packed state (`light_polarization`);
     `polarized` (1,) int64, 1 where photons carry a Stokes vector (`polarized_lights`).
+    `sample_at` (n_kinds,) int64, the address of each kind's ``sample`` in this process, filled by
+    `tracer.optics.lights.dispatch.bind` before a CPU kernel runs (zeros as packed and shipped).
     """
 
     kind: np.ndarray
@@ -114,6 +116,7 @@ class LightArrays(NamedTuple):
     efficacy: np.ndarray
     pol: np.ndarray
     polarized: np.ndarray
+    sample_at: np.ndarray = np.zeros(0, np.int64)
 
 
 class Packing:

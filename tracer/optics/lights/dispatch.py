@@ -1,16 +1,18 @@
 """The light kinds' registration: the one place that lists them and switches on a kind id.
 
 A kind's id is its position in `KINDS`. Adding a kind: its module (see `base`) and its entry at the end of
-`KINDS`; `sample_emission` and `light_connect` are written out from `KINDS` (`tracer.jit.kind_switch`).
-`sample_emission` is inlined into the transport kernel, with the point light's `sample`: a call per photon passes
-the lights' tuple (see `tracer.optics.surfaces.dispatch`).
+`KINDS`; `light_connect` is written out from `KINDS` (`tracer.jit.kind_switch`), `sample_emission` reaches every
+kind but the point light through a table of addresses (`tracer.jit.kind_table`, `bind`). `sample_emission` is
+inlined into the transport kernel, with the point light's `sample`.
 """
 
 from __future__ import annotations
 
+import numba
 import numpy as np
+from numba import types
 
-from tracer.jit import kind_switch, njit
+from tracer.jit import kind_switch, kind_table, njit
 from tracer.optics import spectra
 from tracer.optics.fields import BodyField
 from tracer.optics.lights import area, collimated, goniometric, point, rayfile, spot
@@ -67,7 +69,8 @@ def pack_lights(lights: list[dict], scene=None, sensor_ids: frozenset = frozense
     return LightArrays(kind, out.par, cdf, np.array([total]), out.g_off, out.g_n, out.table("g_c", (0,)),
                        out.table("g_gamma", (0,)), out.table("g_cd", (0,)), out.table("g_cell_cdf", (0,)),
                        out.table("tri", (0, 9)), out.table("tri_n", (0, 3)), out.table("tri_cdf", (0,)), out.a_off,
-                       out.a_area, np.zeros(1, np.int64), mono, spd_cdf, spd_f, efficacy, pol, np.zeros(1, np.int64))
+                       out.a_area, np.zeros(1, np.int64), mono, spd_cdf, spd_f, efficacy, pol, np.zeros(1, np.int64),
+                       np.zeros(len(KINDS), np.int64))
 
 
 def body_fields(module) -> dict[str, BodyField]:
@@ -139,11 +142,38 @@ def connectable(L: LightArrays) -> tuple[bool, str]:
     return True, ""
 
 
-sample_emission = kind_switch(
-    "sample_emission", "L, j, u0, u1, u2, u3, u4", "L.kind[j]", {k: m.sample for k, m in enumerate(KINDS)},
-    "(0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, False, 0.0, 0.0, 0.0)",   # an id no kind has: a photon of weight 0
-    doc="Emit one photon from light j: (ox, oy, oz, dx, dy, dz, f, on_surface, nx, ny, nz), see `base`.",
-    cache=True, _nrt=False, inline="always")
+def _sample_signature(head):
+    """The argument types every kind's `sample` is compiled for: the lights' tuple (`head`), j, five uniforms."""
+    return (head[0], types.int64, *[types.float64] * 5)
+
+
+#: the kinds past the point light, called through `LightArrays.sample_at` (`tracer.jit.kind_table`)
+sample_by_address = kind_table("sample_by_address", {k: m.sample for k, m in enumerate(KINDS) if k > POINT},
+                               _sample_signature)
+_BOUND: dict = {}
+
+
+def bind(L: LightArrays) -> LightArrays:
+    """`L` with its table of `sample` addresses (`LightArrays.sample_at`) for its types: what a kernel on this
+    process's CPU needs before it runs (`tracer.backends.run_kernel`)."""
+    head = (numba.typeof(L),)
+    table = _BOUND.get(head)
+    if table is None:
+        table = _BOUND[head] = sample_by_address.addresses(head)
+    return L._replace(sample_at=table)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def sample_emission(L, j, u0, u1, u2, u3, u4):
+    """Emit one photon from light j: (ox, oy, oz, dx, dy, dz, f, on_surface, nx, ny, nz), see `base`. The point
+    light's `sample` is compiled in; every other kind is called at its address (`sample_by_address`), so a new
+    light kind adds nothing to the kernels' compile."""
+    k = L.kind[j]
+    if k == POINT:
+        return point.sample(L, j, u0, u1, u2, u3, u4)
+    if k > POINT and k < len(L.sample_at):
+        return sample_by_address(L.sample_at, k, (L, j, u0, u1, u2, u3, u4))
+    return 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, False, 0.0, 0.0, 0.0   # an id no kind has: a photon of weight 0
 
 
 @njit(cache=True, _nrt=False, inline="always")
