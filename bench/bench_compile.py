@@ -3,16 +3,16 @@
 Each configuration runs `bench/compile_probe.py` in a fresh process with an empty numba cache: commit a room (the
 builders), then a forward lux query, a backward one, a luminance meter and a camera, each step's seconds split
 into numba's phases (type inference, lowering, LLVM) and into the functions compiled. Configurations, side by side
-in one run: the tracer before issue 49 (commit `BEFORE`, checked out in a temporary git worktree) and the tracer
-now; ``python bench/bench_compile.py --o1`` adds the tracer now at a lower LLVM level (``NUMBA_OPT=1``), whose
-compile seconds are weighed against the rays and photons per second that `bench/ab.py` measures (README, "Compile
-time").
+in one run: the tracer before issue 49 and before the kinds' tables of addresses (the commits of `BEFORE`, each
+checked out in a temporary git worktree) and the tracer now; ``python bench/bench_compile.py --o1`` adds the
+tracer now at a lower LLVM level (``NUMBA_OPT=1``), whose compile seconds are weighed against the rays and photons
+per second that `bench/ab.py` measures (README, "Compile time").
 
 What a kind adds: the seconds spent compiling the functions of each kind's own module (a surface's ``scatter``, a
-light's ``sample`` and ``connect``, a geometry kind's ``intersect``), from the same events. They are a floor: a
+light's ``sample`` and ``connect``, a geometry kind's ``intersect``), from the same events. For surfaces and lights
+called at their addresses (`tracer.jit.kind_table`) that is what a kind costs; for the rest it is a floor: such a
 kind's code is also linked into, optimised and emitted again with every kernel that calls it (the LLVM seconds of
-``dispatch.scatter``, ``trace_photons``, ``forward_batches``, the luminance kernels), which these figures count
-for the caller.
+``trace_photons``, ``forward_batches``, the luminance kernels), which these figures count for the caller.
 
 Then, on each configuration's filled cache (a warm install), a second process meets never-met effect sets: the first
 lux of a room with rough metal and Mie particles in glass, the first image of one with a mirror and a glass block
@@ -34,11 +34,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 PROBE = ROOT / "bench" / "compile_probe.py"
 STEPS = ("scene", "forward", "backward", "luminance", "camera")
-#: the last commit before issue 49's changes to the kernels
-BEFORE = "0c32a36"
-#: configuration name → environment; "before" runs the probe over a worktree of `BEFORE`; `--o1` adds the tracer now
-#: at LLVM level 1
-CONFIGS = {"before": {}, "now": {}}
+#: configuration name → the commit it checks out: the last before issue 49's changes to the kernels, the last before
+#: surface and light kinds were called through tables of addresses (`tracer.jit.kind_table`)
+BEFORE = {"before": "0c32a36", "before kind tables": "e5b73fc"}
+#: configuration name → environment; a name of `BEFORE` runs the probe over a worktree of its commit; `--o1` adds the
+#: tracer now at LLVM level 1
+CONFIGS = {"before": {}, "before kind tables": {}, "now": {}}
 O1 = {"now, NUMBA_OPT=1": {"NUMBA_OPT": "1"}}
 #: module prefixes whose functions are a kind's own, and the family each names
 KIND_FAMILIES = {"tracer.optics.surfaces.": "surface", "tracer.optics.lights.": "light",
@@ -92,12 +93,16 @@ def per_kind(result: dict) -> dict[str, float]:
     return dict(sorted(out.items(), key=lambda kv: -kv[1]))
 
 
-def before_checkout(where: Path) -> Path:
-    """A worktree of `BEFORE` under `where` (git worktree add, detached)."""
-    path = where / "before"
-    subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(path), BEFORE], check=True,
+def before_checkout(where: Path, name: str) -> Path:
+    """A worktree of the commit `BEFORE[name]` under `where` (git worktree add, detached)."""
+    path = where / BEFORE[name].replace(" ", "-")
+    subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(path), BEFORE[name]], check=True,
                    capture_output=True)
     return path
+
+
+def label(name: str) -> str:
+    return f"{name} (commit {BEFORE[name]})" if name in BEFORE else name
 
 
 def run(quick: bool = False, o1: bool = False) -> dict:
@@ -106,12 +111,13 @@ def run(quick: bool = False, o1: bool = False) -> dict:
     with tempfile.TemporaryDirectory(prefix="lumenlink-before-") as tmp:
         for name, env in configs.items():
             print(f"bench_compile: {name} (fresh process, empty numba cache)", file=sys.stderr, flush=True)
-            if name == "before":
-                env = {"LUMENLINK_PROBE_ROOT": str(before_checkout(Path(tmp)))}
+            if name in BEFORE:
+                env = {"LUMENLINK_PROBE_ROOT": str(before_checkout(Path(tmp), name))}
             results[name] = probe(env)
-        if "before" in configs:
-            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(Path(tmp) / "before")],
-                           capture_output=True)
+        for name in BEFORE:
+            if name in configs:
+                subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force",
+                                str(Path(tmp) / BEFORE[name].replace(" ", "-"))], capture_output=True)
     out = {"configs": {name: {"env": configs[name], "import_seconds": r["import_seconds"],
                               "steps": {s: {"seconds": v["seconds"], "phases": v["phases"]}
                                         for s, v in r["steps"].items()},
@@ -143,8 +149,7 @@ def markdown(out: dict) -> str:
             cells.append(f"{v['seconds']:.1f} ({p.get('typing', 0):.0f} / {p.get('lowering', 0):.0f} / "
                          f"{p.get('llvm', 0):.0f} / {p.get('other', 0):.0f})")
         total = sum(v["seconds"] for v in c["steps"].values())
-        label = f"before (commit {BEFORE})" if name == "before" else name
-        md.append(f"| {label} | " + " | ".join(cells) + f" | {total:.1f} |")
+        md.append(f"| {label(name)} | " + " | ".join(cells) + f" | {total:.1f} |")
     md += ["", "On a warm install (a second process on the cache the first session filled), a room with effects "
            "the first never met: seconds to the first forward lux of a room with rough metal and Mie particles in "
            "glass (spectral light), and to the first 16×12 image of one with a mirror and a glass block, and how many "
@@ -154,16 +159,17 @@ def markdown(out: dict) -> str:
     for name, c in configs.items():
         w = c.get("warm") or {}
         if w:
-            label = f"before (commit {BEFORE})" if name == "before" else name
-            md.append(f"| {label} | " + " | ".join(
+            md.append(f"| {label(name)} | " + " | ".join(
                 f"{w[s]['seconds']:.1f} | {len(w[s]['compiled'])}" if s in w else "– | –" for s in WARM_STEPS) + " |")
     md += ["", "`NUMBA_OPT=1` (LLVM level 1) is not kept: it compiles a cold session in 178 s (2026-11-28, `--o1`), "
            "but its kernels run slower than the issue's 0.95x floor allows (`AB_ENV_B=\"NUMBA_OPT=1 "
            "NUMBA_CACHE_DIR=/tmp/o1\" python bench/ab.py . . room photons:100000 6`, and `mesh incoherent`, "
            "`scene3 camera`: time ratios 1.151, 1.108, 1.057)."]
     first = configs["now"]
-    md += ["", "What each kind's own functions cost to compile (s, now; a floor: their code is optimised "
-           "and emitted again inside every kernel that calls them, counted for the caller):", "",
+    md += ["", "What each kind's own functions cost to compile (s, now). For the surface kinds and thin elements but "
+           "the Lambertian one, and the light kinds but the point light, that is all a kind costs: the kernels call "
+           "them at their addresses (`tracer.jit.kind_table`). For the others (media, geometry) it is a floor: their "
+           "code is optimised and emitted again inside every kernel that calls them, counted for the caller.", "",
            "| kind | seconds |", "| --- | ---: |"]
     md += [f"| {k} | {s:.2f} |" for k, s in first["kinds"].items()]
     for step in ("forward", "luminance"):

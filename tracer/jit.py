@@ -112,24 +112,26 @@ def kind_switch(name: str, params: str, tag: str, cases: dict[int, Any], default
     return njit(**options)(fn)
 
 
-def kind_table(name: str, cases: dict[int, Any], signature, *, doc: str = ""):
+def kind_table(name: str, cases: dict[int, Any], signature, returns, *, doc: str = ""):
     """The call of a family's kinds through a table of addresses: ``name(table, k, args)`` returns ``cases[k](*args)``,
     where `table` (int64 array) holds, at index k, the address of ``cases[k]`` compiled for the argument types
-    ``signature(head)`` (`head`: the types of the leading arguments that are the kernels' tuples), which
-    ``name.addresses(head)`` gives (compiling or loading each kind from numba's cache).
+    ``signature(head)`` (`head`: the types of the leading arguments that are the kernels' tuples) and returning
+    `returns` (a numba type: the family's contract), which ``name.bind(table, head, kinds)`` writes for the kinds a
+    scene holds (compiling or loading each from numba's cache).
 
-    On the CPU the call goes through the address: a kind's code is compiled once, on its own, and no kernel that
-    calls it holds a copy to type, lower and optimise again (a new kind adds no compile to any kernel). The
-    addresses are data, so a kernel is cached as usual. On a CUDA device, which cannot call the CPU's code, the same
+    On the CPU the call goes through the address: a kind's code is compiled once, on its own, and only where a scene
+    holds it, and no kernel that calls it holds a copy to type, lower and optimise again (a new kind adds no compile
+    to any kernel). The addresses are data, so a kernel is cached as usual; a kind whose address is not bound is a
+    RuntimeError naming the family, never a jump to 0. On a CUDA device, which cannot call the CPU's code, the same
     call is the branch chain over the cases (`kind_switch`'s), compiled into the kernel as before. Scalar arguments
-    are converted to `signature`'s types; an array or tuple of another type is a typing error, never a call with
-    the wrong layout.
+    are converted to `signature`'s types; an array or tuple of another type is a typing error, and a kind that
+    returns another layout than `returns` a TypeError when it is bound, never a call with the wrong layout.
     """
     import sys
 
-    import numpy as np
     from numba.core import cgutils, errors
     from numba.core.cpu import CPUContext
+    from numba.core.registry import cpu_target
     from numba.extending import intrinsic
 
     caller = sys._getframe(1).f_globals
@@ -140,7 +142,7 @@ def kind_table(name: str, cases: dict[int, Any], signature, *, doc: str = ""):
     scope = {names[k]: cases[k] for k in ordered}
     exec(compile(source, caller["__file__"], "exec"), scope)   # noqa: S102 - the source is built above, from names
     chain = scope[name]
-    reference = cases[ordered[0]]
+    layout = str(cpu_target.target_context.get_value_type(returns))
 
     def entry(table, k):
         return table[k]
@@ -156,54 +158,44 @@ def kind_table(name: str, cases: dict[int, Any], signature, *, doc: str = ""):
         for i, (got, need) in enumerate(zip(args, want, strict=True)):
             if got != need and not (isinstance(got, types.Number) and isinstance(need, types.Number)):
                 raise errors.TypingError(f"{name}: argument {i} is {got}, the kinds take {need}")
-        restype = _plain(typingctx.resolve_function_type(types.Dispatcher(reference), want, {}).return_type)
 
         def codegen(context, builder, sig, llargs):
             values = [context.cast(builder, builder.extract_value(llargs[2], i), got, need)
                       for i, (got, need) in enumerate(zip(args, want, strict=True))]
             if not isinstance(context, CPUContext):   # a device: the chain, compiled in
                 packed = context.make_tuple(builder, types.Tuple(want), values)
-                return context.compile_internal(builder, chain, restype(table, k, types.Tuple(want)),
+                return context.compile_internal(builder, chain, returns(table, k, types.Tuple(want)),
                                                 [llargs[0], llargs[1], packed])
             address = context.compile_internal(builder, entry, types.int64(table, k), llargs[:2])
             with cgutils.if_unlikely(builder, cgutils.is_null(builder, address)):
                 context.call_conv.return_user_exc(builder, RuntimeError, (
-                    f"{name}: the kind table holds no address; bind it in this process first",))
-            fnty = context.call_conv.get_function_type(restype, want)
+                    f"{name}: the kind table holds no address for this kind; bind it in this process first",))
+            fnty = context.call_conv.get_function_type(returns, want)
             pointer = builder.inttoptr(address, fnty.as_pointer())
-            status, result = context.call_conv.call_function(builder, pointer, restype, want, values)
+            status, result = context.call_conv.call_function(builder, pointer, returns, want, values)
             with cgutils.if_unlikely(builder, status.is_error):
                 context.call_conv.return_status_propagate(builder, status)
             return result
 
-        return restype(table, k, args), codegen
+        return returns(table, k, args), codegen
 
-    def addresses(head: tuple) -> np.ndarray:
-        """(max kind + 1,) int64: each case's address for the argument types ``signature(head)``, 0 elsewhere."""
-        from numba.core.registry import cpu_target
-
+    def bind(table, head: tuple, kinds) -> None:
+        """Write into `table` ((max kind + 1,) int64) the address of each of `kinds` that has a case, compiled (or
+        loaded) for the argument types ``signature(head)``; the other entries are left as they are."""
         want = tuple(signature(tuple(head)))
-        layout = None
-        out = np.zeros(ordered[-1] + 1, np.int64)
-        for k in ordered:
+        for k in sorted(set(int(k) for k in kinds) & set(ordered)):
+            if table[k]:
+                continue
             kernel = cases[k]
             kernel.compile(want)
             cres = kernel.overloads[want]
             returned = str(cpu_target.target_context.get_value_type(cres.signature.return_type))
-            layout = layout or str(cpu_target.target_context.get_value_type(_plain(cres.signature.return_type)))
-            if returned != layout:   # the caller reads the result with the first kind's layout
+            if returned != layout:   # the caller reads the result as `returns`
                 raise TypeError(f"{name}: {kernel.py_func.__qualname__} returns {cres.signature.return_type}, "
-                                f"laid out as {returned}; the family's first kind returns {layout}")
-            out[k] = cres.library.get_pointer_to_function(cres.fndesc.llvm_func_name)
-        return out
+                                f"laid out as {returned}; the family's kinds return {returns} ({layout})")
+            table[k] = cres.library.get_pointer_to_function(cres.fndesc.llvm_func_name)
 
-    call.addresses = addresses
+    call.bind = bind
+    call.size = ordered[-1] + 1
     call.__doc__ = doc
     return call
-
-
-def _plain(t):
-    """`t` without literal types, inside tuples too: kinds that return ``True`` and ``False`` return one type."""
-    if isinstance(t, types.BaseTuple):
-        return types.Tuple([_plain(x) for x in t])
-    return types.unliteral(t)

@@ -147,19 +147,20 @@ def _sample_signature(head):
     return (head[0], types.int64, *[types.float64] * 5)
 
 
+#: what every kind's `sample` returns: (ox, oy, oz, dx, dy, dz, f, on_surface, nx, ny, nz), `base` has the contract
+SAMPLE_RETURNS = types.Tuple((*[types.float64] * 7, types.boolean, *[types.float64] * 3))
 #: the kinds past the point light, called through `LightArrays.sample_at` (`tracer.jit.kind_table`)
 sample_by_address = kind_table("sample_by_address", {k: m.sample for k, m in enumerate(KINDS) if k > POINT},
-                               _sample_signature)
-_BOUND: dict = {}
+                               _sample_signature, SAMPLE_RETURNS)
+_TABLES: dict = {}
 
 
 def bind(L: LightArrays) -> LightArrays:
-    """`L` with its table of `sample` addresses (`LightArrays.sample_at`) for its types: what a kernel on this
-    process's CPU needs before it runs (`tracer.backends.run_kernel`)."""
+    """`L` with its table of `sample` addresses (`LightArrays.sample_at`) for its types, holding (at least) the kinds
+    `L` holds: what a kernel on this process's CPU needs before it runs (`tracer.backends.run_kernel`)."""
     head = (numba.typeof(L),)
-    table = _BOUND.get(head)
-    if table is None:
-        table = _BOUND[head] = sample_by_address.addresses(head)
+    table = _TABLES.setdefault(head, np.zeros(sample_by_address.size, np.int64))
+    sample_by_address.bind(table, head, np.unique(L.kind))
     return L._replace(sample_at=table)
 
 

@@ -257,19 +257,21 @@ def _scatter_signature(head):
     return (head[0], head[1], i8, i8, *[f8] * 8, types.int64[::1], i8, u8, i8, f8, types.float64[::1])
 
 
+#: what every kind's `scatter` returns: (status, dx, dy, dz, f, depth, dim), `base` has the contract
+SCATTER_RETURNS = types.Tuple((types.int64, *[types.float64] * 4, types.int64, types.int64))
 #: the kinds past the Lambertian one, called through `MaterialArrays.scatter_at` (`tracer.jit.kind_table`)
 scatter_by_address = kind_table("scatter_by_address", {k: m.scatter for k, m in enumerate(KINDS) if k > LAMBERTIAN},
-                                _scatter_signature)
-_BOUND: dict = {}
+                                _scatter_signature, SCATTER_RETURNS)
+_TABLES: dict = {}
 
 
 def bind(sa, M):
-    """`M` with its table of `scatter` addresses (`MaterialArrays.scatter_at`) for the types of `sa` and `M`:
-    what a kernel on this process's CPU needs before it runs (`tracer.backends.run_kernel`)."""
+    """`M` with its table of `scatter` addresses (`MaterialArrays.scatter_at`) for the types of `sa` and `M`, holding
+    (at least) the kinds `M` holds: what a kernel on this process's CPU needs before it runs
+    (`tracer.backends.run_kernel`). A kind no scene of this process has held is never compiled."""
     head = (numba.typeof(sa), numba.typeof(M))
-    table = _BOUND.get(head)
-    if table is None:
-        table = _BOUND[head] = scatter_by_address.addresses(head)
+    table = _TABLES.setdefault(head, np.zeros(scatter_by_address.size, np.int64))
+    scatter_by_address.bind(table, head, np.unique(M.kind))
     return M._replace(scatter_at=table)
 
 
