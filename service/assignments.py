@@ -18,7 +18,7 @@ import numpy as np
 from pydantic import BaseModel, TypeAdapter
 
 from service import kind_wire
-from service.elements import check_assignment
+from service.elements import check_assignment, check_support
 from service.elements import public as element_public
 from service.elements import sync as element_sync
 from service.errors import Conflict, Invalid, NotFound
@@ -179,11 +179,12 @@ class Assignments:
 
     @_retried
     def add_element(self, scene_id: str, body: dict) -> dict[str, Any]:
-        """Put a library element onto a node's support faces (`service.elements`); 422 where it cannot go, with
-        nothing changed."""
+        """Put a library element onto a node's support faces (`service.elements`); 422 where it cannot go (checked
+        first), 409 where the node carries an element already, with nothing changed."""
         body = dict(body)
         with self.scenes.current(scene_id) as state:
             check_assignment(body, self.scenes.elements, state)
+            check_support(body, state)   # a bad body is its 422 whether or not the node carries an element already
             for aid, other in state.elements.items():
                 if other["node"] == body["node"]:
                     raise Conflict(f"node {body['node']} already carries element assignment {aid}: delete it first",

@@ -162,6 +162,30 @@ def check_assignment(body: dict, library: ElementLibrary, state: Any) -> None:
                       node=body["node"])
 
 
+NO_IOR = ("model: a tabulated BSDF ('bsdf') is computed for the part's material, which must be a dielectric with a "
+          "number ior: assign one first, or use 'exact'")
+
+
+def check_support(body: dict, state: Any) -> None:
+    """422 where the node's part cannot carry the element (after `check_assignment`): its `facing` or `faces` select
+    no planar rectangle of the part's mesh, or a 'bsdf' model has no dielectric ior to be computed for. Reads the
+    mesh only (the tracer's own `support` checks, lengths in the document's unit); changes nothing."""
+    from tracer.elements import ElementError
+    from tracer.elements import support as sup
+
+    gid = state.tracer.instance_geometry(state.instances[body["node"]])
+    vertices, triangles, _ = state.tracer.geometry_arrays(gid)
+    ids = state.face_ids.get(gid)
+    try:
+        prims = sup.select(vertices, triangles, facing=body.get("facing"), faces=body.get("faces"),
+                           face_ids=None if ids is None else np.asarray(ids))
+        sup.frame(vertices, triangles, prims, state.tree.scale * 1000.0)
+        if body.get("model") == "bsdf" and _ior(state, body["node"]) is None:
+            raise ElementError(NO_IOR)
+    except ElementError as exc:
+        raise Invalid(f"the element cannot go onto node {body['node']}: {exc}", node=body["node"]) from None
+
+
 def _ior(state: Any, node: str) -> float | None:
     """The index of the node's effective material (its own, else its nearest ancestor's) where it is a dielectric
     with a number ior; None otherwise."""
@@ -204,8 +228,7 @@ def sync(state: Any, library: ElementLibrary) -> None:
             table = None
             if body.get("model") == "bsdf":
                 if ior is None:
-                    raise ElementError("model: a tabulated BSDF ('bsdf') is computed for the part's material, which "
-                                       "must be a dielectric with a number ior: assign one first, or use 'exact'")
+                    raise ElementError(NO_IOR)
                 table = library.bsdf(body["element"], ior)
             state.tracer.set_element(inst, library.get(body["element"]), facing=body.get("facing"),
                                      faces=body.get("faces"), mm_per_unit=mm, table=table,

@@ -158,6 +158,24 @@ def test_an_assignment_that_cannot_go_is_a_422_and_nothing_changes(client: Any) 
     assert client.get(f"/scenes/{sid}").json() == revision
 
 
+def test_a_bad_body_for_a_part_that_carries_an_element_is_its_422_not_the_409(client: Any) -> None:
+    """Issue 54, item 5: the body is checked against the part's mesh before the conflict, so a bad `facing` or
+    `faces` says what is wrong (it answered 409 "already carries"); a good body still gets the 409; nothing changes."""
+    sid = _guide(client)
+    eid = client.post("/elements", json=DOTS).json()["id"]
+    first = client.post(f"/scenes/{sid}/elements", json={"element": eid, "node": uid(1), "facing": [0, 0, -1]})
+    assert first.status_code == 201, first.text
+    before = (client.get(f"/scenes/{sid}").json(), client.get(f"/scenes/{sid}/elements").json())
+    for body, words in (({"facing": [1, 1, 1]}, "no triangle of the part is selected"),
+                        ({"faces": [0]}, "carries no B-rep face indices")):
+        r = client.post(f"/scenes/{sid}/elements", json={"element": eid, "node": uid(1), **body})
+        assert r.status_code == 422, (body, r.text)
+        assert words in r.json()["detail"], (body, r.text)
+    r = client.post(f"/scenes/{sid}/elements", json={"element": eid, "node": uid(1), "facing": [0, 0, 1]})
+    assert r.status_code == 409 and "already carries element assignment" in r.json()["detail"], r.text
+    assert (client.get(f"/scenes/{sid}").json(), client.get(f"/scenes/{sid}/elements").json()) == before
+
+
 def test_the_docs_example_names_its_element_by_the_id_its_body_gets() -> None:
     from service.routes.elements import DOTS_EXAMPLE, DOTS_EXAMPLE_ID
     from tracer.elements import prepare
