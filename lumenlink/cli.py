@@ -117,7 +117,8 @@ def nodes(
     create: Create = False,
     json_out: Annotated[bool, typer.Option("--json", help="Print the nodes as JSON.")] = False,
 ) -> None:
-    """Print the scene's tree: each node's path, UUID, material (own or inherited) and the lights attached."""
+    """Print the scene's tree: each node's path, UUID, material (own or inherited), the lights attached and the
+    element it carries."""
     raise typer.Exit(_call("lumenlink.commands", "nodes", 22, scene=scene, server=server, create=create,
                            json_out=json_out) or 0)
 
@@ -148,8 +149,17 @@ def demo_guide(
     raise typer.Exit(_call("lumenlink.guide_demo", "run", 36, out_dir=out_dir, photons=photons, pack=pack) or 0)
 
 
-@app.command()
+element_app = typer.Typer(help="Optical elements with an inside: --body/--file prepares one into the library (--id "
+                                 "names one there), --node puts it onto a part, no option lists the library; "
+                                 "`list`, `switch` and `remove` a scene's assignments.", add_completion=False)
+app.add_typer(element_app, name="element")
+Assignment = Annotated[str, typer.Argument(help="The element assignment: its id, or the node (path or UUID) that "
+                                                "carries it.")]
+
+
+@element_app.callback(invoke_without_command=True)
 def element(
+    ctx: typer.Context,
     body: Annotated[str | None, typer.Option(help="Element JSON (DESIGN.md), e.g. a microstructure of domes on a "
                                                   "grid.")] = None,
     file: Annotated[Path | None, typer.Option(help="Read the element JSON from this file.")] = None,
@@ -158,12 +168,55 @@ def element(
     node: Annotated[str | None, typer.Option(help="Put the element onto this node (path or UUID).")] = None,
     facing: Annotated[str | None, typer.Option(help="The node's faces that carry it: those facing X,Y,Z in its "
                                                     "frame.")] = None,
+    faces: Annotated[str | None, typer.Option(help="The node's faces that carry it: its B-rep faces K[,K...] "
+                                                   "(instead of --facing).")] = None,
+    model: Annotated[str | None, typer.Option(help="exact (default: its micro-geometry traced) or bsdf (its "
+                                                   "tabulated BSDF; a dielectric part, grid or hex layouts).")
+                     ] = None,
     server: Server = "http://127.0.0.1:8000",
     create: Create = False,
 ) -> None:
     """Prepare an optical element with an inside into the library, put it onto a part, or list the library."""
+    if ctx.invoked_subcommand is not None:
+        return
     raise typer.Exit(_call("lumenlink.commands", "element", 36, scene=scene, server=server, body=body, file=file,
-                           node=node, facing=facing, element_id=element_id, create=create) or 0)
+                           node=node, facing=facing, faces=faces, model=model, element_id=element_id,
+                           create=create) or 0)
+
+
+@element_app.command("list")
+def element_list(
+    scene: SceneOpt,
+    server: Server = "http://127.0.0.1:8000",
+    json_out: Annotated[bool, typer.Option("--json", help="Print the assignments as JSON.")] = False,
+) -> None:
+    """List the scene's element assignments: id, node, element, model, whether applied (and why not), support."""
+    raise typer.Exit(_call("lumenlink.commands", "element_list", 54, scene=scene, server=server,
+                           json_out=json_out) or 0)
+
+
+@element_app.command("switch")
+def element_switch(
+    scene: SceneOpt,
+    assignment: Assignment,
+    element_id: Annotated[str, typer.Argument(help="The library element it carries from now on (a packed one, "
+                                                   "say).")],
+    server: Server = "http://127.0.0.1:8000",
+) -> None:
+    """Switch an assignment to another library element: the same node and faces."""
+    raise typer.Exit(_call("lumenlink.commands", "element_switch", 54, scene=scene, server=server,
+                           assignment=assignment, element_id=element_id) or 0)
+
+
+@element_app.command("remove")
+def element_remove(
+    scene: SceneOpt,
+    assignment: Assignment,
+    server: Server = "http://127.0.0.1:8000",
+) -> None:
+    """Take an element off its part (the part's faces are plain again)."""
+    raise typer.Exit(_call("lumenlink.commands", "element_remove", 54, scene=scene, server=server,
+                           assignment=assignment) or 0)
 
 
 @app.command("optical-file")
@@ -191,6 +244,11 @@ def pack(
     max_photons: Annotated[int, typer.Option(help="The most photons of one measurement.")] = 1_600_000,
     max_iterations: Annotated[int, typer.Option(help="Budget: measurements at most.")] = 10,
     max_seconds: Annotated[float, typer.Option(help="Budget: seconds.")] = 600.0,
+    damping: Annotated[float, typer.Option(help="The multiplicative step's exponent, in (0, 1] (smaller: slower, "
+                                                "steadier).")] = 0.7,
+    max_fill: Annotated[float, typer.Option(help="The largest fill a map cell may take, in (0, 1].")] = 1.0,
+    pitch_mm: Annotated[float | None, typer.Option(help="The lattice pitch, mm (at least the feature's size; "
+                                                        "default the element's).")] = None,
     seed: Annotated[int, typer.Option(help="Photon seed.")] = 1,
     switch: Annotated[bool, typer.Option("--switch", help="Put the packed element in place of the start.")] = False,
     png: Annotated[Path | None, typer.Option(help="Write pack.png here.")] = None,
@@ -200,7 +258,8 @@ def pack(
     raise typer.Exit(_call("lumenlink.commands", "pack", 41, element_id=element_id, scene=scene,
                            assignment=assignment, sensor=sensor, server=server, target=target, figure=figure,
                            photons=photons, max_photons=max_photons, max_iterations=max_iterations,
-                           max_seconds=max_seconds, seed=seed, switch=switch, png=png) or 0)
+                           max_seconds=max_seconds, damping=damping, max_fill=max_fill, pitch_mm=pitch_mm,
+                           seed=seed, switch=switch, png=png) or 0)
 
 
 @app.command()

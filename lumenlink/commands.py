@@ -121,7 +121,8 @@ def _reasons(answer: dict[str, Any]) -> None:
 # ---------------------------------------------------------------- nodes
 
 def nodes(scene: str, server: str, create: bool = False, json_out: bool = False) -> int:
-    """Print the scene's tree: path, UUID, material (own, or inherited from an ancestor), lights attached."""
+    """Print the scene's tree: path, UUID, material (own, or inherited from an ancestor), the element it carries
+    (its id's first 12 digits and model; `lumenlink element list` says more), lights attached."""
     def work(console: Console) -> int:
         with Client(server) as ll:
             info = ll.scene(scene, create=create)
@@ -133,6 +134,7 @@ def nodes(scene: str, server: str, create: bool = False, json_out: bool = False)
                 anchor = body.get("attached_to") or (body.get("node") if body.get("type") == "area" else None)
                 if anchor:
                     lights.setdefault(anchor, []).append(light)
+            elements = {a["body"]["node"]: a for a in ll.scene_elements(info)}
         by_uuid = {n["uuid"]: n for n in listed}
 
         def effective(u: str) -> tuple[dict[str, Any] | None, str | None]:
@@ -147,10 +149,15 @@ def nodes(scene: str, server: str, create: bool = False, json_out: bool = False)
         for n in listed:
             mat, source = effective(n["uuid"])
             mat_text = "" if mat is None else _material_text(mat) + (f" (from {source})" if source else "")
+            el = elements.get(n["uuid"])
+            el_text = "" if el is None else (f"{el['body']['element'][:12]} {el['model']}"
+                                             + ("" if el["applied"] else " (not applied)"))
             rows.append({**n, "material": mat, "material_from": source,
                          "lights": [{"id": li["id"], "type": li["body"].get("type"), "name": li["body"].get("name")}
                                     for li in lights.get(n["uuid"], [])],
-                         "_text": (n["path"], n["uuid"], mat_text,
+                         "element": None if el is None else {k: el[k] for k in ("id", "model", "applied", "problem")}
+                         | {"element": el["body"]["element"]},
+                         "_text": (n["path"], n["uuid"], mat_text, el_text,
                                    ", ".join(_light_text(li) for li in lights.get(n["uuid"], [])))})
         if json_out:
             sys.stdout.write(json.dumps([{k: v for k, v in r.items() if k != "_text"} for r in rows], indent=2)
@@ -162,11 +169,11 @@ def nodes(scene: str, server: str, create: bool = False, json_out: bool = False)
         if not rows:
             print("(no nodes: push a document first, `lumenlink push FILE --scene NAME`)")
             return EXIT_OK
-        head = ("PATH", "UUID", "MATERIAL", "LIGHTS")
-        width = [max(len(head[k]), *(len(r["_text"][k]) for r in rows)) for k in range(3)]
-        print("  ".join(h.ljust(width[k]) if k < 3 else h for k, h in enumerate(head)).rstrip())
+        head = ("PATH", "UUID", "MATERIAL", "ELEMENT", "LIGHTS")
+        width = [max(len(head[k]), *(len(r["_text"][k]) for r in rows)) for k in range(4)]
+        print("  ".join(h.ljust(width[k]) if k < 4 else h for k, h in enumerate(head)).rstrip())
         for r in rows:
-            print("  ".join(t.ljust(width[k]) if k < 3 else t for k, t in enumerate(r["_text"])).rstrip())
+            print("  ".join(t.ljust(width[k]) if k < 4 else t for k, t in enumerate(r["_text"])).rstrip())
         return EXIT_OK
     return _run(work)
 
@@ -215,12 +222,36 @@ def light(scene: str, server: str, ies: Path | None = None, at: str | None = Non
     return _run(work)
 
 
+def _faces(text: str) -> list[int]:
+    """``K[,K...]``: B-rep face indices (ints >= 0); a usage error that shows the form otherwise."""
+    parts = [p for p in re.split(r"[,\s]+", text.strip()) if p]
+    if not parts or not all(re.fullmatch(r"\d+", p) for p in parts):
+        raise LumenLinkError(f"--faces takes B-rep face indices (whole numbers from 0), e.g. --faces 3 or --faces 3,7;"
+                             f" got {text!r} (cad_adapter.tessellate.face_table lists a part's faces)", usage=True)
+    return [int(p) for p in parts]
+
+
+MODELS = ("exact", "bsdf")
+
+
 def element(scene: str | None, server: str, body: str | None = None, file: Path | None = None,
             node: str | None = None, facing: str | None = None, element_id: str | None = None,
-            create: bool = False) -> int:
+            create: bool = False, faces: str | None = None, model: str | None = None) -> int:
     """Prepare an element into the library (--body JSON or --file), and with --node put it onto the node's faces
-    that face --facing X,Y,Z (its frame); with neither body nor file, list the library."""
+    that face --facing X,Y,Z (its frame) or onto its B-rep --faces, as --model exact or bsdf; with neither body nor
+    file, list the library."""
     def work(console: Console) -> int:
+        if model is not None and model not in MODELS:
+            raise LumenLinkError(f"--model is exact (its micro-geometry traced) or bsdf (its tabulated BSDF), got "
+                                 f"{model!r}", usage=True)
+        if node is None and (facing, faces, model) != (None, None, None):
+            raise LumenLinkError("--facing, --faces and --model say how the element goes onto a part: give --scene "
+                                 "and --node too", usage=True)
+        if node is not None and (scene is None or (facing is None) == (faces is None)):
+            raise LumenLinkError("--node needs --scene and the faces that carry it: --facing X,Y,Z (a direction in "
+                                 "the node's frame) or --faces K[,K...] (its B-rep faces), one of the two", usage=True)
+        along = vec3(facing, "--facing", DIRECTION) if facing is not None else None
+        brep = _faces(faces) if faces is not None else None
         with Client(server) as ll:
             if body is None and file is None and element_id is None:
                 for e in ll.elements():
@@ -230,12 +261,80 @@ def element(scene: str | None, server: str, body: str | None = None, file: Path 
             eid = element_id or ll.add_element(_json_arg(body, file, "element"))["id"]
             print(f"element {eid}")
             if node is not None:
-                if scene is None or facing is None:
-                    raise LumenLinkError("--node needs --scene and --facing X,Y,Z", usage=True)
-                along = vec3(facing, "--facing", DIRECTION)
-                answer = ll.put_element(ll.scene(scene, create=create), node, eid, facing=along)
-                state = "applied" if answer["applied"] else f"not applied: {answer['problem']}"
-                print(f"on {node} ({answer['body']['node']}): assignment {answer['id']}, {state}")
+                assert scene is not None
+                answer = ll.put_element(ll.scene(scene, create=create), node, eid, facing=along, faces=brep,
+                                        model=model)
+                print(f"on {node} ({answer['body']['node']}): assignment {answer['id']}, {_element_state(answer)}")
+        return EXIT_OK
+    return _run(work)
+
+
+def _element_state(a: dict[str, Any]) -> str:
+    """An assignment's state in words: its model, applied on what support, or why not."""
+    if not a["applied"]:
+        return f"{a['model']}, not applied: {a['problem']}"
+    sup = a.get("support") or {}
+    size = " x ".join(f"{x:.4g}" for x in sup.get("size_mm") or [])
+    return f"{a['model']}, applied on {sup.get('triangles')} triangles ({size} mm)"
+
+
+def _assignment(ll: Client, info: dict[str, Any], which: str) -> dict[str, Any]:
+    """The scene's element assignment `which`: its id, or the node (UUID or path) that carries it."""
+    listed = ll.scene_elements(info)
+    found = [a for a in listed if which.lower() in (a["id"], a["body"]["node"])]
+    if not found and not re.fullmatch(r"[0-9a-fA-F-]{36}", which):
+        uuid = ll.node(info, which)["uuid"]   # a path: the service's 404 names close ones
+        found = [a for a in listed if a["body"]["node"] == uuid]
+    if not found:
+        have = ", ".join(f"{a['id']} (on {a['body']['node']})" for a in listed) or "none"
+        raise LumenLinkError(f"scene {info['name']} has no element assignment {which!r} (an assignment id, or the "
+                             f"node that carries it); its assignments: {have}. `lumenlink element list --scene "
+                             f"{info['name']}` lists them", usage=True)
+    return found[0]
+
+
+def element_list(scene: str, server: str, json_out: bool = False) -> int:
+    """Print the scene's element assignments: id, node path, element id, model, applied (on what) or why not."""
+    def work(console: Console) -> int:
+        with Client(server) as ll:
+            info = ll.scene(scene)
+            listed = ll.scene_elements(info)
+            paths = {n["uuid"]: n["path"] for n in ll.nodes(info)}
+        if json_out:
+            print(json.dumps(listed, indent=2))
+            return EXIT_OK
+        if not listed:
+            print(f"scene {info['name']}: no element assignments (lumenlink element --id E --scene S --node PATH "
+                  f"--facing X,Y,Z puts one on)")
+        for a in listed:
+            b = a["body"]
+            where = paths.get(b["node"], "(node removed)")
+            print(f"{a['id']}  {where} ({b['node']})  element {b['element']}  {_element_state(a)}")
+        return EXIT_OK
+    return _run(work)
+
+
+def element_switch(scene: str, server: str, assignment: str, element_id: str) -> int:
+    """Switch an element assignment (its id, or the node carrying it) to another library element."""
+    def work(console: Console) -> int:
+        with Client(server) as ll:
+            info = ll.scene(scene)
+            a = _assignment(ll, info, assignment)
+            answer = ll.switch_element(info, a["id"], element_id)
+        print(f"assignment {answer['id']} on {answer['body']['node']} now carries {answer['body']['element']} "
+              f"(was {a['body']['element']}), {_element_state(answer)}")
+        return EXIT_OK
+    return _run(work)
+
+
+def element_remove(scene: str, server: str, assignment: str) -> int:
+    """Take an element assignment (its id, or the node carrying it) off its part."""
+    def work(console: Console) -> int:
+        with Client(server) as ll:
+            info = ll.scene(scene)
+            a = _assignment(ll, info, assignment)
+            ll.remove_element(info, a["id"])
+        print(f"assignment {a['id']} removed: {a['body']['node']} carries no element {a['body']['element']} now")
         return EXIT_OK
     return _run(work)
 
@@ -258,9 +357,11 @@ def optical_file(server: str, file: Path | None = None, format: str | None = Non
 
 def pack(element_id: str, scene: str, assignment: str, sensor: str, server: str, target: float = 0.8,
          figure: str = "min_max", photons: int = 100_000, max_photons: int = 1_600_000, max_iterations: int = 10,
-         max_seconds: float = 600.0, seed: int = 1, switch: bool = False, png: Path | None = None) -> int:
+         max_seconds: float = 600.0, seed: int = 1, switch: bool = False, png: Path | None = None,
+         damping: float = 0.7, max_fill: float = 1.0, pitch_mm: float | None = None) -> int:
     """Pack a density element against a grid over the lit face; print each iteration, the packed element's id,
-    and with --switch put it in place of the start on the scene; --png writes pack.png."""
+    and with --switch put it in place of the start on the scene; --png writes pack.png. `damping`, `max_fill`
+    (in (0, 1]) and `pitch_mm` (mm) are the pack body's fields (the service refuses a bad one, naming it)."""
     def work(console: Console) -> int:
         seen: set[int] = set()
 
@@ -276,7 +377,8 @@ def pack(element_id: str, scene: str, assignment: str, sensor: str, server: str,
             info = ll.scene(scene)
             job = ll.pack(element_id, info, assignment, sensor, progress=show, target=target, figure=figure,
                           photons=photons, max_photons=max_photons, max_iterations=max_iterations,
-                          max_seconds=max_seconds, seed=seed)
+                          max_seconds=max_seconds, seed=seed, damping=damping, max_fill=max_fill,
+                          pitch_mm=pitch_mm)
             res = job.get("result") or {}
             if job["status"] == "failed" or not res.get("element"):
                 raise LumenLinkError(f"the pack {job['status']}: {job.get('error') or 'nothing was measured'}",
@@ -361,6 +463,25 @@ def _tessellation(result: dict[str, Any]) -> None:
     print(line)
 
 
+def _uniformity(result: dict[str, Any]) -> None:
+    """A grid's or points' uniformity: min/max and min/mean of its values ± their standard errors (delta method,
+    `tracer.photometry.glare.uniformity`); nothing for one value, a surface (min over triangles of very different
+    sizes: see its robust max) or a result without values."""
+    if result.get("type") not in ("grid", "points"):
+        return
+    lux = [float(x) for x in _flat(result.get("lux") or [])]
+    if len(lux) < 2:
+        return
+    if not max(lux) > 0:
+        print(f"  uniformity over {len(lux)} values: undefined (every value is 0 lx)")
+        return
+    from tracer.photometry.glare import uniformity
+
+    u = uniformity(lux, [float(x) for x in _flat(result["stderr"])])
+    print(f"  uniformity over {len(lux)} values: min/max {_pm(u['min_max'], u['min_max_stderr'])}, min/mean "
+          f"{_pm(u['min_mean'], u['min_mean_stderr'])}")
+
+
 def simulate(scene: str, server: str, out: Path, sensor: str = "all", target: float | None = None,
              max_seconds: float | None = None, max_photons: int | None = None, seed: int = 0,
              force_effects_off: list[str] | None = None, tessellation_estimate: bool = False) -> int:
@@ -429,6 +550,7 @@ def simulate(scene: str, server: str, out: Path, sensor: str = "all", target: fl
                       f"max {result['max_lux']:.4g}; {result['photons']:,} photons in {result['seconds']:.2f} s "
                       f"({result['stop_reason']}), revision {result['revision']} -> "
                       + ", ".join(str(p) for p in written))
+                _uniformity(result)
                 _tessellation(result)
         return EXIT_OK
     return _run(work)

@@ -94,7 +94,8 @@ def test_the_commands_find_assign_light_sense_and_simulate(service, cars, tmp_pa
     r = cli(service, "nodes", "--scene", "cli-car")
     assert r.exit_code == 0, r.output
     lines = r.stdout.splitlines()
-    assert lines[0].startswith("scene cli-car") and lines[1].split() == ["PATH", "UUID", "MATERIAL", "LIGHTS"]
+    assert lines[0].startswith("scene cli-car")
+    assert lines[1].split() == ["PATH", "UUID", "MATERIAL", "ELEMENT", "LIGHTS"]
     lens_line = next(line for line in lines if line.startswith("car/headlamp/lens "))
     assert cars["car/headlamp/lens"] in lens_line
 
