@@ -507,8 +507,9 @@ def _simulate_surface(http: Any, scene_id: str, sensor: str, photons: int, n: Na
                "simulating the car's surface sensor")
     triangles = sum(len(i["lux"]) for i in a["instances"])
     n.say(f"the car's surfaces: {triangles:,} triangles on {len(a['instances'])} parts, {a['min_lux']:.1f}–"
-          f"{a['max_lux']:.1f} lx (area-weighted mean {a['mean_lux']:.1f} lx); {a['photons']:,} photons in "
-          f"{a['seconds']:.1f} s")
+          f"{a['max_lux']:.1f} ± {a['max_lux_stderr']:.1f} lx (the largest on a triangle of "
+          f"{a['max_lux_area'] * 1e6:.3g} mm²; 99 % of the area at or below {a['max_lux_p99']:.1f} lx), "
+          f"area-weighted mean {a['mean_lux']:.1f} lx; {a['photons']:,} photons in {a['seconds']:.1f} s")
     return a
 
 

@@ -54,6 +54,22 @@ def summary(payload: dict[str, Any], lux: np.ndarray, weights: np.ndarray | None
     return payload
 
 
+ROBUST_QUANTILE = 0.99   # a surface's robust maximum: the illuminance this share of its area is at or below
+
+
+def robust_max(payload: dict[str, Any], lux: np.ndarray, stderr: np.ndarray, area: np.ndarray) -> dict[str, Any]:
+    """Beside ``max_lux`` (lx) of a surface (one value per triangle, `area` m² each): ``max_lux_stderr`` (that
+    triangle's standard error, lx), ``max_lux_area`` (its area, m²) and ``max_lux_p99`` (lx): the illuminance 99 %
+    of the area is at or below, which a tiny triangle with few photons does not move. Added to `payload`."""
+    k = int(np.argmax(lux))
+    order = np.argsort(lux, kind="stable")
+    w = area[order] if area.sum() > 0 else np.ones(len(lux))
+    i = int(np.searchsorted(np.cumsum(w), ROBUST_QUANTILE * w.sum()))
+    payload.update(max_lux_stderr=float(stderr[k]), max_lux_area=float(area[k]),
+                   max_lux_p99=float(lux[order[min(i, len(lux) - 1)]]))
+    return payload
+
+
 def refuse_for_tally(sid: Any, kind: str, unit: str, query: Query) -> None:
     """Surface and far-field sensors are forward tallies of every `unit` (triangle, bin): refuse (422) what they
     cannot answer — observables, a target scope other than "worst", the backward estimator."""
@@ -181,7 +197,9 @@ class Surface:
              "area": finite_list(area)}
             for inst, lux, err, area in zip(result.instances, result.lux, result.stderr, result.area, strict=True)])
         area = np.concatenate([np.asarray(i["area"], float) for i in payload["instances"]])
-        return summary(payload, np.asarray(payload["lux"], float), area)
+        lux = np.asarray(payload["lux"], float)
+        robust_max(payload, lux, np.asarray(payload["stderr"], float), area)
+        return summary(payload, lux, area)
 
 
 class FarField:

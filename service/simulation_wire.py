@@ -315,6 +315,13 @@ class SensorPublic(BaseModel):
     min_lux: float | None = Field(None, description="The smallest value, lx (absent for a far field).")
     mean_lux: float | None = Field(None, description="The mean value, lx (absent for a far field).")
     max_lux: float | None = Field(None, description="The largest value, lx (absent for a far field).")
+    max_lux_stderr: float | None = Field(None, description=(
+        "Surface: the standard error of `max_lux` (its triangle's), lx: a small triangle by a lamp gets few photons "
+        "and a wide error bar."))
+    max_lux_area: float | None = Field(None, description="Surface: the area of the triangle `max_lux` is on, m².")
+    max_lux_p99: float | None = Field(None, description=(
+        "Surface: a robust maximum: the illuminance 99 % of the surfaces' area is at or below (area-weighted "
+        "99th percentile over the triangles), lx."))
     nu: int | None = Field(None, description="Grid: cells along u.")
     nv: int | None = Field(None, description="Grid: cells along v.")
     origin: list[float] | None = Field(None, description="Grid: corner of the rectangle, world metres.")
