@@ -120,17 +120,31 @@ def _digest(h: Any, obj: Any) -> None:
         h.update(repr(obj).encode())
 
 
+_LAST_BOUND: list = []   # [(sa, mats, lights, bound mats, bound lights)] of the last run: its query's next rounds
+
+
+def _bound(sa, mats, lights) -> tuple:
+    """The materials and lights with this process's kind addresses (`tracer.jit.kind_table`); a query's later rounds
+    reuse its first round's (binding types the tuples: about a millisecond a call)."""
+    from tracer.optics.lights.dispatch import bind as bind_lights
+    from tracer.optics.surfaces.dispatch import bind
+
+    last = _LAST_BOUND[0] if _LAST_BOUND else None
+    if last is not None and last[0] is sa and last[1] is mats and last[2] is lights:
+        return last[3], last[4]
+    bound = bind(sa, mats), bind_lights(lights)
+    _LAST_BOUND[:] = [(sa, mats, lights, *bound)]
+    return bound
+
+
 def run_kernel(kernel_id: KernelId, scene: tuple, query: tuple, batch0: int, n_batches: int, size: int):
     """Run batches of the kernel `kernel_id` here: ``("forward", state)`` takes scene = (scene arrays,
     materials, lights) and query = (receiver arrays, sensor arrays, bins, seed); ``("backward",)`` takes
     scene = (scene arrays, materials, lights) and query = (query arrays, seed); ``("radiance",)`` takes the
     same scene and query = (view arrays, emitters, light paths, seed) (`tracer.transport.radiance`). Module-level,
     so a Dask worker runs it by import; the kernel is compiled once per process (numba's dispatcher and disk cache)."""
-    from tracer.optics.lights.dispatch import bind as bind_lights
-    from tracer.optics.surfaces.dispatch import bind
-
     sa, mats, lights = scene
-    mats, lights = bind(sa, mats), bind_lights(lights)   # this process's kind addresses (`tracer.jit.kind_table`)
+    mats, lights = _bound(sa, mats, lights)
     if kernel_id[0] == "forward":
         from tracer.transport.forward import forward_kernel
 
