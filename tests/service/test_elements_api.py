@@ -200,3 +200,33 @@ def test_the_python_client_puts_switches_lists_and_removes_an_element(client: An
     assert lumen.scene_elements(sid) == []
     with pytest.raises(LumenLinkError, match="404"):
         lumen.remove_element(sid, put["id"])
+
+
+def test_a_density_lattice_too_costly_to_prepare_is_a_422_saying_why_before_any_work(client: Any, tmp_path: Path
+                                                                                    ) -> None:
+    """Issue 54, item 6: 3.9e9 sites (under the old 4e9-site cap, ~4.7 GB and about a minute to prepare before) are
+    refused at once, saying what they would cost and what to change, with nothing stored; the pitch the message
+    names is accepted."""
+    import re
+    import time
+
+    from tracer.elements.microstructure import max_density_sites
+
+    before = client.get("/elements").json()
+    body = {"type": "microstructure", "feature": {"shape": "dome", "radius_mm": 0.0015, "height_mm": 0.001},
+            "layout": {"type": "density", "origin_mm": [0, 0], "size_mm": [250.0, 187.2], "fill": [[0.5]],
+                       "pitch_mm": 0.0034}}
+    t0 = time.perf_counter()
+    r = client.post("/elements", json=body)
+    assert r.status_code == 422, r.text
+    assert time.perf_counter() - t0 < 2.0           # refused before any site is drawn (that would take a minute)
+    detail = r.json()["detail"]
+    sites = int(re.search(r"= ([\d,]+) lattice sites", detail).group(1).replace(",", ""))
+    assert 3.8e9 < sites < 4e9 and f"at most {max_density_sites():,} sites" in detail
+    assert "layout.pitch_mm" in detail and "layout.size_mm" in detail and "MiB" in detail, detail
+    assert client.get("/elements").json() == before
+    assert not list((tmp_path / "elements").glob("*.npz")) if (tmp_path / "elements").exists() else True
+    # the coarser pitch it names fits (its lattice is the largest one request prepares), checked here without
+    # preparing it: a lattice at that pitch over the same face is within the bound
+    pitch = float(re.search(r"pitch_mm \(at least ([\d.]+) mm", detail).group(1))
+    assert int(250.0 // pitch) * int(187.2 // pitch) <= max_density_sites()

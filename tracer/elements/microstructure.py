@@ -43,6 +43,18 @@ SHAPES = {"dome": fx.DOME, "pyramid": fx.PYRAMID, "prism": fx.PRISM, "corner_cub
 FEATURE_MATERIALS = ("lambertian", "black")
 LAYOUTS = {"grid": fx.GRID, "hex": fx.HEX, "density": fx.DENSITY, "points": fx.POINTS}
 MAX_SITES = 4_000_000_000     # a density lattice's sites (one bit each: 500 MB)
+#: What preparing a density lattice costs, per site: its kept bit (1/8 byte, packed a band at a time, so no byte per
+#: site is ever held: tracemalloc's peak 0.18 B/site over 4e8 sites, 1.17 before), and the rate of drawing and
+#: comparing one random number (measured 8.7e7 to 1.1e8 sites/s over 1e8 and 4e8 sites on the development machine,
+#: busy; taken at half, as a slower machine's).
+SITE_BYTES = 0.125
+SITES_PER_SECOND = 5.0e7
+BAND_BYTES = 64 << 20         # a band's temporaries: BAND_SITE_BYTES per site (indices, random numbers, fills, flags)
+BAND_SITE_BYTES = 49
+#: The most one request may cost to prepare: memory of the kept bits (and the band's temporaries beside them) and
+#: seconds at `SITES_PER_SECOND`; a larger lattice is refused before any work (`density_cost`).
+MAX_PREPARE_BYTES = 256 << 20
+MAX_PREPARE_SECONDS = 15.0
 MAX_POINTS = 20_000_000       # listed features
 MAX_MAP_CELLS = 4_000_000     # cells of a density map
 
@@ -308,23 +320,66 @@ def _density(layout: dict, common: dict, args: tuple, t0: float) -> Microstructu
     nu, nv = int(su // p), int(sv // p)
     if nu * nv == 0:
         raise ElementError(f"layout.size_mm {[su, sv]} holds no site of pitch {p:g} mm: make it larger")
-    if nu * nv > MAX_SITES:
-        raise ElementError(f"layout: {nu * nv} lattice sites is more than {MAX_SITES}: a larger pitch_mm or a "
-                           f"smaller size_mm")
+    _affordable(nu, nv, p, su, sv)
     rows, cols = fill.shape
     rng = np.random.default_rng(seed)
-    col_of = np.minimum(((np.arange(nu) + 0.5) * p / su * cols).astype(np.int64), cols - 1)
-    kept = np.zeros(nu * nv, bool)
-    chunk = max(1, 4_000_000 // nu)
-    for j0 in range(0, nv, chunk):
-        j = np.arange(j0, min(nv, j0 + chunk))
-        row_of = np.minimum(((j + 0.5) * p / sv * rows).astype(np.int64), rows - 1)
-        kept[j0 * nu:(j0 + len(j)) * nu] = (rng.random((len(j), nu)) < fill[row_of][:, col_of]).ravel()
-    bits = np.packbits(kept, bitorder="little")
+    # a band of sites at a time (row after row, along u), packed as drawn: a whole number of bytes per band, so the
+    # bands' bytes join into the lattice's bits, and the same random stream whatever the band. Whole rows (a multiple
+    # of 8) where 8 rows fit a band; else (rows of millions of sites) runs of sites across rows
+    band = max(8, BAND_BYTES // BAND_SITE_BYTES // 8 * 8)
+    sites = nu * nv
+    bits = np.empty((sites + 7) // 8, np.uint8)
+    kept_count = 0
+    whole_rows = 8 * nu <= band
+    step = band // nu // 8 * 8 * nu if whole_rows else band
+    col_of = np.minimum(((np.arange(nu) + 0.5) * p / su * cols).astype(np.int64), cols - 1) if whole_rows else None
+    for s0 in range(0, sites, step):
+        s1 = min(sites, s0 + step)
+        if col_of is not None:
+            j = np.arange(s0 // nu, s1 // nu)
+            row_of = np.minimum(((j + 0.5) * p / sv * rows).astype(np.int64), rows - 1)
+            kept = (rng.random((len(j), nu)) < fill[row_of][:, col_of]).ravel()
+        else:
+            j, i = np.divmod(np.arange(s0, s1), nu)
+            row_of = np.minimum(((j + 0.5) * p / sv * rows).astype(np.int64), rows - 1)
+            kept = rng.random(len(i)) < fill[row_of, np.minimum(((i + 0.5) * p / su * cols).astype(np.int64),
+                                                                cols - 1)]
+        kept_count += int(np.count_nonzero(kept))
+        packed = np.packbits(kept, bitorder="little")
+        bits[s0 // 8:s0 // 8 + len(packed)] = packed
     canon = {**common, "layout": {"type": "density", "origin_mm": [u0, v0], "size_mm": [su, sv],
                                   "fill": fill.tolist(), "seed": seed, "pitch_mm": p}}
     return _model(canon, args, fx.DENSITY, (p, p), t0, origin=(u0, v0), cells=(nu, nv), bits=bits,
-                  features=int(kept.sum()))
+                  features=kept_count)
+
+
+def density_cost(sites: int) -> tuple[float, float]:
+    """(bytes, seconds) preparing a density lattice of `sites` sites takes: its bits and one band's temporaries,
+    and the sites at `SITES_PER_SECOND`. An estimate from the site count alone, made before any work."""
+    return sites * SITE_BYTES + min(BAND_BYTES, BAND_SITE_BYTES * sites), sites / SITES_PER_SECOND
+
+
+def max_density_sites() -> int:
+    """The most lattice sites one request may prepare (`MAX_PREPARE_BYTES`, `MAX_PREPARE_SECONDS`, `MAX_SITES`)."""
+    return int(min(MAX_SITES, (MAX_PREPARE_BYTES - BAND_BYTES) / SITE_BYTES,
+                   MAX_PREPARE_SECONDS * SITES_PER_SECOND))
+
+
+def _affordable(nu: int, nv: int, p: float, su: float, sv: float) -> None:
+    """`ElementError` where a lattice of nu × nv sites would cost more than one request may (`density_cost`), saying
+    what it would cost and what to change: the pitch it needs, or the size it may have, at the same fill."""
+    sites = nu * nv
+    limit = max_density_sites()
+    if sites <= limit:
+        return
+    need, seconds = density_cost(sites)
+    grow = math.sqrt(sites / limit)
+    raise ElementError(
+        f"layout: {nu} x {nv} = {sites:,} lattice sites would take about {need / 2 ** 20:,.0f} MiB and "
+        f"{seconds:,.0f} s to prepare; one request prepares at most {limit:,} sites ({MAX_PREPARE_BYTES >> 20} MiB, "
+        f"{MAX_PREPARE_SECONDS:g} s at {SITES_PER_SECOND:.2g} sites/s): give a coarser layout.pitch_mm (at least "
+        f"{p * grow * 1.001:.4g} mm; the fill map keeps its meaning) or a smaller layout.size_mm (at most "
+        f"{su / grow:.4g} x {sv / grow:.4g} mm at this pitch), or split the face into several elements")
 
 
 def _fill(fill: Any) -> np.ndarray:

@@ -219,3 +219,41 @@ def test_a_bad_point_list_names_its_field(uv, words):
     with pytest.raises(ElementError) as e:
         dome(layout={"type": "points", "uv_mm": uv})
     assert words in str(e.value)
+
+
+def test_a_density_lattice_is_drawn_band_by_band_as_one_draw_and_its_memory_stays_within_the_estimate(monkeypatch):
+    """Issue 54, item 6: the kept sites are packed a band at a time (whole rows, or runs across rows where a row is
+    longer than a band) and are bit for bit those of one draw over the whole lattice; tracemalloc's peak while
+    preparing stays below `density_cost`'s bytes."""
+    import tracemalloc
+
+    from tracer.elements import microstructure as ms
+
+    fill = [[0.1, 0.5, 0.2], [0.3, 0.9, 1.0]]
+
+    def body(size, pitch):
+        return {"type": "microstructure", "feature": {"shape": "dome", "radius_mm": pitch / 2, "height_mm": pitch / 4},
+                "layout": {"type": "density", "origin_mm": [0, 0], "size_mm": size, "fill": fill, "seed": 3,
+                           "pitch_mm": pitch}}
+
+    def one_draw(nu, nv, pitch, size):
+        f = np.asarray(fill)
+        col = np.minimum(((np.arange(nu) + 0.5) * pitch / size[0] * f.shape[1]).astype(np.int64), f.shape[1] - 1)
+        row = np.minimum(((np.arange(nv) + 0.5) * pitch / size[1] * f.shape[0]).astype(np.int64), f.shape[0] - 1)
+        kept = np.random.default_rng(3).random((nv, nu)) < f[row][:, col]
+        return np.packbits(kept.ravel(), bitorder="little"), int(kept.sum())
+
+    for band_bytes, size in ((ms.BAND_BYTES, [20.3, 10.1]), (ms.BAND_SITE_BYTES * 3300, [20.3, 10.1]),
+                             (ms.BAND_SITE_BYTES * 80, [20.3, 10.1])):   # one band; whole rows; runs across rows
+        monkeypatch.setattr(ms, "BAND_BYTES", band_bytes)
+        m = prepare(body(size, 0.1))
+        bits, kept = one_draw(*m.cells, 0.1, size)
+        assert m.cells == (202, 100) and np.array_equal(m.bits, bits) and m.features == kept
+    monkeypatch.undo()
+    tracemalloc.start()
+    m = prepare(body([100.0, 20.0], 0.005))      # 8e7 sites: a byte each (before) is 80 MB beside the bits
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    sites = m.cells[0] * m.cells[1]
+    assert sites > 7.9e7
+    assert peak <= ms.density_cost(sites)[0], (peak, ms.density_cost(sites))
