@@ -29,6 +29,10 @@ class Settings(BaseSettings):
                                                       "once (at least max_body_bytes); a body beyond gets 503 and "
                                                       "Retry-After, so parallel uploads cannot exhaust memory.")
     max_points: int = Field(default=100_000, gt=0, description="Most query points one illuminance request may ask.")
+    max_camera_pixels: int = Field(default=1920 * 1080, gt=0, description=(
+        "Most pixels (width × height) a camera may have: one of more than max_points pixels is traced in bands of "
+        "whole rows of at most max_points pixels each, assembled into one image; a larger camera is refused when "
+        "it is made (422)."))
     max_photons: int = Field(default=1_000_000_000, gt=0, description="Most photons one query may trace.")
     max_seconds: float = Field(default=600.0, gt=0, description="Longest time budget one query may ask.")
     max_concurrent_queries: int = Field(default=2, gt=0, description="Synchronous queries running at once; more "

@@ -115,11 +115,13 @@ class Limits:
     max_seconds: float
     max_concurrent_queries: int = 2
     queue_wait_seconds: float = 30.0
+    max_camera_pixels: int = 1920 * 1080
 
     @classmethod
     def from_settings(cls, settings: Any) -> Limits:
         return cls(int(settings.max_points), int(settings.max_photons), float(settings.max_seconds),
-                   int(settings.max_concurrent_queries), float(settings.queue_wait_seconds))
+                   int(settings.max_concurrent_queries), float(settings.queue_wait_seconds),
+                   int(settings.max_camera_pixels))
 
 
 def resolve_budget(limits: Limits, target_relative_error: float | None, max_seconds: float | None,
@@ -349,8 +351,9 @@ class SimulationHub:
         kind = sensor_kinds.kind_of(sensor)
         kind.check(sensor, sensor_kinds.Query(budget, estimator, observe, reference, physics_left_out), self.limits,
                    prepared.live)
+        run = getattr(kind, "run", None)   # a kind that splits its query (a camera's bands of rows)
         with _refusals():
-            result = prepared.simulation.run(
+            result = (prepared.simulation.run if run is None else run(self.limits, prepared.simulation))(
                 kind.body(sensor, prepared.live), target_relative_error=budget.target_relative_error,
                 target_scope=budget.target_scope, max_seconds=budget.max_seconds, max_photons=budget.max_photons,
                 seed=seed, estimator=estimator, force_effects=force_effects, progress=progress, cancel=cancel,

@@ -357,6 +357,9 @@ class SensorPublic(BaseModel):
     through_specular: list[Any] | None = Field(None, description=(
         "Luminance meter, camera: per value, the share of its paths whose view ray went on through a mirror or "
         "glass before any diffuse surface (a fraction)."))
+    bands: int | None = Field(None, description=(
+        "Camera: the bands of whole rows it was traced in, each of at most `max_points` pixels with its own rounds, "
+        "seed and stop rule, then assembled (1: one query); each pixel's `stderr` is its band's."))
     width: int | None = Field(None, description="Camera: pixels across.")
     height: int | None = Field(None, description="Camera: pixels down.")
     position: list[float] | None = Field(None, description="Camera: the eye, world metres.")

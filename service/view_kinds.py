@@ -74,6 +74,26 @@ class Luminance:
         return _payload(result, sensor, live)
 
 
+def camera_refusal(sensor: dict, limits: Any) -> str | None:
+    """Why this service cannot answer a camera (None: it can): more pixels than ``max_camera_pixels``, or a row wider
+    than ``max_points`` (a band is whole rows of at most ``max_points`` pixels). Said when the camera is made (422,
+    nothing stored) and by a simulate of one made before a limit was lowered (413)."""
+    w, h = int(sensor["width"]), int(sensor["height"])
+    if w * h <= limits.max_camera_pixels and w <= limits.max_points:
+        return None
+    most = min(limits.max_camera_pixels, limits.max_points * h)
+    ratio = w / h
+    side_h = max(1, int((most / ratio) ** 0.5))
+    side_w = min(limits.max_points, max(1, int(side_h * ratio)))
+    while side_w * side_h > most:
+        side_h -= 1
+    return (f"a camera of {w} × {h} = {w * h} pixels: this service answers at most {limits.max_camera_pixels} pixels "
+            f"per camera (its max_camera_pixels setting, LUMENLINK_MAX_CAMERA_PIXELS; images of more than "
+            f"{limits.max_points} pixels, its max_points, are traced in bands of whole rows) and at most "
+            f"{limits.max_points} pixels per row; ask for width × height at most that, e.g. {side_w} × {side_h} at "
+            f"this aspect ratio")
+
+
 class Camera:
     """A pinhole camera: ``luminance`` and ``stderr`` as ``height`` rows of ``width`` pixels, cd/m², top row
     first."""
@@ -85,9 +105,21 @@ class Camera:
     def check(sensor: dict, query: Any, limits: Any, live: Any) -> None:
         _refuse(sensor, query)
         pixels = int(sensor["width"]) * int(sensor["height"])
-        if pixels > limits.max_points:
-            raise TooLarge(f"sensor {sensor.get('id')!r} has {pixels} pixels; this service answers at most "
-                           f"{limits.max_points} points per query", limit=limits.max_points)
+        if pixels > limits.max_camera_pixels or int(sensor["width"]) > limits.max_points:   # made before a lower limit
+            raise TooLarge(f"sensor {sensor.get('id')!r}: {camera_refusal(sensor, limits)}",
+                           limit=limits.max_camera_pixels)
+
+    @staticmethod
+    def run(limits: Any, simulation: Any) -> Any:
+        """`simulation.run` for an image of up to ``max_points`` pixels; above, the same answer traced in bands of
+        whole rows of at most ``max_points`` pixels each (`tracer.sensors.camera.run_in_bands`)."""
+        from tracer.sensors.camera import run_in_bands
+
+        def run(body: dict, **options: Any) -> Any:
+            if int(body["width"]) * int(body["height"]) <= limits.max_points:
+                return simulation.run(body, **options)
+            return run_in_bands(simulation, body, limits.max_points, **options)
+        return run
 
     @staticmethod
     def body(sensor: dict, live: Any) -> dict:
@@ -103,7 +135,8 @@ class Camera:
     @staticmethod
     def payload(result: Any, sensor: dict, live: Any) -> dict:
         payload = _payload(result, sensor, live)
-        payload.update(width=int(sensor["width"]), height=int(sensor["height"]),
+        payload.update(bands=int(getattr(result, "bands", 1)), width=int(sensor["width"]),
+                       height=int(sensor["height"]),
                        position=finite_list(sensor["position"]), look_at=finite_list(sensor["look_at"]),
                        fov_deg=float(sensor["fov_deg"]))
         return payload

@@ -85,20 +85,28 @@ def purge_orphans(scene_id: SceneId, manager: Manager) -> list[dict[str, str]]:
 
 
 def _answerable(sensor: dict, request: Request) -> None:
-    """422 for a camera that no query of this service could answer: more pixels than one query may ask
-    (``max_points``), said at creation rather than at its first simulate, with nothing stored. (A grid or a camera
-    stored before the limit was lowered is still refused by its simulate, 413.)"""
+    """422 for a sensor that no simulate of this service could answer, said at creation rather than at its first
+    simulate, with nothing stored: a camera beyond ``max_camera_pixels`` (one beyond ``max_points`` is traced in
+    bands of rows: `service.view_kinds.camera_refusal`), a grid of more cells or a far field of more bins than one
+    query may ask (``max_points``). (One stored before a limit was lowered is still refused by its simulate, 413.)"""
     from service.errors import Invalid
     from service.simulation import hub_for
+    from service.view_kinds import camera_refusal
 
-    limit = hub_for(request.app).limits.max_points
-    if sensor.get("type") == "camera":
-        w, h = int(sensor["width"]), int(sensor["height"])
-        if w * h > limit:
-            side = int((limit * 4 / 3) ** 0.5)
-            raise Invalid(f"a camera of {w} × {h} = {w * h} pixels: this service answers at most {limit} points per "
-                          f"query (its max_points setting, LUMENLINK_MAX_POINTS); ask for at most {limit} pixels, "
-                          f"e.g. {side} × {side * 3 // 4}", limit=limit)
+    limits = hub_for(request.app).limits
+    kind = sensor.get("type")
+    if kind == "camera":
+        why = camera_refusal(sensor, limits)
+        if why is not None:
+            raise Invalid(why, limit=limits.max_camera_pixels)
+    counts = {"grid": ("nu", "nv", "cells"), "far_field": ("nc", "ngamma", "bins")}.get(str(kind))
+    if counts is not None:
+        a, b, what = counts
+        n = int(sensor[a]) * int(sensor[b])
+        if n > limits.max_points:
+            raise Invalid(f"a {kind} sensor of {a} × {b} = {sensor[a]} × {sensor[b]} = {n} {what}: this service "
+                          f"answers at most {limits.max_points} points per query (its max_points setting, "
+                          f"LUMENLINK_MAX_POINTS); ask for at most {limits.max_points} {what}", limit=limits.max_points)
 
 
 def _routes(kind: str, plural: str, schema: Any) -> None:

@@ -158,9 +158,13 @@ def test_exr_says_what_its_values_are_and_keeps_them_exactly(tmp_path: Path) -> 
     ({**METER, "aperture_deg": 0}, "aperture_deg"),
     ({**METER, "aperture_deg": 181}, "aperture_deg"),
     ({**METER, "direction": [0, 0, 0]}, "direction"),
-    # more pixels than one query may ask (max_points, 100000 by default): said when it is made, not at simulate
-    ({**CAMERA, "width": 4096, "height": 4096}, "at most 100000 points per query"),
-    ({**CAMERA, "width": 640, "height": 480}, "640 × 480 = 307200 pixels"),
+    # more pixels than a camera may have (max_camera_pixels, 1920 × 1080 by default): said when it is made, not at
+    # simulate (issue 54, item 3), with a size that fits
+    ({**CAMERA, "width": 4096, "height": 4096}, "at most 2073600 pixels per camera"),
+    ({**CAMERA, "width": 4096, "height": 3072}, "e.g. 1662 × 1247"),
+    # a grid of more cells than one query may ask (max_points): refused when it is made too
+    ({"type": "grid", "origin": [0, 0, 0], "u": [1, 0, 0], "v": [0, 1, 0], "nu": 400, "nv": 400},
+     "nu × nv = 400 × 400 = 160000 cells"),
 ])
 def test_bad_bodies_are_refused_and_change_nothing(client: Any, sid: str, body: dict, field: str) -> None:
     before = client.get(f"/scenes/{sid}/sensors").json()
@@ -230,3 +234,54 @@ def test_caustic_of_a_point_source_in_a_mirror_is_light_traced(client: Any) -> N
     assert "light tracing" in out["strategy"] and out["unreachable"] is None
     z = (np.asarray(out["luminance"]) - lt.pixel_means(lt.CAMERA)) / np.asarray(out["stderr"])
     assert np.all(np.abs(z) <= Z), z
+
+
+def test_a_camera_larger_than_one_query_is_traced_in_bands_and_reads_rho_e_over_pi(tmp_path: Path) -> None:
+    """Issue 54, item 3: with max_points 500, a 40 × 30 camera (1200 pixels) is accepted and traced in three bands of
+    ten rows, each its own query with its own seed, then assembled: the answer has the same shape and fields as one
+    query's, every pixel reads ρE/π within its own standard error (z-scores as a normal's: none beyond 4.5, their
+    mean square near 1), the bands' noise is independent, and photons add up. A camera whose rows are wider than
+    max_points, or beyond max_camera_pixels, is refused when made, with nothing stored."""
+    body = {**CAMERA, "width": 40, "height": 30, "name": "banded"}
+    with make_client(tmp_path / "banded", max_points=500, max_camera_pixels=2000) as c:
+        sid = lit_floor(c, SIDE, RHO, {"type": "point", "position": LIGHT.tolist(), "intensity_cd": I_CD})
+        cid = _add(c, sid, body)
+        r = c.post(f"/scenes/{sid}/sensors/{cid}/simulate",
+                   json={"max_photons": 1_000_000, "max_seconds": 600, "seed": 5})
+        assert r.status_code == 200, r.text
+        out = r.json()
+        for bad, words in (({**body, "width": 501, "height": 1}, "at most 500 pixels per row"),
+                           ({**body, "width": 50, "height": 41}, "at most 2000 pixels per camera")):
+            before = c.get(f"/scenes/{sid}/sensors").json()
+            refused = c.post(f"/scenes/{sid}/sensors", json=bad)
+            assert refused.status_code == 422 and words in refused.text, refused.text
+            assert c.get(f"/scenes/{sid}/sensors").json() == before
+        assert c.get(f"/scenes/{sid}/sensors/{cid}/image.png").status_code == 200
+    lum, err = np.array(out["luminance"]), np.array(out["stderr"])
+    assert lum.shape == err.shape == (30, 40) and (out["width"], out["height"], out["bands"]) == (40, 30, 3)
+    assert out["photons"] <= 1_000_000 and out["stop_reason"] == "max_photons" and out["cost"]["worst"]
+    assert len(out["through_specular"]) == 30
+    truth = pixel_truth(body, n=8)
+    on = np.isfinite(truth)
+    assert on.sum() >= 1000 and np.all(err[on] > 0)
+    z = (lum - truth) / err
+    assert np.all(np.abs(z[on]) <= 4.5), np.abs(z[on]).max()
+    assert 0.6 < float(np.mean(z[on] ** 2)) < 1.6, np.mean(z[on] ** 2)      # the error bars are the scatter's
+    assert abs(z[on].mean()) <= 4.0 / math.sqrt(on.sum()), z[on].mean()
+    # each band draws its own random numbers: pixel (i, j) of one band and of the next do not share their noise
+    both = on[0:10] & on[10:20]
+    assert abs(np.corrcoef(z[0:10][both], z[10:20][both])[0, 1]) < 0.2
+
+
+def test_a_640_by_480_camera_is_made_and_answered_by_default(client: Any, sid: str) -> None:
+    """Issue 54, item 3: 307,200 pixels, three times the default max_points, refused before: made, traced in four
+    bands of 120 rows, answered as one image (and its EXR) of 480 rows × 640 pixels."""
+    cid = _add(client, sid, {**CAMERA, "width": 640, "height": 480, "name": "vga"})
+    r = client.post(f"/scenes/{sid}/sensors/{cid}/simulate", json={"max_photons": 1000, "seed": 3})
+    assert r.status_code == 200, r.text
+    out = r.json()
+    lum, err = np.array(out["luminance"]), np.array(out["stderr"])
+    assert lum.shape == err.shape == (480, 640) and out["bands"] == 4
+    assert out["photons"] >= 640 * 480 and lum.max() > 0
+    header, channels = read_exr(client.get(f"/scenes/{sid}/sensors/{cid}/image.exr").content)
+    assert channels["Y"].shape == (480, 640)

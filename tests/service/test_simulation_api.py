@@ -271,11 +271,12 @@ def test_map_before_any_simulation_says_what_to_do(tmp_path) -> None:
                                                            "radius": 0.1}).json()["id"]
         r = client.get(f"/scenes/{sid}/sensors/{disk}/map.png")
         assert r.status_code == 404 and "grid" in r.json()["detail"]
-        # a grid larger than max_points is refused before any work
-        big = client.post(f"/scenes/{sid}/sensors", json={"type": "grid", "origin": [0, 0, 0], "u": [1, 0, 0],
-                                                          "v": [0, 1, 0], "nu": 10, "nv": 10}).json()["id"]
-        r = client.post(f"/scenes/{sid}/sensors/{big}/simulate", json={})
-        assert r.status_code == 413 and "100 cells" in r.json()["detail"]
+        # a grid larger than max_points is refused when it is made (issue 54, item 3), nothing stored
+        before = client.get(f"/scenes/{sid}/sensors").json()
+        r = client.post(f"/scenes/{sid}/sensors", json={"type": "grid", "origin": [0, 0, 0], "u": [1, 0, 0],
+                                                        "v": [0, 1, 0], "nu": 10, "nv": 10})
+        assert r.status_code == 422 and "100 cells" in r.json()["detail"] and "at most 50" in r.json()["detail"]
+        assert client.get(f"/scenes/{sid}/sensors").json() == before
 
 
 def test_push_while_a_query_runs_leaves_both_intact(world) -> None:

@@ -25,6 +25,7 @@ path's own lens point. Answered by paths from the eye (`tracer.transport.radianc
 
 from __future__ import annotations
 
+import hashlib
 import math
 from typing import Any
 
@@ -109,11 +110,22 @@ def check(body: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, f
 
 
 def probe(sim, body: dict) -> Probe:
-    eye, fwd, right, up, half_h, w, h = frame(body)
+    return band_probe(sim, body, 0, None)
+
+
+def band_probe(sim, body: dict, row0: int, row1: int | None) -> Probe:
+    """The probe of the camera's rows ``row0`` … ``row1`` − 1 (None: to the bottom): the same film, eye and lens, its
+    pixels those rows' (a camera of its own, ``row1 − row0`` rows high, whose film window is that band)."""
+    eye, fwd, right, up, half_h, w, h_all = frame(body)
     radius, focus = lens(body)
-    half_w = half_h * w / h
-    pw, ph = 2.0 * half_w / w, 2.0 * half_h / h
+    row1 = h_all if row1 is None else row1
+    if not 0 <= row0 < row1 <= h_all:
+        raise SimulationError(f"rows {row0}..{row1} are not a band of a camera {h_all} rows high")
+    h = row1 - row0
+    half_w = half_h * w / h_all
+    pw, ph = 2.0 * half_w / w, 2.0 * half_h / h_all
     rows, cols = np.divmod(np.arange(w * h), w)
+    rows = rows + row0
     corner = (fwd[None, :] + (-half_w + cols * pw)[:, None] * right[None, :]
               + (half_h - rows * ph)[:, None] * up[None, :])
     k = w * h
@@ -125,3 +137,87 @@ def probe(sim, body: dict) -> Probe:
 
 def answer(sim, probe: Probe, res: IlluminanceResult) -> LuminanceResult:
     return luminance_result(sim, res, probe.keep["shape"])
+
+
+def band_rows(width: int, height: int, max_pixels: int) -> list[tuple[int, int]]:
+    """Bands of whole rows, ``(row0, row1)``, each of at most `max_pixels` pixels (at least one row, so a row wider
+    than `max_pixels` is a band of its own: the caller bounds the width), as even as the rows allow."""
+    per = max(1, min(height, max_pixels // width))
+    n = -(-height // per)
+    edges = [round(i * height / n) for i in range(n + 1)]
+    return [(edges[i], edges[i + 1]) for i in range(n)]
+
+
+def band_seed(seed: int, band: int) -> int:
+    """The seed of band `band`: the query's own for the first (an image of one band is the image it always was), a
+    hash of (seed, band) for the others, so no two bands draw the same random numbers for their pixels."""
+    if band == 0:
+        return int(seed)
+    digest = hashlib.sha256(f"lumenlink camera band {int(seed)} {band}".encode()).digest()
+    return int.from_bytes(digest[:8], "little") >> 1
+
+
+STOP_ORDER = ("cancelled", "max_seconds", "max_photons", "target_relative_error")   # the image's: its bands' first
+
+
+def run_in_bands(sim, body: dict, max_pixels: int, *, max_photons=None, max_seconds=None, target_relative_error=None,
+                 seed: int = 0, progress=None, cancel=None, **options: Any) -> LuminanceResult:
+    """A camera of more than `max_pixels` pixels, traced a band of rows at a time (`band_rows`), each band a query
+    of its own (`tracer.simulate.Simulation.measure`), assembled into the image `Simulation.run` answers: the same
+    fields and shape.
+
+    Each pixel's value and standard error are its band's (batch means over that band's own batches: as honest as
+    one band's); each band draws from its own seed (`band_seed`). The budget is the image's: each band gets its
+    share of `max_photons` by its pixels, and of the seconds left by its pixels among those left; a
+    `target_relative_error` holds in every band (with the "worst" scope: in every pixel of the image). `photons`,
+    `batches`, `rejected`, the counters and `compile_seconds` add up; `seconds` is the wall time of all the bands;
+    `stop_reason` the bands' first in `STOP_ORDER`; `cost` is the image's (`cost_of` over all its pixels).
+    `progress(photons, worst_relative_error, seconds)` counts the bands already done in."""
+    import time
+
+    from tracer.sensors.views import luminance_result
+    from tracer.transport.estimate import cost_of
+    from tracer.transport.rounds import DEFAULT_MAX_SECONDS, ViewBins
+
+    _, _, _, _, _, w, h = check(body)
+    bands = band_rows(w, h, int(max_pixels))
+    if target_relative_error is None and max_seconds is None and max_photons is None:
+        max_seconds = DEFAULT_MAX_SECONDS
+    t0 = time.perf_counter()
+    done_photons = 0
+    parts: list[Any] = []
+    for b, (r0, r1) in enumerate(bands):
+        share = (r1 - r0) / (h - r0)          # of the pixels left
+        left = None if max_seconds is None else max(1e-3, (max_seconds - (time.perf_counter() - t0)) * share)
+        photons = None if max_photons is None else max(1, int(max_photons) * (r1 - r0) * w // (w * h))
+
+        def report(p, rel, sec, _done=done_photons):
+            if progress is not None:
+                progress(_done + p, rel, time.perf_counter() - t0 if p else sec)
+
+        _, res = sim.measure(lambda s, bd, r0=r0, r1=r1: band_probe(s, bd, r0, r1), body, target=target_relative_error,
+                             max_seconds=left, max_photons=photons, seed=band_seed(seed, b), progress=report,
+                             cancel=cancel, **options)
+        parts.append(res)
+        done_photons += int(res.photons)
+    first = parts[0]
+    counters: dict[str, int] = {}
+    for r in parts:
+        for k, v in r.counters.items():
+            counters[k] = counters.get(k, 0) + int(v)
+    reasons = {r.stop_reason for r in parts}
+    combined = ViewBins(np.concatenate([r.lux for r in parts]), np.concatenate([r.stderr for r in parts]),
+                        photons=sum(int(r.photons) for r in parts), seconds=time.perf_counter() - t0,
+                        effects=first.effects, estimator=first.estimator,
+                        stop_reason=next(x for x in STOP_ORDER if x in reasons) if reasons <= set(STOP_ORDER)
+                        else first.stop_reason,
+                        batches=sum(int(r.batches) for r in parts), rejected=sum(int(r.rejected) for r in parts),
+                        counters=counters, compile_seconds=sum(float(r.compile_seconds) for r in parts),
+                        through_specular=np.concatenate([np.asarray(r.through_specular) for r in parts]),
+                        light_traced=any(r.light_traced for r in parts))
+    combined.backend, combined.effect_reasons = first.backend, first.effect_reasons
+    combined.cost = cost_of(combined.lux, combined.stderr, combined.photons,
+                            combined.seconds - combined.compile_seconds)
+    out = luminance_result(sim, combined, (h, w))
+    out.bands = len(bands)
+    return out

@@ -41,6 +41,7 @@ class LuminanceResult(Readout):
     unreachable : dict or None — the light paths from the eye cannot find, where the scene has them (None: nothing
         is missing): ``{"lights": [light indices], "why": str, "through_specular": max share over the views,
         "caustic_paths": paths that met a specular surface after a diffuse one}``. The value then lacks that light.
+    bands : int — the bands of rows a camera was traced in (`tracer.sensors.camera.run_in_bands`); 1: one query.
     """
 
     luminance: Any
@@ -49,6 +50,7 @@ class LuminanceResult(Readout):
     strategy: str = STRATEGY
     through_specular: Any = None
     unreachable: dict | None = None
+    bands: int = 1
 
 
 def unreachable(sim, share: np.ndarray, caustic_paths: int, light_traced: bool = False) -> dict | None:
