@@ -1,10 +1,11 @@
 """`lumenlink demo-guide` / `make demo-guide`: an edge-lit light guide as a backlight engineer builds it.
 
 A 120 x 80 x 4 mm PMMA plate, an LED strip at its left edge (a Lambertian emitter facing the edge), a white
-reflector sheet under it and a 3 x 3 illuminance grid over its lit face (the 9-point figure; luminance follows
-when the luminance sensors land). Its bottom face carries extraction dots, domes 0.5 mm across, as an optical
-element with an inside: never meshed, prepared once into the service's library. Two patterns side by side, two
-scenes of one service:
+reflector sheet under it and a 3 x 3 illuminance grid over its lit face (the 9-point figure): what it measures and
+draws is illuminance (lx) 3 mm over the face, forward photons, not luminance (a luminance meter or camera over
+the face would answer cd/m²; this demo has none). Its bottom face carries extraction dots, domes 0.5 mm across, as
+an optical element with an inside: never meshed, prepared once into the service's library. Two patterns side by
+side, two scenes of one service:
 
 - uniform: every lattice site kept with the same probability, 0.3;
 - graded: the fill grows away from the LED, from 0.27 to 0.33, as a designer grades it to make up for the light the
@@ -12,13 +13,14 @@ scenes of one service:
 
 Then the before/after pair of issue 41 (`pack_guide`): a uniform start of fill 1.0 on an 8 x 24 map, measured,
 packed (``POST /elements/{id}/pack``) against the same nine cells to min/max 0.95, the scene's assignment switched to
-the result in one call, and the lit face measured again with a fresh seed; ``guide_before.png``, ``guide_after.png``
-and the pack's ``guide_pack.png``.
+the result in one call, and the lit face measured again with a fresh seed; ``guide_before_after.png`` and the
+pack's ``guide_pack.png``.
 
 Everything goes through the REST API of a real service (uvicorn on loopback, SQLite in a fresh data directory).
 It prints each pattern's dots, preparation time, mean illuminance and uniformity (min/max and min/mean of the nine
-cells, with the cells' standard errors), and writes the two maps to ``demo-output/guide_uniform.png`` and
-``guide_graded.png``.
+cells, with the cells' standard errors), and draws the maps it compares side by side on one colour scale, from the
+smallest cell to the largest of them all (`compare_figure`), so a difference in uniformity shows:
+``demo-output/guide_patterns.png`` (uniform, graded) and ``guide_before_after.png``.
 """
 
 from __future__ import annotations
@@ -94,6 +96,54 @@ PACK_ROWS = 8             # its map: 8 rows along y, 24 columns along x
 CHECK_SEED = 20261127     # the independent check's seed (the pack's are 1009 * seed + iteration)
 
 
+def compare_figure(maps: list[tuple[str, Any, Any]], grid: dict[str, Any] = GRID, title: str = "") -> Any:
+    """Grid maps side by side on one colour scale (a matplotlib `Figure`, constrained layout): `maps` is
+    ``[(name, lux, stderr), ...]``, each (nv, nu) lx of `grid` (rows along its v, world metres). The scale runs from
+    the smallest cell of them all to the largest (not from 0: a 0.9 min/max face would look flat), one colour bar
+    for all; each panel is drawn in world millimetres, x (away from the LED) across and y (along the strip) up, its
+    cells written as lx ± standard error, its title its min/max ± error."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.colors import Normalize
+    from matplotlib.figure import Figure
+
+    from tracer.photometry.glare import uniformity
+
+    o, u, v = (np.asarray(grid[k], float) * 1000.0 for k in ("origin", "u", "v"))
+    iu, iv = int(np.argmax(np.abs(u))), int(np.argmax(np.abs(v)))
+    if not (iu == 1 and iv == 0 and np.count_nonzero(u) == 1 and np.count_nonzero(v) == 1):
+        raise ValueError("compare_figure draws a grid whose u runs along world y and v along world x")
+    values = [np.asarray(lux, float) for _, lux, _ in maps]
+    lo, hi = min(float(x.min()) for x in values), max(float(x.max()) for x in values)
+    norm = Normalize(lo, hi if hi > lo else lo + 1.0)
+    fig = Figure(figsize=(4.2 * len(maps) + 1.4, 4.6), dpi=110, layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(1, len(maps), squeeze=False)[0]
+    extent = (o[0], o[0] + v[0], o[1], o[1] + u[1])       # x across (the grid's v), y up (its u)
+    im = None
+    for ax, (name, lux, err) in zip(axes, maps, strict=True):
+        e, s = np.asarray(lux, float), np.asarray(err, float)
+        im = ax.imshow(e.T, origin="lower", extent=extent, cmap="inferno", norm=norm, aspect="equal",
+                       interpolation="nearest")
+        nv, nu = e.shape
+        for (j, i), x in np.ndenumerate(e):
+            ax.text(o[0] + (j + 0.5) * v[0] / nv, o[1] + (i + 0.5) * u[1] / nu, f"{x:.0f}\n± {s[j, i]:.0f}",
+                    ha="center", va="center", fontsize=7, color="cyan")
+        m = uniformity(e, s)
+        ax.set_title(f"{name}: min/max {m['min_max']:.2f} ± {m['min_max_stderr']:.2f}", fontsize=10)
+        ax.set_xlabel("x (mm), away from the LED")
+        ax.set_ylabel("y (mm), along the LED strip")
+    assert im is not None
+    fig.colorbar(im, ax=list(axes), label=f"illuminance E (lx), {lo:.0f} to {hi:.0f}: one scale for all")
+    if title:
+        fig.suptitle(title, fontsize=10)
+    return fig
+
+
+def _save(fig: Any, path: Path) -> Path:
+    fig.savefig(path, format="png")
+    return path
+
+
 def _measure(http: Any, sid: str, sensor: str, photons: int, seed: int) -> dict[str, Any]:
     from tracer.photometry.glare import uniformity
 
@@ -102,7 +152,7 @@ def _measure(http: Any, sid: str, sensor: str, photons: int, seed: int) -> dict[
     r.raise_for_status()
     a = r.json()
     u = uniformity(np.array(a["lux"]), np.array(a["stderr"]))
-    return {"lux": a["lux"], "min_max": u["min_max"], "min_max_stderr": u["min_max_stderr"],
+    return {"lux": a["lux"], "stderr": a["stderr"], "min_max": u["min_max"], "min_max_stderr": u["min_max_stderr"],
             "min_mean": u["min_mean"], "mean": u["mean"], "photons": a["photons"]}
 
 
@@ -120,8 +170,6 @@ def pack_guide(ll: Any, http: Any, out_dir: Path | None, photons: int = 400_000,
     put = ll.put_element(sid, "backlight/guide", element["id"], facing=[0, 0, -1])
     sensor = ll.add_sensor(sid, GRID)["id"]
     before = _measure(http, sid, sensor, photons, CHECK_SEED)
-    if out_dir is not None:
-        (out_dir / "guide_before.png").write_bytes(http.get(f"/scenes/{sid}/sensors/{sensor}/map.png").content)
     t0 = time.perf_counter()
     job = ll.pack(element["id"], sid, put["id"], sensor, target=target, photons=start_photons,
                   max_photons=16 * start_photons, max_iterations=max_iterations, progress=progress)
@@ -132,7 +180,10 @@ def pack_guide(ll: Any, http: Any, out_dir: Path | None, photons: int = 400_000,
     ll.switch_element(sid, put["id"], res["element"])
     after = _measure(http, sid, sensor, photons, CHECK_SEED + 1)
     if out_dir is not None:
-        (out_dir / "guide_after.png").write_bytes(http.get(f"/scenes/{sid}/sensors/{sensor}/map.png").content)
+        _save(compare_figure([("before (uniform start)", before["lux"], before["stderr"]),
+                              ("after the pack", after["lux"], after["stderr"])],
+                             title=f"the lit face before and after packing ({photons:,} photons each)"),
+              out_dir / "guide_before_after.png")
         (out_dir / "guide_pack.png").write_bytes(ll.pack_png(res["element"]))
     return {"start_element": element, "before": before, "after": after, "pack": res, "pack_wall_seconds": wall,
             "target": target}
@@ -168,17 +219,18 @@ def run(out_dir: Path = Path("demo-output"), photons: int = 400_000, pack: bool 
                 r.raise_for_status()
                 answer = r.json()
                 lux, err = np.array(answer["lux"]), np.array(answer["stderr"])
-                path = out_dir / f"guide_{pattern}.png"
-                path.write_bytes(http.get(f"/scenes/{sid}/sensors/{sensor}/map.png").content)
-                rows.append((pattern, element, lux, err, time.perf_counter() - t0, path))
+                rows.append((pattern, element, lux, err, time.perf_counter() - t0))
+            path = _save(compare_figure([(pattern, lux, err) for pattern, _, lux, err, _ in rows],
+                                        title=f"the lit face, two dot patterns ({photons:,} photons each)"),
+                         out_dir / "guide_patterns.png")
             n.step("the lit face, 9 cells 33 x 20 mm, 3 mm over the guide (illuminance, forward photons)")
-            for pattern, element, lux, err, seconds, path in rows:
+            for pattern, element, lux, err, seconds in rows:
                 lo, hi = int(np.argmin(lux)), int(np.argmax(lux))
                 rel = np.hypot(err.ravel()[lo] / lux.ravel()[lo], err.ravel()[hi] / lux.ravel()[hi])
                 n.say(f"{pattern:8s} {element['features']:6d} dots (prepared in {element['prepare_seconds']:.3f} s, "
                       f"{element['bytes']} bytes): mean {lux.mean():8.1f} lx, min/max "
                       f"{lux.min() / lux.max():.2f} ± {rel * lux.min() / lux.max():.2f}, min/mean "
-                      f"{lux.min() / lux.mean():.2f}; {seconds:.1f} s; map {path}")
+                      f"{lux.min() / lux.mean():.2f}; {seconds:.1f} s; maps {path}")
                 n.say("          cells (lx; rows away from the LED, columns along y): "
                       + " | ".join(" ".join(f"{x:7.1f}" for x in row) for row in lux))
             if pack:
@@ -191,10 +243,11 @@ def run(out_dir: Path = Path("demo-output"), photons: int = 400_000, pack: bool 
                           f"({h['photons']:,} photons, {h['seconds']:.1f} s; the element's update "
                           f"{h['update_seconds'] * 1000:.1f} ms)")
                 n.say(f"before: min/max {b['min_max']:.2f} ± {b['min_max_stderr']:.2f} (min/mean {b['min_mean']:.2f}, "
-                      f"mean {b['mean']:.0f} lx); map {out_dir / 'guide_before.png'}")
+                      f"mean {b['mean']:.0f} lx)")
                 n.say(f"after ({r['stopped']}, {r['iterations']} iterations, {p['pack_wall_seconds']:.0f} s; checked "
                       f"with a fresh seed): min/max {a['min_max']:.2f} ± {a['min_max_stderr']:.2f} (min/mean "
-                      f"{a['min_mean']:.2f}, mean {a['mean']:.0f} lx); map {out_dir / 'guide_after.png'}, plot "
+                      f"{a['min_mean']:.2f}, mean {a['mean']:.0f} lx); maps "
+                      f"{out_dir / 'guide_before_after.png'}, plot "
                       f"{out_dir / 'guide_pack.png'}")
         return 0
     finally:

@@ -74,6 +74,7 @@ def start(manager: Any, hub: Any, element_id: str, req: dict[str, Any]) -> tuple
     from service.simulation import find_sensor
 
     sensor = kind_of(find_sensor(live, req["sensor"])).body(find_sensor(live, req["sensor"]), live)
+    req = {**req, "grid": {k: sensor[k] for k in ("origin", "u", "v")}}   # world metres, for pack.png's axes
     pilot = sim.run(sensor, max_photons=PILOT_PHOTONS, seed=int(req["seed"]), estimator="forward")
     if not float(np.max(pilot.lux)) > 0:
         raise Invalid(f"sensor: no light reaches the grid over the face ({pilot.photons} photons of a pilot, every "
@@ -143,6 +144,8 @@ def keep(library: Any, element_id: str, req: dict[str, Any], result: Any, rebuil
               "update_seconds_mean": float(np.mean(updates)),
               "measure_seconds_mean": float(np.mean([h["measure_seconds"] for h in history])),
               "history": history, "fill": best.fill, "lux": best.lux, "stderr": best.lux_stderr,
+              "grid": {k: [float(x) for x in np.asarray(req["grid"][k], float)] for k in ("origin", "u", "v")}
+              if req.get("grid") else None,
               "start": {"uniformity": result.history[0].uniformity, "stderr": result.history[0].stderr}}
     png = plot(record, result.element.body["layout"])
     library.keep_pack(summary["id"], record, png)
@@ -150,27 +153,59 @@ def keep(library: Any, element_id: str, req: dict[str, Any], result: Any, rebuil
             "pack_url": f"/elements/{summary['id']}/pack", "png_url": f"/elements/{summary['id']}/pack.png"}
 
 
+def _grid_frame(grid: dict[str, Any] | None, shape: tuple[int, ...]) -> tuple[tuple[float, float, float, float], str,
+                                                                                  str]:
+    """Extent (mm) and axis labels of a grid sensor's cells: world axes where u and v run along them (`service.maps`),
+    else mm along the grid's u and v; cell indices where the record has no grid (one kept before it carried it)."""
+    if grid is None:
+        nv, nu = shape
+        return (0.0, float(nu), 0.0, float(nv)), "sensor grid cell along its u", "sensor grid cell along its v"
+    from service.maps import _axes_frame
+
+    extent, xlabel, ylabel = _axes_frame(*(np.asarray(grid[k], float) for k in ("origin", "u", "v")))
+    mm = tuple(1000.0 * e for e in extent)
+    named = [f"world {x.replace(' (m)', ' (mm)')}" if x[1:] == " (m)" else f"sensor grid {x.replace('(m)', '(mm)')}"
+             for x in (xlabel, ylabel)]
+    return (mm[0], mm[1], mm[2], mm[3]), named[0], named[1]
+
+
 def plot(record: dict[str, Any], layout: dict[str, Any]) -> bytes:
-    """``pack.png``: the chosen density map over the support (mm), the luminance (here illuminance) map it measured,
-    and the figure against the iterations with its error bars and the target."""
+    """``pack.png``: `plot_figure` as a PNG."""
+    out = io.BytesIO()
+    plot_figure(record, layout).savefig(out, format="png")
+    return out.getvalue()
+
+
+def plot_figure(record: dict[str, Any], layout: dict[str, Any]) -> Any:
+    """The figure of ``pack.png`` (a matplotlib `Figure`, constrained layout): the chosen density map over the
+    support in the element's own u, v (mm), the illuminance it measured on the sensor grid in world mm (its colour
+    scale from the smallest cell to the largest), and the figure against the iterations with its error bars and the
+    target."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(13, 4.0), dpi=100)
+    fig = Figure(figsize=(14, 4.6), dpi=100, layout="constrained")
     FigureCanvasAgg(fig)
     a, b, c = fig.subplots(1, 3)
     (u0, v0), (su, sv) = layout["origin_mm"], layout["size_mm"]
     im = a.imshow(np.asarray(record["fill"]), origin="lower", extent=(u0, u0 + su, v0, v0 + sv), vmin=0.0,
                   vmax=1.0, cmap="viridis", aspect="auto")
-    fig.colorbar(im, ax=a, label="fill (share of lattice sites with a dot)")
-    a.set(title=f"density map, pitch {layout.get('pitch_mm', 0):g} mm", xlabel="u (mm)", ylabel="v (mm)")
+    fig.colorbar(im, ax=a, label="fill (share of sites with a dot)")
+    # the element's own frame on its face (u along the node's x projected onto the face, v = n × u), not the grid's
+    a.set(title=f"density map, pitch {layout.get('pitch_mm', 0):g} mm", xlabel="element u on the face (mm)",
+          ylabel="element v on the face (mm)")
     lux = np.asarray(record["lux"])
-    im2 = b.imshow(lux, origin="lower", cmap="inferno", vmin=0.0, vmax=float(lux.max()) or 1.0, aspect="auto")
+    extent, xlabel, ylabel = _grid_frame(record.get("grid"), lux.shape)
+    lo, hi = float(lux.min()), float(lux.max())
+    im2 = b.imshow(lux, origin="lower", cmap="inferno", vmin=lo, vmax=hi if hi > lo else lo + 1.0, aspect="auto",
+                   extent=extent)
+    nv, nu = lux.shape
     for (j, i), x in np.ndenumerate(lux):
-        b.text(i, j, f"{x:.0f}", ha="center", va="center", color="cyan", fontsize=8)
-    fig.colorbar(im2, ax=b, label="lx")
-    b.set(title=f"measured over the face: {record['figure'].replace('_', '/')} {record['uniformity']:.3f} ± "
-                f"{record['uniformity_stderr']:.3f}", xlabel="grid cell along its u", ylabel="grid cell along its v")
+        b.text(extent[0] + (i + 0.5) * (extent[1] - extent[0]) / nu, extent[2] + (j + 0.5) * (extent[3] - extent[2])
+               / nv, f"{x:.0f}", ha="center", va="center", color="cyan", fontsize=8)
+    fig.colorbar(im2, ax=b, label="illuminance E (lx), min to max")
+    b.set(title=f"measured on the sensor grid: {record['figure'].replace('_', '/')} {record['uniformity']:.3f} ± "
+                f"{record['uniformity_stderr']:.3f}", xlabel=xlabel, ylabel=ylabel)
     h = record["history"]
     it = [x["iteration"] for x in h]
     c.errorbar(it, [x["uniformity"] for x in h], yerr=[x["stderr"] for x in h], marker="o", capsize=3)
@@ -178,7 +213,4 @@ def plot(record: dict[str, Any], layout: dict[str, Any]) -> bytes:
     c.set(title=f"stopped: {record['stopped']} ({sum(x['seconds'] for x in h):.1f} s)", xlabel="iteration",
           ylabel=record["figure"].replace("_", "/"), ylim=(0.0, 1.02))
     c.legend(loc="lower right")
-    fig.tight_layout()
-    out = io.BytesIO()
-    fig.savefig(out, format="png")
-    return out.getvalue()
+    return fig
