@@ -97,20 +97,27 @@ class ElementLibrary:
         return model
 
     def bsdf(self, eid: str, ior: float) -> Any:
-        """The element's tabulated BSDF on a solid of index `ior` (`tracer.elements.bsdf.tabulate`): computed once
-        from its exact model and kept beside it (``<id>.bsdf-<ior>.npz``), then read back, never computed again."""
-        from tracer.elements.bsdf import Table, tabulate
+        """The element's tabulated BSDF on a solid of index `ior` (`tracer.elements.bsdf.tabulate`), with its error
+        measured against the exact model (`tracer.elements.bsdf.model_error`): computed once from its exact model and
+        kept beside it (``<id>.bsdf-<ior>.npz``), then read back, never computed again (a table kept before its error
+        was measured gets it measured once, and is kept again)."""
+        from tracer.elements.bsdf import Table, model_error, tabulate
 
         key = (eid, float(ior))
         with self._lock:
             if key in self._tables:
                 return self._tables[key]
         path = self.directory / f"{eid}.bsdf-{float(ior)!r}.npz"
+        table = None
         if path.exists():
             with np.load(path) as arrays:
                 table = Table.from_arrays(arrays)
-        else:
-            table = tabulate(self.get(eid), float(ior))
+        if table is None or table.error is None:
+            if table is None:
+                table = tabulate(self.get(eid), float(ior))
+            else:
+                table = Table(table.ior, table.n_mu, table.n_phi, table.cdf, table.rays,
+                              model_error(self.get(eid), table))
             self.directory.mkdir(parents=True, exist_ok=True)
             tmp = self.directory / f".{eid}.bsdf.{os.getpid()}.{threading.get_ident()}.npz"
             saved: dict[str, Any] = table.arrays()
@@ -240,6 +247,7 @@ def sync(state: Any, library: ElementLibrary) -> None:
             continue
         state.element_instances[aid] = inst
         state.element_ior[aid] = ior
+        state.element_model_error[aid] = None if table is None else table.error
         state.element_problems.pop(aid, None)
 
 
@@ -253,6 +261,14 @@ def public(state: Any, aid: str, body: dict) -> dict[str, Any]:
 
 
 def describe(state: Any) -> list[dict[str, Any]]:
-    """The elements applied in the scene, as an answer names them: assignment id, element id, node, model."""
-    return [{"id": aid, "element": state.elements[aid]["element"], "node": state.elements[aid]["node"],
-             "model": state.elements[aid].get("model", "exact")} for aid in sorted(state.element_instances)]
+    """The elements applied in the scene, as an answer names them: assignment id, element id, node, model, and for
+    a tabulated BSDF its ``model_error`` (`tracer.elements.bsdf.model_error`, per side: the worst probe beam's
+    deviation of the transmitted share from the exact model's, with its standard error)."""
+    out = []
+    for aid in sorted(state.element_instances):
+        body = state.elements[aid]
+        entry = {"id": aid, "element": body["element"], "node": body["node"], "model": body.get("model", "exact")}
+        if entry["model"] == "bsdf" and state.element_model_error.get(aid) is not None:
+            entry["model_error"] = state.element_model_error[aid]
+        out.append(entry)
+    return out

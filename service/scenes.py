@@ -71,6 +71,7 @@ class SceneState:
     element_instances: dict[str, int] = field(default_factory=dict)  # element assignment id -> instance carrying it
     element_problems: dict[str, str] = field(default_factory=dict)  # element assignment id -> why it is not applied
     element_ior: dict[str, Any] = field(default_factory=dict)  # element assignment id -> its BSDF table's ior
+    element_model_error: dict[str, Any] = field(default_factory=dict)  # ... -> its BSDF table's measured error
     last_commit: dict[str, Any] = field(default_factory=dict)
     node_bytes: NodeBytes | None = None  # where each node sits in the body that made `tree` (row i = chunk i)
     identity: dict[str, IdentityIn] = field(default_factory=dict)  # node uuid -> its identity record, as stored

@@ -338,7 +338,10 @@ class SimulationHub:
                 reference=reference, force_effects_off=force_effects_off,
                 **({"physics_left_out": physics_left_out} if physics_left_out else {}),
                 **({"tessellation_estimate": True} if tessellation_estimate else {}))
-        return result_payload(result, prepared.live.revision)
+        payload = result_payload(result, prepared.live.revision)
+        if prepared.live.extras.get("elements"):   # the elements with an inside it traced, their model and its error
+            payload["elements"] = prepared.live.extras["elements"]
+        return payload
 
     def run_grid(self, prepared: Prepared, sensor: dict, budget: Budget, seed: int, estimator: str,
                  force_effects: tuple[str, ...], progress: Callable | None = None,

@@ -213,6 +213,9 @@ class IlluminancePublic(BaseModel):
 
     lux: list[float] = Field(description="Illuminance on each receiver's front side, lx.")
     stderr: list[float] = Field(description="Standard error of each value, lx.")
+    elements: list[dict[str, Any]] | None = Field(None, description=(
+        "The optical elements with an inside the scene carries, as a sensor's answer names them (with a tabulated "
+        "BSDF's `model_error`); absent where it carries none."))
     photons: int = Field(description="Photons (forward) or paths (backward) traced.")
     seconds: float = Field(description="Wall time of the query, s.")
     effects: list[str] = Field(description="The effect set of the scene (and of any forced effects).")
@@ -299,6 +302,9 @@ class SensorPublic(BaseModel):
     cost: Cost | None = Field(None, description="What tighter errors would cost (seconds and photons per target).")
     elements: list[dict[str, Any]] | None = Field(None, description=(
         "The optical elements with an inside the scene carries (assignment `id`, `element`, `node`, `model`: "
+        "`bsdf`, its tabulated BSDF, with `model_error`: per side (`air`, `solid`) the worst probe beam's "
+        "`deviation` of the transmitted share from the exact model's, table − exact, a share of the flux meeting "
+        "the element, with its `stderr`, where (`theta_deg`, `phi_deg`) and what was measured; or "
         "`exact`, its micro-geometry traced); absent where it carries none."))
     backend: Backend | None = Field(None, description="Where the photon batches ran.")
     device: str | None = Field(None, description="The processor the photon batches ran on: `cuda:0 <card>`, "

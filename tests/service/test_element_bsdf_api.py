@@ -80,3 +80,44 @@ def test_a_model_that_cannot_go_is_a_422_naming_it_and_nothing_changes(client: A
         assert r.status_code == 422 and words in r.text, (body, r.text)
     assert client.get(f"/scenes/{sid}/elements").json() == []
     assert client.get(f"/scenes/{sid}").json() == before
+
+
+def test_every_answer_through_a_table_carries_its_measured_error_and_it_covers_the_tables_deviation(
+        tmp_path: Path) -> None:
+    """Issue 54, item 11: the table's deviation from the exact model, measured when it is made (probe beams on both
+    sides, `tracer.elements.bsdf.model_error`), comes with every answer that uses it (a sensor's and an illuminance
+    query's `elements[].model_error`), and it covers what the two models give here: a normal beam through the dotted
+    plate onto a cell below it, the transmitted share of the beam through the table against the exact dots."""
+    with make_client(tmp_path) as client:        # the library's own table (RAYS rays a bin), not a coarse one
+        sid = _scene(client)
+        eid = client.post("/elements", json=DOTS).json()["id"]
+        put = client.post(f"/scenes/{sid}/elements", json={"element": eid, "node": uid(1), "facing": [0, 0, 1],
+                                                           "model": "bsdf"}).json()
+        sensor = client.post(f"/scenes/{sid}/sensors", json={
+            "type": "grid", "origin": [0.0, 0.0, -0.001], "u": [0.02, 0, 0], "v": [0, 0.02, 0], "nu": 1, "nv": 1}
+                             ).json()["id"]
+        client.post(f"/scenes/{sid}/lights", json={"type": "collimated", "origin": [0.01, 0.01, 0.005],
+                                                   "direction": [0, 0, -1], "radius": 0.003, "illuminance_lx": 1000})
+        query = {"max_photons": 60_000, "estimator": "forward"}
+        tabled = client.post(f"/scenes/{sid}/sensors/{sensor}/simulate", json={**query, "seed": 1}).json()
+        (entry,) = tabled["elements"]
+        error = entry["model_error"]
+        assert entry["model"] == "bsdf" and set(error) == {"air", "solid"}
+        for side in ("air", "solid"):
+            e = error[side]
+            assert e["probes"] == 144 and e["probe_rays"] == bsdf.PROBE_RAYS and 0 < e["stderr"] < 0.05
+            assert abs(e["deviation"]) > 3 * e["stderr"]      # a real deviation, not noise: the bins are coarse
+        points = client.post(f"/scenes/{sid}/illuminance", json={"points": [[0.01, 0.01, -0.001]],
+                                                                 "normals": [[0, 0, 1]], "max_photons": 2000})
+        assert points.status_code == 200 and points.json()["elements"][0]["model_error"] == error
+        client.delete(f"/scenes/{sid}/elements/{put['id']}")
+        assert client.post(f"/scenes/{sid}/elements", json={"element": eid, "node": uid(1), "facing": [0, 0, 1],
+                                                            "model": "exact"}).status_code == 201
+        exact = client.post(f"/scenes/{sid}/sensors/{sensor}/simulate", json={**query, "seed": 2}).json()
+        assert "model_error" not in exact["elements"][0]
+    flux = 1000.0 * np.pi * 0.003 ** 2
+    share = [a["lux"][0][0] * 0.02 ** 2 / flux for a in (tabled, exact)]
+    sigma = [a["stderr"][0][0] * 0.02 ** 2 / flux for a in (tabled, exact)]
+    difference = share[0] - share[1]
+    bound = abs(error["air"]["deviation"])
+    assert abs(difference) <= bound + 4 * np.hypot(error["air"]["stderr"], np.hypot(*sigma)), (difference, error)

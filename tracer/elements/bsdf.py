@@ -16,6 +16,15 @@ the features (side 0) or down into the solid (side 1). Each leaving direction is
 the light that leaves (1 for a lossless element); ``cdf`` holds the rows' running sums, what the transport samples.
 Its resolution error is the bins' width: a quantity that depends on where in a bin light leaves (a narrow lobe)
 differs by up to that; totals and diffuse quantities agree within the Monte Carlo error of the table.
+
+How far off that makes a transmitted flux is measured when the table is made (`model_error`, the table's ``error``):
+for probe beams from each arriving bin's azimuth centre at its |cos θ| edges and middle, on both sides, the exact
+model is traced and set against the table's row, on the quantity that matters downstream: from the air side, the
+share of the beam that crosses the element *and then a plain parallel face of the same solid* (Fresnel, total
+internal reflection: the table's direction drawn uniformly over a bin moves light across the critical angle that
+the exact model does not); from the solid's side, the share that leaves into the air. The worst probe's deviation
+(table − exact, a share of the flux meeting the element) and its standard error are kept with the table and carried
+by every answer that uses it (issue 54, item 11: a dotted plate transmitted 2.4 % more through its table).
 """
 
 from __future__ import annotations
@@ -34,13 +43,16 @@ MAX_BOUNCES = 64
 
 @dataclass(frozen=True)
 class Table:
-    """A tabulated BSDF: ``cdf`` (nb, nb) float64 running sums of each arriving bin's row; its bins and index."""
+    """A tabulated BSDF: ``cdf`` (nb, nb) float64 running sums of each arriving bin's row; its bins and index;
+    ``error``: how far it is off, measured against the exact model when it was made (`model_error`: per side; None
+    for a table kept before it was measured)."""
 
     ior: float
     n_mu: int
     n_phi: int
     cdf: np.ndarray
     rays: int
+    error: dict | None = None
 
     @property
     def bins(self) -> int:
@@ -52,12 +64,35 @@ class Table:
         return np.diff(self.cdf, axis=1, prepend=0.0)
 
     def arrays(self) -> dict[str, np.ndarray]:
-        return {"cdf": self.cdf, "params": np.array([self.ior, self.n_mu, self.n_phi, self.rays], np.float64)}
+        out = {"cdf": self.cdf, "params": np.array([self.ior, self.n_mu, self.n_phi, self.rays], np.float64)}
+        if self.error is not None:
+            out["error"] = np.array([[e["deviation"], e["stderr"], SIDES.index(e["side"]), e["theta_deg"],
+                                      e["phi_deg"], e["probes"], e["probe_rays"], e["exact"]]
+                                     for e in (self.error[side] for side in SIDES)], np.float64)
+        return out
 
     @classmethod
     def from_arrays(cls, arrays) -> Table:
         p = arrays["params"]
-        return cls(float(p[0]), int(p[1]), int(p[2]), np.asarray(arrays["cdf"], np.float64), int(p[3]))
+        error = None
+        if "error" in getattr(arrays, "files", arrays):
+            error = {}
+            for row in np.asarray(arrays["error"], np.float64):
+                e = [float(x) for x in row]
+                error[SIDES[int(e[2])]] = _error_dict(e[0], e[1], SIDES[int(e[2])], e[3], e[4], int(e[5]), int(e[6]),
+                                                      e[7])
+        return cls(float(p[0]), int(p[1]), int(p[2]), np.asarray(arrays["cdf"], np.float64), int(p[3]), error)
+
+
+SIDES = ("air", "solid")
+MEASURES = {"air": "share of a beam from the air that crosses the element and a plain parallel face of the solid",
+            "solid": "share of a beam from inside the solid that leaves through the element into the air"}
+
+
+def _error_dict(dev: float, se: float, side: str, theta: float, phi: float, probes: int, rays: int,
+                exact: float) -> dict:
+    return {"deviation": dev, "stderr": se, "side": side, "theta_deg": theta, "phi_deg": phi, "probes": probes,
+            "probe_rays": rays, "exact": exact, "measure": MEASURES[side]}
 
 
 def bin_of(w: np.ndarray, n_mu: int, n_phi: int) -> np.ndarray:
@@ -189,4 +224,77 @@ def tabulate(e: Microstructure, ior: float, *, n_mu: int = N_MU, n_phi: int = N_
     out, left = trace(s, ior, o, d, rng)
     b_out = bin_of(out, n_mu, n_phi)
     np.add.at(counts, (b_in[left], b_out[left]), 1.0)
-    return Table(float(ior), n_mu, n_phi, np.cumsum(counts / rays, axis=1), rays)
+    table = Table(float(ior), n_mu, n_phi, np.cumsum(counts / rays, axis=1), rays)
+    return Table(table.ior, n_mu, n_phi, table.cdf, rays, model_error(e, table, s=s, seed=seed + 1))
+
+
+PROBE_RAYS = 1000     # rays of each probe beam (`model_error`)
+
+
+def _plain_exit(mu: np.ndarray, ior: float) -> np.ndarray:
+    """Share of light inside a solid of index `ior` travelling at |cos θ| = mu to a plain face that leaves it into
+    the air (unpolarized Fresnel; 0 under total internal reflection)."""
+    r, _ = _fresnel(np.asarray(mu, float), np.full(np.shape(mu), float(ior)), np.ones(np.shape(mu)))
+    return 1.0 - r
+
+
+def model_error(e: Microstructure, table: Table, *, rays: int | None = None, seed: int = 1, s=None) -> dict:
+    """The table's deviation from the exact model (module docstring): probe beams from each arriving bin's
+    azimuth centre at its |cos θ| edges (1e-3 inside) and middle, both sides, `rays` each (default `PROBE_RAYS`),
+    traced exactly and set against the table's row. Answers, per side (``{"air": ..., "solid": ...}``), the worst
+    probe's ``deviation`` (table − exact, a share of the flux that meets the element) and its ``stderr`` (the exact
+    probe's and the table row's Monte Carlo errors combined), with where (``side``, ``theta_deg``, ``phi_deg``),
+    ``probes``, ``probe_rays``, the ``exact`` share there and what was measured (``measure``)."""
+    rays = PROBE_RAYS if rays is None else int(rays)
+    rng = np.random.default_rng(seed)
+    n_mu, n_phi, ior = table.n_mu, table.n_phi, table.ior
+    u0, v0, su, sv, lu, lv = _patch(e)
+    if s is None:
+        s = _scene(e, lu, lv, 10.0 * e.h + 1.0)
+    half = n_mu * n_phi
+    # what each leaving bin is worth on each side's measure: through a plain face, the mean over the bin's |cos θ|
+    # (its directions are drawn uniformly over the bin); into the air, 1
+    grid = (np.arange(400) + 0.5) / 400
+    exit_bin = np.array([_plain_exit((i + grid) / n_mu, ior).mean() for i in range(n_mu)])
+    worth = {"air": np.concatenate([np.zeros(half), np.repeat(exit_bin, n_phi)]),
+             "solid": np.concatenate([np.ones(half), np.zeros(half)])}
+    p = table.probabilities
+    probes = []
+    for side in SIDES:
+        for im in range(n_mu):
+            for m in (im / n_mu + 1e-3, (im + 0.5) / n_mu, (im + 1) / n_mu - 1e-3):
+                for ip in range(n_phi):
+                    probes.append((side, max(m, MU_MIN), (ip + 0.5) / n_phi * 2.0 * math.pi, im * n_phi + ip))
+    k = len(probes)
+    mu = np.repeat([x[1] for x in probes], rays)
+    phi = np.repeat([x[2] for x in probes], rays)
+    up = np.repeat([x[0] == "air" for x in probes], rays)
+    sn = np.sqrt(1.0 - mu * mu)
+    w = np.column_stack([sn * np.cos(phi), sn * np.sin(phi), np.where(up, mu, -mu)])   # where the light comes from
+    d = -w
+    top = (e.h if e.sign > 0 else 0.0) + 1e-4
+    bottom = -(e.h if e.sign < 0 else 0.0) - 1e-4
+    z = np.where(up, top, bottom)
+    o = np.column_stack([u0 + rng.random(len(d)) * su, v0 + rng.random(len(d)) * sv, np.zeros(len(d))]) + (
+        z / d[:, 2])[:, None] * d
+    w_out, left = trace(s, ior, o, d, rng)
+    value = np.where(w_out[:, 2] < 0.0, _plain_exit(np.abs(w_out[:, 2]), ior), 0.0)   # into the solid, then out of it
+    value = np.where(up, value, (w_out[:, 2] > 0.0).astype(float)) * left           # or out into the air
+    per = value.reshape(k, rays)
+    exact, exact_var = per.mean(axis=1), per.var(axis=1) / rays
+    dev = np.empty(k)
+    se = np.empty(k)
+    for j, (side, _, _, b) in enumerate(probes):
+        row = b + (half if side == "solid" else 0)
+        c = worth[side]
+        mean = float(p[row] @ c)
+        dev[j] = mean - exact[j]
+        se[j] = math.sqrt(max(0.0, float(p[row] @ (c * c)) - mean * mean) / table.rays + exact_var[j])
+    out: dict[str, dict] = {}
+    for name in SIDES:
+        idx = [i for i, x in enumerate(probes) if x[0] == name]
+        j = idx[int(np.argmax(np.abs(dev[idx])))]
+        _, m, f, _ = probes[j]
+        out[name] = _error_dict(float(dev[j]), float(se[j]), name, math.degrees(math.acos(m)), math.degrees(f),
+                                len(idx), rays, float(exact[j]))
+    return out
