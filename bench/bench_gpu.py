@@ -90,7 +90,8 @@ class Sizes:
 FULL = Sizes((1_000_000, 16_000_000), 5, (20_968, 302_822), (1000, 500), 21, 10, 0.01, 30.0, 1.0,
              1_000_000, 256_000_000, True)
 QUICK = replace(FULL, ray_counts=(1_000_000,), moves=11, max_seconds=20.0, rate_seconds=0.5)
-SMOKE = Sizes((64, 256), 5, (40, 600), (16, 8), 5, 2, 0.05, 5.0, 0.05, 2_000, 20_000, False)
+# the simulator runs each thread in Python: few rays and rounds (5 rounds of 256 made the smoke test 90 s, issue 49)
+SMOKE = Sizes((32, 128), 2, (40, 600), (16, 8), 3, 2, 0.05, 5.0, 0.05, 2_000, 20_000, False)
 
 
 _CACHE: tempfile.TemporaryDirectory | None = None

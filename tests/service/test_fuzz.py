@@ -43,9 +43,10 @@ _SCRATCH: dict[str, str] = {}
 
 
 def _scratch_scene() -> str:
-    """The scratch scene's id, made again if a fuzzed DELETE removed it."""
+    """The scratch scene's id, made again after a fuzzed DELETE of it (only that removes a scene: asking the
+    service before every case doubled the fuzz's time, issue 49)."""
     sid = _SCRATCH.get("scene")
-    if sid is not None and CLIENT.get(f"/scenes/{sid}").status_code == 200:
+    if sid is not None:
         return sid
     sid = CLIENT.post("/scenes", json={"name": "fuzz"}).json()["id"]
     v, f = grid_mesh(n=2, size=4.0)
@@ -67,4 +68,8 @@ def _scratch_scene() -> str:
 def test_no_input_gets_a_server_error_or_an_undocumented_status(case):
     if "scene_id" in (case.path_parameters or {}):
         case.path_parameters["scene_id"] = _scratch_scene()
-    case.call_and_validate(checks=[not_a_server_error, status_code_conformance])
+    try:
+        case.call_and_validate(checks=[not_a_server_error, status_code_conformance])
+    finally:
+        if case.method.upper() == "DELETE" and case.path == "/scenes/{scene_id}":
+            _SCRATCH.pop("scene", None)

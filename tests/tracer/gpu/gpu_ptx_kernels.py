@@ -20,7 +20,7 @@ import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from gpu_ptx_sweep import CC, stub_driver, sweep_report  # noqa: E402
+from gpu_ptx_sweep import CC, record_device_functions, stub_driver, sweep_report  # noqa: E402
 
 
 def batch_kernels():
@@ -78,12 +78,25 @@ def rays_report() -> dict:
 
 
 def main(parts: list[str]) -> None:
+    """The kernels first, recording the device functions each compiles, then the sweep of what no kernel compiled
+    (the report's ``in_kernel``: {function: the first kernel that compiled it})."""
     stub_driver()
-    make = {"sweep": sweep_report, "rays": rays_report, "batches": batches_report}
-    unknown = [p for p in parts if p not in make]
+    make = {"rays": rays_report, "batches": batches_report}
+    unknown = [p for p in parts if p not in (*make, "sweep")]
     if unknown or not parts:
-        raise SystemExit(f"usage: gpu_ptx_kernels.py PART [PART ...], PART one of {sorted(make)}; got {parts}")
-    print(json.dumps({part: make[part]() for part in parts}))
+        raise SystemExit(f"usage: gpu_ptx_kernels.py PART [PART ...], PART one of {sorted((*make, 'sweep'))}; got "
+                         f"{parts}")
+    global IN_KERNEL
+    IN_KERNEL = record_device_functions()
+    out: dict = {part: make[part]() for part in parts if part != "sweep"}
+    if "sweep" in parts:
+        out["sweep"] = sweep_report(in_kernel=IN_KERNEL)
+        out["in_kernel"] = {qual: by for qual, by in IN_KERNEL.items() if by and qual in out["sweep"]}
+    print(json.dumps(out))
+
+
+#: {module.function: the kernel whose PTX compiled it first ("" while that kernel compiles)}, from `main` on
+IN_KERNEL: dict[str, str] = {}
 
 
 def ptxas() -> str | None:
@@ -116,9 +129,15 @@ def assemble(ptx: str) -> dict:
 
 
 def compile_one(report, cuda, name, fn, sig):
+    """One kernel's entry in `report`; the device functions it compiled are its own in `IN_KERNEL` where its PTX
+    has an entry point, left to the sweep where it failed."""
+    before = {qual for qual, by in IN_KERNEL.items() if by}
     try:
         ptx, _ = cuda.compile_ptx(fn, sig, cc=CC)
         report[name] = "ok" if ".entry" in ptx else "no .entry in the PTX"
+        for qual in IN_KERNEL:
+            if qual not in before:
+                IN_KERNEL[qual] = name if report[name] == "ok" else ""
         report[name + "_ptx_bytes"] = len(ptx)
         report[name + "_local_stack"] = ".local" in ptx
         for k, v in assemble(ptx).items():

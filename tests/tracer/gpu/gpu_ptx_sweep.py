@@ -147,16 +147,39 @@ def device_functions(mods, only):
             yield qual, obj
 
 
-def sweep_report(only=()) -> dict:
+def record_device_functions() -> dict[str, str]:
+    """{module.function: ""} of every device function numba-cuda compiles from here on, as the callee of a kernel
+    (its ``compile_device``); the caller names the kernel in the values (`in_kernel`)."""
+    import numba.cuda.dispatcher as dispatcher
+
+    compiled: dict[str, str] = {}
+    compile_device = dispatcher.CUDADispatcher.compile_device
+
+    def recording(self, args, return_type=None):
+        f = self.py_func
+        compiled.setdefault(f"{f.__module__}.{f.__qualname__}", "")
+        return compile_device(self, args, return_type)
+
+    dispatcher.CUDADispatcher.compile_device = recording
+    return compiled
+
+
+def sweep_report(only=(), in_kernel=None) -> dict:
     """{module.function: "ok" | the error} for every device function of `MODULES` (those naming a substring of
-    `only`, where given); each one's seconds go to standard error."""
+    `only`, where given); each one's seconds go to standard error. `in_kernel`: {module.function: kernel} of those a
+    kernel already compiled to PTX with the argument types it gives them (`record_device_functions`): "ok" without
+    compiling them again alone (with made-up types), which was most of the sweep's minute (issue 49)."""
     from tracer.gpu import cuda
 
     numba_cuda = cuda()
     v, f = values()
     report = {}
+    in_kernel = in_kernel or {}
     for qual, fn in device_functions(MODULES, only):
         t = time.perf_counter()
+        if in_kernel.get(qual):
+            report[qual] = "ok"
+            continue
         try:
             sig = arg_types(qual, fn, v, f)
             numba_cuda.compile_ptx(fn.py_func, sig, device=True, cc=CC)
