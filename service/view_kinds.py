@@ -74,13 +74,28 @@ class Luminance:
         return _payload(result, sensor, live)
 
 
+#: the most bands of rows one image is traced in: each is a query of its own, so a low max_points with a tall camera
+#: (thousands of one-row bands) would hold a worker for minutes of per-query overhead
+MAX_CAMERA_BANDS = 64
+
+
 def camera_refusal(sensor: dict, limits: Any) -> str | None:
-    """Why this service cannot answer a camera (None: it can): more pixels than ``max_camera_pixels``, or a row wider
-    than ``max_points`` (a band is whole rows of at most ``max_points`` pixels). Said when the camera is made (422,
-    nothing stored) and by a simulate of one made before a limit was lowered (413)."""
+    """Why this service cannot answer a camera (None: it can): more pixels than ``max_camera_pixels``, a row wider
+    than ``max_points`` (a band is whole rows of at most ``max_points`` pixels), or more than `MAX_CAMERA_BANDS`
+    bands. Said when the camera is made (422, nothing stored) and by a simulate of one made before a limit was
+    lowered (413)."""
+    from tracer.sensors.camera import band_rows
+
     w, h = int(sensor["width"]), int(sensor["height"])
-    if w * h <= limits.max_camera_pixels and w <= limits.max_points:
-        return None
+    if w <= limits.max_points and w * h <= limits.max_camera_pixels:
+        bands = len(band_rows(w, h, limits.max_points))
+        if bands <= MAX_CAMERA_BANDS:
+            return None
+        rows = max(1, limits.max_points // w) * MAX_CAMERA_BANDS
+        return (f"a camera of {w} × {h} pixels would be traced in {bands} bands of whole rows (this service's "
+                f"max_points, {limits.max_points} pixels, holds {max(1, limits.max_points // w)} of its rows a band); "
+                f"at most {MAX_CAMERA_BANDS} bands make one image: ask for at most {rows} rows at this width, or "
+                f"fewer pixels per row, or raise max_points (LUMENLINK_MAX_POINTS)")
     most = min(limits.max_camera_pixels, limits.max_points * h)
     ratio = w / h
     side_h = max(1, int((most / ratio) ** 0.5))
@@ -104,10 +119,9 @@ class Camera:
     @staticmethod
     def check(sensor: dict, query: Any, limits: Any, live: Any) -> None:
         _refuse(sensor, query)
-        pixels = int(sensor["width"]) * int(sensor["height"])
-        if pixels > limits.max_camera_pixels or int(sensor["width"]) > limits.max_points:   # made before a lower limit
-            raise TooLarge(f"sensor {sensor.get('id')!r}: {camera_refusal(sensor, limits)}",
-                           limit=limits.max_camera_pixels)
+        refusal = camera_refusal(sensor, limits)
+        if refusal is not None:   # made before a limit was lowered
+            raise TooLarge(f"sensor {sensor.get('id')!r}: {refusal}", limit=limits.max_camera_pixels)
 
     @staticmethod
     def run(limits: Any, simulation: Any) -> Any:

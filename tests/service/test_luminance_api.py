@@ -273,6 +273,22 @@ def test_a_camera_larger_than_one_query_is_traced_in_bands_and_reads_rho_e_over_
     assert abs(np.corrcoef(z[0:10][both], z[10:20][both])[0, 1]) < 0.2
 
 
+def test_a_camera_of_more_bands_than_one_image_may_have_is_refused_when_made(tmp_path: Path) -> None:
+    """A low max_points and a tall camera would make thousands of one-row bands, each a query: more than
+    MAX_CAMERA_BANDS (64) is a 422 naming the rows that fit, nothing stored; 64 bands are made."""
+    from service.view_kinds import MAX_CAMERA_BANDS
+
+    with make_client(tmp_path / "bands", max_points=16, max_camera_pixels=10_000) as c:
+        sid = lit_floor(c, SIDE, RHO, {"type": "point", "position": LIGHT.tolist(), "intensity_cd": I_CD})
+        before = c.get(f"/scenes/{sid}/sensors").json()
+        tall = {**CAMERA, "width": 9, "height": MAX_CAMERA_BANDS + 1, "name": "tall"}   # one row (9 px) a band
+        refused = c.post(f"/scenes/{sid}/sensors", json=tall)
+        assert refused.status_code == 422, refused.text
+        assert f"{MAX_CAMERA_BANDS + 1} bands" in refused.text and f"at most {MAX_CAMERA_BANDS} rows" in refused.text
+        assert c.get(f"/scenes/{sid}/sensors").json() == before
+        assert c.post(f"/scenes/{sid}/sensors", json={**tall, "height": MAX_CAMERA_BANDS}).status_code in (200, 201)
+
+
 def test_a_640_by_480_camera_is_made_and_answered_by_default(client: Any, sid: str) -> None:
     """Issue 54, item 3: 307,200 pixels, three times the default max_points, refused before: made, traced in four
     bands of 120 rows, answered as one image (and its EXR) of 480 rows × 640 pixels."""
