@@ -14,6 +14,7 @@ failed push: the assignment stays, inactive, and says why (`problems`).
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import threading
 from pathlib import Path
@@ -108,16 +109,16 @@ class ElementLibrary:
             if key in self._tables:
                 return self._tables[key]
         path = self.directory / f"{eid}.bsdf-{float(ior)!r}.npz"
-        table = None
+        table, kept = None, False
         if path.exists():
             with np.load(path) as arrays:
                 table = Table.from_arrays(arrays)
-        if table is None or table.error is None:
-            if table is None:
-                table = tabulate(self.get(eid), float(ior))
-            else:
-                table = Table(table.ior, table.n_mu, table.n_phi, table.cdf, table.rays,
-                              model_error(self.get(eid), table))
+            kept = table.error is not None
+        if table is None:
+            table = tabulate(self.get(eid), float(ior))
+        elif not kept:   # kept before its error was measured
+            table = dataclasses.replace(table, error=model_error(self.get(eid), table))
+        if not kept:
             self.directory.mkdir(parents=True, exist_ok=True)
             tmp = self.directory / f".{eid}.bsdf.{os.getpid()}.{threading.get_ident()}.npz"
             saved: dict[str, Any] = table.arrays()
