@@ -24,11 +24,15 @@ def pytest_configure(config):
     """With pytest-xdist's workers (``make test``: ``-n 2``), the controller starts the service's warm-up children
     (`tracer.warmup.start_background`) before the workers start: they compile the query kernels into the session's
     numba cache in parallel, one per core, while the first test files run, and a worker whose test needs a kernel
-    meanwhile waits on its compile lock (`tracer.compile_locks`) and loads it, instead of compiling it as well."""
+    meanwhile waits on its compile lock (`tracer.compile_locks`) and loads it, instead of compiling it as well. What
+    they compiled is reported to tests/tracer/test_warmup.py (`tests.warmup_report`)."""
     if getattr(config.option, "numprocesses", None) and not hasattr(config, "workerinput"):
+        from tests.warmup_report import cache_is_empty, report_when_done
         from tracer.warmup import start_background
 
+        cold = cache_is_empty()
         config.stash[WARM_UP] = start_background()
+        report_when_done(config.stash[WARM_UP], cold)
 
 
 def pytest_unconfigure(config):
