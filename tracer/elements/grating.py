@@ -313,7 +313,8 @@ def _structure(canon: dict) -> Any:
         ridge = "substrate"
     else:
         n, k = canon["ridge"]["ior"]
-        st.AddMaterial(name="ridge", epsilon=complex(n, -k) ** 2 if k else n * n)   # n - ik: Im(eps) < 0
+        # the body's n - ik (exp(+i w t), optics' sign) is n + ik in inkstone's exp(-i w t): Im(eps) > 0 absorbs
+        st.AddMaterial(name="ridge", epsilon=complex(n, k) ** 2 if k else n * n)
         ridge = "ridge"
     st.AddLayer(name="in", thickness=0.0, material_background="ambient")
     nl, depth = canon["layers"], canon["depth_um"]
