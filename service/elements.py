@@ -10,6 +10,11 @@ An assignment (``POST /scenes/{id}/elements``: ``{"element", "node", "facing" | 
 the tree or of the assignments: the node's instance becomes the tracer's relief kind (`tracer.Scene.set_element`),
 keeping its instance id, transform and material. A support that a push made unusable (no longer planar, say) is no
 failed push: the assignment stays, inactive, and says why (`problems`).
+
+A grating (``{"type": "grating", ...}``, `tracer.elements.grating`, issue 52) is solved by RCWA when posted: its body
+is checked and its cost bounded first (a 422, nothing stored), then it is prepared in the request and kept like the
+others (its table as ``<id>.npz``, the same bytes for the same body). Its inner model in the tracer is not built yet,
+so an assignment of one onto a scene's face is a 422 that stores nothing.
 """
 
 from __future__ import annotations
@@ -45,6 +50,8 @@ class ElementLibrary:
         it is new (an element of the same body is answered as it is, prepared nothing)."""
         from tracer.elements import ElementError, prepare
 
+        if isinstance(body, dict) and body.get("type") == "grating":
+            return self._create_grating(body)
         try:
             model = prepare(body)
         except ElementError as exc:
@@ -66,6 +73,39 @@ class ElementLibrary:
             self._models[model.id] = model
         return s, True
 
+    def _create_grating(self, body: dict) -> tuple[dict[str, Any], bool]:
+        """A grating: checked and its cost bounded (422, nothing stored), answered as it is where the library holds
+        its body already (nothing solved), else solved (`tracer.elements.grating.prepare`, in this request) and
+        kept: its table's bytes as ``<id>.npz``, then its row."""
+        from tracer.elements import ElementError
+        from tracer.elements import grating
+
+        try:
+            canon = grating.check(body)
+            grating.affordable(canon)
+        except ElementError as exc:
+            raise Invalid(str(exc)) from None
+        eid = grating.element_id(canon)
+        known = self._row(eid)
+        if known is not None:
+            return _summary(known), False
+        try:
+            table = grating.prepare(canon)
+        except ElementError as exc:
+            raise Invalid(str(exc)) from None
+        self.directory.mkdir(parents=True, exist_ok=True)
+        tmp = self.directory / f".{eid}.{os.getpid()}.{threading.get_ident()}.npz"
+        tmp.write_bytes(table.to_bytes())
+        os.replace(tmp, self._file(eid))
+        s = table.summary()
+        with self.engine.begin() as conn:
+            if conn.execute(select(db.elements.c.id).where(db.elements.c.id == eid)).first() is None:
+                conn.execute(insert(db.elements).values(id=eid, body=table.body, features=None, bytes=s["bytes"],
+                                                        prepare_seconds=s["prepare_seconds"]))
+        with self._lock:
+            self._models[eid] = table
+        return s, True
+
     def _row(self, eid: str) -> Any:
         with self.engine.connect() as conn:
             return conn.execute(select(db.elements).where(db.elements.c.id == eid)).first()
@@ -83,16 +123,23 @@ class ElementLibrary:
                                                                                    db.elements.c.id))]
 
     def get(self, eid: str) -> Any:
-        """The prepared model (`tracer.elements.Microstructure`), from memory or its file: never prepared again."""
+        """The prepared model (`tracer.elements.Microstructure`, or a grating's `tracer.elements.grating.GratingTable`),
+        from memory or its file: never prepared again."""
         with self._lock:
             if eid in self._models:
                 return self._models[eid]
-        if self._row(eid) is None:
+        row = self._row(eid)
+        if row is None:
             raise NotFound(f"no element {eid} in the library (POST /elements first)")
         from tracer.elements import Microstructure
 
-        with np.load(self._file(eid)) as arrays:
-            model = Microstructure.from_arrays(arrays)
+        if _kind(row) == "grating":
+            from tracer.elements.grating import GratingTable
+
+            model: Any = GratingTable.from_bytes(self._file(eid).read_bytes(), float(row.prepare_seconds))
+        else:
+            with np.load(self._file(eid)) as arrays:
+                model = Microstructure.from_arrays(arrays)
         with self._lock:
             self._models[eid] = model
         return model
@@ -151,18 +198,37 @@ class ElementLibrary:
             return set(self._models)
 
 
+def _kind(row: Any) -> str:
+    """The element's type, from its stored body ('microstructure' or 'grating')."""
+    body = row.body if isinstance(row.body, dict) else {}
+    return str(body.get("type", "microstructure"))
+
+
 def _summary(row: Any) -> dict[str, Any]:
-    return {"id": row.id, "type": "microstructure", "features": row.features, "bytes": int(row.bytes),
-            "prepare_seconds": float(row.prepare_seconds)}
+    kind = _kind(row)
+    out = {"id": row.id, "type": kind, "features": row.features, "bytes": int(row.bytes),
+           "prepare_seconds": float(row.prepare_seconds)}
+    if kind == "grating":
+        from tracer.elements.grating import SOLVER
+
+        out["solver"] = SOLVER
+    return out
+
+
+GRATING_NOT_YET = ("is a grating: its inner model in the tracer (a ray leaving in one diffraction order, chosen by "
+                   "the order's efficiency) is not built yet (issue 52); it is kept in the library, but cannot go onto "
+                   "a scene's face yet")
 
 
 def check_assignment(body: dict, library: ElementLibrary, state: Any) -> None:
     """422 for an assignment the scene cannot take: an element the library lacks, a node that is missing or has
     no geometry of its own."""
     try:
-        library.summary(body["element"])
+        summary = library.summary(body["element"])
     except NotFound as exc:
         raise Invalid(f"element: {exc.detail}") from None
+    if summary["type"] == "grating":
+        raise Invalid(f"element: {body['element']} {GRATING_NOT_YET}")
     if not state.has_node(body["node"]):
         raise Invalid(f"node: no node {body['node']} in scene {state.id}", node=body["node"])
     if body["node"] not in state.instances:

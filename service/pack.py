@@ -36,7 +36,10 @@ def start(manager: Any, hub: Any, element_id: str, req: dict[str, Any]) -> tuple
     from tracer.elements.pack import PackError, check
 
     library = manager.scenes.elements
-    start_model = library.get(element_id)   # 404: no such element
+    if library.summary(element_id)["type"] == "grating":   # 404: no such element
+        raise Invalid(f"element {element_id} is a grating: packing places the features of a density layout "
+                      f"(a microstructure)")
+    start_model = library.get(element_id)
     try:
         check(start_model, req["target"], req["figure"], req["damping"], req["max_fill"], req.get("pitch_mm"))
     except ElementError as exc:

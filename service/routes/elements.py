@@ -37,6 +37,14 @@ ELEMENT_EXAMPLES = {
     "prism film": {"summary": "90-degree prisms 50 um wide", "value": {
         "type": "microstructure", "feature": {"shape": "prism", "base_mm": 0.05, "apex_deg": 90},
         "layout": {"type": "grid", "pitch_mm": [0.05, 0.05]}}},
+    "grating": {"summary": "a 1 um lamellar glass grating, solved by RCWA at 3 wavelengths and 3 angles", "value": {
+        "type": "grating", "profile": {"shape": "lamellar", "fill": 0.5}, "period_um": 1.0, "depth_um": 0.3,
+        "ridge": None, "substrate_ior": 1.5, "wavelengths_nm": [450, 650], "wavelength_count": 3,
+        "angles": {"polar_deg": [0, 20, 40], "azimuth_deg": [0]}, "orders": 6}},
+    "wire grid": {"summary": "aluminium lines, 140 nm period, on glass (a wire-grid polarizer)", "value": {
+        "type": "grating", "profile": {"shape": "lamellar", "fill": 0.5}, "period_um": 0.14, "depth_um": 0.15,
+        "ridge": {"ior": [0.958, 6.69]}, "substrate_ior": 1.5, "wavelengths_nm": [450, 650], "wavelength_count": 3,
+        "angles": {"polar_deg": [0, 30], "azimuth_deg": [0]}, "orders": 10}},
 }
 ElementId = Annotated[str, Path(pattern=ELEMENT_ID, description="a library element's id: 64 lowercase hex digits")]
 ASSIGN_EXAMPLES = {"floor": {"summary": "the dots onto the floor's upward faces", "value": {
@@ -45,11 +53,12 @@ ASSIGN_EXAMPLES = {"floor": {"summary": "the dots onto the floor's upward faces"
 
 class ElementSummary(BaseModel):
     id: str = Field(description="the element's id: SHA-256 of its checked body (the same body, the same id)")
-    type: str = Field("microstructure", description="the element's kind")
+    type: str = Field("microstructure", description="the element's kind: 'microstructure' or 'grating'")
     features: int | None = Field(description="features prepared; null for a periodic layout (grid, hex), which "
                                              "holds as many as its support and takes no memory per feature")
-    bytes: int = Field(description="memory of the prepared features")
+    bytes: int = Field(description="memory of the prepared features (a grating: of its table of orders)")
     prepare_seconds: float = Field(description="seconds its preparation took (once, when it was first posted)")
+    solver: str | None = Field(None, description="a grating: the wave solver that prepared its table (RCWA)")
 
 
 class ElementDetail(ElementSummary):
@@ -99,7 +108,9 @@ class ElementAssignment(BaseModel):
 @router.post("/elements", status_code=201, response_model=ElementSummary,
              responses={200: {"model": ElementSummary, "description": "the library already holds this body"}})
 def post_element(manager: Manager, response: Response, body: Annotated[dict[str, Any], Body(
-        description="an element body: {type: microstructure, feature, relief, material, layout} (DESIGN.md)",
+        description=("an element body: {type: microstructure, feature, relief, material, layout}, or {type: grating, "
+                     "profile, period_um, depth_um, ridge, wavelengths_nm, orders, ...} (DESIGN.md; a grating is "
+                     "solved by RCWA in the request, its cost bounded, and cannot go onto a scene's face yet)"),
         openapi_examples=ELEMENT_EXAMPLES)]) -> dict[str, Any]:
     summary, new = manager.scenes.elements.create(body)
     if not new:

@@ -285,7 +285,9 @@ def cost(canon: dict) -> float:
     return points * (SECONDS_PER_POINT + canon["layers"] * SECONDS_PER_LAYER_CUBE * (2 * harmonics(canon)) ** 3)
 
 
-def _affordable(canon: dict) -> None:
+def affordable(canon: dict) -> None:
+    """`ElementError` where preparing `canon` (checked) would cost more than `MAX_PREPARE_SECONDS` (`cost`), saying
+    what to reduce."""
     seconds = cost(canon)
     if seconds <= MAX_PREPARE_SECONDS:
         return
@@ -478,7 +480,7 @@ def prepare(body: Any, progress: Callable[[float], None] | None = None) -> Grati
     """
     t0 = time.perf_counter()
     canon = check(body)
-    _affordable(canon)
+    affordable(canon)
     wl = np.linspace(*canon["wavelengths_nm"], canon["wavelength_count"])
     polar = np.array(canon["angles"]["polar_deg"], float)
     azim = np.array(canon["angles"]["azimuth_deg"], float)
