@@ -91,11 +91,12 @@ MAX_AZIMUTHS = 73
 MAX_ORDERS_1D = 60
 MAX_ORDERS_2D = 8
 MAX_LAYERS = 64
-#: What one solve costs (seconds), measured with inkstone on the development machine (2 cores, busy, BLAS on one
-#: thread): a fixed part per table point and a part per layer growing as the cube of the matrix size (2 G, G the
-#: Fourier orders kept). Taken at twice the measured, as a slower machine's. `cost` uses them before any work.
-SECONDS_PER_POINT = 0.01
-SECONDS_PER_LAYER_CUBE = 2.0e-8
+#: What one table point costs (seconds, both polarizations), fitted to bench/grating_prepare.py on the development
+#: machine (2 cores, busy, BLAS on one thread): 22.5 ms a point at 21 Fourier orders, 50.9 ms at 41 (a lamellar,
+#: one layer), and 1.7 s for 50 layers at 41 (Li's sinusoid in the tests): a fixed part, and per layer the cube of
+#: the solve's matrix size (2 G, G the Fourier orders kept). `cost` uses them before any work.
+SECONDS_PER_POINT = 0.02
+SECONDS_PER_LAYER_CUBE = 6.0e-8
 #: The most one body may cost to prepare (seconds, by `cost`) and the most table entries it may keep.
 MAX_PREPARE_SECONDS = 300.0
 MAX_ENTRIES = 20_000_000
@@ -481,7 +482,8 @@ def prepare(body: Any, progress: Callable[[float], None] | None = None) -> Grati
     t0 = time.perf_counter()
     canon = check(body)
     affordable(canon)
-    wl = np.linspace(*canon["wavelengths_nm"], canon["wavelength_count"])
+    lo, hi = canon["wavelengths_nm"]
+    wl = np.linspace(float(lo), float(hi), int(canon["wavelength_count"]))
     polar = np.array(canon["angles"]["polar_deg"], float)
     azim = np.array(canon["angles"]["azimuth_deg"], float)
     two_d = canon["profile"]["shape"] in SHAPES_2D
@@ -590,9 +592,9 @@ def _solve_point(st: Any, lam_um: float, theta: float, phi: float, n_a: float, n
         s, p = _basis(kvec, phi)
         out = np.zeros((len(rows), 2, 2), complex)
         for e, (_, _, per) in enumerate(fields):
-            layer = per[side]
+            amp = per[side]
             r = np.maximum(rows, 0)
-            vec = np.stack([layer[c + comp][r] for c in (0, 2, 4)], axis=1)   # forward (0) or backward (1)
+            vec = np.stack([amp[c + comp][r] for c in (0, 2, 4)], axis=1)   # forward (0) or backward (1)
             out[:, 0, e] = (s * vec).sum(axis=1)
             out[:, 1, e] = (p * vec).sum(axis=1)
         # in our incident basis, scaled to power: flux along z of a plane wave ~ kz |E|^2 in a lossless medium
