@@ -77,8 +77,7 @@ class ElementLibrary:
         """A grating: checked and its cost bounded (422, nothing stored), answered as it is where the library holds
         its body already (nothing solved), else solved (`tracer.elements.grating.prepare`, in this request) and
         kept: its table's bytes as ``<id>.npz``, then its row."""
-        from tracer.elements import ElementError
-        from tracer.elements import grating
+        from tracer.elements import ElementError, grating
 
         try:
             canon = grating.check(body)

@@ -39,7 +39,7 @@ ELEMENT_EXAMPLES = {
         "layout": {"type": "grid", "pitch_mm": [0.05, 0.05]}}},
     "grating": {"summary": "a 1 um lamellar glass grating, solved by RCWA at 3 wavelengths and 3 angles", "value": {
         "type": "grating", "profile": {"shape": "lamellar", "fill": 0.5}, "period_um": 1.0, "depth_um": 0.3,
-        "ridge": None, "substrate_ior": 1.5, "wavelengths_nm": [450, 650], "wavelength_count": 3,
+        "substrate_ior": 1.5, "wavelengths_nm": [450, 650], "wavelength_count": 3,
         "angles": {"polar_deg": [0, 20, 40], "azimuth_deg": [0]}, "orders": 6}},
     "wire grid": {"summary": "aluminium lines, 140 nm period, on glass (a wire-grid polarizer)", "value": {
         "type": "grating", "profile": {"shape": "lamellar", "fill": 0.5}, "period_um": 0.14, "depth_um": 0.15,

@@ -499,13 +499,14 @@ def prepare(body: Any, progress: Callable[[float], None] | None = None) -> Grati
     eff = np.full((*shape, 2, 2, len(orders)), np.nan, np.float32)
     jones = np.full((*shape, 2, len(orders), 2, 2), np.nan + 0j, np.complex64)
     direction = np.full((*shape, 2, len(orders), 3), np.nan, np.float32)
-    st = _structure(canon)
     from threadpoolctl import threadpool_limits
 
     total = int(np.prod(shape))
     done = 0
     with threadpool_limits(limits=1, user_api="blas"), warnings.catch_warnings():
+        # inkstone 0.3.15 warns on numpy 2's 2-D cross products and on its own layer bookkeeping: not ours to act on
         warnings.simplefilter("ignore")
+        st = _structure(canon)
         for i, lam in enumerate(wl):
             for a, th in enumerate(polar):
                 for b, ph in enumerate(azim):

@@ -196,6 +196,7 @@ def test_the_same_body_gives_the_same_id_and_bytes_and_they_read_back() -> None:
     a = g.prepare(_body(layers=3))
     b = g.prepare({**_body(), "grooves_along": "v"})
     assert a.id == b.id and a.to_bytes() == b.to_bytes()   # lamellar: layers is 1 whatever asked
+    assert g.check(a.body) == a.body   # the canonical body checks to itself
     back = g.GratingTable.from_bytes(a.to_bytes())
     assert back.id == a.id and back.body == a.body
     for name in g.GratingTable.ARRAYS:
