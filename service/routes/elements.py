@@ -5,7 +5,8 @@ scene, and their assignment to a part's support faces.
 ``POST /scenes/{id}/elements`` puts one onto a node's triangles that face a direction (its frame), keeping the
 node's instance, transform and material; ``DELETE`` takes it off. Bad input is a 422 naming the field, with
 nothing changed: a pitch smaller than the feature, a fill outside [0, 1], an unknown element id, a support that
-is not planar.
+is not planar. A grating (``{"type": "grating"}``, DESIGN.md "Elements with a wave solution inside") is solved by RCWA
+in the request, its cost bounded first; it cannot be assigned to a face yet (its inner model is not built: a 422).
 """
 
 from __future__ import annotations

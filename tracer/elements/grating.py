@@ -433,18 +433,20 @@ class GratingTable:
         """Order `order` = (m, n) on `side` (0 reflected, 1 transmitted) at a wavelength (nm) and incidence
         (degrees, the grating's frame), interpolated linearly between the table's points. Outside the table's
         wavelengths or angles, for an order it does not hold, or one cut off at a surrounding table point, the
-        answer's `status` says so and its numbers are NaN: never a silent zero."""
+        answer's `status` says so and its numbers are NaN: never a silent zero. The table's angles are taken as they
+        are: folding a direction by the relief's symmetries (a 1-D mirror across the grating vector, a square
+        lattice's eight) onto them is the inner model's, not built yet."""
         nan = Lookup(OK, math.nan, math.nan, math.nan, np.full((2, 2), np.nan + 0j))
         k = self.order_index(*order)
         if k is None:
-            return dataclasses_replace(nan, NOT_KEPT)
+            return _with_status(nan, NOT_KEPT)
         axes = []
         for values, x, bad in ((self.wavelength_nm, wavelength_nm, WAVELENGTH_OUTSIDE),
                                (self.polar_deg, polar_deg, ANGLE_OUTSIDE), (self.azimuth_deg, azimuth_deg,
                                                                             ANGLE_OUTSIDE)):
             span = 1e-9 * max(1.0, abs(float(values[-1])))
             if not values[0] - span <= x <= values[-1] + span:
-                return dataclasses_replace(nan, bad)
+                return _with_status(nan, bad)
             i = int(np.clip(np.searchsorted(values, x) - 1, 0, max(len(values) - 2, 0)))
             if len(values) == 1:
                 axes.append([(0, 1.0)])
@@ -461,13 +463,13 @@ class GratingTable:
                         continue
                     e = self.efficiency[a, b, c, :, side, k]
                     if not np.isfinite(e).all():
-                        return dataclasses_replace(nan, CUT_OFF)
+                        return _with_status(nan, CUT_OFF)
                     eff += w * e
                     jones += w * self.jones[a, b, c, side, k]
         return Lookup(OK, float(eff[0]), float(eff[1]), float(eff.mean()), jones)
 
 
-def dataclasses_replace(x: Lookup, status: int) -> Lookup:
+def _with_status(x: Lookup, status: int) -> Lookup:
     return Lookup(status, x.efficiency_s, x.efficiency_p, x.unpolarized, x.jones)
 
 
