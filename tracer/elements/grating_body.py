@@ -1,0 +1,230 @@
+"""A grating element's body: checked, given its id, and its cost bounded before any work (`tracer.elements.grating`).
+
+The body's fields, units and defaults are in `tracer.elements.grating`'s docstring; here each is checked with a
+message that says what is wrong and what to give instead, and `cost` estimates the seconds a preparation takes, so
+that `affordable` refuses a body too costly for one request before anything is solved."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from typing import Any
+
+from tracer.elements.microstructure import ElementError
+
+SOLVER = "inkstone 0.3.15 (RCWA / Fourier modal method)"
+SHAPES_1D = ("lamellar", "sawtooth", "sinusoidal")
+SHAPES_2D = ("pillars", "holes", "moth_eye")
+MAX_WAVELENGTHS = 401
+MAX_ANGLES = 91
+MAX_AZIMUTHS = 73
+MAX_ORDERS_1D = 60
+MAX_ORDERS_2D = 8
+MAX_LAYERS = 64
+#: What one table point costs (seconds, both polarizations), fitted to bench/grating_prepare.py on the development
+#: machine (2 cores, busy, BLAS on one thread): 22.5 ms a point at 21 Fourier orders, 50.9 ms at 41 (a lamellar,
+#: one layer), and 1.7 s for 50 layers at 41 (Li's sinusoid in the tests): a fixed part, and per layer the cube of
+#: the solve's matrix size (2 G, G the Fourier orders kept). `cost` uses them before any work.
+SECONDS_PER_POINT = 0.02
+SECONDS_PER_LAYER_CUBE = 6.0e-8
+#: The most one body may cost to prepare (seconds, by `cost`) and the most table entries it may keep.
+MAX_PREPARE_SECONDS = 300.0
+MAX_ENTRIES = 20_000_000
+
+# lookup statuses
+OK, WAVELENGTH_OUTSIDE, ANGLE_OUTSIDE, CUT_OFF, NOT_KEPT = 0, 1, 2, 3, 4
+STATUS = {OK: "ok", WAVELENGTH_OUTSIDE: "wavelength outside the table", ANGLE_OUTSIDE: "angle outside the table",
+          CUT_OFF: "order does not propagate there", NOT_KEPT: "order not in the table"}
+
+
+def _fields(body: dict, where: str, required: set[str], optional: set[str]) -> None:
+    unknown = sorted(set(body) - required - optional)
+    if unknown:
+        raise ElementError(f"{where}: unknown field(s) {unknown}; known: {sorted(required | optional)}")
+    missing = sorted(required - set(body))
+    if missing:
+        raise ElementError(f"{where}: missing field(s) {missing}")
+
+
+def _number(x: Any, where: str, lo: float, hi: float, *, lo_open: bool = False) -> float:
+    if isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x):
+        raise ElementError(f"{where} must be a finite number, got {x!r}"[:300])
+    if (x <= lo if lo_open else x < lo) or x > hi:
+        raise ElementError(f"{where} must be in {'(' if lo_open else '['}{lo:g}, {hi:g}], got {x!r}")
+    return float(x)
+
+
+def _count(x: Any, where: str, lo: int, hi: int) -> int:
+    if isinstance(x, bool) or not isinstance(x, int) or not lo <= x <= hi:
+        raise ElementError(f"{where} must be an integer in [{lo}, {hi}], got {x!r}"[:300])
+    return int(x)
+
+
+def _ior(x: Any, where: str, *, lossless: bool = False) -> tuple[float, float]:
+    """(n, k) of an index given as n or [n, k] (n - ik: k >= 0 absorbs)."""
+    if isinstance(x, list | tuple):
+        if len(x) != 2:
+            raise ElementError(f"{where} must be n or [n, k] (a metal's n - ik), got {x!r}"[:300])
+        n, k = _number(x[0], f"{where}[0]", 0.01, 20.0), _number(x[1], f"{where}[1]", 0.0, 50.0)
+    else:
+        n, k = _number(x, where, 1.0, 20.0), 0.0
+    if lossless and k != 0.0:
+        raise ElementError(f"{where} must be lossless (k = 0): the table's orders leave through it")
+    return n, k
+
+
+def _angles(x: Any, where: str, lo: float, hi: float, most: int) -> list[float]:
+    if not isinstance(x, list | tuple) or not 1 <= len(x) <= most:
+        raise ElementError(f"{where} must be a list of 1 to {most} angles in degrees, got {x!r}"[:300])
+    out = [_number(a, f"{where}[{i}]", lo, hi) for i, a in enumerate(x)]
+    if any(b <= a for a, b in zip(out, out[1:], strict=False)):
+        raise ElementError(f"{where} must be strictly ascending, got {out}"[:300])
+    return out
+
+
+def check(body: Any) -> dict:
+    """The checked body with its defaults written out (canonical: the same grating, the same dict).
+
+    Raises
+    ------
+    ElementError
+        Naming the field, what is wrong and what to give instead.
+    """
+    if not isinstance(body, dict) or body.get("type") != "grating":
+        raise ElementError("a grating element is an object {'type': 'grating', ...}")
+    _fields(body, "element", {"type", "profile", "period_um", "wavelengths_nm"},
+            {"depth_um", "ridge", "substrate_ior", "ambient_ior", "grooves_along", "wavelength_count", "angles",
+             "orders", "layers"})
+    prof = body["profile"]
+    if not isinstance(prof, dict) or prof.get("shape") not in SHAPES_1D + SHAPES_2D:
+        got = prof.get("shape") if isinstance(prof, dict) else prof
+        raise ElementError(f"profile.shape {got!r} is unknown; known: {list(SHAPES_1D + SHAPES_2D)}"[:300])
+    shape = prof["shape"]
+    two_d = shape in SHAPES_2D
+    p = body["period_um"]
+    if two_d:
+        pair = p if isinstance(p, list | tuple) else [p, p]
+        if len(pair) != 2:
+            raise ElementError(f"period_um of a 2-D lattice is p (square) or [px, py] in um, got {p!r}"[:300])
+        period = [_number(pair[0], "period_um[0]", 0.0, 1000.0, lo_open=True),
+                  _number(pair[1], "period_um[1]", 0.0, 1000.0, lo_open=True)]
+    else:
+        if isinstance(p, list | tuple):
+            raise ElementError(f"period_um of a 1-D profile ({shape}) is one number in um (the grating vector's "
+                               f"period), got {p!r}; [px, py] is for pillars, holes, moth_eye"[:300])
+        period = [_number(p, "period_um", 0.0, 1000.0, lo_open=True)]
+    canon_prof: dict[str, Any] = {"shape": shape}
+    if shape in ("lamellar", "pillars", "holes", "moth_eye"):
+        _fields(prof, "profile", {"shape"}, {"fill"})
+        canon_prof["fill"] = _number(prof.get("fill", 0.5 if shape != "moth_eye" else 1.0), "profile.fill", 0.0,
+                                     1.0, lo_open=True)
+        if shape == "lamellar" and canon_prof["fill"] == 1.0:
+            raise ElementError("profile.fill 1 leaves no groove: a lamellar grating's fill is in (0, 1); a flat "
+                               "face needs no grating")
+    elif shape == "sawtooth":
+        _fields(prof, "profile", {"shape"}, {"blaze_deg"})
+    else:
+        _fields(prof, "profile", {"shape"}, set())
+    depth = body.get("depth_um")
+    if shape == "sawtooth":
+        blaze = prof.get("blaze_deg")
+        if blaze is None and depth is None:
+            raise ElementError("a sawtooth needs profile.blaze_deg or depth_um (depth = period tan(blaze))")
+        if blaze is not None:
+            b = _number(blaze, "profile.blaze_deg", 0.0, 80.0, lo_open=True)
+            from_blaze = period[0] * math.tan(math.radians(b))
+            if depth is not None:
+                d = _number(depth, "depth_um", 0.0, 100.0, lo_open=True)
+                if abs(d - from_blaze) > 1e-6 * from_blaze:
+                    raise ElementError(f"depth_um {d:g} disagrees with profile.blaze_deg {b:g}: a sawtooth of period "
+                                       f"{period[0]:g} um and that blaze is {from_blaze:.6g} um deep; give one of "
+                                       f"the two")
+            depth = from_blaze
+        canon_prof["blaze_deg"] = (float(prof["blaze_deg"]) if blaze is not None
+                                   else math.degrees(math.atan(_number(depth, "depth_um", 0.0, 100.0,
+                                                                       lo_open=True) / period[0])))
+    if depth is None:
+        raise ElementError("element: missing field(s) ['depth_um'] (the relief's depth in um)")
+    depth = _number(depth, "depth_um", 0.0, 100.0, lo_open=True)
+    ridge = body.get("ridge")
+    canon_ridge: dict | None = None
+    if ridge is not None:
+        if not isinstance(ridge, dict):
+            raise ElementError(f"ridge must be null (the substrate's material) or {{'ior': n | [n, k]}}, got "
+                               f"{ridge!r}"[:300])
+        _fields(ridge, "ridge", {"ior"}, set())
+        n, k = _ior(ridge["ior"], "ridge.ior")
+        canon_ridge = {"ior": [n, k]}
+    sub = _ior(body.get("substrate_ior", 1.5), "substrate_ior", lossless=True)[0]
+    amb = _ior(body.get("ambient_ior", 1.0), "ambient_ior", lossless=True)[0]
+    grooves = body.get("grooves_along", "v")
+    if grooves not in ("u", "v"):
+        raise ElementError(f"grooves_along must be 'u' or 'v' (the ridges' direction on the face), got {grooves!r}"
+                           [:300])
+    wl = body["wavelengths_nm"]
+    if not isinstance(wl, list | tuple) or len(wl) != 2:
+        raise ElementError(f"wavelengths_nm must be [lo, hi] in nm, got {wl!r}"[:300])
+    lo, hi = _number(wl[0], "wavelengths_nm[0]", 200.0, 5000.0), _number(wl[1], "wavelengths_nm[1]", 200.0, 5000.0)
+    if hi < lo:
+        raise ElementError(f"wavelengths_nm [{lo:g}, {hi:g}] must be ascending: [lo, hi]")
+    count = _count(body.get("wavelength_count", 1 if lo == hi else 9), "wavelength_count", 1, MAX_WAVELENGTHS)
+    if lo == hi and count != 1:
+        raise ElementError(f"wavelength_count {count} over one wavelength ({lo:g} nm): give 1 or widen "
+                           f"wavelengths_nm")
+    if lo < hi and count < 2:
+        raise ElementError(f"wavelength_count 1 over [{lo:g}, {hi:g}] nm: give at least 2, or one wavelength "
+                           f"[{lo:g}, {lo:g}]")
+    angles = body.get("angles", {})
+    if not isinstance(angles, dict):
+        raise ElementError(f"angles must be {{'polar_deg': [...], 'azimuth_deg': [...]}}, got {angles!r}"[:300])
+    _fields(angles, "angles", set(), {"polar_deg", "azimuth_deg"})
+    polar = _angles(angles.get("polar_deg", [10.0 * i for i in range(9)]), "angles.polar_deg", 0.0, 89.0,
+                    MAX_ANGLES)
+    azimuth = _angles(angles.get("azimuth_deg", [0.0, 45.0] if two_d else [0.0, 180.0]), "angles.azimuth_deg",
+                      0.0, 360.0, MAX_AZIMUTHS)
+    orders = _count(body.get("orders", 3 if two_d else 10), "orders", 1, MAX_ORDERS_2D if two_d else MAX_ORDERS_1D)
+    layers = _count(body.get("layers", 16), "layers", 1, MAX_LAYERS)
+    if shape in ("lamellar", "pillars", "holes"):
+        layers = 1
+    canon = {"type": "grating", "profile": canon_prof, "period_um": period if two_d else period[0],
+             "depth_um": depth, "ridge": canon_ridge, "substrate_ior": sub, "ambient_ior": amb,
+             "wavelengths_nm": [lo, hi], "wavelength_count": count,
+             "angles": {"polar_deg": polar, "azimuth_deg": azimuth}, "orders": orders, "layers": layers}
+    if not two_d:
+        canon["grooves_along"] = grooves
+    elif "grooves_along" in body:
+        raise ElementError(f"grooves_along is for 1-D profiles; a 2-D lattice ({shape}) has its periods along u "
+                           f"and v")
+    return canon
+
+
+def element_id(canon: dict) -> str:
+    """SHA-256 of the checked body's canonical JSON: the same body, the same id."""
+    return hashlib.sha256(json.dumps(canon, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+
+def harmonics(canon: dict) -> int:
+    """G, the Fourier orders (plane waves) the solve keeps: 2 orders + 1 in 1-D, its square in 2-D."""
+    g = 2 * canon["orders"] + 1
+    return g * g if canon["profile"]["shape"] in SHAPES_2D else g
+
+
+def cost(canon: dict) -> float:
+    """Seconds preparing `canon` (a checked body) takes, estimated before any work: per table point, a fixed part
+    and, per layer, the cube of the solve's matrix size (2 G)."""
+    points = canon["wavelength_count"] * len(canon["angles"]["polar_deg"]) * len(canon["angles"]["azimuth_deg"])
+    return points * (SECONDS_PER_POINT + canon["layers"] * SECONDS_PER_LAYER_CUBE * (2 * harmonics(canon)) ** 3)
+
+
+def affordable(canon: dict) -> None:
+    """`ElementError` where preparing `canon` (checked) would cost more than `MAX_PREPARE_SECONDS` (`cost`), saying
+    what to reduce."""
+    seconds = cost(canon)
+    if seconds <= MAX_PREPARE_SECONDS:
+        return
+    points = canon["wavelength_count"] * len(canon["angles"]["polar_deg"]) * len(canon["angles"]["azimuth_deg"])
+    raise ElementError(
+        f"this grating would take about {seconds:,.0f} s to prepare ({points} table points of {canon['layers']} "
+        f"layer(s) and {harmonics(canon)} Fourier orders); one request prepares at most {MAX_PREPARE_SECONDS:g} s: "
+        f"give fewer wavelength_count or angles, fewer layers, or a smaller orders")
