@@ -139,7 +139,8 @@ def forward_callees() -> list[tuple[Any, tuple]]:
 
 
 #: the stages whose compile `compiling` makes one process's at a time (the optics are shared kernel by kernel
-#: instead, each child from its own end of the list; the scene's builders are each process's own push)
+#: instead, each child from its own end of the list; the scene's builders take their own lock in a process's first
+#: `tracer.Scene`, the ``scene`` stage's included)
 LOCKED_STAGES = ("probe", "forward", "backward")
 
 
