@@ -11,7 +11,7 @@ import json
 import math
 from typing import Any
 
-from tracer.elements.microstructure import ElementError
+from tracer.elements.microstructure import ElementError, check_fields
 
 SOLVER = "inkstone 0.3.15 (RCWA / Fourier modal method)"
 SHAPES_1D = ("lamellar", "sawtooth", "sinusoidal")
@@ -36,15 +36,6 @@ MAX_ENTRIES = 20_000_000
 OK, WAVELENGTH_OUTSIDE, ANGLE_OUTSIDE, CUT_OFF, NOT_KEPT = 0, 1, 2, 3, 4
 STATUS = {OK: "ok", WAVELENGTH_OUTSIDE: "wavelength outside the table", ANGLE_OUTSIDE: "angle outside the table",
           CUT_OFF: "order does not propagate there", NOT_KEPT: "order not in the table"}
-
-
-def _fields(body: dict, where: str, required: set[str], optional: set[str]) -> None:
-    unknown = sorted(set(body) - required - optional)
-    if unknown:
-        raise ElementError(f"{where}: unknown field(s) {unknown}; known: {sorted(required | optional)}")
-    missing = sorted(required - set(body))
-    if missing:
-        raise ElementError(f"{where}: missing field(s) {missing}")
 
 
 def _number(x: Any, where: str, lo: float, hi: float, *, lo_open: bool = False) -> float:
@@ -93,7 +84,7 @@ def check(body: Any) -> dict:
     """
     if not isinstance(body, dict) or body.get("type") != "grating":
         raise ElementError("a grating element is an object {'type': 'grating', ...}")
-    _fields(body, "element", {"type", "profile", "period_um", "wavelengths_nm"},
+    check_fields(body, "element", {"type", "profile", "period_um", "wavelengths_nm"},
             {"depth_um", "ridge", "substrate_ior", "ambient_ior", "grooves_along", "wavelength_count", "angles",
              "orders", "layers"})
     prof = body["profile"]
@@ -116,16 +107,16 @@ def check(body: Any) -> dict:
         period = [_number(p, "period_um", 0.0, 1000.0, lo_open=True)]
     canon_prof: dict[str, Any] = {"shape": shape}
     if shape in ("lamellar", "pillars", "holes", "moth_eye"):
-        _fields(prof, "profile", {"shape"}, {"fill"})
+        check_fields(prof, "profile", {"shape"}, {"fill"})
         canon_prof["fill"] = _number(prof.get("fill", 0.5 if shape != "moth_eye" else 1.0), "profile.fill", 0.0,
                                      1.0, lo_open=True)
         if shape == "lamellar" and canon_prof["fill"] == 1.0:
             raise ElementError("profile.fill 1 leaves no groove: a lamellar grating's fill is in (0, 1); a flat "
                                "face needs no grating")
     elif shape == "sawtooth":
-        _fields(prof, "profile", {"shape"}, {"blaze_deg"})
+        check_fields(prof, "profile", {"shape"}, {"blaze_deg"})
     else:
-        _fields(prof, "profile", {"shape"}, set())
+        check_fields(prof, "profile", {"shape"}, set())
     depth = body.get("depth_um")
     if shape == "sawtooth":
         blaze = prof.get("blaze_deg")
@@ -153,7 +144,7 @@ def check(body: Any) -> dict:
         if not isinstance(ridge, dict):
             raise ElementError(f"ridge must be null (the substrate's material) or {{'ior': n | [n, k]}}, got "
                                f"{ridge!r}"[:300])
-        _fields(ridge, "ridge", {"ior"}, set())
+        check_fields(ridge, "ridge", {"ior"}, set())
         n, k = _ior(ridge["ior"], "ridge.ior")
         canon_ridge = {"ior": [n, k]}
     sub = _ior(body.get("substrate_ior", 1.5), "substrate_ior", lossless=True)[0]
@@ -178,7 +169,7 @@ def check(body: Any) -> dict:
     angles = body.get("angles", {})
     if not isinstance(angles, dict):
         raise ElementError(f"angles must be {{'polar_deg': [...], 'azimuth_deg': [...]}}, got {angles!r}"[:300])
-    _fields(angles, "angles", set(), {"polar_deg", "azimuth_deg"})
+    check_fields(angles, "angles", set(), {"polar_deg", "azimuth_deg"})
     polar = _angles(angles.get("polar_deg", [10.0 * i for i in range(9)]), "angles.polar_deg", 0.0, 89.0,
                     MAX_ANGLES)
     azimuth = _angles(angles.get("azimuth_deg", [0.0, 45.0] if two_d else [0.0, 180.0]), "angles.azimuth_deg",

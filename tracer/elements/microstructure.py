@@ -175,7 +175,9 @@ def _pair(x: Any, where: str, **bounds: Any) -> tuple[float, float]:
     return _number(x[0], f"{where}[0]", **bounds), _number(x[1], f"{where}[1]", **bounds)
 
 
-def _fields(body: dict, where: str, required: set[str], optional: set[str]) -> None:
+def check_fields(body: dict, where: str, required: set[str], optional: set[str]) -> None:
+    """An element body's keys (this module's and `tracer.elements.grating_body`'s): a clear error for an unknown or
+    a missing one."""
     unknown = sorted(set(body) - required - optional)
     if unknown:
         raise ElementError(f"{where}: unknown field(s) {unknown}; known: {sorted(required | optional)}")
@@ -192,7 +194,7 @@ def _feature(f: Any) -> tuple[dict, int, float, float, float]:
     if shape not in SHAPES:
         raise ElementError(f"feature.shape {shape!r} is unknown; known: {sorted(SHAPES)}")
     if shape == "dome":
-        _fields(f, "feature", {"shape", "radius_mm", "height_mm"}, set())
+        check_fields(f, "feature", {"shape", "radius_mm", "height_mm"}, set())
         a = _number(f["radius_mm"], "feature.radius_mm")
         h = _number(f["height_mm"], "feature.height_mm")
         if h > a:
@@ -200,16 +202,16 @@ def _feature(f: Any) -> tuple[dict, int, float, float, float]:
                                f"cap no taller than a hemisphere")
         return {"shape": shape, "radius_mm": a, "height_mm": h}, fx.DOME, a, h, (a * a + h * h) / (2.0 * h)
     if shape == "pyramid":
-        _fields(f, "feature", {"shape", "base_mm", "height_mm"}, set())
+        check_fields(f, "feature", {"shape", "base_mm", "height_mm"}, set())
         b = _number(f["base_mm"], "feature.base_mm")
         h = _number(f["height_mm"], "feature.height_mm")
         return {"shape": shape, "base_mm": b, "height_mm": h}, fx.PYRAMID, b / 2.0, h, 0.0
     if shape == "corner_cube":
-        _fields(f, "feature", {"shape", "side_mm"}, set())
+        check_fields(f, "feature", {"shape", "side_mm"}, set())
         side = _number(f["side_mm"], "feature.side_mm")
         return ({"shape": shape, "side_mm": side}, fx.CORNER, side / math.sqrt(3.0), side / math.sqrt(6.0),
                 side / (2.0 * math.sqrt(3.0)))
-    _fields(f, "feature", {"shape", "base_mm", "apex_deg"}, set())
+    check_fields(f, "feature", {"shape", "base_mm", "apex_deg"}, set())
     b = _number(f["base_mm"], "feature.base_mm")
     apex = _number(f["apex_deg"], "feature.apex_deg", hi=179.0)
     if apex < 1.0:
@@ -232,7 +234,7 @@ def prepare(body: Any) -> Microstructure:
         raise ElementError(f"an element is an object {{'type': 'microstructure', ...}}, got {type(body).__name__}")
     if body.get("type") != "microstructure":
         raise ElementError(f"element type {body.get('type')!r} is unknown; known: ['microstructure']")
-    _fields(body, "element", {"type", "feature", "layout"}, {"relief", "material"})
+    check_fields(body, "element", {"type", "feature", "layout"}, {"relief", "material"})
     material, mat, rho = _material(body.get("material"))
     relief = body.get("relief", "bump")
     if relief not in ("bump", "pit"):
@@ -254,7 +256,7 @@ def prepare(body: Any) -> Microstructure:
     if lay == fx.GRID:
         return _grid(layout, common, args, t0)
     if lay == fx.HEX:
-        _fields(layout, "layout", {"type", "pitch_mm"}, set())
+        check_fields(layout, "layout", {"type", "pitch_mm"}, set())
         p = _pitch(layout["pitch_mm"], "layout.pitch_mm", a)
         canon = {**common, "layout": {"type": "hex", "pitch_mm": p}}
         return _model(canon, args, fx.HEX, (p, p * math.sqrt(3.0) / 2.0), t0)
@@ -272,9 +274,9 @@ def _material(m: Any) -> tuple[dict | None, int, float]:
         raise ElementError(f"material.type {got!r} is not a feature material; known: {list(FEATURE_MATERIALS)} (or "
                            f"null: the part's own material)"[:300])
     if m["type"] == "black":
-        _fields(m, "material", {"type"}, set())
+        check_fields(m, "material", {"type"}, set())
         return {"type": "black"}, fx.MAT_BLACK, 0.0
-    _fields(m, "material", {"type", "reflectance"}, set())
+    check_fields(m, "material", {"type", "reflectance"}, set())
     rho = _number(m["reflectance"], "material.reflectance", lo_open=False, hi=1.0)
     return {"type": "lambertian", "reflectance": rho}, fx.MAT_LAMBERTIAN, rho
 
@@ -295,7 +297,7 @@ def _model(canon: dict, args: tuple, layout: int, cell: tuple[float, float], t0:
 
 
 def _grid(layout: dict, common: dict, args: tuple, t0: float) -> Microstructure:
-    _fields(layout, "layout", {"type", "pitch_mm"}, set())
+    check_fields(layout, "layout", {"type", "pitch_mm"}, set())
     shape, a = args[0], args[1]
     pitch = layout["pitch_mm"]
     if shape == fx.PRISM and not isinstance(pitch, list | tuple):
@@ -308,7 +310,7 @@ def _grid(layout: dict, common: dict, args: tuple, t0: float) -> Microstructure:
 
 
 def _density(layout: dict, common: dict, args: tuple, t0: float) -> Microstructure:
-    _fields(layout, "layout", {"type", "origin_mm", "size_mm", "fill"}, {"seed", "pitch_mm"})
+    check_fields(layout, "layout", {"type", "origin_mm", "size_mm", "fill"}, {"seed", "pitch_mm"})
     a = args[1]
     u0, v0 = _pair(layout["origin_mm"], "layout.origin_mm", lo=-math.inf)
     su, sv = _pair(layout["size_mm"], "layout.size_mm")
@@ -404,7 +406,7 @@ def _points(layout: dict, common: dict, args: tuple, t0: float) -> Microstructur
     """Listed centres, checked for overlaps (a k-d tree: pairs closer than a feature's width) and binned by a grid of
     about one point per cell (a counting sort: `bins` starts, `items` ids), all in numpy: 12 bytes per point and
     4 per cell. The body keeps the list as given (no copy)."""
-    _fields(layout, "layout", {"type", "uv_mm"}, set())
+    check_fields(layout, "layout", {"type", "uv_mm"}, set())
     shape, a = args[0], args[1]
     uv = _uv_array(layout["uv_mm"])
     if len(uv) > MAX_POINTS:
