@@ -35,14 +35,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from emission import emit
 
 from tests.tracer.transport_scenes import mesh_area, quad, scene_of
 from tracer.jit import njit
-from tracer.optics.lights import LightError, connectable, light_connect, pack_lights, sample_emission
+from tracer.optics.lights import LightError, connectable, light_connect, pack_lights
 from tracer.optics.lights import dispatch as lights_dispatch
 from tracer.optics.lights.base import P_AXIS, P_FLUX, P_POS, SHADOW_SHORTEN
 from tracer.photometry.files import parse_photometry
-from tracer.rng import path_key, uniform
 
 FIX = Path(__file__).resolve().parents[2] / "fixtures" / "photometry"
 K = 4.0   # tolerance: K standard errors of the estimate
@@ -196,9 +196,7 @@ def test_spot_emission_stays_in_the_cone_and_puts_the_flux_where_the_profile_doe
     axis = np.array([0.3, -0.2, -1.0]) / np.linalg.norm([0.3, -0.2, -1.0])
     L = pack_lights([{"type": "spot", "position": [1, 2, 3], "direction": list(axis), "cone_deg": cone,
                       "falloff_deg": fall, "intensity_cd": i0}])
-    rng = np.random.default_rng(3)
-    L = lights_dispatch.bind(L)
-    out = np.array([sample_emission(L, 0, *rng.random(5)) for _ in range(40_000)])
+    out = emit(L, n=40_000, seed=3)
     np.testing.assert_array_equal(out[:, 0:3], np.tile([1.0, 2.0, 3.0], (len(out), 1)))
     d, f = out[:, 3:6], out[:, 6]
     np.testing.assert_allclose(np.linalg.norm(d, axis=1), 1.0, rtol=0, atol=1e-12)
@@ -245,23 +243,6 @@ def _emission_cases():
     for module in lights_dispatch.KINDS:   # a kind without a body in BODIES fails, by name
         for k, body in enumerate([BODIES.get(module.NAME, {"type": module.NAME}), *VARIANTS.get(module.NAME, [])]):
             yield pytest.param(body, id=f"{module.NAME}-{k}")
-
-
-@njit(cache=True)
-def _emit(L, j, n, seed, out):
-    """n photons of light j as the transport draws them (u0 … u4 = dimensions 1 … 5 of its own stream)."""
-    for i in range(n):
-        key = path_key(seed, 2, i)
-        ox, oy, oz, dx, dy, dz, f, on_surface, nx, ny, nz = sample_emission(
-            L, j, uniform(key, 1), uniform(key, 2), uniform(key, 3), uniform(key, 4), uniform(key, 5))
-        out[i, 0], out[i, 1], out[i, 2], out[i, 3], out[i, 4], out[i, 5] = ox, oy, oz, dx, dy, dz
-        out[i, 6], out[i, 7], out[i, 8], out[i, 9], out[i, 10] = f, on_surface, nx, ny, nz
-
-
-def emit(L, n=200_000, seed=9):
-    out = np.zeros((n, 11))
-    _emit(lights_dispatch.bind(L), 0, n, seed, out)
-    return out
 
 
 def stated_flux(body, mesh):

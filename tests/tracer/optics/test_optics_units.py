@@ -7,11 +7,11 @@ import math
 
 import numpy as np
 import pytest
+from emission import emit
 
 from tracer.effects import EffectError, derive_effects, photon_state, with_forced
 from tracer.optics.frames import sample_cosine
-from tracer.optics.lights import LightError, pack_lights, sample_emission, spot_solid_angle
-from tracer.optics.lights.dispatch import bind
+from tracer.optics.lights import LightError, pack_lights, spot_solid_angle
 from tracer.optics.media.homogeneous import hg_phase, hg_sample_cos, hg_scatter, sample_free_flight, transmittance
 from tracer.optics.surfaces.base import MaterialError, reflect
 from tracer.optics.surfaces.dielectric import fresnel_dielectric, refract
@@ -224,8 +224,7 @@ def test_spot_flux_and_emission_weights_are_unbiased():
     prof = np.clip((x - co) / (ci - co), 0, 1)
     prof = prof * prof * (3 - 2 * prof)
     assert lights.flux_total[0] == pytest.approx(2 * math.pi * 100.0 * float((w * prof).sum()), rel=1e-6)
-    rng = np.random.default_rng(2)
-    f = np.array([sample_emission(bind(lights), 0, *rng.random(5))[6] for _ in range(40000)])
+    f = emit(lights, n=40_000, seed=2)[:, 6]
     assert f.mean() == pytest.approx(1.0, abs=4 * f.std() / 200 + 1e-12)
     assert pack_lights([dict(body, intensity_cd=None, flux_lm=500.0)]).flux_total[0] == pytest.approx(500.0)
 
@@ -235,8 +234,7 @@ def test_goniometric_emission_reproduces_the_table(tmp_path):
     text = (Path(__file__).resolve().parents[2] / "fixtures" / "photometry" / "rab_bayled78_4.ies").read_text()
     lights = pack_lights([{"type": "goniometric", "position": [0, 0, 3], "format": "ies", "data": text}])
     assert lights.flux_total[0] == pytest.approx(5820.155, rel=1e-5)
-    rng = np.random.default_rng(4)
-    samples = np.array([sample_emission(bind(lights), 0, *rng.random(5)) for _ in range(60000)])
+    samples = emit(lights, n=60_000, seed=4)
     f = samples[:, 6]
     assert f.mean() == pytest.approx(1.0, abs=4 * f.std() / math.sqrt(len(f)))
     # flux into the cone γ < 30° (downward, -z) against the table's exact integral
