@@ -121,6 +121,8 @@ def test_an_element_outlives_a_restart_loaded_from_the_library_not_prepared_agai
     ({**DOTS, "layout": {"type": "grid", "pitch_mm": [0.5, 1.0]}}, "smaller than the feature"),
     ({**DOTS, "layout": {"type": "density", "origin_mm": [0, 0], "size_mm": [10, 10], "fill": [[0.2, -0.1]]}},
      "outside [0, 1]"),
+    ({**DOTS, "layout": {"type": "density", "origin_mm": [0, 0], "size_mm": [10, 10], "fill": [[0.2]],
+                         "placement": "poisson"}}, "layout.placement must be one of ['blue_noise', 'random']"),
     ({**DOTS, "feature": {"shape": "dome", "radius_mm": 0.3}}, "missing field(s) ['height_mm']"),
     ([1, 2], "body: Input should be a valid dictionary"),
     ({**DOTS, "feature": {"shape": "corner_cube", "side_mm": -1}}, "feature.side_mm must be > 0"),

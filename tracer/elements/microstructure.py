@@ -14,8 +14,10 @@ The body (DESIGN.md "Optical elements with an inside"; lengths in mm, on the sup
                | {"type": "lambertian", "reflectance": r} | {"type": "black"},   (their own surface: a printed dot)
      "layout": {"type": "grid", "pitch_mm": [pu, pv]} | {"type": "hex", "pitch_mm": p}         (domes)
              | {"type": "density", "origin_mm": [u0, v0], "size_mm": [su, sv], "fill": [[...], ...], "seed": 1,
-                "pitch_mm": p}        (a lattice of pitch p, default the feature's base; each site kept with the
-                                       probability of its map cell's fill, rows along v from v0, columns along u)
+                "pitch_mm": p,        (a lattice of pitch p, default the feature's base, keeping its map cell's fill
+                                       of its sites, rows along v from v0, columns along u)
+                "placement": "blue_noise" | "random"}   (which sites: by error diffusion, the default, or each site
+                                       alone with probability fill; `tracer.elements.placement`)
              | {"type": "points", "uv_mm": [[u, v], ...]}}
 
 `prepare` checks it (`ElementError` naming the field and what to do) and packs what the inner tracer
@@ -37,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from tracer.elements import features as fx
+from tracer.elements.placement import PLACEMENTS, diffuse
 from tracer.errors import TracerError
 
 SHAPES = {"dome": fx.DOME, "pyramid": fx.PYRAMID, "prism": fx.PRISM, "corner_cube": fx.CORNER}
@@ -44,11 +47,13 @@ FEATURE_MATERIALS = ("lambertian", "black")
 LAYOUTS = {"grid": fx.GRID, "hex": fx.HEX, "density": fx.DENSITY, "points": fx.POINTS}
 MAX_SITES = 4_000_000_000     # a density lattice's sites (one bit each: 500 MB)
 #: What preparing a density lattice costs, per site: its kept bit (1/8 byte, packed a band at a time, so no byte per
-#: site is ever held: tracemalloc's peak 0.18 B/site over 4e8 sites, 1.17 before), and the rate of drawing and
-#: comparing one random number (measured 8.7e7 to 1.1e8 sites/s over 1e8 and 4e8 sites on the development machine,
-#: busy; taken at half, as a slower machine's).
+#: site is ever held: tracemalloc's peak 0.18 B/site over 4e8 sites, 1.17 before), and the rate per placement:
+#: drawing and comparing one random number (measured 8.7e7 to 1.1e8 sites/s over 1e8 and 4e8 sites on the development
+#: machine, busy), diffusing the error (7.7e7 sites/s over 1.6e7 sites); each taken at half, as a slower machine's.
+#: Blue noise also holds 8 bytes per site of one row (`placement`).
 SITE_BYTES = 0.125
-SITES_PER_SECOND = 5.0e7
+SITES_PER_SECOND = {"random": 5.0e7, "blue_noise": 3.8e7}
+ROW_SITE_BYTES = {"random": 0, "blue_noise": 8}
 BAND_BYTES = 64 << 20         # a band's temporaries: BAND_SITE_BYTES per site (indices, random numbers, fills, flags)
 BAND_SITE_BYTES = 49
 #: The most one request may cost to prepare: memory of the kept bits (and the band's temporaries beside them) and
@@ -310,7 +315,7 @@ def _grid(layout: dict, common: dict, args: tuple, t0: float) -> Microstructure:
 
 
 def _density(layout: dict, common: dict, args: tuple, t0: float) -> Microstructure:
-    check_fields(layout, "layout", {"type", "origin_mm", "size_mm", "fill"}, {"seed", "pitch_mm"})
+    check_fields(layout, "layout", {"type", "origin_mm", "size_mm", "fill"}, {"seed", "pitch_mm", "placement"})
     a = args[1]
     u0, v0 = _pair(layout["origin_mm"], "layout.origin_mm", lo=-math.inf)
     su, sv = _pair(layout["size_mm"], "layout.size_mm")
@@ -318,11 +323,23 @@ def _density(layout: dict, common: dict, args: tuple, t0: float) -> Microstructu
     seed = layout.get("seed", 1)
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2 ** 63:
         raise ElementError(f"layout.seed must be an integer >= 0, got {seed!r}"[:300])
+    placement = layout.get("placement", "blue_noise")
+    if placement not in PLACEMENTS:
+        raise ElementError(f"layout.placement must be one of {list(PLACEMENTS)} (blue_noise: error diffusion, the "
+                           f"default; random: each site alone), got {placement!r}"[:300])
     fill = _fill(layout["fill"])
     nu, nv = int(su // p), int(sv // p)
     if nu * nv == 0:
         raise ElementError(f"layout.size_mm {[su, sv]} holds no site of pitch {p:g} mm: make it larger")
-    _affordable(nu, nv, p, su, sv)
+    _affordable(nu, nv, p, su, sv, placement)
+    canon = {**common, "layout": {"type": "density", "origin_mm": [u0, v0], "size_mm": [su, sv],
+                                  "fill": fill.tolist(), "seed": seed, "pitch_mm": p}}
+    if placement == "blue_noise":   # a random layout's body (and id) is as it was before placements
+        canon["layout"]["placement"] = placement
+        bits = np.zeros((nu * nv + 7) // 8, np.uint8)
+        kept_count = int(diffuse(fill, nu, nv, p, su, sv, seed, bits))
+        return _model(canon, args, fx.DENSITY, (p, p), t0, origin=(u0, v0), cells=(nu, nv), bits=bits,
+                      features=kept_count)
     rows, cols = fill.shape
     rng = np.random.default_rng(seed)
     # a band of sites at a time (row after row, along u), packed as drawn: a whole number of bytes per band, so the
@@ -349,37 +366,41 @@ def _density(layout: dict, common: dict, args: tuple, t0: float) -> Microstructu
         kept_count += int(np.count_nonzero(kept))
         packed = np.packbits(kept, bitorder="little")
         bits[s0 // 8:s0 // 8 + len(packed)] = packed
-    canon = {**common, "layout": {"type": "density", "origin_mm": [u0, v0], "size_mm": [su, sv],
-                                  "fill": fill.tolist(), "seed": seed, "pitch_mm": p}}
     return _model(canon, args, fx.DENSITY, (p, p), t0, origin=(u0, v0), cells=(nu, nv), bits=bits,
                   features=kept_count)
 
 
-def density_cost(sites: int) -> tuple[float, float]:
-    """(bytes, seconds) preparing a density lattice of `sites` sites takes: its bits and one band's temporaries,
-    and the sites at `SITES_PER_SECOND`. An estimate from the site count alone, made before any work."""
-    return sites * SITE_BYTES + min(BAND_BYTES, BAND_SITE_BYTES * sites), sites / SITES_PER_SECOND
+def density_cost(sites: int, placement: str = "random", row_sites: int = 0) -> tuple[float, float]:
+    """(bytes, seconds) preparing a density lattice of `sites` sites, `row_sites` in a row, takes: its bits, and one
+    band's temporaries (random) or the rows of carried error (blue noise); the sites at the placement's
+    `SITES_PER_SECOND`. An estimate from the counts alone, made before any work."""
+    temporaries = min(BAND_BYTES, BAND_SITE_BYTES * sites) if placement == "random" else 0
+    return (sites * SITE_BYTES + temporaries + ROW_SITE_BYTES[placement] * row_sites,
+            sites / SITES_PER_SECOND[placement])
 
 
-def max_density_sites() -> int:
-    """The most lattice sites one request may prepare (`MAX_PREPARE_BYTES`, `MAX_PREPARE_SECONDS`, `MAX_SITES`)."""
+def max_density_sites(placement: str = "blue_noise") -> int:
+    """The most lattice sites one request may prepare with that placement (`MAX_PREPARE_BYTES`,
+    `MAX_PREPARE_SECONDS`, `MAX_SITES`; a blue-noise lattice's rows count beside, in `_affordable`)."""
     return int(min(MAX_SITES, (MAX_PREPARE_BYTES - BAND_BYTES) / SITE_BYTES,
-                   MAX_PREPARE_SECONDS * SITES_PER_SECOND))
+                   MAX_PREPARE_SECONDS * SITES_PER_SECOND[placement]))
 
 
-def _affordable(nu: int, nv: int, p: float, su: float, sv: float) -> None:
+def _affordable(nu: int, nv: int, p: float, su: float, sv: float, placement: str) -> None:
     """`ElementError` where a lattice of nu × nv sites would cost more than one request may (`density_cost`), saying
     what it would cost and what to change: the pitch it needs, or the size it may have, at the same fill."""
     sites = nu * nv
-    limit = max_density_sites()
-    if sites <= limit:
+    limit = max_density_sites(placement)
+    need, seconds = density_cost(sites, placement, nu)
+    if sites <= limit and need <= MAX_PREPARE_BYTES:
         return
-    need, seconds = density_cost(sites)
-    grow = math.sqrt(sites / limit)
+    grow = math.sqrt(max(sites / limit, need / MAX_PREPARE_BYTES))
+    row = f", and {ROW_SITE_BYTES[placement]} bytes per site of a row" if ROW_SITE_BYTES[placement] else ""
     raise ElementError(
         f"layout: {nu} x {nv} = {sites:,} lattice sites would take about {need / 2 ** 20:,.0f} MiB and "
         f"{seconds:,.0f} s to prepare; one request prepares at most {limit:,} sites ({MAX_PREPARE_BYTES >> 20} MiB, "
-        f"{MAX_PREPARE_SECONDS:g} s at {SITES_PER_SECOND:.2g} sites/s): give a coarser layout.pitch_mm (at least "
+        f"{MAX_PREPARE_SECONDS:g} s at {SITES_PER_SECOND[placement]:.2g} sites/s placed {placement}{row}): give a "
+        f"coarser layout.pitch_mm (at least "
         f"{p * grow * 1.001:.4g} mm; the fill map keeps its meaning) or a smaller layout.size_mm (at most "
         f"{su / grow:.4g} x {sv / grow:.4g} mm at this pitch), or split the face into several elements")
 

@@ -180,7 +180,7 @@ def test_the_same_body_gives_the_same_id_and_a_changed_one_another():
 def test_a_density_map_keeps_about_fill_of_its_sites_and_its_model_survives_a_file():
     fill = [[0.1, 0.5], [0.9, 0.3]]
     e = dome(layout={"type": "density", "origin_mm": [0, 0], "size_mm": [100, 100], "fill": fill, "seed": 4,
-                     "pitch_mm": 0.5})
+                     "pitch_mm": 0.5, "placement": "random"})   # blue noise: tests/tracer/elements/test_placement.py
     sites = 200 * 200
     expected = sites * float(np.mean(fill))
     assert abs(e.features - expected) < 4 * math.sqrt(sites * 0.25)
@@ -234,7 +234,7 @@ def test_a_density_lattice_is_drawn_band_by_band_as_one_draw_and_its_memory_stay
     def body(size, pitch):
         return {"type": "microstructure", "feature": {"shape": "dome", "radius_mm": pitch / 2, "height_mm": pitch / 4},
                 "layout": {"type": "density", "origin_mm": [0, 0], "size_mm": size, "fill": fill, "seed": 3,
-                           "pitch_mm": pitch}}
+                           "pitch_mm": pitch, "placement": "random"}}
 
     def one_draw(nu, nv, pitch, size):
         f = np.asarray(fill)
@@ -256,4 +256,4 @@ def test_a_density_lattice_is_drawn_band_by_band_as_one_draw_and_its_memory_stay
     tracemalloc.stop()
     sites = m.cells[0] * m.cells[1]
     assert sites > 7.9e7
-    assert peak <= ms.density_cost(sites)[0], (peak, ms.density_cost(sites))
+    assert peak <= ms.density_cost(sites, "random")[0], (peak, ms.density_cost(sites, "random"))
