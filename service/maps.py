@@ -16,6 +16,7 @@ from __future__ import annotations
 import io
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -162,7 +163,12 @@ def _png(fig: Figure) -> bytes:
     return buf.getvalue()
 
 
-def illuminance_map_png(
+def illuminance_map_png(lux: object, origin: object, u: object, v: object, **options: Any) -> bytes:
+    """`illuminance_map_figure` as a PNG (the same arguments)."""
+    return _png(illuminance_map_figure(lux, origin, u, v, **options))
+
+
+def illuminance_map_figure(
     lux: object,
     origin: object,
     u: object,
@@ -172,8 +178,10 @@ def illuminance_map_png(
     title: str | None = None,
     subtitle: str | None = None,
     vmax: float | None = None,
-) -> bytes:
-    """Render a grid sensor's illuminance as a false-colour map with a labelled lux colour bar.
+    vmin: float | None = None,
+    scale: str = "zero",
+) -> Figure:
+    """A grid sensor's illuminance as a false-colour map with a labelled lux colour bar.
 
     Parameters
     ----------
@@ -185,14 +193,19 @@ def illuminance_map_png(
         Standard error per cell, lx; its median relative value goes into the caption, so the
         reader sees how noisy the picture is.
     title, subtitle : str, optional
-        Heading lines; the subtitle defaults to min / mean / max and the noise figure.
-    vmax : float, optional
-        Top of the colour scale in lx (to show two maps on the same scale); default the maximum.
+        Heading lines; the subtitle defaults to min / mean / max, the uniformity min/mean with its standard error
+        (`tracer.photometry.glare.uniformity`) and the noise figure.
+    vmax, vmin : float, optional
+        Top and bottom of the colour scale in lx (to show two maps on the same scale); default the maximum, and
+        the bottom by `scale`.
+    scale : "zero" | "data"
+        Where the colour scale starts without `vmin`: at 0 lx (an isolux picture), or at the smallest cell, so
+        that a near-uniform face's non-uniformity fills the colours.
 
     Returns
     -------
-    bytes
-        A PNG image.
+    Figure
+        The matplotlib figure on an Agg canvas (`illuminance_map_png` saves it as a PNG).
     """
     e = _check_grid("lux", lux)
     if np.any(e < 0):
@@ -203,29 +216,44 @@ def illuminance_map_png(
     top = float(e.max()) if vmax is None else float(vmax)
     if not np.isfinite(top) or top < 0:
         raise MapError(f"vmax must be a non-negative finite number, got {vmax!r}")
-    top = top if top > 0 else 1.0
+    if scale not in ("zero", "data"):
+        raise MapError(f"scale must be 'zero' or 'data', got {scale!r}")
+    bottom = float(vmin) if vmin is not None else (float(e.min()) if scale == "data" else 0.0)
+    if not np.isfinite(bottom) or bottom < 0:
+        raise MapError(f"vmin must be a non-negative finite number, got {vmin!r}")
+    if top <= bottom:   # a flat map (or a stated range the caller checked): a scale of some width about it
+        top = bottom + (0.01 * bottom if bottom > 0 else 1.0)
 
     fig, ax = _figure(lv / lu)
     extent, xlabel, ylabel = _axes_frame(o, uu, vv)
     im = ax.imshow(e, origin="lower", extent=extent, cmap="turbo",
-                   norm=Normalize(0.0, top), interpolation="nearest", aspect="equal")
+                   norm=Normalize(bottom, top), interpolation="nearest", aspect="equal")
     bar = fig.colorbar(im, ax=ax, shrink=0.9)
-    bar.set_label("Illuminance E (lx)")
+    bar.set_label("Illuminance E (lx)" + (", scale from the smallest cell" if bottom > 0 and vmin is None else ""))
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     nv, nu = e.shape
     caption = subtitle
-    if caption is None:
+    if caption is None:   # two short lines, so that a narrow map does not cut them off
         caption = f"min {e.min():.4g} lx · mean {e.mean():.4g} lx · max {e.max():.4g} lx"
+        second = []
+        if e.mean() > 0:
+            from tracer.photometry.glare import uniformity
+
+            u = uniformity(e, se)
+            second.append(f"uniformity min/mean {u['min_mean']:.3f}"
+                          + (f" ± {u['min_mean_stderr']:.3f}" if se is not None else ""))
         if se is not None:
             rel = median_relative_error(e, se)
             if np.isfinite(rel):
-                caption += f" · median std. error {100 * rel:.2g} % (lit cells)"
+                second.append(f"median std. error {100 * rel:.2g} % (lit cells)")
+        if second:
+            caption += "\n" + " · ".join(second)
     heading = title or "Illuminance"
     ax.set_title(f"{heading}\n{caption}", fontsize=9)
     fig.text(0.01, 0.005, f"grid {nu}×{nv} cells, origin ({o[0]:.3g}, {o[1]:.3g}, {o[2]:.3g}) m",
              fontsize=7, color="0.35")
-    return _png(fig)
+    return fig
 
 
 #: CIE XYZ → linear sRGB (IEC 61966-2-1, D65 white)

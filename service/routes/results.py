@@ -23,7 +23,7 @@ from pydantic import BaseModel, Field
 from service.errors import NotFound
 from service.maps import difference_map_png, illuminance_map_png, luminance_map_png
 from service.results import KEY_PATTERN, ResultStore, difference, difference_csv, result_csv
-from service.routes.deps import ItemId, SceneId
+from service.routes.deps import ItemId, MapScale, MapVmin, SceneId, map_range
 from service.sensor_kinds import SensorType
 from service.simulation import SimulationHub, Unavailable, hub_for
 
@@ -181,8 +181,10 @@ def get_result(scene_id: SceneId, sensor_id: ItemId, key: Key, request: Request,
 @router.get("/scenes/{scene_id}/sensors/{sensor_id}/results/{key}/map.png", response_class=Response, responses=PNG)
 def result_map(scene_id: SceneId, sensor_id: ItemId, key: Key, request: Request,
                vmax: Annotated[float | None, Query(gt=0.0, allow_inf_nan=False,
-                                                   description="Top of the colour scale, lx.")] = None) -> Response:
+                                                   description="Top of the colour scale, lx.")] = None,
+               vmin: MapVmin = None, scale: MapScale = "zero") -> Response:
     """False-colour PNG of a kept grid result."""
+    map_range(vmin, vmax)
     result = _get(request, scene_id, sensor_id, key)
     if result.get("type") == "camera":
         png = luminance_map_png(result["luminance"], stderr=result["stderr"], vmax=vmax,
@@ -194,7 +196,7 @@ def result_map(scene_id: SceneId, sensor_id: ItemId, key: Key, request: Request,
                        "for grid and camera sensors")
     png = illuminance_map_png(result["lux"], result["origin"], result["u"], result["v"], stderr=result["stderr"],
                               title=f"{_title(request, scene_id, sensor_id)} — result {result['key']}, "
-                                    f"{result['photons']:,} photons", vmax=vmax)
+                                    f"{result['photons']:,} photons", vmax=vmax, vmin=vmin, scale=scale)
     return Response(png, media_type="image/png", headers={"X-Scene-Revision": str(result["revision"])})
 
 

@@ -30,7 +30,7 @@ from service import units
 from service.errors import Invalid, NotFound, TooLarge
 from service.jobs import JobNotFound, QueueFull
 from service.maps import colour_map_png, illuminance_map_png, luminance_map_png
-from service.routes.deps import ItemId, JobId, SceneId
+from service.routes.deps import ItemId, JobId, MapScale, MapVmin, SceneId, map_range
 from service.simulation import SimulationHub, Unavailable, find_sensor, hub_for, resolve_budget
 from service.simulation_wire import (  # noqa: F401 (the route's models, named here too)
     UNIT_TOLERANCE,
@@ -204,12 +204,14 @@ def sensor_map(scene_id: SceneId, sensor_id: ItemId, request: Request,
                vmax: Annotated[float | None, Query(gt=0.0, allow_inf_nan=False,
                                                    description="Top of the colour scale, lx (cd/m² for a "
                                                                "camera).")] = None,
+               vmin: MapVmin = None, scale: MapScale = "zero",
                show: Annotated[Literal["lux", "colour"], Query(
                    description="`lux`: false colour by illuminance; `colour`: the light's own colour (CIE 1931 "
                                "chromaticity shown in sRGB, brightness by illuminance; needs a simulation that "
                                "observed the spectrum).")] = "lux") -> Response:
     """False-colour PNG of the grid sensor's latest result at the scene's current state (lx); of a camera's, its
     luminance with a cd/m² legend (log scale where the lit pixels span more than 100:1)."""
+    map_range(vmin, vmax)
     hub = _hub(request)
     live = hub.live.get(scene_id)
     sensor = find_sensor(live, sensor_id)
@@ -234,7 +236,7 @@ def sensor_map(scene_id: SceneId, sensor_id: ItemId, request: Request,
                         headers={"X-Scene-Revision": str(result["revision"]), "Cache-Control": "no-store"})
     png = illuminance_map_png(result["lux"], result["origin"], result["u"], result["v"], stderr=result["stderr"],
                               title=f"{name} — scene revision {result['revision']}, {result['photons']:,} photons",
-                              vmax=vmax)
+                              vmax=vmax, vmin=vmin, scale=scale)
     return Response(content=png, media_type="image/png",
                     headers={"X-Scene-Revision": str(result["revision"]), "Cache-Control": "no-store"})
 

@@ -74,6 +74,14 @@ def test_results_are_kept_per_revision_and_state_and_compared(world) -> None:
     assert [float(r["lux"]) for r in rows] == np.ravel(first["lux"]).tolist()
     r = client.get(f"{base}/results/{rev}.0/map.png")
     assert r.status_code == 200 and r.content.startswith(PNG)
+    for params in ({"scale": "data"}, {"vmin": 1.0, "vmax": 100.0}):   # scaled to the data, or to a stated range
+        r = client.get(f"{base}/results/{rev}.0/map.png", params=params)
+        assert r.status_code == 200 and r.content.startswith(PNG), r.text
+    for params, words in (({"vmin": 5.0, "vmax": 5.0}, "vmin (5 lx) must be below vmax (5 lx)"),
+                          ({"vmin": -1.0}, "greater than or equal to 0"), ({"scale": "log"}, "'zero' or 'data'")):
+        for url in (f"{base}/results/{rev}.0/map.png", f"{base}/map.png"):
+            r = client.get(url, params=params)
+            assert r.status_code == 422 and words in r.text, (url, params, r.text)
 
     # the same state again replaces its result; an assignment (a second, equal light) keeps the revision and
     # makes the next state

@@ -39,6 +39,31 @@ def test_uniform_and_zero_grids_render() -> None:
     decode(difference_map_png(np.ones((2, 2)), np.ones((2, 2)), *FRAME))
 
 
+def test_a_map_scaled_to_the_data_runs_its_colours_from_the_smallest_cell_and_states_the_uniformity() -> None:
+    """A near-uniform face (95 to 105 lx): from 0 its cells would share the top tenth of the colours; scaled to the
+    data they span them all. The caption gives min/mean with the delta method's error
+    (`tracer.photometry.glare.uniformity`)."""
+    from service.maps import illuminance_map_figure
+
+    lux = np.array([[95.0, 100.0, 105.0], [100.0, 101.0, 99.0], [104.0, 98.0, 100.0]])
+    se = np.full_like(lux, 1.0)
+    norm = illuminance_map_figure(lux, *FRAME, stderr=se).axes[0].images[0].norm
+    assert (norm.vmin, norm.vmax) == (0.0, 105.0)
+    fig = illuminance_map_figure(lux, *FRAME, stderr=se, scale="data")
+    norm = fig.axes[0].images[0].norm
+    assert (norm.vmin, norm.vmax) == (95.0, 105.0)
+    from tracer.photometry.glare import uniformity
+
+    u = uniformity(lux, se)
+    assert u["min_mean"] == 95.0 / lux.mean() and u["min_mean_stderr"] > 0
+    title = fig.axes[0].get_title()
+    assert f"uniformity min/mean {u['min_mean']:.3f} ± {u['min_mean_stderr']:.3f}" in title and "\n" in title
+    stated = illuminance_map_figure(lux, *FRAME, vmin=50.0, vmax=150.0, scale="data").axes[0].images[0].norm
+    assert (stated.vmin, stated.vmax) == (50.0, 150.0)
+    flat = illuminance_map_figure(np.full((2, 2), 7.0), *FRAME, scale="data").axes[0].images[0].norm
+    assert flat.vmin == 7.0 and flat.vmax > 7.0   # a flat map still has a scale
+
+
 def test_cell_centres_follow_the_grid_layout() -> None:
     c = cell_centres(*FRAME, nu=4, nv=2)
     assert c.shape == (2, 4, 3)
@@ -74,6 +99,8 @@ def test_change_summary_finds_the_significant_cells() -> None:
         (lambda: illuminance_map_png(np.ones((2, 2)), [0, 0, 0], [0, 0, 0], [0, 1, 0]), "non-zero"),
         (lambda: illuminance_map_png(np.ones((2, 2)), *FRAME, stderr=np.ones((3, 2))), "shape"),
         (lambda: illuminance_map_png(np.ones((2, 2)), *FRAME, vmax=float("inf")), "vmax"),
+        (lambda: illuminance_map_png(np.ones((2, 2)), *FRAME, vmin=-1.0), "vmin"),
+        (lambda: illuminance_map_png(np.ones((2, 2)), *FRAME, scale="log"), "scale"),
         (lambda: difference_map_png(np.ones((2, 2)), np.ones((2, 3)), *FRAME), "shape"),
         (lambda: cell_centres(*FRAME, nu=0, nv=2), "at least 1"),
     ],
