@@ -119,6 +119,8 @@ class Assignments:
             if field is not None and not any(u in state.instances for u in state.tree.subtree(body[field])):
                 raise Invalid(f"{body['type']} sensor: node {body[field]} and its descendants have no geometry: "
                               f"nothing to tally", node=body[field])
+            if kind == "light" and body.get("facing") is not None:
+                _check_facing(state, body)
             if kind == "object" and self.scenes.missing_geometries([body["geometry"]]):
                 raise Invalid(f"geometry {body['geometry']} is not uploaded (PUT /geometries/{{id}} first)",
                               missing=[body["geometry"]])
@@ -304,3 +306,23 @@ def validate_body(kind: str, body: Any) -> dict:
         except TreeError as exc:
             raise Invalid(f"object transform: {str(exc).split(': ', 1)[-1]}") from exc
     return {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}   # [x, y, z] as JSON keeps it
+
+
+def _check_facing(state: SceneState, body: dict) -> None:
+    """422 for an area light whose `facing` no triangle of its node's subtree faces (`tracer.optics.lights.area`),
+    before anything is stored; a node without geometry yet is left to the query, which names it."""
+    from tracer.errors import TracerError
+    from tracer.optics.lights import pack_lights
+
+    field = node_field(kind_wire.fields_of("light", body))
+    node = body.get(field) if field is not None else None
+    if node is None or not state.has_node(node):
+        return
+    instances = [state.instances[u] for u in state.tree.subtree(node) if u in state.instances]
+    if not instances:
+        return
+    light = {k: v for k, v in body.items() if k not in ("attached_to", "name", field)}
+    try:
+        pack_lights([{**light, "instances": instances}], state.tracer)
+    except TracerError as exc:
+        raise Invalid(f"light: {exc}", field="facing") from None

@@ -56,7 +56,7 @@ class UnplacedLight(Spectral):
 
 def _type(f: BodyField) -> Any:
     """The wire type of one declared field (`tracer.optics.fields`)."""
-    if f.value in PLACED:
+    if f.value in PLACED or f.value == "part_dir":
         return Vec3
     if f.value == "node":
         return NodeRef

@@ -260,6 +260,22 @@ def test_area_light_names_the_instances_of_its_subtree(client, scene, meshes) ->
     assert sorted(live.lights[0]["instances"]) == sorted(live.instance_of_node[uid(10 + k)] for k in range(4))
 
 
+def test_area_light_facing_one_way_is_kept_and_one_facing_nothing_is_refused(client, scene, meshes) -> None:
+    """`facing` (each part's own frame) reaches the tracer as given, not turned by the node; a direction no triangle
+    of the subtree faces is a 422 naming `facing`, nothing stored."""
+    push(client, scene, car(meshes))
+    r = client.post(f"/scenes/{scene}/lights", json={"type": "area", "node": uid(3), "exitance_lm_m2": 5000,
+                                                     "facing": [0, 0, 1]})
+    assert r.status_code == 201, r.text
+    live = client.app.state.live.get(scene)
+    assert live.lights[0]["facing"] == [0, 0, 1]
+    for facing, words in (([0, 0, 0], "'facing' must be 3 finite numbers"), ([1, 1, 1], "no triangle")):
+        r = client.post(f"/scenes/{scene}/lights", json={"type": "area", "node": uid(3), "exitance_lm_m2": 5000,
+                                                         "facing": facing})
+        assert r.status_code == 422 and words in r.text, r.text
+    assert len(client.get(f"/scenes/{scene}/lights").json()) == 1
+
+
 def test_orphans_are_listed_restored_and_purged(client, scene, meshes) -> None:
     doc = car(meshes)
     push(client, scene, doc)

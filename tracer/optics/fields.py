@@ -17,6 +17,8 @@ choice     one of ``choices``
 text       a string of 1 to ``max_length`` characters
 node       a node of the service's scene (UUID or path) whose surfaces, its descendants' with them, the
            body covers; the tracer receives ``instances``, the ids of their instances
+part_dir   3 finite numbers, not all zero: a direction in each covered part's own frame (as an element's
+           ``facing``); it does not turn with an attachment, the parts carry it
 =========  ==========================================================================================
 
 ``doc`` states the meaning with its unit (shown by the API docs); ``required`` fields have no default (an
@@ -29,7 +31,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-VALUES = ("point", "direction", "vector", "number", "count", "choice", "text", "node")
+VALUES = ("point", "direction", "vector", "number", "count", "choice", "text", "node", "part_dir")
 PLACED = ("point", "direction", "vector")   # values that follow the node a body is attached to
 
 

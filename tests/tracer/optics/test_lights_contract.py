@@ -37,7 +37,7 @@ import numpy as np
 import pytest
 from emission import emit
 
-from tests.tracer.transport_scenes import mesh_area, quad, scene_of
+from tests.tracer.transport_scenes import box, mesh_area, quad, scene_of
 from tracer.jit import njit
 from tracer.optics.lights import LightError, connectable, light_connect, pack_lights
 from tracer.optics.lights import dispatch as lights_dispatch
@@ -129,6 +129,35 @@ def test_area_connect_averages_to_the_configuration_factor():
     assert e > 0 and t_max == 1.0 - SHADOW_SHORTEN and sz == pytest.approx(h)
     assert connect_once(L, 0, (0, 0, 2 * h), UP)[0] == 0.0        # behind the emitter
     assert connect_once(L, 0, (0, 0, 0), (0, 0, -1.0))[0] == 0.0  # facing away
+
+
+def test_an_area_light_facing_one_way_emits_from_those_triangles_only_and_turns_with_its_part():
+    """An LED package as a 2 x 1 x 0.5 m box turned 90° about z (its own +x now world +y), `facing` its own +x:
+    Φ = M × that face's area (1 × 0.5 m², not the box's 7), every photon leaves that face (world y = 1) along its
+    normal's side, and without `facing` every face emits (Φ = M × 7 m²)."""
+    turn = np.array([[0.0, -1, 0, 0], [1, 0, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+    s, (led,) = scene_of(box([-1, -0.5, -0.25], [1, 0.5, 0.25]), transform=turn)
+    m_exit = 300.0
+    L = pack_lights([{"type": "area", "instances": [led], "exitance_lm_m2": m_exit, "facing": [2, 0, 0]}], s)
+    assert L.flux_total[0] == pytest.approx(m_exit * 1.0 * 0.5, rel=1e-12)
+    out = emit(L, n=20_000)
+    np.testing.assert_allclose(out[:, 1], 1.0, rtol=0, atol=1e-12)            # on the turned +x face: world y = 1
+    assert np.all(np.abs(out[:, 0]) <= 0.5 + 1e-12) and np.all(np.abs(out[:, 2]) <= 0.25 + 1e-12)
+    np.testing.assert_allclose(out[:, 8:11], np.tile([0.0, 1.0, 0.0], (len(out), 1)), atol=1e-12)
+    assert np.all(out[:, 4] > 0)                                               # leaving outward
+    whole = pack_lights([{"type": "area", "instances": [led], "exitance_lm_m2": m_exit}], s)
+    assert whole.flux_total[0] == pytest.approx(m_exit * (2 * 2 * 1 + 2 * 2 * 0.5 + 2 * 1 * 0.5), rel=1e-12)
+
+
+@pytest.mark.parametrize("facing, words", [
+    ([0, 0, 0], "'facing' must be 3 finite numbers, not all zero"),
+    ([1, 0], "'facing' must be 3 finite numbers, not all zero"),
+    ([1, 1, 0], "no triangle of the instances faces"),     # between two faces: within 1° of neither
+])
+def test_an_area_light_facing_nothing_or_a_bad_direction_says_so(facing, words):
+    s, (led,) = scene_of(box([-1, -0.5, -0.25], [1, 0.5, 0.25]))
+    with pytest.raises(LightError, match=words):
+        pack_lights([{"type": "area", "instances": [led], "exitance_lm_m2": 1.0, "facing": facing}], s)
 
 
 # ------------------------------------------------------------------------------------- what is not connectable

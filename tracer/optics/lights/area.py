@@ -1,13 +1,16 @@
-"""Area light: Lambertian emission from the front side of every triangle of some instances.
+"""Area light: Lambertian emission from the front side of every triangle of some instances, or of those facing one way.
 
 The front side is the geometric normal's (e1 × e2 in world space; a mirrored instance keeps its
 outward side). Radiance M/π, Φ = M × area. `node` is the service's; the transport reads `instances`.
+With `facing`, only the triangles whose front normal, in their part's own frame, lies within `FACING_DEG` of it emit
+(an LED package's lens face, not its sides and back: issue 53); the flux is M × their area.
 
 ==============  ==================  =====  ====================================
 Field           Type                Unit   Default
 ==============  ==================  =====  ====================================
 instances       non-empty int list  —      required (instance ids, not sensors)
 exitance_lm_m2  float ≥ 0           lm/m²  required
+facing          [x, y, z], not 0    —      every triangle (a direction in each part's own frame)
 node            any                 —      ignored (the service's: its FIELDS value "node" gives `instances`)
 ==============  ==================  =====  ====================================
 
@@ -26,11 +29,16 @@ from tracer.jit import njit
 from tracer.optics.fields import BodyField, fields
 from tracer.optics.frames import find_in_cdf, sample_cosine
 from tracer.optics.lights.base import P_FLUX, P_I0, SHADOW_SHORTEN, LightError, Packing, check_fields, field_value
+from tracer.optics.polarization import unit_axis
 
 NAME = "area"
+FACING_DEG = 1.0   # a triangle faces `facing` within this angle (as an element's support: tracer.elements.support)
 FIELDS = fields(
     BodyField("node", "node", "The node (UUID or path) whose surfaces, with its descendants', emit."),
-    BodyField("exitance_lm_m2", "number", "Luminous exitance of the surfaces, lm/m².", lo=0.0, hi=1e15))
+    BodyField("exitance_lm_m2", "number", "Luminous exitance of the surfaces, lm/m².", lo=0.0, hi=1e15),
+    BodyField("facing", "part_dir", "Only the triangles facing this way emit: a direction in each part's own frame "
+                                    f"(as an element's `facing`), within {FACING_DEG:g}°; default every triangle.",
+              required=False))
 EXAMPLE = {"type": "area", "name": "ceiling panel", "node": "room/ceiling_panel", "exitance_lm_m2": 2000.0}
 EFFECTS = ()
 CONNECTABLE = True
@@ -38,10 +46,12 @@ CONNECTABLE = True
 
 @dataclass(frozen=True)
 class Spec:
-    """exitance_lm_m2 (lm/m²); instances: the ids as given (checked against the scene by `pack`)."""
+    """exitance_lm_m2 (lm/m²); instances: the ids as given (checked against the scene by `pack`); facing: a unit
+    direction in each part's own frame, or None (every triangle emits)."""
 
     exitance_lm_m2: float
     instances: tuple
+    facing: tuple | None = None
 
     @classmethod
     def from_body(cls, body: dict, where: str) -> Spec:
@@ -50,7 +60,14 @@ class Spec:
         ids = body.get("instances")
         if not isinstance(ids, list | tuple) or not ids:
             raise LightError(f"{where}: an area light needs 'instances', a non-empty list of instance ids")
-        return cls(m_exit, tuple(ids))
+        facing = body.get("facing")
+        if facing is not None:
+            unit = unit_axis(facing)
+            if unit is None:
+                raise LightError(f"{where}: 'facing' must be 3 finite numbers, not all zero (a direction in each "
+                                 f"emitting part's own frame), got {facing!r}"[:300])
+            facing = tuple(unit)
+        return cls(m_exit, tuple(ids), facing)
 
 
 def pack(spec: Spec, j: int, out: Packing, where: str) -> float:
@@ -65,7 +82,7 @@ def pack(spec: Spec, j: int, out: Packing, where: str) -> float:
             raise LightError(f"{where}: instance {i!r} is not in the scene")
         if int(i) in out.sensor_ids:
             raise LightError(f"{where}: instance {i} is a sensor and cannot emit")
-        world.append(_world_triangles(scene, int(i)))
+        world.append(_world_triangles(scene, int(i), spec.facing))
     tri = np.concatenate(world)
     e1, e2 = tri[:, 3:6], tri[:, 6:9]
     cr = np.cross(e1, e2)
@@ -73,6 +90,9 @@ def pack(spec: Spec, j: int, out: Packing, where: str) -> float:
     keep = area2 > 0
     tri, cr, area2 = tri[keep], cr[keep], area2[keep]
     sign = np.concatenate([np.full(len(w), 1.0) for w in world])[keep]
+    if len(tri) == 0 and spec.facing is not None:
+        raise LightError(f"{where}: no triangle of the instances faces {list(spec.facing)} (within {FACING_DEG:g}°, "
+                         f"in each part's own frame): check 'facing'")
     if len(tri) == 0:
         raise LightError(f"{where}: the instances have no triangle of non-zero area")
     area = 0.5 * area2
@@ -90,12 +110,17 @@ def pack(spec: Spec, j: int, out: Packing, where: str) -> float:
     return row[P_FLUX]
 
 
-def _world_triangles(scene, inst: int) -> np.ndarray:
-    """(m, 9) world-space triangles (v0, e1, e2) of one instance; edges of a mirrored instance are
-    swapped so that e1 × e2 keeps pointing to the instance's outward side."""
+def _world_triangles(scene, inst: int, facing: tuple | None = None) -> np.ndarray:
+    """(m, 9) world-space triangles (v0, e1, e2) of one instance, those whose object-space front normal lies within
+    `FACING_DEG` of `facing` where it is given; edges of a mirrored instance are swapped so that e1 × e2 keeps
+    pointing to the instance's outward side."""
     gid = scene.instance_geometry(inst)
     arrays = scene.geometry_arrays(gid)
     v, tri = np.asarray(arrays[0], np.float64), np.asarray(arrays[1], np.int64)
+    if facing is not None:
+        n = np.cross(v[tri[:, 1]] - v[tri[:, 0]], v[tri[:, 2]] - v[tri[:, 0]])
+        length = np.linalg.norm(n, axis=1)
+        tri = tri[n @ np.asarray(facing) >= math.cos(math.radians(FACING_DEG)) * length]
     m = np.asarray(scene.instance_transform(inst), np.float64)
     w = v @ m[:3, :3].T + m[:3, 3]
     p0, p1, p2 = w[tri[:, 0]], w[tri[:, 1]], w[tri[:, 2]]
