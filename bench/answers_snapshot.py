@@ -7,7 +7,7 @@
 The queries: points forward and backward, observe spectrum and Stokes, a "lit" target scope, a grid with both
 estimators, a surface, a far field, and physics_left_out on points and on a grid (a glass room, so that the
 polarization pilot runs). Seconds, compile seconds and cost (which depend on the machine) are left out; every other
-field is compared with np.array_equal (NaN equal to NaN). Used for issue 35's moves (README, "Benchmarks").
+field is compared with np.array_equal (NaN equal to NaN). Used for issue 35's moves (docs/guides/benchmarks.md).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Accuracy against time (issue 24; DESIGN.md "Accuracy is a quantity"): what each digit of accuracy costs.
+"""Accuracy against time (issue 24; docs/DESIGN.md "Accuracy is a quantity"): what each digit of accuracy costs.
 
 (a) Photons. The diffuse room of `bench_transport` (4 × 4 × 3 m, ρ = 0.5, 1000 cd at (2, 2, 2.5)); 25 floor points
     (5 × 5 grid, disks of 5 cm). Both our estimators at doubling photon budgets: the relative error each answer

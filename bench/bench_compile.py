@@ -6,7 +6,7 @@ into numba's phases (type inference, lowering, LLVM) and into the functions comp
 in one run: the tracer before issue 49 and before the kinds' tables of addresses (the commits of `BEFORE`, each
 checked out in a temporary git worktree) and the tracer now; ``python bench/bench_compile.py --o1`` adds the
 tracer now at a lower LLVM level (``NUMBA_OPT=1``), whose compile seconds are weighed against the rays and photons
-per second that `bench/ab.py` measures (README, "Compile time").
+per second that `bench/ab.py` measures (docs/ARCHITECTURE.md, "Compile time").
 
 What a kind adds: the seconds spent compiling the functions of each kind's own module (a surface's ``scatter``, a
 light's ``sample`` and ``connect``, a geometry kind's ``intersect``), from the same events. For surfaces and lights

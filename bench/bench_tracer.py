@@ -563,7 +563,7 @@ def markdown(r: dict) -> str:
                   "profile below says why: ours executes 2.5-4.6x Embree's instructions per ray with as many cache "
                   "misses or fewer (float64 tests of 8-bit quantised 4-wide rows and one triangle at a time, against "
                   "float32 8-wide nodes and four triangles per test). Tried against that and measured with "
-                  "`bench/ab.py` (README, ray tracing core): eight lanes in flight (kept), packets of eight camera "
+                  "`bench/ab.py` (docs/ARCHITECTURE.md): eight lanes in flight (kept), packets of eight camera "
                   "rays in scenes of one mesh (kept: x0.86-0.95 time), the triangle test's setup once per ray "
                   "(kept, neutral), 8-wide float32 bottom rows (slower in the lanes), spatial splits "
                   "(`bench/results/sbvh39.json`: x0.96-0.98 for a 2.8x build), sorted ray streams "

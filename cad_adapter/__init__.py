@@ -6,7 +6,7 @@ Python API (the demo and the benchmark use it; the CLI is a thin shell around it
     from cad_adapter.samples import car_assembly
     doc = cad_adapter.read_document("car.step")                 # or a cadquery.Assembly
     tess = cad_adapter.tessellate(doc, linear=0.1, angular=0.5)  # defaults: 0.1 mm, 0.5 rad
-    body = cad_adapter.build_push(doc, tess, base_revision=3)    # DESIGN.md's pushed tree (a dict)
+    body = cad_adapter.build_push(doc, tess, base_revision=3)    # docs/DESIGN.md's pushed tree (a dict)
     with cad_adapter.Pusher("http://127.0.0.1:8000") as p:
         result = p.push(doc, tess, scene="car")                  # result.answer: the service's diff
 
@@ -112,7 +112,7 @@ def tessellate(doc: Document, linear: float | None = None, angular: float | None
 
 
 def build_push(doc: Document, tess: Tessellation, base_revision: int | None = None) -> dict:
-    """DESIGN.md's pushed tree for ``doc`` (see :func:`cad_adapter.payload.build_push`)."""
+    """docs/DESIGN.md's pushed tree for ``doc`` (see :func:`cad_adapter.payload.build_push`)."""
     from .payload import build_push as _build_push
 
     return _build_push(doc, tess, base_revision)

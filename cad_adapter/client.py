@@ -1,6 +1,6 @@
 """REST client of the service: find or create a scene, upload missing meshes, push the tree.
 
-Order of a push (DESIGN.md's REST contract): ``GET /scenes`` (find the scene by name, ``POST /scenes``
+Order of a push (docs/DESIGN.md's REST contract): ``GET /scenes`` (find the scene by name, ``POST /scenes``
 if none has it) → ``GET /scenes/{id}`` (its revision) → ``POST /geometries/missing`` → ``PUT
 /geometries/{gid}`` for each missing mesh (GLB) → ``PUT /scenes/{id}/document`` with that revision as
 ``base_revision``. Uploads are content-addressed, so an interrupted push leaves nothing half-done: the

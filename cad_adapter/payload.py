@@ -1,4 +1,4 @@
-"""The pushed tree: a :class:`~cad_adapter.tree.Document` plus its tessellation as DESIGN.md's JSON.
+"""The pushed tree: a :class:`~cad_adapter.tree.Document` plus its tessellation as docs/DESIGN.md's JSON.
 
 Nodes are listed parents first; ``transform`` is the node's local 4×4 flattened row-major, in the
 document's ``length_unit``; ``geometry`` is the geometry id of the node's part, or null for assembly
@@ -22,7 +22,7 @@ def _clamp01(c: tuple[float, float, float] | None) -> list[float] | None:
     return [min(1.0, max(0.0, float(x))) for x in c]
 
 
-#: the signature fields the service keeps (DESIGN.md, identity)
+#: the signature fields the service keeps (docs/DESIGN.md, identity)
 WIRE_SIGNATURE = ("volume", "area", "moments", "centroid", "axes", "topology")
 
 

@@ -25,7 +25,7 @@ shared edge are identical on both sides, so a closed B-rep gives a watertight me
 merged. ``face_ids`` uint32 (m,) names each triangle's B-rep face: the face's index in the part's B-rep
 (``TopExp_Explorer`` over its faces, from 0, the order the B-rep stores them in; `face_table` lists them), which
 depends on the B-rep only, never on the settings, so an element assigned to "face 5" stays on the same face when
-the part is meshed again at another tolerance. The face indices are part of the geometry id (DESIGN.md).
+the part is meshed again at another tolerance. The face indices are part of the geometry id (docs/DESIGN.md).
 """
 
 from __future__ import annotations
@@ -116,7 +116,7 @@ class Mesh:
     triangles : (m, 3) uint32
     normals : (n, 3) float32 or None
     geometry_id : str
-        DESIGN.md's content hash of the arrays (the face indices included where there are some).
+        docs/DESIGN.md's content hash of the arrays (the face indices included where there are some).
     deflection : float
         The absolute linear deflection used, document units.
     face_ids : (m,) uint32 or None

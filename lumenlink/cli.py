@@ -160,7 +160,7 @@ Assignment = Annotated[str, typer.Argument(help="The element assignment: its id,
 @element_app.callback(invoke_without_command=True)
 def element(
     ctx: typer.Context,
-    body: Annotated[str | None, typer.Option(help="Element JSON (DESIGN.md), e.g. a microstructure of domes on a "
+    body: Annotated[str | None, typer.Option(help="Element JSON (docs/DESIGN.md), e.g. a microstructure of domes on a "
                                                   "grid.")] = None,
     file: Annotated[Path | None, typer.Option(help="Read the element JSON from this file.")] = None,
     element_id: Annotated[str | None, typer.Option("--id", help="A library element's id (instead of a body).")] = None,

@@ -183,7 +183,7 @@ class Client(ServiceClient):
     # ------------------------------------------------------------ assignments
 
     def assign(self, scene: str | dict, path_or_uuid: str, material: dict[str, Any]) -> dict[str, Any]:
-        """Give a node (by path or UUID) a material (DESIGN.md's bodies, e.g. ``{"type": "mirror",
+        """Give a node (by path or UUID) a material (docs/DESIGN.md's bodies, e.g. ``{"type": "mirror",
         "reflectance": 0.9}``); its descendants without one inherit it. Answers ``{node (the UUID), material}``."""
         if not isinstance(material, dict):
             raise LumenLinkError(f"a material is a JSON object like {{\"type\": \"lambertian\", \"reflectance\": "
@@ -195,7 +195,7 @@ class Client(ServiceClient):
     def add_light(self, scene: str | dict, body: dict[str, Any] | None = None, *, ies: str | Path | None = None,
                   at: Iterable[float] | None = None, attach: str | None = None, name: str | None = None,
                   direction: Iterable[float] | None = None) -> dict[str, Any]:
-        """Add a light: a DESIGN.md body, or a photometric file (`ies`: IES LM-63 ``.ies``, or EULUMDAT ``.ldt``)
+        """Add a light: a docs/DESIGN.md body, or a photometric file (`ies`: IES LM-63 ``.ies``, or EULUMDAT ``.ldt``)
         placed `at` (x, y, z), metres, aimed along `direction` (its γ = 0 axis; default straight down). `attach`:
         a node path or UUID; the light then moves with that node and `at` is in the node's frame. Answers
         ``{id, body, orphaned}``."""
@@ -249,7 +249,7 @@ class Client(ServiceClient):
     # ------------------------------------------------------------ elements with an inside
 
     def add_element(self, body: dict[str, Any]) -> dict[str, Any]:
-        """Prepare an element into the library (DESIGN.md "Optical elements with an inside"): answers ``{id,
+        """Prepare an element into the library (docs/DESIGN.md "Optical elements with an inside"): answers ``{id,
         features, bytes, prepare_seconds}``; the same body answers the same id, preparing nothing."""
         if not isinstance(body, dict):
             raise LumenLinkError("an element is a JSON object {\"type\": \"microstructure\", \"feature\", "

@@ -80,7 +80,7 @@ class OrphanPublic(Wire):
 
 
 class ScenePublic(Wire):
-    """What ``GET /scenes/{id}`` answers (DESIGN.md), plus a few counts."""
+    """What ``GET /scenes/{id}`` answers (docs/DESIGN.md), plus a few counts."""
 
     id: str = Field(description="The scene's id (a UUID).")
     name: str = Field(description="The scene's name.")
@@ -312,7 +312,7 @@ class GeometryPublic(Wire):
     created: bool = Field(description="False when the mesh was already stored (an idempotent upload).")
 
 
-# ---------------------------------------------------------------- materials (DESIGN.md bodies)
+# ---------------------------------------------------------------- materials (docs/DESIGN.md bodies)
 
 # Material bodies are made from the tracer's typed specs, in one place: `service.optics`.
 Material = optics.Material
@@ -332,7 +332,7 @@ class MaterialPublic(Wire):
     orphaned: bool = Field(description="True while a push has removed the node.")
 
 
-# ---------------------------------------------------------------- lights and sensors (DESIGN.md bodies)
+# ---------------------------------------------------------------- lights and sensors (docs/DESIGN.md bodies)
 
 # Light and sensor bodies are made from the tracer's kinds' typed fields, in one place: `service.kind_wire`.
 Light = kind_wire.Light

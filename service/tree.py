@@ -494,7 +494,7 @@ def apply_diff(a: Tree, diff: TreeDiff) -> Tree:
 # ---------------------------------------------------------------- scene application
 
 class SceneLike(Protocol):
-    """The part of `tracer.Scene` the apply step uses (DESIGN.md API)."""
+    """The part of `tracer.Scene` the apply step uses (docs/DESIGN.md API)."""
 
     def add_instance(self, gid: str, transform: np.ndarray) -> int: ...
     def set_transform(self, instance: int, transform: np.ndarray) -> None: ...

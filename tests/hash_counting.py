@@ -1,5 +1,5 @@
-"""Counting geometry-id hashes in a test (DESIGN.md "Geometry identity": a pushed mesh is hashed once on each side);
-shared by tests/service/test_hash_once.py and tests/cad_adapter/test_cad_client.py."""
+"""Counting geometry-id hashes in a test (docs/DESIGN.md "Geometry identity": a pushed mesh is hashed once on each
+side); shared by tests/service/test_hash_once.py and tests/cad_adapter/test_cad_client.py."""
 
 from __future__ import annotations
 

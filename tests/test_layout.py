@@ -1,4 +1,4 @@
-"""The package split of DESIGN.md: who may import whom, and the command line's subcommands."""
+"""The package split of docs/DESIGN.md: who may import whom, and the command line's subcommands."""
 
 from __future__ import annotations
 
@@ -36,7 +36,7 @@ def test_import_rules(package: str) -> None:
         bad = imported_top_levels(path) & FORBIDDEN[package]
         if bad:
             offenders[str(path.relative_to(ROOT))] = sorted(bad)
-    assert not offenders, f"{package}/ imports what DESIGN.md forbids: {offenders}"
+    assert not offenders, f"{package}/ imports what docs/DESIGN.md forbids: {offenders}"
 
 
 def test_cli_lists_subcommands() -> None:

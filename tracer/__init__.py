@@ -1,6 +1,6 @@
 """tracer: two-level ray tracing (per-object bottom levels, a top level over instances) in numba.
 
-Public API (DESIGN.md): :class:`Scene`, :class:`UpdateStats`, :class:`Hits`, :class:`TracerError`,
+Public API (docs/DESIGN.md): :class:`Scene`, :class:`UpdateStats`, :class:`Hits`, :class:`TracerError`,
 and the module :mod:`tracer.geometry_id` (the content hash). Jitted kernels for light transport live
 in :mod:`tracer.accel.traverse` and :mod:`tracer.accel.spawn` (docs/CONTRACTS.md).
 

@@ -384,7 +384,7 @@ class _LostData(RuntimeError):
 
 
 def device_of(described: dict[str, Any] | None) -> str | None:
-    """The answer's ``device`` (DESIGN.md "On a GPU") from a backend's `describe()`: where the photon batches
+    """The answer's ``device`` (docs/DESIGN.md "On a GPU") from a backend's `describe()`: where the photon batches
     ran, ``"cuda:0 NVIDIA H100 80GB HBM3"`` (`tracer.gpu.backend.CudaBackend`), ``"cpu:2 threads"``, or
     ``"cpu:4 threads on 2 dask workers"``."""
     if not described:

@@ -28,7 +28,7 @@ light's spectrum alone does not call for a wavelength: in a grey scene the lumin
 `with_forced` turns effects on in a scene that does not need them (the answer must not change), and off where the
 physics estimate took them (`OPTIONAL`) and the query asks (`force_effects_off`).
 
-Polarization by physics (DESIGN.md "Physics, and only what a scene calls for"). Unpolarized light meeting one
+Polarization by physics (docs/DESIGN.md "Physics, and only what a scene calls for"). Unpolarized light meeting one
 interface comes out with the right power whether s and p are kept apart or averaged; only a second polarizing
 interaction on the same path can turn the first one's polarization into a different power. For two interfaces of
 diattenuations D₁ = (Ts − Tp)/(Ts + Tp) (or the same for reflection) and D₂, the polarized answer is the averaged one

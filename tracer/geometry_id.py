@@ -1,4 +1,4 @@
-"""Geometry identity: the content hash of a tessellation (DESIGN.md, "Geometry identity").
+"""Geometry identity: the content hash of a tessellation (docs/DESIGN.md, "Geometry identity").
 
 The id is the lowercase hex SHA-256 of ``b"lumenlink-mesh-v1\\0"``, ``struct.pack("<II", n, m)``,
 the vertices as little-endian float32 (n×3, C order), the triangle indices as little-endian
@@ -79,7 +79,7 @@ def canonical_faces(face_ids: np.ndarray | None, m: int) -> np.ndarray | None:
 
 def geometry_id(vertices: np.ndarray, triangles: np.ndarray, normals: np.ndarray | None = None,
                 face_ids: np.ndarray | None = None) -> str:
-    """Lowercase hex SHA-256 content hash of a mesh, as DESIGN.md defines it (face indices where it has them)."""
+    """Lowercase hex SHA-256 content hash of a mesh, as docs/DESIGN.md defines it (face indices where it has them)."""
     v, f, n = canonical_arrays(vertices, triangles, normals)
     return hash_canonical(v, f, n, canonical_faces(face_ids, len(f)))
 

@@ -12,8 +12,8 @@ type it again there: 72 small helpers of the walks and the optics were, and typi
 (`tracer.accel.traverse.closest_with_stacks`) alone took 23 s of a 153 s first forward query (bench/compile_probe.py).
 Here it means ``forceinline``: the helper compiles once per argument types, like any callee, and LLVM's
 always-inliner pastes its optimised code into each caller, so the machine code keeps its shape (answers
-bit-identical, rays and photons per second unchanged within `bench/ab.py`'s noise; README, "Compile time"). Such a
-helper that takes one of the kernels' tuples (`TUPLES`) does so without reference counts (``_nrt=False``,
+bit-identical, rays and photons per second unchanged within `bench/ab.py`'s noise; docs/ARCHITECTURE.md, "Compile
+time"). Such a helper that takes one of the kernels' tuples (`TUPLES`) does so without reference counts (``_nrt=False``,
 docs/CONTRACTS.md), unless it says otherwise because it allocates. Every other kernel is
 compiled with ``forceinline=False`` said explicitly, since numba lets a callee inherit the flag from the caller it
 is compiled for. No kernel is called through a C function pointer, so none gets numba's cfunc wrapper

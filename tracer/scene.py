@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from tracer.accel.queries import Hits, SceneQueries  # noqa: F401 - Hits is tracer.scene.Hits too (DESIGN.md)
+from tracer.accel.queries import Hits, SceneQueries  # noqa: F401 - Hits is tracer.scene.Hits too (docs/DESIGN.md)
 from tracer.accel.store import CACHE_MIN_TRIANGLES, Geometry, GeometryStore
 from tracer.accel.tlas import TopLevel, world_boxes
 from tracer.accel.top_levels import TopLevels
@@ -163,7 +163,7 @@ def _builders_ready() -> None:
 
 
 class Scene(SceneElements, SceneQueries):
-    """A two-level ray tracing scene (DESIGN.md, "The tracer's Python API").
+    """A two-level ray tracing scene (docs/DESIGN.md, "The tracer's Python API").
 
     Parameters
     ----------

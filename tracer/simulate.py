@@ -119,7 +119,7 @@ class Simulation:
         Committed. Queries add their receivers as sensor instances for their duration (under a
         lock: queries of one `Simulation` run one at a time on the scene).
     materials : {instance id: material body}
-        DESIGN.md material bodies, or their typed specs (`tracer.optics.surfaces`).
+        docs/DESIGN.md material bodies, or their typed specs (`tracer.optics.surfaces`).
     lights : list of light bodies
         World metres (`tracer.optics.lights`); area lights carry ``"instances"``.
     default_material : material body, optional
@@ -421,7 +421,7 @@ def _is_sensor(scene, i: int) -> bool:
 # ------------------------------------------------------------------------------------------ physics left out
 def left_out(sim: Simulation, names: tuple[str, ...], res: IlluminanceResult, rerun, force_effects, observe,
              seed: int, estimator: str, off: tuple[str, ...] = ()) -> dict:
-    """What each effect in `names` would change (DESIGN.md, "Accuracy is a quantity"): per effect ``{"difference":
+    """What each effect in `names` would change (docs/DESIGN.md, "Accuracy is a quantity"): per effect ``{"difference":
     lux with it forced on − res.lux, "stderr": √(σ_run² + σ_pilot²), "photons", "seconds", "estimator" of the
     pilot, "ran"}``.
 

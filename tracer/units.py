@@ -2,7 +2,7 @@
 
 Every length is in metres (m), every luminous flux in lumens (lm), luminous intensity in candelas
 (cd = lm/sr), illuminance and luminous exitance in lux (lx = lm/m²), radiant power in watts (W) and
-wavelengths in nanometres (nm). Angles in the public bodies (DESIGN.md JSON) are in degrees; inside
+wavelengths in nanometres (nm). Angles in the public bodies (docs/DESIGN.md JSON) are in degrees; inside
 the kernels they are radians. Photometry files are converted on parsing: IES LM-63 candelas are
 multiplied by the candela multiplier and the ballast factor; EULUMDAT values (cd per 1000 lm of
 lamp flux) are scaled by the lamp flux of the first lamp set.

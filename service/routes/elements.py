@@ -1,12 +1,13 @@
-"""Optical elements with an inside (DESIGN.md "Optical elements with an inside"): the library, shared by every
+"""Optical elements with an inside (docs/DESIGN.md "Optical elements with an inside"): the library, shared by every
 scene, and their assignment to a part's support faces.
 
 ``POST /elements`` prepares a body once (the same body answers the same id, 200, preparing nothing);
 ``POST /scenes/{id}/elements`` puts one onto a node's triangles that face a direction (its frame), keeping the
 node's instance, transform and material; ``DELETE`` takes it off. Bad input is a 422 naming the field, with
 nothing changed: a pitch smaller than the feature, a fill outside [0, 1], an unknown element id, a support that
-is not planar. A grating (``{"type": "grating"}``, DESIGN.md "Elements with a wave solution inside") is solved by RCWA
-in the request, its cost bounded first; it cannot be assigned to a face yet (its inner model is not built: a 422).
+is not planar. A grating (``{"type": "grating"}``, docs/DESIGN.md "Elements with a wave solution inside") is solved
+by RCWA in the request, its cost bounded first; it cannot be assigned to a face yet (its inner model is not built: a
+422).
 """
 
 from __future__ import annotations
@@ -110,7 +111,7 @@ class ElementAssignment(BaseModel):
              responses={200: {"model": ElementSummary, "description": "the library already holds this body"}})
 def post_element(manager: Manager, response: Response, body: Annotated[dict[str, Any], Body(
         description=("an element body: {type: microstructure, feature, relief, material, layout}, or {type: grating, "
-                     "profile, period_um, depth_um, ridge, wavelengths_nm, orders, ...} (DESIGN.md; a grating is "
+                     "profile, period_um, depth_um, ridge, wavelengths_nm, orders, ...} (docs/DESIGN.md; a grating is "
                      "solved by RCWA in the request, its cost bounded, and cannot go onto a scene's face yet)"),
         openapi_examples=ELEMENT_EXAMPLES)]) -> dict[str, Any]:
     summary, new = manager.scenes.elements.create(body)

@@ -1,4 +1,4 @@
-"""Pages for people (../shared/DESIGN.md, "For people") and the API docs, all served by the service itself.
+"""Pages for people (docs/DESIGN.md, "For people") and the API docs, all served by the service itself.
 
 - ``GET /``: the scenes, each a link to its view;
 - ``GET /scenes/{id}/view``: the model in 3D (three.js): instances placed by their world transforms, grid sensors as

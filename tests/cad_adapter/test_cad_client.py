@@ -21,7 +21,7 @@ from tracer.geometry_id import geometry_id
 
 
 class FakeService:
-    """Just enough of DESIGN.md's REST contract, checking what the adapter sends."""
+    """Just enough of docs/DESIGN.md's REST contract, checking what the adapter sends."""
 
     def __init__(self) -> None:
         self.scenes: dict[str, dict] = {}

@@ -1,4 +1,4 @@
-"""A pushed mesh is hashed once on the service's side (DESIGN.md "Geometry identity"): when its upload is checked
+"""A pushed mesh is hashed once on the service's side (docs/DESIGN.md "Geometry identity"): when its upload is checked
 against the id in the URL; never again to build its bottom level, on a push, or when a restarted service loads
 the scene back."""
 

@@ -1,4 +1,4 @@
-"""Several service processes on one PostgreSQL database (DESIGN.md, "Beyond one machine").
+"""Several service processes on one PostgreSQL database (docs/DESIGN.md, "Beyond one machine").
 
 A real PostgreSQL server (initdb into a temp dir, `tests/postgres_server.py`) and two real
 `lumenlink serve` processes, A and B, on that database and on one shared data directory (the mesh

@@ -1,4 +1,4 @@
-"""The geometry id is DESIGN.md's hash, computed here independently from the spec's words."""
+"""The geometry id is docs/DESIGN.md's hash, computed here independently from the spec's words."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Ray queries on a committed scene: `Scene.intersect` and `Scene.occluded` (DESIGN.md), batch after batch of rays
+"""Ray queries on a committed scene: `Scene.intersect` and `Scene.occluded` (docs/DESIGN.md), batch after batch of rays
 checked once and traced by the lanes (:func:`tracer.accel.lanes.batch`), in parallel or on the threads asked for.
 
 `SceneQueries` is the half of `tracer.Scene` that reads what a commit published (``self.arrays()``); the scene's

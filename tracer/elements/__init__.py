@@ -1,4 +1,4 @@
-"""Optical elements with an inside (the paper's section 4; DESIGN.md "Optical elements with an inside").
+"""Optical elements with an inside (the paper's section 4; docs/DESIGN.md "Optical elements with an inside").
 
 A micro-structured face (a light guide's extraction dots, a prism film, a micro-lens array) is a prepared model,
 :class:`tracer.elements.microstructure.Microstructure`: its feature shape and its layout, never a mesh. It goes onto

@@ -1,7 +1,7 @@
 """An element's tabulated BSDF: how its micro-structured face scatters, computed once from the exact model.
 
-The table is the element's ``bsdf`` model (DESIGN.md "Optical elements with an inside"): for a support of a solid of
-index ``ior`` in air, the probability that light arriving from direction bin ``i`` leaves into direction bin ``o``.
+The table is the element's ``bsdf`` model (docs/DESIGN.md "Optical elements with an inside"): for a support of a solid
+of index ``ior`` in air, the probability that light arriving from direction bin ``i`` leaves into direction bin ``o``.
 Directions are binned on both sides of the support, in its frame (u, v, n: `tracer.elements.support`): side 0 the
 air side (w > 0 for the leaving light, arriving light travels down), side 1 the solid's; on each side ``n_mu``
 bins uniform in |cos theta| (equal solid angles) by ``n_phi`` in the azimuth from u. Bin index

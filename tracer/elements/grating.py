@@ -1,6 +1,6 @@
 """A grating element: a periodic relief solved once by rigorous coupled-wave analysis, kept as a table of orders.
 
-Issue 52, DESIGN.md "Elements with a wave solution inside". This module checks a body, solves its relief with the
+Issue 52, docs/DESIGN.md "Elements with a wave solution inside". This module checks a body, solves its relief with the
 RCWA library `inkstone` over a grid of wavelengths, incidence directions and both polarizations, and keeps, for each
 propagating order (reflected and transmitted), its efficiency and its Jones matrix. The tracer's inner model (a ray
 leaving in one order) is not built yet: a grating cannot go onto a scene's face (`service.elements`).

@@ -1,6 +1,6 @@
 """A micro-structured face as a prepared model: its feature, its relief and its layout, checked and packed once.
 
-The body (DESIGN.md "Optical elements with an inside"; lengths in mm, on the support's u-v frame)::
+The body (docs/DESIGN.md "Optical elements with an inside"; lengths in mm, on the support's u-v frame)::
 
     {"type": "microstructure",
      "feature": {"shape": "dome", "radius_mm": r, "height_mm": h}          (a spherical cap, h <= r)

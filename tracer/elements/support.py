@@ -3,7 +3,7 @@
 An element goes onto the triangles of a part that face a direction (in the part's frame, within `FACING_DEG`) or
 onto named B-rep faces. They must be planar and, for now, a rectangle in their own u-v frame: u runs along the part's
 x axis projected onto the face (its y axis where x is normal to it), v = n x u, from the corner of smallest u and v
-(DESIGN.md). The part's mesh is split once per assignment into the support (its own bottom level, so a ray that
+(docs/DESIGN.md). The part's mesh is split once per assignment into the support (its own bottom level, so a ray that
 misses every feature meets the same triangles with the same test as without the element: bit-exact) and the rest.
 
 `Reliefs` is the scene's table: one row per instance that carries an element, packed at commit into the

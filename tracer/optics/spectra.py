@@ -7,7 +7,7 @@ of the CIE tables. Every spectral quantity is tabulated on it and read by linear
 x̄ ȳ z̄ of CIE 1931 2°) ship in `data/cie_1nm.csv`, taken from colour-science (a test checks them);
 K_m = 683 lm/W (pbrt-v4 and colour-science use 683; the SI value is 683.002 at 540 THz).
 
-Light spectra (wire bodies, DESIGN.md):
+Light spectra (wire bodies, docs/DESIGN.md):
 
 | body | meaning |
 | --- | --- |

@@ -2,7 +2,7 @@
 
 A sensor kind is one module of this folder, registered by one line in `tracer.sensors.dispatch.KINDS`. It holds:
 
-- ``TYPE`` : str — its name in a sensor body (``{"type": TYPE, ...}``), as on the wire (DESIGN.md);
+- ``TYPE`` : str — its name in a sensor body (``{"type": TYPE, ...}``), as on the wire (docs/DESIGN.md);
 - ``FORWARD_ONLY`` : bool — only photons from the sources reach its bins (no backward path ends there);
 - ``OBSERVES`` : bool — it can answer ``observe`` (spectrum, Stokes) and ``physics_left_out``;
 - ``FIELDS`` — its body fields, typed (`tracer.optics.fields`), for a kind a scene keeps as a sensor: the service

@@ -1,4 +1,4 @@
-"""The tessellation error budget (DESIGN.md, "Accuracy is a quantity"): how far a tessellated curved optical
+"""The tessellation error budget (docs/DESIGN.md, "Accuracy is a quantity"): how far a tessellated curved optical
 surface may be from the true one, and how far that may move the illuminance an answer reports.
 
 Contract
@@ -77,7 +77,7 @@ above is thousands of times the error: too loose to say whether to re-tessellate
 same query (same seed and stop rules) on the curved meshes split 1→4, twice or three times, and extrapolates the
 sequence E_0, E_1, E_2 (, E_3) to the limit of the splits.
 
-- What a split converges to. The service has no B-rep (DESIGN.md: it runs without the CAD stack), so the finer
+- What a split converges to. The service has no B-rep (docs/DESIGN.md: it runs without the CAD stack), so the finer
   surface comes from the mesh itself: its positions and its vertex normals, which `cad_adapter.tessellate` takes
   from the B-rep (exact at the vertices). A split whose new vertices only approximate the surface converges to a
   surface of its own. The first `refine` (PN triangles: Phong-lifted midpoints, quadratic-normal midpoint normals)

@@ -1,4 +1,4 @@
-"""Polarized light: Stokes vectors and Mueller matrices against the closed forms of ../shared/REFERENCES.md and
+"""Polarized light: Stokes vectors and Mueller matrices against the closed forms of docs/REFERENCES.md and
 the polarization issue (Malus, Fresnel at n = 1.5, Brewster, total internal reflection, the thick plate and the
 pile of plates, a quarter-wave plate).
 

@@ -12,7 +12,7 @@ test_chi2_sampling.py.
 - Smooth limit: α = 1e-4 reflects and refracts in the shares `dielectric` gives (two independent runs, within 4
   combined σ) along its mirror and Snell directions (within 2e-3, GGX's 99th percentile at that α).
 - Polarization: at Brewster's angle (α = 1e-4) a p-polarized photon is not reflected, an s one with Rs = 0.147929
-  (REFERENCES.md), and the material calls for polarization by physics as `dielectric` does.
+  (docs/REFERENCES.md), and the material calls for polarization by physics as `dielectric` does.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Spectra and photometry: the CIE tables, light spectra, their sampling, and spectral material values.
 
-Reference values: ../shared/REFERENCES.md ("Spectra and photometry", BK7 Sellmeier).
+Reference values: docs/REFERENCES.md ("Spectra and photometry", BK7 Sellmeier).
 """
 
 from __future__ import annotations

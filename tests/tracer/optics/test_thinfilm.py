@@ -1,6 +1,6 @@
 """Thin-film stacks (tracer.optics.thinfilm): published values, Fresnel limits, energy, reciprocity, and `tmm`.
 
-Reference figures are those of ../shared/REFERENCES.md ("Thin films", "Fresnel and polarization").
+Reference figures are those of docs/REFERENCES.md ("Thin films", "Fresnel and polarization").
 """
 
 from __future__ import annotations

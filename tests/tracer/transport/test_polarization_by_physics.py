@@ -2,7 +2,7 @@
 meet two polarizing interactions carries Stokes vectors by default, the answer says why each effect is on or off,
 and a query may force polarization off.
 
-Closed forms (shared/REFERENCES.md, "Fresnel and polarization"; n = 1.5, Brewster's angle atan 1.5, Rs = 0.147929,
+Closed forms (docs/REFERENCES.md, "Fresnel and polarization"; n = 1.5, Brewster's angle atan 1.5, Rs = 0.147929,
 Rp = 0):
 - The thick lossless plate under an unpolarized beam reflects Rs / (1 + Rs) = 0.128867 (s and p kept apart; p
   passes both faces), and 2R / (1 + R) = 0.137740 with R = Rs / 2 when s and p are averaged at each interface.

@@ -1,5 +1,5 @@
 """Spectral light through the forward tracer: the closed forms of photometry, dispersion, thin films and
-fluorescence (../shared/REFERENCES.md), and that a grey scene answers the same with or without a wavelength.
+fluorescence (docs/REFERENCES.md), and that a grey scene answers the same with or without a wavelength.
 
 Tolerances: four standard errors of the estimate (the estimator's own batch-means error), plus the stated
 model error where there is one (a receiver's finite size, the 1 nm grid).

@@ -2,7 +2,7 @@
 
 A surface kind is one module in this folder (or in `tracer/optics/elements/`, for thin sheets). It holds:
 
-- ``NAME``: the wire `type` (``{"type": NAME, ...}``, DESIGN.md).
+- ``NAME``: the wire `type` (``{"type": NAME, ...}``, docs/DESIGN.md).
 - ``Spec``: a frozen dataclass, the kind's typed spec. Its fields are the body's fields; each float field
   carries its range in ``field(metadata=bounds(lo, hi, ...))``, and a parameter table (name, unit,
   range, default) stands in the module docstring. ``Spec.check()`` may add rules across fields.
