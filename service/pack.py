@@ -211,7 +211,13 @@ def plot_figure(record: dict[str, Any], layout: dict[str, Any]) -> Any:
                 f"{record['uniformity_stderr']:.3f}", xlabel=xlabel, ylabel=ylabel)
     h = record["history"]
     it = [x["iteration"] for x in h]
-    c.errorbar(it, [x["uniformity"] for x in h], yerr=[x["stderr"] for x in h], marker="o", capsize=3)
+    c.errorbar(it, [x["uniformity"] for x in h], yerr=[x["stderr"] for x in h], marker="o", capsize=3,
+               label="measured")
+    conf = [x for x in h if x.get("confirmation")]
+    if conf:   # a reading at the target, measured again with a fresh seed before the pack stops
+        c.errorbar([x["iteration"] + 0.12 for x in conf], [x["confirmation"]["uniformity"] for x in conf],
+                   yerr=[x["confirmation"]["stderr"] for x in conf], marker="s", ls="none", capsize=3,
+                   label="fresh-seed confirmation")
     c.axhline(record["target"], color="grey", ls="--", label=f"target {record['target']:g}")
     c.set(title=f"stopped: {record['stopped']} ({sum(x['seconds'] for x in h):.1f} s)", xlabel="iteration",
           ylabel=record["figure"].replace("_", "/"), ylim=(0.0, 1.02))

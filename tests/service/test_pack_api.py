@@ -82,6 +82,9 @@ def test_a_uniform_pattern_is_packed_to_the_target_and_a_fresh_seed_confirms_it(
     # the uniform start is stated by its own measurement: fill 1.0 takes most light out near the LED
     assert start["uniformity"] + 4 * start["stderr"] < 0.8
     assert res["stopped"] == "target" and last["uniformity"] >= 0.8 and res["best"] == len(history) - 1
+    # it stopped on a reading a fresh seed confirmed (tests/tracer/elements/test_pack_confirm.py has the logic)
+    assert last["confirmation"]["confirmed"] and last["confirmation"]["uniformity"] >= 0.8
+    assert all(h["confirmation"] is None or not h["confirmation"]["confirmed"] for h in history[:-1])
     assert job["progress"]["iteration"] == last["iteration"] and job["progress"]["uniformity"] == last["uniformity"]
     new = res["element"]
     assert new != eid and client.get(f"/elements/{new}").json()["body"]["layout"]["fill"] != UNIFORM["layout"]["fill"]
