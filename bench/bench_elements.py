@@ -1,7 +1,8 @@
 """Optical elements with an inside (issue 36): what preparing, holding and tracing micro-features costs.
 
-1. Preparation: 10^6 dots of a density map and 10^6 listed points, prepared (median of 3), with their bytes per
-   feature; a periodic layout's memory at 10^9 features (a grid: nothing per feature).
+1. Preparation: 10^6 dots of a density map (placed as blue noise, the default, and at random) and 10^6 listed points,
+   prepared (median of 3), with their bytes per feature; a periodic layout's memory at 10^9 features (a grid: nothing
+   per feature).
 2. Rays that never enter an element pay nothing: 1M rays onto a floor beside a light guide, with the guide's dots as
    an element against the same guide plain (one thread, interleaved, median ratio of neighbouring passes).
 3. Photons through a 10^6-dot light guide against the same guide with a plain face: forward photons per second,
@@ -35,6 +36,7 @@ def prepare_costs(repeat: int) -> dict:
     density = {"type": "microstructure", "feature": DOME,
                "layout": {"type": "density", "origin_mm": [0, 0], "size_mm": [300.0, 200.0], "fill": [[0.667]],
                           "seed": 1, "pitch_mm": 0.2}}
+    at_random = {**density, "layout": {**density["layout"], "placement": "random"}}
     rng = np.random.default_rng(3)
     side = 1000
     uv = np.column_stack([np.tile(np.arange(side), side), np.repeat(np.arange(side), side)]) * 0.2 + 0.1
@@ -43,7 +45,8 @@ def prepare_costs(repeat: int) -> dict:
     grid = {"type": "microstructure", "feature": {"shape": "dome", "radius_mm": 0.012, "height_mm": 0.005},
             "layout": {"type": "grid", "pitch_mm": [0.03, 0.03]}}   # 1.1e9 features on 1 m x 1 m
     out = {}
-    for name, body in (("density map", density), ("listed points", points), ("periodic grid", grid)):
+    for name, body in (("density map, blue noise", density), ("density map, random", at_random),
+                       ("listed points", points), ("periodic grid", grid)):
         seconds, model = [], None
         for _ in range(repeat):
             t0 = time.perf_counter()
