@@ -239,9 +239,12 @@ def run(out_dir: Path = Path("demo-output"), photons: int = 400_000, pack: bool 
                 p = pack_guide(ll, http, out_dir, photons)
                 b, a, r = p["before"], p["after"], p["pack"]
                 for h in r["history"]:
+                    c = h.get("confirmation")
+                    again = "" if not c else (f"; a fresh seed {'confirms' if c['confirmed'] else 'does not confirm'}"
+                                              f": {c['uniformity']:.3f} ± {c['stderr']:.3f}")
                     n.say(f"iteration {h['iteration']}: min/max {h['uniformity']:.3f} ± {h['stderr']:.3f} "
                           f"({h['photons']:,} photons, {h['seconds']:.1f} s; the element's update "
-                          f"{h['update_seconds'] * 1000:.1f} ms)")
+                          f"{h['update_seconds'] * 1000:.1f} ms{again})")
                 n.say(f"before: min/max {b['min_max']:.2f} ± {b['min_max_stderr']:.2f} (min/mean {b['min_mean']:.2f}, "
                       f"mean {b['mean']:.0f} lx)")
                 n.say(f"after ({r['stopped']}, {r['iterations']} iterations, {p['pack_wall_seconds']:.0f} s; checked "

@@ -63,6 +63,8 @@ def test_the_pack_picture_keeps_its_texts_inside_and_names_each_frame_with_units
               "stopped": "target", "grid": {k: GRID[k] for k in ("origin", "u", "v")},
               "history": [{"iteration": i, "uniformity": 0.8 + 0.03 * i, "stderr": 0.01, "seconds": 3.0}
                           for i in range(4)]}
+    record["history"][-1]["confirmation"] = {"uniformity": 0.86, "stderr": 0.01, "photons": 1000, "seed": 1,
+                                             "confirmed": False}   # drawn beside its reading, in the legend
     fig = plot_figure(record, {"origin_mm": [0, 0], "size_mm": [120, 80], "pitch_mm": 0.6})
     density, measured = (ax for ax in fig.axes if ax.get_images())
     assert (density.get_xlabel(), density.get_ylabel()) == ("element u on the face (mm)",
@@ -73,4 +75,6 @@ def test_the_pack_picture_keeps_its_texts_inside_and_names_each_frame_with_units
     im = measured.get_images()[0]
     assert (im.norm.vmin, im.norm.vmax) == (905.0, 1102.0)
     assert np.allclose(im.get_extent(), [10.0, 70.0, 10.0, 110.0])
+    history = next(ax for ax in fig.axes if ax.get_legend() is not None)
+    assert "fresh-seed confirmation" in [t.get_text() for t in history.get_legend().get_texts()]
     assert _inside(fig) == []
