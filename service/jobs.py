@@ -29,6 +29,7 @@ from enum import StrEnum
 from typing import Any
 
 from service.errors import ServiceError
+from tracer.transport.rounds import Budget
 
 ProgressFn = Callable[[int, float, float], None]
 CancelFn = Callable[[], bool]
@@ -67,28 +68,6 @@ class QueueFull(JobError, RuntimeError):
     title = "Service unavailable"
 
 
-@dataclass(frozen=True)
-class Budget:
-    """The stopping rules a job runs under, used to estimate the time left.
-
-    Attributes
-    ----------
-    target_relative_error : float or None
-        Stop when every value's standard error is below this fraction of the value.
-    max_seconds : float or None
-        Wall-clock budget, s.
-    max_photons : int or None
-        Photon (or path) budget.
-    target_scope : "worst", "lit" or "mean"
-        Which relative error the target holds (`tracer.simulate.TARGET_SCOPES`).
-    """
-
-    target_relative_error: float | None = None
-    max_seconds: float | None = None
-    max_photons: int | None = None
-    target_scope: str = "worst"
-
-
 def estimate_seconds_left(photons: int, worst_relative_error: float, seconds: float, budget: Budget,
                           rate: float | None = None) -> float | None:
     """Seconds until the first stopping rule is expected to fire, or None if nothing can tell yet.
@@ -125,7 +104,7 @@ def estimate_seconds_left(photons: int, worst_relative_error: float, seconds: fl
     if rate is not None and rate > 0:
         if budget.max_photons is not None:
             candidates.append(max(budget.max_photons - photons, 0) / rate)
-        target = budget.target_relative_error
+        target = budget.target
         if target is not None and math.isfinite(worst_relative_error) and worst_relative_error >= 0:
             needed = photons * (worst_relative_error / target) ** 2
             candidates.append(max(needed - photons, 0.0) / rate)

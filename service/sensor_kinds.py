@@ -27,9 +27,9 @@ import numpy as np
 
 from service import kind_wire
 from service.errors import Invalid, TooLarge
-from service.jobs import Budget
 from service.payloads import finite_list, result_payload
 from service.view_kinds import Camera, Luminance
+from tracer.transport.rounds import Budget
 
 
 @dataclass(frozen=True)
@@ -77,7 +77,7 @@ def refuse_for_tally(sid: Any, kind: str, unit: str, query: Query) -> None:
                          ("physics_left_out", query.physics_left_out)):
         if given:
             raise Invalid(f"sensor {sid!r} is a {kind} sensor: {field} is not available for it")
-    if query.budget.target_scope != "worst":
+    if query.budget.scope != "worst":
         raise Invalid(f"sensor {sid!r} is a {kind} sensor: its target holds every {unit} (target_scope "
                       f"'worst'); give it a photon or time budget instead")
     if query.estimator == "backward":

@@ -43,11 +43,12 @@ import numpy as np
 
 from service import kind_wire, sensor_kinds
 from service.errors import Invalid, NotFound, ServiceError, Unavailable
-from service.jobs import Budget, JobRunner
+from service.jobs import JobRunner
 from service.live import DELETED, LiveRegistry, LiveScene
 from service.optics import to_spec
 from service.payloads import result_payload
 from tracer.optics.fields import node_field
+from tracer.transport.rounds import DEFAULT_MAX_SECONDS, Budget
 
 log = logging.getLogger(__name__)
 #: Async jobs: worker threads and how many may wait.
@@ -56,7 +57,6 @@ MAX_QUEUED_JOBS = 16
 #: Finished jobs whose results stay readable (a grid result of 100k cells is ~3 MB of JSON-ready floats).
 KEEP_FINISHED_JOBS = 64
 #: Budget applied when a request names no time budget (s); the settings' max_seconds caps it.
-DEFAULT_MAX_SECONDS = 60.0
 
 
 def load_transport() -> Any:
@@ -130,7 +130,7 @@ def resolve_budget(limits: Limits, target_relative_error: float | None, max_seco
 
     A request beyond a limit is refused (422) rather than silently cut, so the caller knows the
     answer will not be what it asked for; where a request names no budget, the limits apply
-    (seconds: ``DEFAULT_MAX_SECONDS`` capped by the limit).
+    (seconds: the tracer's ``DEFAULT_MAX_SECONDS``, the one default, capped by the limit).
     """
     if max_photons is not None and max_photons > limits.max_photons:
         raise Invalid(f"max_photons {max_photons} exceeds this service's limit of {limits.max_photons}",
@@ -140,8 +140,7 @@ def resolve_budget(limits: Limits, target_relative_error: float | None, max_seco
                       limit=limits.max_seconds)
     seconds = max_seconds if max_seconds is not None else min(DEFAULT_MAX_SECONDS, limits.max_seconds)
     photons = max_photons if max_photons is not None else limits.max_photons
-    return Budget(target_relative_error=target_relative_error, max_seconds=seconds, max_photons=photons,
-                  target_scope=target_scope)
+    return Budget(target=target_relative_error, max_seconds=seconds, max_photons=photons, scope=target_scope)
 
 
 def find_sensor(live: LiveScene, sensor_id: str) -> dict:
@@ -331,8 +330,8 @@ class SimulationHub:
         """Illuminance at points; the JSON answer of ``POST /scenes/{id}/illuminance``."""
         with _refusals():
             result = prepared.simulation.illuminance(
-                points, normals, radius=radius, target_relative_error=budget.target_relative_error,
-                target_scope=budget.target_scope, max_seconds=budget.max_seconds, max_photons=budget.max_photons,
+                points, normals, radius=radius, target_relative_error=budget.target,
+                target_scope=budget.scope, max_seconds=budget.max_seconds, max_photons=budget.max_photons,
                 seed=seed, estimator=estimator,
                 force_effects=force_effects, progress=progress, cancel=cancel, observe=observe,
                 reference=reference, force_effects_off=force_effects_off,
@@ -357,8 +356,8 @@ class SimulationHub:
         run = getattr(kind, "run", None)   # a kind that splits its query (a camera's bands of rows)
         with _refusals():
             result = (prepared.simulation.run if run is None else run(self.limits, prepared.simulation))(
-                kind.body(sensor, prepared.live), target_relative_error=budget.target_relative_error,
-                target_scope=budget.target_scope, max_seconds=budget.max_seconds, max_photons=budget.max_photons,
+                kind.body(sensor, prepared.live), target_relative_error=budget.target,
+                target_scope=budget.scope, max_seconds=budget.max_seconds, max_photons=budget.max_photons,
                 seed=seed, estimator=estimator, force_effects=force_effects, progress=progress, cancel=cancel,
                 observe=observe, reference=reference, physics_left_out=physics_left_out,
                 force_effects_off=force_effects_off,

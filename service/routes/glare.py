@@ -203,7 +203,7 @@ def _uniformity_query(scene_id: str, query: UniformityQuery, request: Request) -
 
         with _refusals():
             res = meters(prepared.simulation, eyes, np.tile(d, (len(pts), 1)), query.aperture_deg,
-                         target_relative_error=budget.target_relative_error, target_scope=budget.target_scope,
+                         target_relative_error=budget.target, target_scope=budget.scope,
                          max_seconds=budget.max_seconds, max_photons=budget.max_photons, seed=query.seed,
                          estimator=query.estimator, force_effects=tuple(query.force_effects), progress=progress,
                          cancel=cancel)

@@ -12,7 +12,8 @@ import time
 
 import pytest
 
-from service.jobs import Budget, JobNotFound, JobRunner, JobStatus, QueueFull, estimate_seconds_left
+from service.jobs import JobNotFound, JobRunner, JobStatus, QueueFull, estimate_seconds_left
+from tracer.transport.rounds import Budget
 
 
 def wait_for(runner: JobRunner, job_id: str, predicate, timeout: float = 10.0) -> dict:
@@ -159,7 +160,7 @@ def test_runner_rejects_bad_sizes(kwargs) -> None:
 
 def test_seconds_left_follows_inverse_square_root_law() -> None:
     # 1e4 photons in 2 s gave 4 % error; 1 % needs 16× the photons, i.e. 15 × 2 s more.
-    left = estimate_seconds_left(10_000, 0.04, 2.0, Budget(target_relative_error=0.01))
+    left = estimate_seconds_left(10_000, 0.04, 2.0, Budget(target=0.01))
     assert left == pytest.approx(30.0)
     # the smallest of the stopping rules wins
     assert estimate_seconds_left(10_000, 0.04, 2.0, Budget(0.01, max_seconds=12.0)) == pytest.approx(10.0)
@@ -208,7 +209,7 @@ def test_seconds_left_holds_still_when_the_first_round_waited_for_the_compiler()
         seen.set()
         return {}
 
-    job = runner.submit("grid", "s1", 1, work, Budget(target_relative_error=0.005))
+    job = runner.submit("grid", "s1", 1, work, Budget(target=0.005))
     go.set()
     assert seen.wait(10)
     true_end = 30.0 + 100_000 * (0.08 / 0.005) ** 2 / 100_000   # 30 s compiling + 256 s tracing
@@ -217,3 +218,18 @@ def test_seconds_left_holds_still_when_the_first_round_waited_for_the_compiler()
     old = [estimate_seconds_left(n, e, s, Budget(0.005)) + s for n, e, s in reports]
     assert old[0] > 2 * true_end   # what it said before: compiling read as slow tracing
     runner.shutdown()
+
+
+def test_one_budget_and_one_default_from_the_route_to_the_rounds() -> None:
+    """Issue 55: the service's jobs and the tracer's rounds stop by the same `Budget`, and a query that states no time
+    runs under the same default in both (capped by the service's limit); a stated budget passes as stated."""
+    from service import jobs
+    from service.simulation import Limits, resolve_budget
+    from tracer.transport.rounds import DEFAULT_MAX_SECONDS, budget
+
+    assert jobs.Budget is Budget
+    limits = Limits(max_points=100, max_photons=10**9, max_seconds=600.0)
+    assert resolve_budget(limits, None, None, None) == Budget(None, DEFAULT_MAX_SECONDS, 10**9, "worst")
+    assert budget(None, None, None) == Budget(None, DEFAULT_MAX_SECONDS, None, "worst")
+    assert resolve_budget(Limits(100, 10**9, 20.0), None, None, None).max_seconds == 20.0   # the limit caps it
+    assert resolve_budget(limits, 0.02, 5.0, 1000, "lit") == Budget(0.02, 5.0, 1000, "lit")

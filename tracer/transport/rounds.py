@@ -34,7 +34,7 @@ from tracer.transport.radiance import PIXEL, emitters, light_paths
 
 log = logging.getLogger(__name__)
 
-DEFAULT_MAX_SECONDS = 30.0     # s: budget of a query that states none
+DEFAULT_MAX_SECONDS = 60.0     # s: budget of a query that states none, in the tracer and through the service
 ROUND_BATCHES = CPU_SHAPE.first_round        # batches started between two stop tests (the first rounds)
 MAX_ROUND_BATCHES = CPU_SHAPE.max_round      # the largest round, however long the query has run
 FORWARD_BATCH = CPU_SHAPE.forward_photons    # photons per forward batch (fewer when max_photons is small)
@@ -45,13 +45,15 @@ MAX_SPECTRAL_TALLIES = 4_000_000   # bins × spectral columns a query may record
 _COMPILE_SECONDS: dict[tuple, float] = {}   # first call of each compiled variant in this process
 
 
-@dataclass
+@dataclass(frozen=True)
 class Budget:
-    """A query's stop rules, checked (`budget`): target relative error, seconds, photons, and the target's scope."""
+    """A query's stop rules: target relative error (a fraction), seconds, photons, and the target's scope
+    (`TARGET_SCOPES`); None: no such rule. The one budget of the project: the tracer's rounds stop by it (checked and
+    defaulted by `budget`), the service's jobs estimate the time left from it (`service.jobs`)."""
 
-    target: float | None
-    max_seconds: float | None
-    max_photons: int | None
+    target: float | None = None
+    max_seconds: float | None = None
+    max_photons: int | None = None
     scope: str = "worst"
 
 
