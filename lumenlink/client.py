@@ -143,8 +143,8 @@ class Client(ServiceClient):
         The bearer token is this client's (its ``token``, else ``$LUMENLINK_TOKEN``). Raises `LumenLinkError` (``usage``
         for an unreadable or non-STEP file; status 409 when the scene changed meanwhile: push again) or
         `ServiceUnreachable`."""
-        from cad_adapter.cli import default_cache_dir, push_file
         from cad_adapter.errors import CadAdapterError, CadImportError, TessellationError
+        from cad_adapter.push import default_cache_dir, push_file
         from cad_adapter.tessellate import TessellationCache
 
         try:

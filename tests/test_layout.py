@@ -127,3 +127,21 @@ def test_the_shared_modules_stand_alone() -> None:
                               ("service", {"lumenlink.glb"})):
         used = set().union(*(lumenlink_modules_used(p) for p in (ROOT / package).rglob("*.py")))
         assert used == expected, (package, used)
+
+
+def test_lumenlinks_library_takes_the_adapters_library_never_its_command_line() -> None:
+    """Issue 55: `lumenlink.Client.push` reads, tessellates and pushes through `cad_adapter.push` (the library the
+    adapter's own command line prints around), so the import runs one way: only lumenlink's command line
+    (`lumenlink/cli.py`) may import `cad_adapter.cli`, to offer its push and watch commands."""
+    offenders = []
+    for path in sorted((ROOT / "lumenlink").rglob("*.py")):
+        if path.name == "cli.py":
+            continue
+        tree = ast.parse(path.read_text(), filename=str(path))
+        for n in ast.walk(tree):
+            names = ([n.module] if isinstance(n, ast.ImportFrom) and n.module else []) + (
+                [a.name for a in n.names] if isinstance(n, ast.Import) else [])
+            names += [f"{n.module}.{a.name}" for a in n.names] if isinstance(n, ast.ImportFrom) and n.module else []
+            if any(m == "cad_adapter.cli" for m in names):
+                offenders.append(str(path.relative_to(ROOT)))
+    assert not offenders, offenders
