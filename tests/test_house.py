@@ -1,6 +1,10 @@
 """The house's measures (issue 35), so that they keep holding: no module over 600 lines and no class over 250 in
 `tracer/` and `service/`; at most 12 modules in `tracer/`'s root (the rest live in families); every family of the
-tracer beside its contract (``base.py``) and its one registry."""
+tracer beside its contract (``base.py``) and its one registry.
+
+Over every package (issue 55: `tracer`, `service`, `cad_adapter`, `lumenlink`, `bench`), the same measures and no
+function over 80 lines outside numba kernels, as a ratchet: what exceeds them today is listed in `OVER` with its
+size, to be split; a listed one may shrink but not grow, and nothing new may join it."""
 
 from __future__ import annotations
 
@@ -50,3 +54,59 @@ def test_each_family_has_its_contract_and_registry(family: str, registry: str) -
     assert (folder / "base.py").exists(), f"{folder} has no base.py stating the family's contract"
     kinds = getattr(module, registry)
     assert len(kinds) >= 1, (family, kinds)
+
+
+PACKAGES = ("tracer", "service", "cad_adapter", "lumenlink", "bench")
+MAX_FUNCTION_LINES = 80
+#: what exceeds the measures today (issue 55), with its size in lines: to be split, never to grow
+OVER = {
+    "module cad_adapter/matching.py": 756, "module lumenlink/client.py": 647, "module lumenlink/commands.py": 696,
+    "module lumenlink/demo.py": 619, "module bench/bench_gpu.py": 831, "module bench/bench_tracer.py": 626,
+    "class lumenlink/client.py:Client": 513,
+    "function tracer/elements/grating_body.py:check": 114, "function tracer/elements/pack.py:pack": 102,
+    "function tracer/jit.py:kind_table": 87, "function tracer/optics/surfaces/zemax_bsdf.py:parse": 91,
+    "function tracer/photometry/files.py:parse_ies": 127, "function tracer/photometry/files.py:parse_ldt": 96,
+    "function tracer/transport/rounds.py:forward": 94, "function service/document.py:decode_incremental": 107,
+    "function service/maps.py:illuminance_map_figure": 86, "function service/pack.py:start": 81,
+    "function service/push.py:_push_locked": 98, "function cad_adapter/matching.py:reconcile": 107,
+    "function cad_adapter/step_uuid.py:write_step": 105, "function lumenlink/demo.py:_run": 153,
+    "function bench/bench_accuracy.py:plots": 85, "function bench/bench_accuracy.py:markdown": 100,
+    "function bench/bench_gpu.py:markdown": 96, "function bench/bench_luminance.py:demo_car": 108,
+    "function bench/bench_tracer.py:run": 86, "function bench/bench_tracer.py:markdown": 91,
+}
+
+
+def _jitted(node: ast.FunctionDef | ast.AsyncFunctionDef) -> bool:
+    """A numba kernel (``@njit``, ``@cuda.jit``...): its length is the kernel's, measured by its compile instead."""
+    return any("jit" in ast.unparse(d) for d in node.decorator_list)
+
+
+def measures() -> dict[str, int]:
+    """Everything over the measures in every package: {"module path" | "class path:Name" | "function path:name":
+    lines}."""
+    out: dict[str, int] = {}
+    for package in PACKAGES:
+        for p in sorted((ROOT / package).rglob("*.py")):
+            text, rel = p.read_text(), p.relative_to(ROOT).as_posix()
+            if (n := len(text.splitlines())) > MAX_MODULE_LINES:
+                out[f"module {rel}"] = n
+            for node in ast.walk(ast.parse(text, filename=str(p))):
+                if not isinstance(node, ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef):
+                    continue
+                lines = (node.end_lineno or node.lineno) - node.lineno + 1
+                if isinstance(node, ast.ClassDef) and lines > MAX_CLASS_LINES:
+                    out[f"class {rel}:{node.name}"] = lines
+                elif (isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) and lines > MAX_FUNCTION_LINES
+                      and not _jitted(node)):
+                    out[f"function {rel}:{node.name}"] = lines
+    return out
+
+
+def test_every_package_keeps_the_measures_or_shrinks_what_is_listed_over_them() -> None:
+    found = measures()
+    new = {k: v for k, v in found.items() if k not in OVER}
+    grown = {k: (OVER[k], v) for k, v in found.items() if k in OVER and v > OVER[k]}
+    assert not new, f"over the measures ({MAX_MODULE_LINES} lines a module, {MAX_CLASS_LINES} a class, " \
+                    f"{MAX_FUNCTION_LINES} a function): {new}; split them"
+    assert not grown, f"listed as over the measures and grown (listed, now): {grown}; split them instead"
+

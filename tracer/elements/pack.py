@@ -102,6 +102,24 @@ class PackResult:
     seconds: float = 0.0
 
 
+def confirm(sim: Any, sensor: dict, measured: PackIteration, photons: int, seed: int, figure: str, target: float,
+            report: Callable, cancel: Callable[[], bool] | None) -> tuple[np.ndarray, np.ndarray] | None:
+    """Measure iteration `measured`'s pattern again with the fresh `seed` (its reading reached `target`) and keep the
+    reading in ``measured.confirmation``; answers the two readings pooled (lux, stderr), or None where it was
+    cancelled (nothing kept)."""
+    t0 = time.perf_counter()
+    again = sim.run(sensor, max_photons=photons, seed=seed, estimator="forward", progress=report, cancel=cancel)
+    if cancel is not None and cancel():
+        return None
+    lux, err = np.asarray(again.lux, float), np.asarray(again.stderr, float)
+    u, s, _ = figure_of(lux, err, figure)
+    measured.confirmation = {"uniformity": u, "stderr": s, "photons": int(again.photons), "seed": seed,
+                             "confirmed": bool(u >= target)}
+    measured.measure_seconds += time.perf_counter() - t0
+    measured.seconds += time.perf_counter() - t0
+    return (0.5 * (np.asarray(measured.lux) + lux), 0.5 * np.hypot(np.asarray(measured.lux_stderr), err))
+
+
 def confirmation_seed(seed: int, iteration: int) -> int:
     """The photon seed of iteration `iteration`'s confirmation: none of the pack's own measurements takes it (they
     take ``seed * 1009 + iteration``)."""
@@ -268,23 +286,12 @@ def pack(scene: Any, instance: int, start: Microstructure, sensor: dict, simulat
             stopped = "cancelled"
             break
         if u >= target:   # confirmed by a fresh seed, or the two readings pooled correct the map
-            t3 = time.perf_counter()
-            fresh = confirmation_seed(seed, it)
-            again = sim.run(sensor, max_photons=n, seed=fresh, estimator="forward", progress=report, cancel=cancel)
-            total += int(again.photons)
-            if cancel is not None and cancel():
-                stopped = "cancelled"
+            pooled = confirm(sim, sensor, history[-1], n, confirmation_seed(seed, it), figure, target, report, cancel)
+            total += history[-1].confirmation["photons"] if history[-1].confirmation else 0
+            if pooled is None or history[-1].confirmation["confirmed"]:
+                stopped = "cancelled" if pooled is None else "target"
                 break
-            lux2, err2 = np.asarray(again.lux, float), np.asarray(again.stderr, float)
-            u2, s2, _ = figure_of(lux2, err2, figure)
-            history[-1].confirmation = {"uniformity": u2, "stderr": s2, "photons": int(again.photons), "seed": fresh,
-                                        "confirmed": bool(u2 >= target)}
-            history[-1].measure_seconds += time.perf_counter() - t3
-            history[-1].seconds += time.perf_counter() - t3
-            if u2 >= target:
-                stopped = "target"
-                break
-            lux, err = 0.5 * (lux + lux2), 0.5 * np.hypot(err, err2)
+            lux, err = pooled
             n = min(4 * n, int(max_photons))   # near the target the noise decides: halve it
         d, worst, typical = correction(lux, err)
         if not np.any(d) and n >= max_photons:
