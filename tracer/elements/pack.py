@@ -287,9 +287,13 @@ def pack(scene: Any, instance: int, start: Microstructure, sensor: dict, simulat
             break
         if u >= target:   # confirmed by a fresh seed, or the two readings pooled correct the map
             pooled = confirm(sim, sensor, history[-1], n, confirmation_seed(seed, it), figure, target, report, cancel)
-            total += history[-1].confirmation["photons"] if history[-1].confirmation else 0
-            if pooled is None or history[-1].confirmation["confirmed"]:
-                stopped = "cancelled" if pooled is None else "target"
+            again = history[-1].confirmation
+            if pooled is None or again is None:
+                stopped = "cancelled"
+                break
+            total += int(again["photons"])
+            if again["confirmed"]:
+                stopped = "target"
                 break
             lux, err = pooled
             n = min(4 * n, int(max_photons))   # near the target the noise decides: halve it
