@@ -64,9 +64,9 @@ def test_a_kept_grating_is_read_back_after_a_restart_without_solving(tmp_path: P
     ({"period_um": [1, 2]}, "period_um of a 1-D profile (lamellar) is one number in um"),
     ({"ridge": {"ior": [1.5, -1]}}, "ridge.ior[1] must be in [0, 50]"),
     ({"wavelengths_nm": [380]}, "wavelengths_nm must be [lo, hi] in nm"),
-    ({"wavelengths_nm": [380, 780], "wavelength_count": 401, "angles": {"polar_deg": list(range(0, 89)),
-                                                                        "azimuth_deg": [0, 90, 180]}},
-     "one request prepares at most 300 s"),
+    ({"wavelengths_nm": [380, 780], "wavelength_count": 401, "orders": 6,
+      "angles": {"polar_deg": list(range(0, 89)), "azimuth_deg": [0, 90, 180]}}, "one request prepares at most 300 s"),
+    ({"period_um": 2.0}, "orders 5 keeps -5..5, but orders up to |m| = "),
 ])
 def test_bad_and_too_costly_gratings_are_precise_422s_that_store_nothing(client: Any, tmp_path: Path,
                                                                           change: dict, says: str) -> None:

@@ -175,6 +175,7 @@ def check(body: Any) -> dict:
     azimuth = _angles(angles.get("azimuth_deg", [0.0, 45.0] if two_d else [0.0, 180.0]), "angles.azimuth_deg",
                       0.0, 360.0, MAX_AZIMUTHS)
     orders = _count(body.get("orders", 3 if two_d else 10), "orders", 1, MAX_ORDERS_2D if two_d else MAX_ORDERS_1D)
+    _all_propagating_kept(orders, period, lo, max(polar), sub, amb, MAX_ORDERS_2D if two_d else MAX_ORDERS_1D)
     layers = _count(body.get("layers", 16), "layers", 1, MAX_LAYERS)
     if shape in ("lamellar", "pillars", "holes"):
         layers = 1
@@ -188,6 +189,27 @@ def check(body: Any) -> dict:
         raise ElementError(f"grooves_along is for 1-D profiles; a 2-D lattice ({shape}) has its periods along u "
                            f"and v")
     return canon
+
+
+def _all_propagating_kept(orders: int, period: list[float], lo_nm: float, polar_deg: float, n_s: float, n_a: float,
+                         most: int) -> None:
+    """`ElementError` naming ``orders`` where an order beyond ±`orders` propagates somewhere in the table: the solve
+    would leave its light out and share it among the kept ones (a lossless truncated solve still sums to 1), wrong
+    without a sign. Along a period p the tangential wave vector of order m is n_a sin(theta) + m lambda / p (in units
+    of the free-space wavenumber), at most n_a sin(theta_max) + |m| lambda / p in size; an order propagates where that
+    is below the larger index, so every |m| < (max(n_a, n_s) + n_a sin(theta_max)) p / lambda_min may."""
+    for axis, p in enumerate(period):
+        bound = (max(n_a, n_s) + n_a * math.sin(math.radians(polar_deg))) * p * 1000.0 / lo_nm
+        need = math.ceil(bound) - 1   # the largest |m| strictly below the bound
+        if need <= orders:
+            continue
+        where = f"period_um {p:g}" + (f" (axis {'uv'[axis]})" if len(period) > 1 else "")
+        fix = (f"give orders >= {need}" if need <= most else
+               f"that is more than the {most} a rigorous solve takes here: narrow wavelengths_nm to longer ones, "
+               f"angles.polar_deg to smaller ones, or use a shorter period")
+        raise ElementError(f"orders {orders} keeps -{orders}..{orders}, but orders up to |m| = {need} propagate in "
+                           f"this table ({where}, {lo_nm:g} nm, polar up to {polar_deg:g} deg): their light would be "
+                           f"left out of the solve; {fix}")
 
 
 def element_id(canon: dict) -> str:
