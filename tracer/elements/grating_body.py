@@ -174,8 +174,7 @@ def check(body: Any) -> dict:
                     MAX_ANGLES)
     azimuth = _angles(angles.get("azimuth_deg", [0.0, 45.0] if two_d else [0.0, 180.0]), "angles.azimuth_deg",
                       0.0, 360.0, MAX_AZIMUTHS)
-    orders = _count(body.get("orders", 3 if two_d else 10), "orders", 1, MAX_ORDERS_2D if two_d else MAX_ORDERS_1D)
-    _all_propagating_kept(orders, period, lo, max(polar), sub, amb, MAX_ORDERS_2D if two_d else MAX_ORDERS_1D)
+    orders = _orders(body, two_d, period, lo, max(polar), sub, amb)
     layers = _count(body.get("layers", 16), "layers", 1, MAX_LAYERS)
     if shape in ("lamellar", "pillars", "holes"):
         layers = 1
@@ -189,6 +188,16 @@ def check(body: Any) -> dict:
         raise ElementError(f"grooves_along is for 1-D profiles; a 2-D lattice ({shape}) has its periods along u "
                            f"and v")
     return canon
+
+
+def _orders(body: dict, two_d: bool, period: list[float], lo_nm: float, polar_deg: float, n_s: float,
+            n_a: float) -> int:
+    """The body's ``orders`` (default 3 in 2-D, 10 in 1-D), checked to hold every propagating order
+    (`_all_propagating_kept`)."""
+    most = MAX_ORDERS_2D if two_d else MAX_ORDERS_1D
+    orders = _count(body.get("orders", 3 if two_d else 10), "orders", 1, most)
+    _all_propagating_kept(orders, period, lo_nm, polar_deg, n_s, n_a, most)
+    return orders
 
 
 def _all_propagating_kept(orders: int, period: list[float], lo_nm: float, polar_deg: float, n_s: float, n_a: float,
