@@ -13,8 +13,10 @@ failed push: the assignment stays, inactive, and says why (`problems`).
 
 A grating (``{"type": "grating", ...}``, `tracer.elements.grating`, issue 52) is solved by RCWA when posted: its body
 is checked and its cost bounded first (a 422, nothing stored), then it is prepared in the request and kept like the
-others (its table as ``<id>.npz``, the same bytes for the same body). Its inner model in the tracer is not built yet,
-so an assignment of one onto a scene's face is a 422 that stores nothing.
+others (its table as ``<id>.npz``, the same bytes for the same body). Assigned to a face like any element, it goes
+onto the plain support and scatters by its table of orders (`tracer.elements.diffraction`): the scene turns spectral
+(the answer's ``effect_reasons`` says why), and an answer whose photons met it where the table ran out says so in
+its ``warnings``.
 """
 
 from __future__ import annotations
@@ -214,9 +216,8 @@ def _summary(row: Any) -> dict[str, Any]:
     return out
 
 
-GRATING_NOT_YET = ("is a grating: its inner model in the tracer (a ray leaving in one diffraction order, chosen by "
-                   "the order's efficiency) is not built yet (issue 52); it is kept in the library, but cannot go onto "
-                   "a scene's face yet")
+GRATING_MODEL = ("is a grating: it scatters by its table of orders (the wave solution); 'model' chooses between a "
+                 "microstructure's exact features and its tabulated BSDF: leave it out, or give 'exact'")
 
 
 def check_assignment(body: dict, library: ElementLibrary, state: Any) -> None:
@@ -226,8 +227,8 @@ def check_assignment(body: dict, library: ElementLibrary, state: Any) -> None:
         summary = library.summary(body["element"])
     except NotFound as exc:
         raise Invalid(f"element: {exc.detail}") from None
-    if summary["type"] == "grating":
-        raise Invalid(f"element: {body['element']} {GRATING_NOT_YET}")
+    if summary["type"] == "grating" and body.get("model", "exact") != "exact":
+        raise Invalid(f"model: element {body['element']} {GRATING_MODEL}")
     if not state.has_node(body["node"]):
         raise Invalid(f"node: no node {body['node']} in scene {state.id}", node=body["node"])
     if body["node"] not in state.instances:

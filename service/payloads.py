@@ -47,7 +47,19 @@ def result_payload(result: Any, revision: int) -> dict[str, Any]:
            if getattr(result, "physics_left_out", None) else {}),
         **spectral_payload(result),
         **stokes_payload(result),
+        **table_warnings(result),
     }
+
+
+def table_warnings(result: Any) -> dict[str, Any]:
+    """``{"warnings": [...]}`` where photons met a grating where its table ran out (`tracer.elements.diffraction`:
+    a wavelength or angle outside it, an order cut off between its points): never a silent answer."""
+    n = int((getattr(result, "counters", None) or {}).get("grating_outside_table", 0))
+    if n <= 0:
+        return {}
+    return {"warnings": [f"{n} photon(s) met a grating where its table of orders ran out (a wavelength or an angle "
+                         f"outside the table, or an order cut off between its points): the nearest table point was "
+                         f"used there; prepare the grating over the scene's wavelengths and angles"]}
 
 
 def device_name(backend: dict | None) -> str | None:

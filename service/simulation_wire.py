@@ -243,7 +243,8 @@ class IlluminancePublic(BaseModel):
                                                    "(the query's, else the default 0.05 m).")
     warnings: list[str] | None = Field(None, description="Points or lights far outside the model (more than 100 "
                                                          "diagonals of its box): positions are world metres, "
-                                                         "whatever the document's length unit.")
+                                                         "whatever the document's length unit; photons that met a "
+                                                         "grating where its table of orders ran out.")
     error_budget: ErrorBudget | None = Field(None, description="Where the scene has curved mirror or glass meshes: "
                                                                "the tessellation's share of the error, lx.")
     physics_left_out: dict[str, PhysicsLeftOut] | None = Field(
@@ -334,7 +335,8 @@ class SensorPublic(BaseModel):
     u: list[float] | None = Field(None, description="Grid: edge along which the nu cells lie, world metres.")
     v: list[float] | None = Field(None, description="Grid: edge along which the nv cells lie, world metres.")
     map_url: str | None = Field(None, description="Grid, camera: the false-colour PNG of this result.")
-    warnings: list[str] | None = Field(None, description="The sensor or lights far outside the model (world metres).")
+    warnings: list[str] | None = Field(None, description="The sensor or lights far outside the model (world metres); "
+                                       "photons that met a grating where its table of orders ran out.")
     node: str | None = Field(None, description="Surface: the sensor's node (UUID).")
     instances: list[SurfaceInstance] | None = Field(None, description=(
         "Surface: each instance of the node's subtree, its triangles' illuminance on their front side (the outside "

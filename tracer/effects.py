@@ -12,6 +12,7 @@
 | `coating` | a `dielectric` with thin films |
 | `fluorescence` | a `dielectric` that fluoresces |
 | `mie` | a `dielectric` holding `particles` (Mie scattering, `tracer.optics.mie`) |
+| `diffraction` | a grating on a part's face (`tracer.elements.diffraction`: its orders vary with the wavelength) |
 | `polarization` | a `polarizer`, `retarder`, polarized light or a query observing Stokes (required); and by physics |
 |  | wherever a path can meet two polarizing interactions that could move the answer beyond its error bar |
 |  | (`polarization_call` below; a query may then force it off) |
@@ -22,9 +23,10 @@ only where there is one), which the transport benchmark measured to cost nothing
 photon *carries* does change the kernel (Mitsuba's variants): `photon_state(effects)` names it, and
 `tracer.transport.forward.forward_kernel(state)` is the one factory of kernels. Every effect listed today
 up to `scattering` needs only a weight, the state ``"white"``; `spectral` (implied by `dispersion`, `coating`
-`fluorescence` and `mie`) needs a wavelength, the state ``"spectral"``; `polarization` needs a Stokes vector and
-its frame (`tracer.optics.polarization`), the state ``"polarized"`` (``"polarized-spectral"`` with both). A
-light's spectrum alone does not call for a wavelength: in a grey scene the luminous answer is exact without it.
+`fluorescence`, `mie` and `diffraction`) needs a wavelength, the state ``"spectral"``; `polarization` needs a
+Stokes vector and its frame (`tracer.optics.polarization`), the state ``"polarized"`` (``"polarized-spectral"``
+with both). A light's spectrum alone does not call for a wavelength: in a grey scene the luminous answer is exact
+without it.
 `with_forced` turns effects on in a scene that does not need them (the answer must not change), and off where the
 physics estimate took them (`OPTIONAL`) and the query asks (`force_effects_off`).
 
@@ -60,8 +62,9 @@ from tracer.errors import TracerError
 from tracer.optics.surfaces.dispatch import effects_of, material_spec, module_of, polarizing_of
 
 EFFECTS = ("lambertian", "specular", "fresnel", "absorption", "scattering", "spectral", "dispersion", "coating",
-           "fluorescence", "mie", "polarization")
-NEEDS_WAVELENGTH = ("dispersion", "coating", "fluorescence", "mie")
+           "fluorescence", "mie", "diffraction", "polarization")
+NEEDS_WAVELENGTH = ("dispersion", "coating", "fluorescence", "mie", "diffraction")
+GRATING = "grating element"   # how the reasons name a grating (`explain_effects`), beside materials' kinds
 PHOTON_STATES = ("white", "spectral", "polarized", "polarized-spectral")
 OPTIONAL = ("polarization",)    # effects the physics estimate may take, and a query may therefore force off
 POLARIZATION_FLOOR = 0.002      # relative error below which leaving polarization out cannot show (module docstring)
@@ -157,7 +160,7 @@ _SHAPES: dict[str, str] = {}   # `surface_shape` per geometry id (3 s for a 1.3M
 
 
 def explain_effects(materials: Iterable, lights: Iterable[dict] = (), counts: Mapping | None = None,
-                    twice: Iterable = ()) -> tuple[list[str], dict[str, str]]:
+                    twice: Iterable = (), gratings: Iterable[float] = ()) -> tuple[list[str], dict[str, str]]:
     """The effect set of a scene and, for every effect in `EFFECTS`, why it is on or off (a sentence that starts
     with ``"on: "`` or ``"off: "``).
 
@@ -165,15 +168,21 @@ def explain_effects(materials: Iterable, lights: Iterable[dict] = (), counts: Ma
         `counts` {spec: surfaces that carry it} beside (missing: 1 each).
     twice : specs carried by a surface that one path may meet twice (`met_twice`): its one interaction counts
         twice in `polarization_call`.
+    gratings : the largest diattenuation of each grating on a part's face (`tracer.elements.diffraction`), one per
+        face: it calls for `diffraction`, and is one polarizing interaction in `polarization_call`.
     """
     specs = [material_spec(m) for m in materials]
     if counts is None:
         counts = Counter(specs)
     lights = list(lights)
+    gratings = [float(d) for d in gratings]
     by_effect: dict[str, list[str]] = {}
     for spec in dict.fromkeys(specs):
         for e in effects_of([spec]) - {"lambertian"}:
             by_effect.setdefault(e, []).append(module_of(spec).NAME)
+    if gratings:
+        for e in ("diffraction", "spectral"):
+            by_effect.setdefault(e, []).append(GRATING)
     polarized_lights = [i for i, b in enumerate(lights) if isinstance(b, dict) and b.get("polarization")]
     reasons: dict[str, str] = {}
     on = {"lambertian"}
@@ -195,7 +204,7 @@ def explain_effects(materials: Iterable, lights: Iterable[dict] = (), counts: Ma
         what += [f"polarized light(s) {polarized_lights}"] if polarized_lights else []
         reasons["polarization"] = f"on: required by {' and '.join(what)} (cannot be forced off)"
     else:
-        call, why = polarization_call(specs, counts, twice)
+        call, why = polarization_call(specs, counts, twice, gratings)
         if call:
             on.add("polarization")
         reasons["polarization"] = ("on: " if call else "off: ") + why
@@ -203,17 +212,19 @@ def explain_effects(materials: Iterable, lights: Iterable[dict] = (), counts: Ma
 
 
 def _kinds(names: list[str]) -> str:
-    return ", ".join(f"a {n!r} material" for n in names)
+    return ", ".join(f"a {n}" if n == GRATING else f"a {n!r} material" for n in names)
 
 
-def polarization_call(specs: Iterable, counts: Mapping | None = None, twice: Iterable = ()) -> tuple[bool, str]:
+def polarization_call(specs: Iterable, counts: Mapping | None = None, twice: Iterable = (),
+                      gratings: Iterable[float] = ()) -> tuple[bool, str]:
     """Whether the scene's materials call for polarization by physics (the module docstring), and why: the two
     largest diattenuations a path can meet in a row, their product (the bound on the relative error of leaving
-    polarization out) against `POLARIZATION_FLOOR`. `twice`: specs on a surface one path may meet twice."""
+    polarization out) against `POLARIZATION_FLOOR`. `twice`: specs on a surface one path may meet twice;
+    `gratings`: the largest diattenuation of each face carrying a grating (a diattenuator met once per passage)."""
     specs = list(specs)
     counts = Counter(specs) if counts is None else counts
     twice = set(twice)
-    found: list[tuple[float, str]] = []
+    found: list[tuple[float, str]] = [(float(d), GRATING) for d in gratings if d > 0.0][:2]
     again: list[str] = []   # kinds counted twice: their one surface can be met twice
     for spec in dict.fromkeys(specs):
         per, d = polarizing_of(spec)

@@ -57,6 +57,7 @@ from tracer.effects import (
     query_reasons,
     with_forced,
 )
+from tracer.elements.diffraction import diattenuation
 from tracer.errors import SimulationError
 from tracer.optics.lights import connectable, pack_lights
 from tracer.optics.lights.dispatch import polarized_lights, spectral_lights
@@ -170,7 +171,8 @@ class Simulation:
         counts = Counter(m for m in (mats.get(i, default_spec) for i in geometry_ids) if m is not None)
         # the one rule, as the service's summary: the effect set, and why each effect is on or off
         twice = met_twice(scene, {i: mats.get(i, default_spec) for i in geometry_ids}, counts, lights)
-        self.effects, self.effect_reasons = explain_effects(self._specs, lights, counts, twice)
+        gratings = [diattenuation(t) for t in scene.gratings()] if hasattr(scene, "gratings") else []
+        self.effects, self.effect_reasons = explain_effects(self._specs, lights, counts, twice, gratings)
         self._curved = scene_surfaces(scene, {i: mats.get(i, default_spec) for i in geometry_ids}, geometry_ids)
 
     # ------------------------------------------------------------------------------------------ helpers

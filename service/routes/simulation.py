@@ -139,7 +139,9 @@ def _points_query(scene_id: str, query: IlluminanceQuery, request: Request) -> t
                                  force_effects_off=tuple(query.force_effects_off),
                                  tessellation_estimate=query.tessellation_estimate)
         _targeted(payload, query.cost_targets)
-        payload.update(radius=radius, **({"warnings": warnings} if warnings else {}))
+        payload.update(radius=radius)
+        if warnings:
+            payload["warnings"] = warnings + payload.get("warnings", [])
         payload["current"] = hub.is_current(scene_id, prepared.generation)
         return payload
 
@@ -192,7 +194,7 @@ def _sensor_query(scene_id: str, sensor_id: str, query: SensorSimulate, request:
         if payload["type"] == "camera":
             payload["image_url"] = image_url
         if warnings:
-            payload["warnings"] = warnings
+            payload["warnings"] = warnings + payload.get("warnings", [])
         return payload
 
     return "sensor", scene_id, prepared, work, budget, {"generation": prepared.generation, "sensor": sensor_id}

@@ -1,6 +1,6 @@
 """Grating elements through the REST API (issue 52): solved by RCWA when posted, content-addressed, kept like every
 element and read back after a restart; bad or too costly bodies are precise 422s that store nothing; a grating
-cannot go onto a scene's face yet (its inner model in the tracer is not built), a 422 that stores nothing."""
+goes onto a scene's face and diffracts there (tests/tracer/elements/test_grating_transport.py has the physics)."""
 
 from __future__ import annotations
 
@@ -64,7 +64,7 @@ def test_a_kept_grating_is_read_back_after_a_restart_without_solving(tmp_path: P
     ({"period_um": [1, 2]}, "period_um of a 1-D profile (lamellar) is one number in um"),
     ({"ridge": {"ior": [1.5, -1]}}, "ridge.ior[1] must be in [0, 50]"),
     ({"wavelengths_nm": [380]}, "wavelengths_nm must be [lo, hi] in nm"),
-    ({"wavelengths_nm": [380, 780], "wavelength_count": 401, "orders": 6,
+    ({"wavelengths_nm": [380, 780], "wavelength_count": 401, "orders": 8,
       "angles": {"polar_deg": list(range(0, 89)), "azimuth_deg": [0, 90, 180]}}, "one request prepares at most 300 s"),
     ({"period_um": 2.0}, "orders 5 keeps -5..5, but orders up to |m| = "),
 ])
@@ -88,13 +88,33 @@ def _scene(client: Any) -> str:
     return sid
 
 
-def test_assigning_a_grating_to_a_face_is_a_422_saying_its_inner_model_is_not_built_yet(client: Any) -> None:
+def test_a_grating_on_a_face_diffracts_makes_the_scene_spectral_and_says_where_its_table_ran_out(client: Any) -> None:
+    """Library -> assignment -> query: the grating goes onto the plate's top face, the answer's effects hold
+    `diffraction` and `spectral` and say why, and light that meets it outside its table (here: inside the plate, at
+    polar angles past the table's 30 degrees and on the azimuth 180 it was not solved for) is counted in the
+    answer's warnings. A 'bsdf' model for a grating is a 422 naming the field, and packing one is refused."""
     eid = client.post("/elements", json=GRATING).json()["id"]
     sid = _scene(client)
-    r = client.post(f"/scenes/{sid}/elements", json={"element": eid, "node": "optics/plate", "facing": [0, 0, 1]})
-    assert r.status_code == 422, r.text
-    assert "is a grating" in r.text and "not built yet (issue 52)" in r.text
+    assert client.put(f"/scenes/{sid}/materials/{uid(1)}", json={"type": "dielectric", "ior": 1.5}
+                      ).status_code in (200, 201)
+    r = client.post(f"/scenes/{sid}/elements", json={"element": eid, "node": "optics/plate", "facing": [0, 0, 1],
+                                                     "model": "bsdf"})
+    assert r.status_code == 422 and "model: element" in r.text and "is a grating" in r.text, r.text
     assert client.get(f"/scenes/{sid}/elements").json() == []
+    r = client.post(f"/scenes/{sid}/elements", json={"element": eid, "node": "optics/plate", "facing": [0, 0, 1]})
+    assert r.status_code == 201, r.text
+    assert r.json()["applied"] and r.json()["support"]["triangles"] == 2
+    client.post(f"/scenes/{sid}/lights", json={"type": "collimated", "origin": [0.01, 0.01, 0.005],
+                                               "direction": [0, 0, -1], "radius": 0.003, "illuminance_lx": 1000,
+                                               "spectrum": {"type": "monochromatic", "nm": 550}})
+    a = client.post(f"/scenes/{sid}/illuminance", json={"points": [[0.01, 0.01, -0.001]], "normals": [[0, 0, 1]],
+                                                       "max_photons": 3000, "seed": 1, "estimator": "forward"})
+    assert a.status_code == 200, a.text
+    body = a.json()
+    assert {"diffraction", "spectral"} <= set(body["effects"])
+    assert body["effect_reasons"]["diffraction"] == "on: called for by a grating element"
+    assert body["lux"][0] > 0
+    assert any("met a grating where its table of orders ran out" in w for w in body["warnings"]), body
     r = client.post(f"/elements/{eid}/pack", json={"scene": sid, "assignment": "x", "sensor": "y"})
     assert r.status_code == 422 and "is a grating" in r.text
 

@@ -60,9 +60,9 @@ GEOM_S = 4                                # the support's own geometry (bottom l
 MAP_A, MAP_S, MAP_INV = 5, 6, 7           # offsets in el_prim: rest -> part, support -> part, part -> either
 BITS, UV, BINS = 8, 9, 10                 # offsets in el_bits (bytes), el_uv (rows), el_bin (starts)
 ITEMS = 11                                # offset in el_item
-MODEL, TAB, TAB_MU, TAB_PHI = 12, 13, 14, 15   # 0 exact, 1 bsdf: its table's first row in el_tab, its bins
-NI = 16
-EXACT, BSDF = 0, 1
+MODEL, TAB, TAB_MU, TAB_PHI = 12, 13, 14, 15   # 0 exact, 1 bsdf, 2 grating: its table's first row in el_tab, its
+NI = 16                                        # bins (bsdf); a grating's sizes are in its table (`diffraction`)
+EXACT, BSDF, GRATING = 0, 1, 2
 
 NEAR = 1.0e300
 

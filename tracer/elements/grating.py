@@ -2,8 +2,9 @@
 
 Issue 52, docs/DESIGN.md "Elements with a wave solution inside". This module checks a body, solves its relief with the
 RCWA library `inkstone` over a grid of wavelengths, incidence directions and both polarizations, and keeps, for each
-propagating order (reflected and transmitted), its efficiency and its Jones matrix. The tracer's inner model (a ray
-leaving in one order) is not built yet: a grating cannot go onto a scene's face (`service.elements`).
+propagating order (reflected and transmitted), its efficiency and its Jones matrix, lit from the ambient and (its
+second half, `GratingTable.inside`) from the substrate. The tracer's inner model (a ray leaving in one order, chosen
+by its efficiency) reads it: `tracer.elements.diffraction`.
 
 The body (lengths in um, wavelengths in nm, angles in degrees)::
 
@@ -23,7 +24,7 @@ The body (lengths in um, wavelengths in nm, angles in degrees)::
      "grooves_along": "v" | "u",                            1-D: the ridges' direction on the face (the grating
                                                             vector is the other axis)
      "wavelengths_nm": [lo, hi], "wavelength_count": 9,     samples, lo to hi inclusive (one where lo == hi)
-     "angles": {"polar_deg": [...], "azimuth_deg": [...]},  incidence from the ambient side, ascending
+     "angles": {"polar_deg": [...], "azimuth_deg": [...]},  incidence (in the medium it comes from), ascending
      "orders": 10,                                          Fourier orders kept in the solve, -orders..orders per axis
      "layers": 16}                                          staircase layers of a graded profile (not lamellar,
                                                             pillars, holes: those are one layer)
@@ -34,7 +35,9 @@ vector: a sawtooth is not symmetric), [0, 45] for 2-D ones; orders 10 (1-D) or 3
 Frame: the table lives in the grating's own frame. x is the (first) grating vector, z the face's normal into the
 substrate, the ambient at z < 0. The incidence direction's tangential part is ``n_a sin(polar) (cos az, sin az)``.
 Polarization basis of every wave (incident and diffracted): ``s = z x k / |z x k|`` (for a normal wave ``(-sin az,
-cos az, 0)``) and ``p = k x s``, so (s, p, k) is right-handed.
+cos az, 0)``) and ``p = k x s``, so (s, p, k) is right-handed. Lit from the substrate (`inside`, the same layout),
+the frame is turned 180 degrees about x: z into the ambient, y reversed, polar angles in the substrate; side 0 is then
+reflected back into the substrate, side 1 transmitted into the ambient. Preparing solves both, twice the points.
 
 The table (`GratingTable`; sizes W wavelengths, A polar angles, Z azimuths, K orders, side 0 reflected, 1 transmitted):
 
@@ -98,8 +101,10 @@ from tracer.elements.grating_body import (  # noqa: F401
 )
 
 
-def _structure(canon: dict) -> Any:
-    """The inkstone model of the relief (lengths in um): ambient, the relief's layers top down, substrate."""
+def _structure(canon: dict, inside: bool = False) -> Any:
+    """The inkstone model of the relief (lengths in um): ambient, the relief's layers top down, substrate; `inside`:
+    seen from the substrate (the frame turned 180 degrees about x: substrate, the layers bottom up, ambient; every
+    profile is symmetric under y -> -y, so the patterns stay as they are)."""
     from inkstone import Inkstone
 
     prof = canon["profile"]
@@ -118,9 +123,9 @@ def _structure(canon: dict) -> Any:
         # the body's n - ik (exp(+i w t), optics' sign) is n + ik in inkstone's exp(-i w t): Im(eps) > 0 absorbs
         st.AddMaterial(name="ridge", epsilon=complex(n, k) ** 2 if k else n * n)
         ridge = "ridge"
-    st.AddLayer(name="in", thickness=0.0, material_background="ambient")
+    st.AddLayer(name="in", thickness=0.0, material_background="substrate" if inside else "ambient")
     nl, depth = canon["layers"], canon["depth_um"]
-    for j in range(nl):
+    for j in (reversed(range(nl)) if inside else range(nl)):
         name = f"z{j}"
         z = 1.0 - (j + 0.5) / nl   # the layer's middle height above the substrate, as a fraction of depth (top first)
         if shape == "holes":
@@ -140,7 +145,7 @@ def _structure(canon: dict) -> Any:
             st.AddPatternDisk(layer=name, material=ridge, radius=prof["fill"] * min(period) / 2.0)
         else:   # moth_eye: a cone, its tip up
             st.AddPatternDisk(layer=name, material=ridge, radius=prof["fill"] * min(period) / 2.0 * (1.0 - z))
-    st.AddLayer(name="out", thickness=0.0, material_background="substrate")
+    st.AddLayer(name="out", thickness=0.0, material_background="ambient" if inside else "substrate")
     return st
 
 
@@ -187,14 +192,17 @@ class GratingTable:
     jones: np.ndarray
     direction: np.ndarray
     prepare_seconds: float = 0.0
+    inside: GratingTable | None = None   # the same relief lit from the substrate (its frame: module docstring)
 
     ARRAYS = ("wavelength_nm", "polar_deg", "azimuth_deg", "orders", "efficiency", "unpolarized", "jones",
               "direction")
+    INSIDE = ("efficiency", "unpolarized", "jones", "direction")   # what `inside` holds of its own
 
     @property
     def nbytes(self) -> int:
-        """Memory of the table's arrays (bytes)."""
-        return int(sum(getattr(self, a).nbytes for a in self.ARRAYS))
+        """Memory of the table's arrays, both sides (bytes)."""
+        own = int(sum(getattr(self, a).nbytes for a in self.ARRAYS))
+        return own + (0 if self.inside is None else int(sum(getattr(self.inside, a).nbytes for a in self.INSIDE)))
 
     def summary(self) -> dict[str, Any]:
         """What a library lists: id, type, bytes, prepare_seconds, solver (features: null)."""
@@ -207,6 +215,8 @@ class GratingTable:
         buf = io.BytesIO()
         items = {"body": np.frombuffer(json.dumps(self.body, sort_keys=True).encode(), np.uint8),
                  **{a: getattr(self, a) for a in self.ARRAYS}}
+        if self.inside is not None:
+            items.update({f"inside_{a}": getattr(self.inside, a) for a in self.INSIDE})
         with zipfile.ZipFile(buf, "w", zipfile.ZIP_STORED) as zf:
             for name in sorted(items):
                 one = io.BytesIO()
@@ -219,8 +229,12 @@ class GratingTable:
         """A table written by `to_bytes`, as it was: nothing is solved again."""
         with np.load(io.BytesIO(data), allow_pickle=False) as z:
             body = json.loads(bytes(z["body"]).decode())
-            arrays = {a: np.array(z[a]) for a in cls.ARRAYS}
-        return cls(element_id(body), body, prepare_seconds=prepare_seconds, **arrays)
+            arrays: dict[str, Any] = {a: np.array(z[a]) for a in cls.ARRAYS}
+            inside: dict[str, Any] | None = ({a: np.array(z[f"inside_{a}"]) for a in cls.INSIDE}
+                                             if "inside_efficiency" in z else None)
+        eid = element_id(body)
+        sub = None if inside is None else cls(eid, body, **{**arrays, **inside})
+        return cls(eid, body, prepare_seconds=prepare_seconds, inside=sub, **arrays)
 
     def order_index(self, m: int, n: int = 0) -> int | None:
         """The row of order (m, n) in `orders`, or None where the table does not hold it."""
@@ -228,13 +242,18 @@ class GratingTable:
         return int(hit[0]) if len(hit) else None
 
     def lookup(self, wavelength_nm: float, polar_deg: float, azimuth_deg: float, order: tuple[int, int],
-               side: int) -> Lookup:
+               side: int, from_inside: bool = False) -> Lookup:
         """Order `order` = (m, n) on `side` (0 reflected, 1 transmitted) at a wavelength (nm) and incidence
-        (degrees, the grating's frame), interpolated linearly between the table's points. Outside the table's
+        (degrees, the grating's frame; `from_inside`: lit from the substrate, the polar angle in the substrate, the
+        frame turned 180 degrees about x), interpolated linearly between the table's points. Outside the table's
         wavelengths or angles, for an order it does not hold, or one cut off at a surrounding table point, the
         answer's `status` says so and its numbers are NaN: never a silent zero. The table's angles are taken as they
-        are: folding a direction by the relief's symmetries (a 1-D mirror across the grating vector, a square
-        lattice's eight) onto them is the inner model's, not built yet."""
+        are: folding a direction by the relief's symmetries onto them is the inner model's
+        (`tracer.elements.diffraction`)."""
+        if from_inside:
+            if self.inside is None:
+                raise ValueError("this table was solved for light from the ambient side only")
+            return self.inside.lookup(wavelength_nm, polar_deg, azimuth_deg, order, side)
         nan = Lookup(OK, math.nan, math.nan, math.nan, np.full((2, 2), np.nan + 0j))
         k = self.order_index(*order)
         if k is None:
@@ -290,38 +309,44 @@ def prepare(body: Any, progress: Callable[[float], None] | None = None) -> Grati
     two_d = canon["profile"]["shape"] in SHAPES_2D
     period = canon["period_um"] if two_d else [canon["period_um"], 1.0]
     n_a, n_s = canon["ambient_ior"], canon["substrate_ior"]
-    # the orders that can propagate anywhere in the table, on either side (the grating equation's bound, widened by
-    # one order: the solver's own wave vectors decide below)
-    reach = (n_a + max(n_a, n_s)) / (wl[0] / 1000.0)   # |m| / period below it, in 1/um
+    # the orders that can propagate anywhere in the table, lit from either side (the grating equation's bound,
+    # widened by one order: the solver's own wave vectors decide below)
+    reach = 2.0 * max(n_a, n_s) / (wl[0] / 1000.0)   # |m| / period below it, in 1/um
     mmax = min(canon["orders"], int(reach * period[0]) + 1)
     nmax = min(canon["orders"], int(reach * period[1]) + 1) if two_d else 0
     orders = np.array([(m, n) for m in range(-mmax, mmax + 1) for n in range(-nmax, nmax + 1)], np.int32)
     shape = (len(wl), len(polar), len(azim))
-    eff = np.full((*shape, 2, 2, len(orders)), np.nan, np.float32)
-    jones = np.full((*shape, 2, len(orders), 2, 2), np.nan + 0j, np.complex64)
-    direction = np.full((*shape, 2, len(orders), 3), np.nan, np.float32)
+    sides = []
     from threadpoolctl import threadpool_limits
 
-    total = int(np.prod(shape))
+    total = 2 * int(np.prod(shape))
     done = 0
     with threadpool_limits(limits=1, user_api="blas"), warnings.catch_warnings():
         # inkstone 0.3.15 warns on numpy 2's 2-D cross products and on its own layer bookkeeping: not ours to act on
         warnings.simplefilter("ignore")
-        st = _structure(canon)
-        for i, lam in enumerate(wl):
-            for a, th in enumerate(polar):
-                for b, ph in enumerate(azim):
-                    lam_um = _off_grazing(lam / 1000.0, th, ph, n_a, n_s, period, orders)
-                    _solve_point(st, lam_um, th, ph, n_a, n_s, orders, two_d, eff[i, a, b], jones[i, a, b],
-                                 direction[i, a, b])
-                    done += 1
-                    if progress is not None:
-                        progress(done / total)
-    unpol = eff.mean(axis=3)
-    keep = np.isfinite(eff).any(axis=(0, 1, 2, 3, 4))
+        for inside, n_in, n_out in ((False, n_a, n_s), (True, n_s, n_a)):
+            eff = np.full((*shape, 2, 2, len(orders)), np.nan, np.float32)
+            jones = np.full((*shape, 2, len(orders), 2, 2), np.nan + 0j, np.complex64)
+            direction = np.full((*shape, 2, len(orders), 3), np.nan, np.float32)
+            st = _structure(canon, inside)
+            for i, lam in enumerate(wl):
+                for a, th in enumerate(polar):
+                    for b, ph in enumerate(azim):
+                        lam_um = _off_grazing(lam / 1000.0, th, ph, n_in, n_out, period, orders)
+                        _solve_point(st, lam_um, th, ph, n_in, n_out, orders, two_d, eff[i, a, b], jones[i, a, b],
+                                     direction[i, a, b])
+                        done += 1
+                        if progress is not None:
+                            progress(done / total)
+            sides.append((eff, jones, direction))
+    keep = np.isfinite(sides[0][0]).any(axis=(0, 1, 2, 3, 4)) | np.isfinite(sides[1][0]).any(axis=(0, 1, 2, 3, 4))
     canon_id = element_id(canon)
-    return GratingTable(canon_id, canon, wl, polar, azim, orders[keep], eff[..., keep], unpol[..., keep],
-                        jones[..., keep, :, :], direction[..., keep, :], time.perf_counter() - t0)
+    grids = (wl, polar, azim, orders[keep])
+    (eff, jones, direction), (eff_in, jones_in, direction_in) = sides
+    inside_table = GratingTable(canon_id, canon, *grids, eff_in[..., keep], eff_in.mean(axis=3)[..., keep],
+                                jones_in[..., keep, :, :], direction_in[..., keep, :])
+    return GratingTable(canon_id, canon, *grids, eff[..., keep], eff.mean(axis=3)[..., keep],
+                        jones[..., keep, :, :], direction[..., keep, :], time.perf_counter() - t0, inside_table)
 
 
 GRAZING = 1e-5   # relative: a table point whose order grazes (a Rayleigh anomaly) is solved this far off it

@@ -204,11 +204,12 @@ def _all_propagating_kept(orders: int, period: list[float], lo_nm: float, polar_
                          most: int) -> None:
     """`ElementError` naming ``orders`` where an order beyond ±`orders` propagates somewhere in the table: the solve
     would leave its light out and share it among the kept ones (a lossless truncated solve still sums to 1), wrong
-    without a sign. Along a period p the tangential wave vector of order m is n_a sin(theta) + m lambda / p (in units
-    of the free-space wavenumber), at most n_a sin(theta_max) + |m| lambda / p in size; an order propagates where that
-    is below the larger index, so every |m| < (max(n_a, n_s) + n_a sin(theta_max)) p / lambda_min may."""
+    without a sign. Along a period p the tangential wave vector of order m is n sin(theta) + m lambda / p (in units
+    of the free-space wavenumber, n the index light arrives in: the table is solved from both sides), at most
+    n_max sin(theta_max) + |m| lambda / p in size; an order propagates where that is below the larger index n_max, so
+    every |m| < n_max (1 + sin(theta_max)) p / lambda_min may."""
     for axis, p in enumerate(period):
-        bound = (max(n_a, n_s) + n_a * math.sin(math.radians(polar_deg))) * p * 1000.0 / lo_nm
+        bound = max(n_a, n_s) * (1.0 + math.sin(math.radians(polar_deg))) * p * 1000.0 / lo_nm
         need = math.ceil(bound) - 1   # the largest |m| strictly below the bound
         if need <= orders:
             continue
@@ -233,9 +234,9 @@ def harmonics(canon: dict) -> int:
 
 
 def cost(canon: dict) -> float:
-    """Seconds preparing `canon` (a checked body) takes, estimated before any work: per table point, a fixed part
-    and, per layer, the cube of the solve's matrix size (2 G)."""
-    points = canon["wavelength_count"] * len(canon["angles"]["polar_deg"]) * len(canon["angles"]["azimuth_deg"])
+    """Seconds preparing `canon` (a checked body) takes, estimated before any work: per table point (each solved
+    twice, lit from either side), a fixed part and, per layer, the cube of the solve's matrix size (2 G)."""
+    points = 2 * canon["wavelength_count"] * len(canon["angles"]["polar_deg"]) * len(canon["angles"]["azimuth_deg"])
     return points * (SECONDS_PER_POINT + canon["layers"] * SECONDS_PER_LAYER_CUBE * (2 * harmonics(canon)) ** 3)
 
 
@@ -247,6 +248,6 @@ def affordable(canon: dict) -> None:
         return
     points = canon["wavelength_count"] * len(canon["angles"]["polar_deg"]) * len(canon["angles"]["azimuth_deg"])
     raise ElementError(
-        f"this grating would take about {seconds:,.0f} s to prepare ({points} table points of {canon['layers']} "
-        f"layer(s) and {harmonics(canon)} Fourier orders); one request prepares at most {MAX_PREPARE_SECONDS:g} s: "
-        f"give fewer wavelength_count or angles, fewer layers, or a smaller orders")
+        f"this grating would take about {seconds:,.0f} s to prepare ({points} table points, each lit from both sides, "
+        f"of {canon['layers']} layer(s) and {harmonics(canon)} Fourier orders); one request prepares at most "
+        f"{MAX_PREPARE_SECONDS:g} s: give fewer wavelength_count or angles, fewer layers, or a smaller orders")

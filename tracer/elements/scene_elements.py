@@ -31,11 +31,13 @@ class SceneElements:
     _geometry: Callable[[str], Geometry]
     _touch: Callable[[int, bool], None]
 
-    def set_element(self, i: int, element: Microstructure | None, *, facing: Any = None, faces: Any = None,
+    def set_element(self, i: int, element: Any, *, facing: Any = None, faces: Any = None,
                     face_ids: Any = None, mm_per_unit: float = 1000.0, table: Any = None) -> None:
         """Put `element` onto the planar support of mesh instance `i` (`tracer.elements.support.select`: the triangles
         `facing` a direction of its frame, or the B-rep `faces` given each triangle's `face_ids`), or take it off
-        (None). Its instance id, transform and material stay; `mm_per_unit`: millimetres per object unit. With `table`
+        (None). A grating (`tracer.elements.grating.GratingTable`) goes on the same way and scatters by its table of
+        orders (`tracer.elements.diffraction`). Its instance id, transform and material stay; `mm_per_unit`:
+        millimetres per object unit. With `table`
         (`tracer.elements.bsdf.tabulate` of the element on the part's material) the element is used through its
         tabulated BSDF: the plain support, whose hits scatter by the table, instead of its micro-geometry."""
         i = self._instance(i)
@@ -46,6 +48,11 @@ class SceneElements:
                                             faces=faces, face_ids=face_ids, mm_per_unit=mm_per_unit, table=table)
         self._kind[i], self._igeom[i], self._obox[i] = kind, self._geometry(rest).index, box
         self._touch(i, True)
+
+    def gratings(self) -> list[Any]:
+        """The grating (`tracer.elements.grating.GratingTable`) of each instance that carries one, in instance order."""
+        return [row.element for _, row in sorted(self._reliefs.rows.items())
+                if not isinstance(row.element, Microstructure)]
 
     def element_support(self, i: int) -> dict[str, Any] | None:
         """What carries instance `i`'s element: ``{"triangles": n, "size_mm": [lu, lv], "normal": [x, y, z]}`` (its

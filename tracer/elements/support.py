@@ -122,7 +122,7 @@ class Row:
     """One instance's element: the model, its frame, the part's geometry split into the rest and the support,
     and the maps between the split triangles and the part's own indices."""
 
-    element: Microstructure
+    element: Any             # a `Microstructure`, or a `tracer.elements.grating.GratingTable`
     frame: Frame
     full: str                 # the part's geometry id
     rest: str                 # the part without the support, its own geometry id
@@ -133,11 +133,17 @@ class Row:
 
 
 def row_params(row: Row, support_index: int) -> tuple[np.ndarray, np.ndarray]:
-    """The row's ``el_f`` (NF,) and ``el_i`` (NI,) (offsets left at zero for `Reliefs.pack` to fill)."""
+    """The row's ``el_f`` (NF,) and ``el_i`` (NI,) (offsets left at zero for `Reliefs.pack` to fill); a grating's
+    (`tracer.elements.grating.GratingTable`, no micro-geometry) the frame and its model only."""
     e, fr = row.element, row.frame
     f = np.zeros(fx.NF)
     f[fx.O_X:fx.O_X + 3], f[fx.U_X:fx.U_X + 3], f[fx.V_X:fx.V_X + 3], f[fx.N_X:fx.N_X + 3] = fr.o, fr.u, fr.v, fr.n
     f[fx.MM], f[fx.LU], f[fx.LV] = fr.mm, fr.lu, fr.lv
+    if not isinstance(e, Microstructure):
+        i = np.zeros(fx.NI, np.int64)
+        i[fx.GEOM_S], i[fx.MODEL], i[fx.NU], i[fx.NV] = support_index, fx.GRATING, 1, 1
+        f[fx.FMAT] = fx.MAT_PART
+        return f, i
     f[fx.A], f[fx.H], f[fx.RS], f[fx.SIGN] = e.a, e.h, e.rs, e.sign
     f[fx.SLOPE] = e.a / e.h
     f[fx.FMAT], f[fx.FRHO] = e.material, e.reflectance
@@ -163,7 +169,7 @@ def box(row: Row, full_box: np.ndarray) -> np.ndarray:
     """(6,) object-space box of a part with its element: the part's, and the support raised by the feature height on
     its relief's side (a pit's stays inside the part's)."""
     fr, e = row.frame, row.element
-    lift = e.sign * e.h / fr.mm * fr.n
+    lift = e.sign * e.h / fr.mm * fr.n if isinstance(e, Microstructure) else 0.0 * fr.n
     corners = np.array([fr.o + a * fr.lu / fr.mm * fr.u + b * fr.lv / fr.mm * fr.v + c * lift
                         for a in (0, 1) for b in (0, 1) for c in (0, 1)])
     lo = np.minimum(full_box[:3], corners.min(axis=0))

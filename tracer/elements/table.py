@@ -12,8 +12,8 @@ from typing import Any
 import numpy as np
 
 from tracer.accel.store import Geometry
+from tracer.elements import diffraction, support
 from tracer.elements import features as fx
-from tracer.elements import support
 from tracer.elements.microstructure import Microstructure
 from tracer.elements.support import Row
 from tracer.kinds import mesh, relief
@@ -36,12 +36,12 @@ class Reliefs:
         """The part's own geometry id of instance `i`: its row's where it carries an element, else `own`."""
         return self.rows[i].full if i in self.rows else own
 
-    def put(self, i: int, element: Microstructure | None, full: str, g: Geometry, add_geometry: Callable, *,
+    def put(self, i: int, element: Any, full: str, g: Geometry, add_geometry: Callable, *,
             facing: Any, faces: Any, face_ids: Any, mm_per_unit: float, table: Any = None
             ) -> tuple[int, str, np.ndarray]:
-        """Put `element` onto part `g` (geometry id `full`) of instance `i`, or take it off (None); answers what the
-        instance becomes: ``(kind, geometry id, object box)``. A support that cannot carry it raises `ElementError`
-        with nothing changed."""
+        """Put `element` (a `Microstructure` or a `tracer.elements.grating.GratingTable`) onto part `g` (geometry id
+        `full`) of instance `i`, or take it off (None); answers what the instance becomes: ``(kind, geometry id,
+        object box)``. A support that cannot carry it raises `ElementError` with nothing changed."""
         if element is None:
             self.drop(i)
             return mesh.KIND, full, g.box
@@ -55,7 +55,7 @@ class Reliefs:
         self._packed = None
         return relief.KIND, row.rest, support.box(row, g.box)
 
-    def make_row(self, add_geometry: Callable, element: Microstructure, full: str, vertices: np.ndarray,
+    def make_row(self, add_geometry: Callable, element: Any, full: str, vertices: np.ndarray,
                  triangles: np.ndarray, normals: np.ndarray | None, prims: np.ndarray, mm_per_unit: float) -> Row:
         """A row for `element` on the triangles `prims` of geometry `full` (checked: a planar rectangle), its mesh
         split by `add_geometry` (`tracer.Scene.add_geometry`) into the rest and the support. Changes no row."""
@@ -90,6 +90,7 @@ class Reliefs:
         tabs: list[np.ndarray] = []
         n_tab = 0
         shared: dict[str, tuple[int, int, int, int]] = {}
+        gratings: dict[str, int] = {}   # a grating's first row in el_tab
         sizes = [0, 0, 0, 0, 0]   # el_prim, el_bits, el_uv, el_bin, el_item so far
         for r, (_, row) in enumerate(sorted(self.rows.items())):
             ef[r], ei[r] = support.row_params(row, index_of(row.support))
@@ -102,6 +103,13 @@ class Reliefs:
             prim += [row.rest_prims, row.support_prims, inverse]
             sizes[0] += 2 * len(inverse)
             e = row.element
+            if not isinstance(e, Microstructure):   # a grating: its table of orders, once per element
+                if e.id not in gratings:
+                    gratings[e.id] = n_tab
+                    tabs.append(diffraction.pack(e))
+                    n_tab += len(tabs[-1])
+                ei[r, fx.TAB] = gratings[e.id]
+                continue
             if e.id not in shared:
                 shared[e.id] = (sizes[1], sizes[2], sizes[3], sizes[4])
                 bits.append(e.bits)

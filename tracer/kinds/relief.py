@@ -53,7 +53,7 @@ def intersect(sa, inst, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
     gs = I[fx.GEOM_S]
     hs, ts, ss, us, vs = traverse_rows(sa.bvh_f, sa.bvh_i, sa.tri_v, sa.geom_node0[gs], sa.geom_tri0[gs], ox, oy, oz,
                                        dx, dy, dz, best, False, stack, tstack)
-    if I[fx.MODEL] == fx.BSDF:   # the tabulated model: the plain support, scattered by the table (`dispatch`)
+    if I[fx.MODEL] != fx.EXACT:   # a table (bsdf, grating): the plain support, scattered by it (`dispatch`)
         if hs:
             return True, ts, ss, us, vs
         return hit, t, slot, u, v

@@ -44,6 +44,7 @@ import numpy as np
 from tracer.accel.spawn import offset_ray_origin
 from tracer.accel.traverse import closest_with_stacks, new_stacks, sensor_crossings_with_stack
 from tracer.effects import PHOTON_STATES
+from tracer.elements.diffraction import OUTSIDE_TABLE
 from tracer.jit import njit
 from tracer.optics.lights import pick_light, sample_emission
 from tracer.optics.lights.dispatch import emit_wavelength
@@ -55,8 +56,8 @@ from tracer.optics.surfaces.base import ABSORBED, STACK_FULL
 from tracer.optics.surfaces.dispatch import scatter
 from tracer.rng import path_key, uniform
 
-COUNTERS = ("rejected", "truncated", "stack_overflow", "sensor_buffer_full")
-C_REJECTED, C_TRUNCATED, C_STACK, C_SENSOR_FULL = range(4)
+COUNTERS = ("rejected", "truncated", "stack_overflow", "sensor_buffer_full", "grating_outside_table")
+C_REJECTED, C_TRUNCATED, C_STACK, C_SENSOR_FULL, C_GRATING = range(5)
 RR_DEPTH = 256         # bounces after which every photon plays Russian roulette (64 made a stack of 20 plates,
                        # 40 interfaces, a heavy-tailed estimate: 21 % error on 100k photons against 0.3 % now)
 RR_SURVIVE = 0.9       # its survival probability there
@@ -222,6 +223,8 @@ def trace_photons(sa, ra, M, L, S, n_bins, seed, batch, photons, w0, tally, coun
                 if status == STACK_FULL:
                     counters[C_STACK] += 1
                     break
+                if status == OUTSIDE_TABLE:   # it goes on; the answer says a grating's table ran out
+                    counters[C_GRATING] += 1
                 w = w * f
                 ox, oy, oz = offset_ray_origin(px, py, pz, ngx, ngy, ngz, dx, dy, dz)
             if not (math.isfinite(dx + dy + dz) and math.isfinite(ox + oy + oz) and math.isfinite(w)):

@@ -39,36 +39,42 @@ def test_orders_leave_along_the_grating_equation_and_exactly_those_below_the_ind
     vector is the incident's plus m times the grating vector; an order propagates on a side exactly where its
     tangential index |k_t| / k0 is below that side's n. The table's directions come from the solver's own wave
     vectors, its NaNs from their kz: both checked against the equation here."""
-    tab = g.prepare(_body(wavelengths_nm=[450, 650], wavelength_count=3,
-                          angles={"polar_deg": [0.0, 25.0, 50.0], "azimuth_deg": [0.0, 30.0, 180.0]}))
-    n_side = (1.0, 1.5)
-    for i, lam in enumerate(tab.wavelength_nm):
-        for a, th in enumerate(tab.polar_deg):
-            for b, ph in enumerate(tab.azimuth_deg):
-                kt0 = math.sin(math.radians(th)) * np.array([math.cos(math.radians(ph)), math.sin(math.radians(ph))])
-                for k, (m, _) in enumerate(tab.orders):
-                    kt = kt0 + np.array([m * lam / 1000.0 / 1.2, 0.0])
-                    for side in (0, 1):
-                        expect = float(kt @ kt) < n_side[side] ** 2
-                        got = np.isfinite(tab.efficiency[i, a, b, :, side, k])
-                        assert got.all() == expect and got.any() == expect, (lam, th, ph, m, side)
-                        if expect:
-                            d = tab.direction[i, a, b, side, k].astype(float)
-                            # a point where an order grazes (here 4 λ/Λ = 1.5 at 450 nm) is solved GRAZING longer
-                            assert d[:2] * n_side[side] == pytest.approx(kt, abs=2e-5)
-                            assert math.copysign(1.0, d[2]) == (-1.0 if side == 0 else 1.0)
-                            if ph == 0.0 and side == 0:   # sin θ_m = sin θ_i + mλ/Λ, in air
-                                assert d[0] == pytest.approx(math.sin(math.radians(th)) + m * lam / 1200.0,
-                                                             abs=2e-5)
+    both = g.prepare(_body(wavelengths_nm=[450, 650], wavelength_count=3,
+                           angles={"polar_deg": [0.0, 25.0, 50.0], "azimuth_deg": [0.0, 30.0, 180.0]}))
+    assert both.inside is not None
+    # lit from the ambient (n 1) and from the substrate (n 1.5, the frame turned about x: reflected orders go back
+    # into the substrate, transmitted ones out into the air)
+    for tab, n_side in ((both, (1.0, 1.5)), (both.inside, (1.5, 1.0))):
+        for i, lam in enumerate(tab.wavelength_nm):
+            for a, th in enumerate(tab.polar_deg):
+                for b, ph in enumerate(tab.azimuth_deg):
+                    kt0 = n_side[0] * math.sin(math.radians(th)) * np.array([math.cos(math.radians(ph)),
+                                                                             math.sin(math.radians(ph))])
+                    for k, (m, _) in enumerate(tab.orders):
+                        kt = kt0 + np.array([m * lam / 1000.0 / 1.2, 0.0])
+                        for side in (0, 1):
+                            expect = float(kt @ kt) < n_side[side] ** 2
+                            got = np.isfinite(tab.efficiency[i, a, b, :, side, k])
+                            assert got.all() == expect and got.any() == expect, (lam, th, ph, m, side)
+                            if expect:
+                                d = tab.direction[i, a, b, side, k].astype(float)
+                                # a point where an order grazes (here 4 λ/Λ = 1.5 at 450 nm) is solved GRAZING longer
+                                assert d[:2] * n_side[side] == pytest.approx(kt, abs=2e-5)
+                                assert math.copysign(1.0, d[2]) == (-1.0 if side == 0 else 1.0)
+                                if ph == 0.0 and side == 0:   # sin θ_m = sin θ_i + mλ/Λ, in the incident medium
+                                    assert d[0] * n_side[0] == pytest.approx(
+                                        n_side[0] * math.sin(math.radians(th)) + m * lam / 1200.0, abs=3e-5)
+        assert abs(_sums(tab) - 1.0).max() < LOSSLESS_SUM
+    tab = both
     # in the classical mount (azimuth 0 or 180: incidence in the plane of the grating vector) s stays s and p stays p
     # in every order (TE and TM decouple); in the conical mount (30°) the orders convert some of one into the other.
     # This checks the (s, p) bases of the incident and the diffracted waves, not just the powers.
     cross = np.abs(tab.jones[..., 0, 1]) ** 2 + np.abs(tab.jones[..., 1, 0]) ** 2
     assert np.nanmax(cross[:, :, [0, 2]]) < 1e-9
     assert np.nanmax(cross[:, 1:, 1]) > 1e-4
-    # every order the table holds propagates somewhere
-    assert np.isfinite(tab.efficiency).any(axis=(0, 1, 2, 3, 4)).all()
-    assert abs(_sums(tab) - 1.0).max() < LOSSLESS_SUM
+    # every order the table holds propagates somewhere, lit from one side or the other
+    assert (np.isfinite(tab.efficiency).any(axis=(0, 1, 2, 3, 4)) |
+            np.isfinite(tab.inside.efficiency).any(axis=(0, 1, 2, 3, 4))).all()
 
 
 def test_scalar_limit_orders_follow_the_thin_phase_grating() -> None:
@@ -127,8 +133,9 @@ def test_moth_eye_cones_reflect_less_than_the_flat_glass_face() -> None:
     tab = g.prepare(_body(profile={"shape": "moth_eye", "fill": 1.0}, period_um=0.25, depth_um=0.5, orders=3,
                           layers=8, angles={"polar_deg": [0.0, 30.0], "azimuth_deg": [0.0]}))
     flat = ((1.5 - 1.0) / (1.5 + 1.0)) ** 2
-    assert tab.orders.tolist() == [[0, 0]]
-    r = tab.efficiency[:, :, :, :, 0, 0]
+    lit = np.isfinite(tab.efficiency).any(axis=(0, 1, 2, 3, 4))   # from the air (from the glass, -1 may turn back)
+    assert tab.orders[lit].tolist() == [[0, 0]]
+    r = tab.efficiency[:, :, :, :, 0, tab.order_index(0, 0)]
     assert (r < flat / 4.0).all(), r
     assert abs(_sums(tab) - 1.0).max() < LOSSLESS_SUM
 
@@ -246,7 +253,7 @@ def test_the_same_body_gives_the_same_id_and_bytes_and_they_read_back() -> None:
     assert g.prepare(_body(depth_um=0.31)).id != a.id
     fractions: list[float] = []
     g.prepare(_body(angles={"polar_deg": [0.0, 10.0], "azimuth_deg": [0.0]}), progress=fractions.append)
-    assert fractions == [0.5, 1.0]
+    assert fractions == [0.25, 0.5, 0.75, 1.0]   # two table points, each lit from both sides
 
 
 @pytest.mark.parametrize(("change", "says"), [
@@ -271,7 +278,7 @@ def test_the_same_body_gives_the_same_id_and_bytes_and_they_read_back() -> None:
     ({"colour": "red"}, "unknown field(s) ['colour']"),
     ({"profile": {"shape": "sawtooth", "blaze_deg": 10}, "depth_um": 0.5}, "disagrees with profile.blaze_deg"),
     ({"profile": {"shape": "pillars", "fill": 0.5}, "grooves_along": "u"}, "grooves_along is for 1-D profiles"),
-    ({"wavelengths_nm": [380, 780], "wavelength_count": 401, "angles": {"polar_deg": list(range(0, 90)),
+    ({"wavelengths_nm": [380, 780], "wavelength_count": 401, "orders": 9, "angles": {"polar_deg": list(range(0, 90)),
                                                                         "azimuth_deg": [0, 90, 180]}},
      "one request prepares at most"),
 ])
@@ -286,3 +293,23 @@ def test_sawtooth_depth_follows_its_blaze() -> None:
     assert canon["depth_um"] == pytest.approx(1.2 * math.tan(math.radians(10.0)))
     assert g.check(_body(profile={"shape": "sawtooth"}, depth_um=0.2))["profile"]["blaze_deg"] == pytest.approx(
         math.degrees(math.atan(0.2 / 1.2)))
+
+
+def test_lit_from_the_substrate_a_flat_face_reflects_by_fresnel_and_totally_past_the_critical_angle() -> None:
+    """The table's second half, lit from the glass (n 1.5 into air): a relief 0.5 nm deep on a 0.2 um period (only
+    the zeroth order leaves at 550 nm) is a flat face, whose reflectances are Fresnel's: at 30°, sin θt = 0.75,
+    Rs = ((n cos θi − cos θt) / (n cos θi + cos θt))² = 0.1058, Rp = ((cos θi − n cos θt) / (cos θi + n cos θt))² =
+    0.0046; past the critical angle (41.8°) at 50°, total internal reflection, R = 1 and nothing transmitted. The
+    0.5 nm step moves these by less than 1e-3."""
+    tab = g.prepare(_body(period_um=0.2, depth_um=0.0005, orders=5,
+                          angles={"polar_deg": [30.0, 50.0], "azimuth_deg": [0.0]})).inside
+    k0 = tab.order_index(0)
+    ci = math.cos(math.radians(30.0))
+    ct = math.sqrt(1.0 - (1.5 * 0.5) ** 2)
+    rs = ((1.5 * ci - ct) / (1.5 * ci + ct)) ** 2
+    rp = ((ci - 1.5 * ct) / (ci + 1.5 * ct)) ** 2
+    r30 = tab.efficiency[0, 0, 0, :, 0, k0].astype(float)
+    assert r30 == pytest.approx([rs, rp], abs=1e-3)
+    assert tab.efficiency[0, 1, 0, :, 0, k0].astype(float) == pytest.approx([1.0, 1.0], abs=1e-4)
+    assert not np.isfinite(tab.efficiency[0, 1, 0, :, 1, :]).any()   # nothing leaves into the air
+    assert abs(_sums(tab) - 1.0).max() < LOSSLESS_SUM

@@ -24,6 +24,7 @@ import numba
 import numpy as np
 from numba import types
 
+from tracer.elements import diffraction
 from tracer.elements import features as fx
 from tracer.jit import kind_table, njit
 from tracer.optics import mie, spectra
@@ -289,13 +290,13 @@ def feature_surface(sa, inst, prim):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def bsdf_row(sa, inst, prim):
-    """The element row of a hit on the support of an element used through its tabulated BSDF (`fx.BSDF`), -1 for any
-    other hit."""
+def table_row(sa, inst, prim):
+    """The element row of a hit on the support of an element used through a table (its tabulated BSDF, `fx.BSDF`,
+    or a grating's orders, `fx.GRATING`), -1 for any other hit."""
     if prim < 0 or inst >= sa.inst_aux.shape[0]:
         return -1
     r = sa.inst_aux[inst]
-    if r < 0 or sa.el_i[r, fx.MODEL] != fx.BSDF or sa.el_prim[sa.el_i[r, fx.MAP_INV] + prim] >= 0:
+    if r < 0 or sa.el_i[r, fx.MODEL] == fx.EXACT or sa.el_prim[sa.el_i[r, fx.MAP_INV] + prim] >= 0:
         return -1
     return r
 
@@ -385,9 +386,11 @@ def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, ke
     """What the surface of instance `inst` does to a photon of wavelength `lam` nm (0: white) and polarization
     state `pol` (`tracer.optics.polarization`) arriving along d (`base` has the contract); on an element's feature
     with a surface of its own (`feature_surface`), what that surface does; on the support of an element used through
-    its tabulated BSDF (`bsdf_row`), what the table says."""
-    r = bsdf_row(sa, inst, prim)
+    its tabulated BSDF or a grating's orders (`table_row`), what the table says."""
+    r = table_row(sa, inst, prim)
     if r >= 0:
+        if sa.el_i[r, fx.MODEL] == fx.GRATING:
+            return diffraction.scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, lam, pol)
         return bsdf_scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, pol)
     fk, frho = feature_surface(sa, inst, prim)
     if fk == fx.MAT_LAMBERTIAN:
