@@ -14,11 +14,12 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, Body, Path, Request, Response
+from fastapi import APIRouter, Body, Path, Query, Request, Response
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from service import paths
+from service.errors import Invalid
 from service.routes.deps import ItemId, Manager, SceneId
 
 router = APIRouter(tags=["elements"])
@@ -226,6 +227,26 @@ def pack_record(element_id: ElementId, manager: Manager) -> Response:
 def pack_png(element_id: ElementId, manager: Manager) -> Response:
     """The density map, the map it measured over the face, and the uniformity against the iterations."""
     return Response(manager.scenes.elements.pack_record(element_id, ".pack.png"), media_type="image/png")
+
+
+@router.get("/elements/{element_id}/orders.png", response_class=Response,
+            responses={200: {"content": {"image/png": {}}}, 404: {}, 422: {}})
+def orders_png(element_id: ElementId, manager: Manager,
+               polar_deg: Annotated[float | None, Query(description="one of the table's polar angles (deg); "
+                                                                    "default its first")] = None,
+               azimuth_deg: Annotated[float | None, Query(description="one of the table's azimuths (deg); default "
+                                                                      "its first")] = None,
+               lit_from: Annotated[Literal["ambient", "substrate"], Query(
+                   description="the side the light comes from")] = "ambient") -> Response:
+    """A grating's order efficiencies (unpolarized, transmitted and reflected, and their sum) against the
+    wavelength, at one of its table's incidences (`service.grating_figure`); 422 for an element that is not a
+    grating or an angle the table does not hold."""
+    from service.grating_figure import orders_png as figure
+
+    library = manager.scenes.elements
+    if library.summary(element_id)["type"] != "grating":
+        raise Invalid(f"element {element_id} is not a grating: only a grating has orders to plot")
+    return Response(figure(library.get(element_id), polar_deg, azimuth_deg, lit_from), media_type="image/png")
 
 
 @router.delete("/scenes/{scene_id}/elements/{item_id}", status_code=204)

@@ -337,7 +337,7 @@ def test_the_view_packs_a_light_guides_dots_and_switches_to_them(service: dict[s
         aid = ll.put_element(sid, "backlight/guide", eid, facing=[0, 0, -1])["id"]
         ll.add_sensor(sid, GUIDE_GRID)
     page.goto(f"{service['base']}/scenes/{sid}/view")
-    _wait(page, "window.lumenlink.ready")
+    _wait(page, "window.lumenlink?.ready")
     page.locator("#elements button", has_text="pack").click()
     page.locator("#elements .pack-use").wait_for(timeout=WAIT_MS)
     assert "min/max" in page.locator("#elements .pack-state").inner_text()
@@ -349,4 +349,33 @@ def test_the_view_packs_a_light_guides_dots_and_switches_to_them(service: dict[s
             break
         page.wait_for_timeout(100)
     assert now != eid and http.get(f"/elements/{now}/pack").json()["packed_from"] == eid
+    assert watched.errors == []
+
+
+def test_the_view_links_a_gratings_order_efficiencies(service: dict[str, Any], watched: Watched,
+                                                      artifacts: Path) -> None:
+    """Issue 52 on the page: a grating on the guide's face is listed with a link to its orders' efficiencies
+    against the wavelength (``orders.png``), which the service draws from the wave solution; no pack button (a
+    grating has no dots)."""
+    from lumenlink import Client
+    from lumenlink.guide_demo import _scene
+
+    page, http = watched.page, service["http"]
+    grating = {"type": "grating", "profile": {"shape": "lamellar", "fill": 0.5}, "period_um": 1.0, "depth_um": 0.3,
+               "ridge": None, "substrate_ior": 1.5, "wavelengths_nm": [450, 650], "wavelength_count": 3,
+               "angles": {"polar_deg": [0, 30], "azimuth_deg": [0]}, "orders": 6}
+    with Client(service["base"]) as ll:
+        eid = ll.add_element(grating)["id"]
+        sid, _ = _scene(ll, http, "grating on the page")
+        ll.put_element(sid, "backlight/guide", eid, facing=[0, 0, 1])
+    page.goto(f"{service['base']}/scenes/{sid}/view")
+    _wait(page, "window.lumenlink?.ready")
+    link = page.locator("#elements a.grating-orders")
+    link.wait_for(timeout=WAIT_MS)
+    href = link.get_attribute("href")
+    assert href == f"/elements/{eid}/orders.png"
+    png = http.get(href)
+    assert png.status_code == 200 and png.content[:4] == b"\x89PNG"
+    assert page.locator("#elements button", has_text="pack").count() == 0
+    page.screenshot(path=str(artifacts / "view-grating.png"))
     assert watched.errors == []

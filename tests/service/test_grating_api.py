@@ -127,3 +127,24 @@ def test_the_openapi_document_builds_and_describes_the_solver(client: Any) -> No
     assert examples["grating"]["value"]["type"] == "grating"
     r = client.post("/elements", json=examples["wire grid"]["value"])
     assert r.status_code == 201, r.text
+
+
+def test_orders_png_plots_a_gratings_efficiencies_and_refuses_what_it_cannot_plot(client: Any) -> None:
+    """``GET /elements/{id}/orders.png``: a PNG at the table's first incidence, at another it holds, lit from either
+    side; a 422 naming the field for an angle the table was not solved at or an unknown side, a 422 for an element
+    that is not a grating, a 404 for an id the library lacks."""
+    eid = client.post("/elements", json=GRATING).json()["id"]
+    for query in ("", "?polar_deg=30", "?polar_deg=0&azimuth_deg=0&lit_from=substrate"):
+        r = client.get(f"/elements/{eid}/orders.png{query}")
+        assert r.status_code == 200 and r.headers["content-type"] == "image/png", r.text
+        assert r.content[:8] == b"\x89PNG\r\n\x1a\n"
+    r = client.get(f"/elements/{eid}/orders.png?polar_deg=45")
+    assert r.status_code == 422 and "polar_deg 45 is not one of the table's angles: give one of [0.0, 30.0]" in r.text
+    r = client.get(f"/elements/{eid}/orders.png?lit_from=above")
+    assert r.status_code == 422 and "lit_from" in r.text
+    dots = client.post("/elements", json={"type": "microstructure", "feature": {"shape": "dome", "radius_mm": 0.05,
+                                                                                 "height_mm": 0.02},
+                                          "layout": {"type": "grid", "pitch_mm": [0.2, 0.2]}}).json()["id"]
+    r = client.get(f"/elements/{dots}/orders.png")
+    assert r.status_code == 422 and "is not a grating" in r.text
+    assert client.get(f"/elements/{'0' * 64}/orders.png").status_code == 404

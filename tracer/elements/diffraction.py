@@ -200,16 +200,20 @@ def scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, lam, pol):
     iz = _pick(iz, tz, nZ, key, dim + 2)
     row = h + HEADER + (nW * nA * nZ if inside else 0) + (iw * nA + ia) * nZ + iz
     W = sa.world_from_object[inst]
-    # the incidence's s axis: z x k, or at normal incidence that of the table point's azimuth
+    # the table point's values are in its own waves' (s, p) bases: the photon's state is read and handed on in those
+    # (lab-frame interpolation: a photon between points keeps its polarization's direction in space, where reading
+    # the bases by their labels would turn it by the azimuth between photon and point)
     polarized = pol[ON] != 0.0
     tx = n_in * kx                           # tangential wave vector, units of k0 (folded frame)
     ty = n_in * ky
     zaz = math.radians(T[h + 3, iz])
+    sin_g = n_in * math.sin(math.radians(T[h + 2, ia]))
+    lam_g = T[h + 1, iw] / 1000.0
     q1 = 0.0
     q2 = 0.0
     q3 = 0.0
     if polarized:
-        sx, sy = _s_axis(tx, ty, zaz)
+        sx, sy = -math.sin(zaz), math.cos(zaz)   # s = z x k of the point's incidence, at any polar angle
         sx, sy = _unfold(sx, sy, my, mx, dg)
         ex, ey, ez = _world(F, W, gxu, gxv, gyu, gyv, gz, sx, sy, 0.0)
         _, ex, ey, ez = across(dx, dy, dz, ex, ey, ez)
@@ -255,7 +259,8 @@ def scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, lam, pol):
     bx, by, bz = bx * inv, by * inv, bz * inv
     if polarized:
         _apply(pol, T, row, pick * 16, q1, q2, q3, parity)
-        sx, sy = _s_axis(ox, oy, zaz)
+        sx, sy = _s_axis(sin_g * math.cos(zaz) + T[h + 4, k] * lam_g / px,
+                         sin_g * math.sin(zaz) + T[h + 5, k] * lam_g / py, zaz)   # the point's own order
         sx, sy = _unfold(sx, sy, my, mx, dg)
         ex, ey, ez = _world(F, W, gxu, gxv, gyu, gyv, gz, sx, sy, 0.0)
         set_frame(pol, bx, by, bz, ex, ey, ez)

@@ -332,9 +332,13 @@ def prepare(body: Any, progress: Callable[[float], None] | None = None) -> Grati
             for i, lam in enumerate(wl):
                 for a, th in enumerate(polar):
                     for b, ph in enumerate(azim):
-                        lam_um = _off_grazing(lam / 1000.0, th, ph, n_in, n_out, period, orders)
-                        _solve_point(st, lam_um, th, ph, n_in, n_out, orders, two_d, eff[i, a, b], jones[i, a, b],
-                                     direction[i, a, b])
+                        if th == 0.0 and b > 0:   # normal incidence: the first azimuth's solve in this one's bases
+                            _turn_normal(jones[i, a, 0], direction[i, a, 0], azim[0], ph, eff[i, a, b],
+                                         jones[i, a, b], direction[i, a, b])
+                        else:
+                            lam_um = _off_grazing(lam / 1000.0, th, ph, n_in, n_out, period, orders)
+                            _solve_point(st, lam_um, th, ph, n_in, n_out, orders, two_d, eff[i, a, b],
+                                         jones[i, a, b], direction[i, a, b])
                         done += 1
                         if progress is not None:
                             progress(done / total)
@@ -347,6 +351,30 @@ def prepare(body: Any, progress: Callable[[float], None] | None = None) -> Grati
                                 jones_in[..., keep, :, :], direction_in[..., keep, :])
     return GratingTable(canon_id, canon, *grids, eff[..., keep], eff.mean(axis=3)[..., keep],
                         jones[..., keep, :, :], direction[..., keep, :], time.perf_counter() - t0, inside_table)
+
+
+def _turn_normal(jones: np.ndarray, direction: np.ndarray, phi0: float, phi: float, eff_out: np.ndarray,
+                 jones_out: np.ndarray, direction_out: np.ndarray) -> None:
+    """Fill a normal-incidence table point at azimuth `phi` from the same point solved at `phi0` (degrees): one
+    physical problem, whose incident wave and normal (zeroth) orders have their (s, p) bases turned with the azimuth
+    (`_basis`); the other orders' waves and bases do not move. Solving it again would only repeat the work, and
+    inkstone converges more slowly for TM through metal lines away from azimuth 0 (0.53 against 0.68 at 21
+    Fourier orders for the same wire grid, both tending to 0.65): one solve keeps the point's azimuths consistent."""
+    z = np.array([[0.0, 0.0, 1.0]])
+    (s0, p0), (s1, p1) = _basis(z, phi0), _basis(z, phi)
+    b_in = np.array([[s0[0] @ s1[0], s0[0] @ p1[0]], [p0[0] @ s1[0], p0[0] @ p1[0]]])   # a(phi0) = b_in a(phi)
+    for side in (0, 1):
+        ok = np.isfinite(direction[side, :, 0])
+        if not ok.any():
+            continue
+        k = direction[side, ok].astype(np.float64)
+        (sa, pa), (sb, pb) = _basis(k, phi0), _basis(k, phi)
+        b_out = np.stack([np.stack([(sb * sa).sum(1), (sb * pa).sum(1)], 1),
+                          np.stack([(pb * sa).sum(1), (pb * pa).sum(1)], 1)], 1)   # (K', out(phi), out(phi0))
+        j = b_out @ jones[side, ok].astype(np.complex128) @ b_in
+        jones_out[side, ok] = j
+        eff_out[:, side, ok] = (np.abs(j) ** 2).sum(axis=1).T
+        direction_out[side, ok] = direction[side, ok]
 
 
 GRAZING = 1e-5   # relative: a table point whose order grazes (a Rayleigh anomaly) is solved this far off it

@@ -106,12 +106,38 @@ function listElements(elements, nodes) {
   $("elements").replaceChildren(...elements.map((e) => {
     const li = document.createElement("li");
     const where = pathOf.get(e.body.node) ?? e.body.node;
-    li.textContent = `${where}: element ${e.body.element.slice(0, 12)} (${e.model})` +
+    const type = elementType(e.body.element);
+    li.textContent = `${where}: element ${e.body.element.slice(0, 12)} (${type === "grating" ? "grating" : e.model})` +
       (e.applied ? "" : ` — not applied: ${e.problem ?? "its node is gone"}`);
+    if (type === "grating") {
+      const plot = document.createElement("a");
+      plot.href = `/elements/${e.body.element}/orders.png`;
+      plot.target = "_blank";
+      plot.className = "grating-orders";
+      plot.textContent = "orders.png";
+      plot.title = "the grating's order efficiencies against the wavelength (its wave solution)";
+      li.append(" ", plot);
+      return li;
+    }
     const grid = (ll.state?.sensors ?? []).find((s) => s.type === "grid");
-    if (e.applied && grid) li.append(" ", ...packControls(e, grid));
+    if (e.applied && grid && type) li.append(" ", ...packControls(e, grid));
     return li;
   }));
+}
+
+/** Library elements' types by id ("microstructure", "grating"), read once each (GET /elements/{id}); the list is
+ *  drawn again when one arrives. */
+const elementTypes = new Map();
+
+function elementType(id) {
+  if (!elementTypes.has(id)) {
+    elementTypes.set(id, null);
+    getJSON(`/elements/${id}`).then((summary) => {
+      elementTypes.set(id, summary.type);
+      redrawElements();
+    }).catch(() => elementTypes.delete(id));
+  }
+  return elementTypes.get(id);
 }
 
 /** Packs started from this page, by assignment id: {busy, text, result} (kept across redraws of the list). */
