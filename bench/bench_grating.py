@@ -100,7 +100,7 @@ def run(quick: bool = False) -> dict:
     r = cost["ratio_to_plain"]
     lines = [f"### A query through a grating ({cost['photons']:,} photons, one thread, medians of {cost['rounds']} "
              f"interleaved runs)", "",
-             "`PYTHONPATH=. .venv/bin/python -m bench.run --only grating` (a glass plate, a collimated 550 nm beam, "
+             "`lumenlink bench --only grating` (a glass plate, a collimated 550 nm beam, "
              "a 5 x 5 grid under it; photon state of both: " + ", ".join(cost["photon_state"]) + ")", "",
              "| face | CPU s | × plain | first call s (compile) |", "| --- | --- | --- | --- |"]
     for n, s in cost["seconds"].items():

@@ -6,8 +6,8 @@ scene, and their assignment to a part's support faces.
 node's instance, transform and material; ``DELETE`` takes it off. Bad input is a 422 naming the field, with
 nothing changed: a pitch smaller than the feature, a fill outside [0, 1], an unknown element id, a support that
 is not planar. A grating (``{"type": "grating"}``, docs/DESIGN.md "Elements with a wave solution inside") is solved
-by RCWA in the request, its cost bounded first; it cannot be assigned to a face yet (its inner model is not built: a
-422).
+by RCWA in the request, its cost bounded first, and goes onto a face like any element, where a ray leaves in one of
+its orders (`tracer.elements.diffraction`); ``GET /elements/{id}/orders.png`` plots its orders' efficiencies.
 """
 
 from __future__ import annotations
@@ -113,7 +113,7 @@ class ElementAssignment(BaseModel):
 def post_element(manager: Manager, response: Response, body: Annotated[dict[str, Any], Body(
         description=("an element body: {type: microstructure, feature, relief, material, layout}, or {type: grating, "
                      "profile, period_um, depth_um, ridge, wavelengths_nm, orders, ...} (docs/DESIGN.md; a grating is "
-                     "solved by RCWA in the request, its cost bounded, and cannot go onto a scene's face yet)"),
+                     "solved by RCWA in the request, lit from both sides, its cost bounded first)"),
         openapi_examples=ELEMENT_EXAMPLES)]) -> dict[str, Any]:
     summary, new = manager.scenes.elements.create(body)
     if not new:
