@@ -24,6 +24,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import threading
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -79,6 +80,14 @@ class ElementLibrary:
         """A grating: checked and its cost bounded (422, nothing stored), answered as it is where the library holds
         its body already (nothing solved), else solved (`tracer.elements.grating.prepare`, in this request) and
         kept: its table's bytes as ``<id>.npz``, then its row."""
+        canon, known = self.check_grating(body)
+        if known is not None:
+            return known, False
+        return self.solve_grating(canon), True
+
+    def check_grating(self, body: dict) -> tuple[dict, dict[str, Any] | None]:
+        """A grating body checked and its cost bounded (422 naming the field, nothing stored): its canonical body,
+        and its summary where the library holds it already (None where it must be solved)."""
         from tracer.elements import ElementError, grating
 
         try:
@@ -86,12 +95,17 @@ class ElementLibrary:
             grating.affordable(canon)
         except ElementError as exc:
             raise Invalid(str(exc)) from None
+        known = self._row(grating.element_id(canon))
+        return canon, (None if known is None else _summary(known))
+
+    def solve_grating(self, canon: dict, progress: Callable[[float], None] | None = None) -> dict[str, Any]:
+        """Solve a checked grating body (`check_grating`), `progress(fraction)` after each table point, and keep it:
+        its table's bytes as ``<id>.npz``, then its row; answers its summary."""
+        from tracer.elements import ElementError, grating
+
         eid = grating.element_id(canon)
-        known = self._row(eid)
-        if known is not None:
-            return _summary(known), False
         try:
-            table = grating.prepare(canon)
+            table = grating.prepare(canon, progress=progress)
         except ElementError as exc:
             raise Invalid(str(exc)) from None
         self.directory.mkdir(parents=True, exist_ok=True)
@@ -105,7 +119,7 @@ class ElementLibrary:
                                                         prepare_seconds=s["prepare_seconds"]))
         with self._lock:
             self._models[eid] = table
-        return s, True
+        return s
 
     def _row(self, eid: str) -> Any:
         with self.engine.connect() as conn:

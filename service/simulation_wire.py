@@ -411,6 +411,9 @@ class JobProgress(BaseModel):
     uniformity: float | None = Field(None, description="Pack jobs: the figure (min/max or min/mean) of iteration "
                                                        "`measured`.")
     uniformity_stderr: float | None = Field(None, description="Pack jobs: its standard error.")
+    fraction: float | None = Field(None, description="Prepare jobs: the fraction of the grating's table solved.")
+    points: int | None = Field(None, description="Prepare jobs: table points solved (each side of the face counts).")
+    points_total: int | None = Field(None, description="Prepare jobs: table points to solve.")
 
 
 class JobPublic(BaseModel):
@@ -419,8 +422,10 @@ class JobPublic(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     id: str = Field(description="The job's id.")
-    kind: Literal["illuminance", "sensor", "pack"] = Field(description="A point query, a sensor simulation or a "
-                                                                   "pack of a density element.")
+    kind: Literal["illuminance", "sensor", "pack", "prepare"] = Field(
+        description="A point query, a sensor simulation, a pack of a density element, or the preparation of a "
+                    "grating (`POST /elements?mode=async`: no scene, `scene_id` empty; its result the element's "
+                    "summary).")
     status: Literal["queued", "running", "succeeded", "failed", "cancelled"] = Field(description="Where it is.")
     scene_id: str = Field(description="The scene's id.")
     revision: int = Field(description="Scene revision the job computes.")
@@ -431,10 +436,12 @@ class JobPublic(BaseModel):
     finished_at: float | None = Field(description="When it ended, Unix time, s; null until then.")
     progress: JobProgress = Field(description="How far it got.")
     result: dict[str, Any] | None = Field(
-        description="The answer of the sync call (IlluminancePublic or SensorPublic); a cancelled job keeps its "
-                    "partial answer.")
+        description="The answer of the sync call (IlluminancePublic or SensorPublic; a prepare job's: the "
+                    "element's summary); a cancelled job keeps its partial answer.")
     error: str | None = Field(description="Why it failed; null otherwise.")
     url: str = Field(description="This job's URL.")
-    points: int | None = Field(None, description="Illuminance jobs: how many points.")
+    points: int | None = Field(None, description="Illuminance jobs: how many points; prepare jobs: table points "
+                                                 "(each side of the face counts).")
     sensor: str | None = Field(None, description="Sensor and pack jobs: the sensor's id.")
     element: str | None = Field(None, description="Pack jobs: the element packed (its starting pattern).")
+    estimate_seconds: float | None = Field(None, description="Prepare jobs: the cost estimated before solving, s.")

@@ -12,6 +12,7 @@ its orders (`tracer.elements.diffraction`); ``GET /elements/{id}/orders.png`` pl
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Body, Path, Query, Request, Response
@@ -21,6 +22,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from service import paths
 from service.errors import Invalid
 from service.routes.deps import ItemId, Manager, SceneId
+from service.simulation_wire import Mode
 
 router = APIRouter(tags=["elements"])
 
@@ -109,16 +111,53 @@ class ElementAssignment(BaseModel):
 
 
 @router.post("/elements", status_code=201, response_model=ElementSummary,
-             responses={200: {"model": ElementSummary, "description": "the library already holds this body"}})
-def post_element(manager: Manager, response: Response, body: Annotated[dict[str, Any], Body(
+             responses={200: {"model": ElementSummary, "description": "the library already holds this body"},
+                        202: {"description": "mode=async, a grating to solve: the preparation job"}})
+def post_element(manager: Manager, request: Request, response: Response, body: Annotated[dict[str, Any], Body(
         description=("an element body: {type: microstructure, feature, relief, material, layout}, or {type: grating, "
                      "profile, period_um, depth_um, ridge, wavelengths_nm, orders, ...} (docs/DESIGN.md; a grating is "
-                     "solved by RCWA in the request, lit from both sides, its cost bounded first)"),
-        openapi_examples=ELEMENT_EXAMPLES)]) -> dict[str, Any]:
-    summary, new = manager.scenes.elements.create(body)
+                     "solved by RCWA, lit from both sides, its cost bounded first)"),
+        openapi_examples=ELEMENT_EXAMPLES)], mode: Mode = "sync") -> Any:
+    """Prepare an element into the library. A grating with ``mode=async`` (one not held yet) is solved as a job:
+    202 at once, `GET /jobs/{id}` follows its progress (``fraction`` of the table points solved, ``points``, seconds
+    and seconds left) and answers the element's summary as its result; its body is checked first (422, no job)."""
+    library = manager.scenes.elements
+    if mode == "async" and isinstance(body, dict) and body.get("type") == "grating":
+        canon, known = library.check_grating(body)
+        if known is not None:
+            response.status_code = 200
+            return known
+        return _prepare_job(request, library, canon)
+    summary, new = library.create(body)
     if not new:
         response.status_code = 200
     return summary
+
+
+def _prepare_job(request: Request, library: Any, canon: dict) -> JSONResponse:
+    """A grating's preparation as a job of no scene (``scene_id`` ""): progress by table point."""
+    import time
+
+    from service.routes.simulation import _accepted, _submit
+    from service.simulation import hub_for
+    from tracer.elements.grating_body import cost
+
+    points = 2 * canon["wavelength_count"] * len(canon["angles"]["polar_deg"]) * len(canon["angles"]["azimuth_deg"])
+
+    def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
+        t0 = time.perf_counter()
+
+        def report(fraction: float) -> None:
+            if progress is not None:
+                seconds = time.perf_counter() - t0
+                progress(0, math.nan, seconds, fraction=fraction, points=round(fraction * points),
+                         points_total=points, seconds_left=seconds * (1.0 - fraction) / max(fraction, 1e-9))
+
+        return library.solve_grating(canon, report)
+
+    hub = hub_for(request.app)
+    job = _submit(hub, "prepare", "", 0, work, None, {"estimate_seconds": cost(canon), "points": points})
+    return _accepted(request, job)
 
 
 @router.get("/elements", response_model=list[ElementSummary])

@@ -4,6 +4,7 @@ goes onto a scene's face and diffracts there (tests/tracer/elements/test_grating
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 from typing import Any
 
@@ -148,3 +149,25 @@ def test_orders_png_plots_a_gratings_efficiencies_and_refuses_what_it_cannot_plo
     r = client.get(f"/elements/{dots}/orders.png")
     assert r.status_code == 422 and "is not a grating" in r.text
     assert client.get(f"/elements/{'0' * 64}/orders.png").status_code == 404
+
+
+def test_a_grating_prepares_as_a_job_with_progress_on_request(client: Any) -> None:
+    """``POST /elements?mode=async``: a grating's body is checked at once (a 422, no job, for a bad one), then solved
+    as a job whose progress counts the table points (both sides) and whose result is the element's summary; the same
+    body again answers 200 with that summary, no job."""
+    r = client.post("/elements?mode=async", json={**GRATING, "period_um": [1, 2]})
+    assert r.status_code == 422 and "period_um" in r.text
+    r = client.post("/elements?mode=async", json=GRATING)
+    assert r.status_code == 202, r.text
+    deadline = time.monotonic() + 120.0
+    while (state := client.get(r.json()["url"]).json())["status"] not in ("succeeded", "failed", "cancelled"):
+        assert time.monotonic() < deadline, state
+        time.sleep(0.05)
+    assert state["status"] == "succeeded", state
+    progress = state["progress"]
+    assert progress["fraction"] == 1.0 and progress["points"] == progress["points_total"] == 2 * 2 * 2 * 1
+    eid = state["result"]["id"]
+    assert client.get(f"/elements/{eid}").json()["type"] == "grating"
+    again = client.post("/elements?mode=async", json=GRATING)
+    assert again.status_code == 200 and again.json()["id"] == eid
+    assert client.post("/elements", json=GRATING).json()["id"] == eid
