@@ -255,8 +255,8 @@ def element(scene: str | None, server: str, body: str | None = None, file: Path 
         with Client(server) as ll:
             if body is None and file is None and element_id is None:
                 for e in ll.elements():
-                    print(f"{e['id']}  features {e['features'] if e['features'] is not None else 'periodic'}  "
-                          f"{e['bytes']} bytes  prepared in {e['prepare_seconds']:.3f} s")
+                    print(f"{e['id']}  {e['type']}  features {'periodic' if e['features'] is None else e['features']}"
+                          f"  {e['bytes']} bytes  prepared in {e['prepare_seconds']:.3f} s")
                 return EXIT_OK
             eid = element_id or ll.add_element(_json_arg(body, file, "element"))["id"]
             print(f"element {eid}")

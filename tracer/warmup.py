@@ -109,7 +109,6 @@ def forward_callees() -> list[tuple[Any, tuple]]:
     compiled on their own too, once per argument types, so they are here as well."""
     from tracer import rng
     from tracer.accel import spawn, traverse
-    from tracer.elements import diffraction
     from tracer.optics import frames, polarization, spectra
     from tracer.optics.lights import dispatch as lights
     from tracer.optics.lights import pick_light
@@ -127,8 +126,7 @@ def forward_callees() -> list[tuple[Any, tuple]]:
     own += [(surfaces.scatter, scatter), (surfaces.table_row, (sa, i8, i8)), (surfaces.feature_surface, (sa, i8, i8)),
             (pick_light, (t["lights"], f8)), (lights.sample_emission, (t["lights"], i8, *[f8] * 5)),
             (lights.emit_wavelength, (t["lights"], i8, f8))]
-    own += [(surfaces.bsdf_scatter, (sa, i8, i8, f8, f8, f8, vi, i8, u8, i8, vf)),   # an element's table
-            (diffraction.scatter, (sa, i8, i8, f8, f8, f8, vi, i8, u8, i8, f8, vf)),   # a grating's orders
+    own += [(surfaces.element_table_scatter, scatter),   # an element's table: a tabulated BSDF, a grating's orders
             (media.medium_coefficients, (mats, i8, f8)), (media.medium_event, (mats, i8, *[f8] * 6, u8, i8, vf)),
             (homogeneous.sample_free_flight, (f8, f8)), (homogeneous.transmittance, (f8, f8)),
             (spectra.sample_grid, (vf, vf, f8)), (spectra.luminous, (f8,)), (frames.find_in_cdf, (vf, i8, i8, f8)),

@@ -260,9 +260,8 @@ def _scatter_signature(head):
 
 #: what every kind's `scatter` returns: (status, dx, dy, dz, f, depth, dim), `base` has the contract
 SCATTER_RETURNS = types.Tuple((types.int64, *[types.float64] * 4, types.int64, types.int64))
-#: the kinds past the Lambertian one, called through `MaterialArrays.scatter_at` (`tracer.jit.kind_table`)
-scatter_by_address = kind_table("scatter_by_address", {k: m.scatter for k, m in enumerate(KINDS) if k > LAMBERTIAN},
-                                _scatter_signature, SCATTER_RETURNS)
+#: the entry of `MaterialArrays.scatter_at` past the kinds: an element used through a table (`element_table_scatter`)
+ELEMENT_TABLE = len(KINDS)
 _TABLES: dict = {}
 
 
@@ -272,7 +271,10 @@ def bind(sa, M):
     (`tracer.backends.run_kernel`). A kind no scene of this process has held is never compiled."""
     head = (numba.typeof(sa), numba.typeof(M))
     table = _TABLES.setdefault(head, np.zeros(scatter_by_address.size, np.int64))
-    scatter_by_address.bind(table, head, np.unique(M.kind))
+    kinds = np.unique(M.kind)
+    if len(sa.el_i) and (sa.el_i[:, fx.MODEL] != fx.EXACT).any():   # a tabulated BSDF or a grating's orders
+        kinds = np.append(kinds, ELEMENT_TABLE)
+    scatter_by_address.bind(table, head, kinds)
     return M._replace(scatter_at=table)
 
 
@@ -370,6 +372,25 @@ def bsdf_scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, pol):
     return CONTINUES, ox * inv, oy * inv, oz * inv, 1.0, depth, dim + 3
 
 
+@njit(cache=True, error_model="numpy", _nrt=False)
+def element_table_scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol):
+    """What the table of the element on instance `inst` does to a photon meeting its support (a kind's `scatter`
+    signature, so that it is called through `scatter_by_address` like one: compiled on its own, only in a process
+    whose scenes hold such an element, and in no kernel): a grating's orders (`tracer.elements.diffraction`) or a
+    tabulated BSDF (`bsdf_scatter`)."""
+    r = sa.inst_aux[inst]
+    if sa.el_i[r, fx.MODEL] == fx.GRATING:
+        return diffraction.scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, lam, pol)
+    return bsdf_scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, pol)
+
+
+#: the kinds past the Lambertian one and the element tables, called through `MaterialArrays.scatter_at`
+#: (`tracer.jit.kind_table`)
+scatter_by_address = kind_table(
+    "scatter_by_address", {**{k: m.scatter for k, m in enumerate(KINDS) if k > LAMBERTIAN},
+                           ELEMENT_TABLE: element_table_scatter}, _scatter_signature, SCATTER_RETURNS)
+
+
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def surface_albedo(sa, M, inst, prim):
     """`albedo` of the hit: a feature's own reflectance where it has a surface of its own."""
@@ -387,11 +408,9 @@ def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, ke
     state `pol` (`tracer.optics.polarization`) arriving along d (`base` has the contract); on an element's feature
     with a surface of its own (`feature_surface`), what that surface does; on the support of an element used through
     its tabulated BSDF or a grating's orders (`table_row`), what the table says."""
-    r = table_row(sa, inst, prim)
-    if r >= 0:
-        if sa.el_i[r, fx.MODEL] == fx.GRATING:
-            return diffraction.scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, lam, pol)
-        return bsdf_scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, pol)
+    if table_row(sa, inst, prim) >= 0:
+        return scatter_by_address(M.scatter_at, ELEMENT_TABLE, (sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz,
+                                                                med, depth, key, dim, lam, pol))
     fk, frho = feature_surface(sa, inst, prim)
     if fk == fx.MAT_LAMBERTIAN:
         return lambertian.scatter_rho(frho, dx, dy, dz, ngx, ngy, ngz, depth, key, dim, pol)
