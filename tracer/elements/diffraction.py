@@ -148,6 +148,21 @@ def _unfold(x, y, my, mx, dg):
     return x, y
 
 
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def in_support(sa, r, inst, dx, dy, dz):
+    """(du, dv, dn, |d'|): a world direction d in the (u, v, n) frame of element row `r`'s support on instance
+    `inst` (through its object frame, so not unit where the instance is scaled), and its length there."""
+    F = sa.el_f[r]
+    R = sa.object_from_world[inst]
+    ax = R[0, 0] * dx + R[0, 1] * dy + R[0, 2] * dz
+    ay = R[1, 0] * dx + R[1, 1] * dy + R[1, 2] * dz
+    az = R[2, 0] * dx + R[2, 1] * dy + R[2, 2] * dz
+    du = ax * F[fx.U_X] + ay * F[fx.U_X + 1] + az * F[fx.U_X + 2]
+    dv = ax * F[fx.V_X] + ay * F[fx.V_X + 1] + az * F[fx.V_X + 2]
+    dn = ax * F[fx.N_X] + ay * F[fx.N_X + 1] + az * F[fx.N_X + 2]
+    return du, dv, dn, math.sqrt(du * du + dv * dv + dn * dn)
+
+
 @njit(cache=True, error_model="numpy", _nrt=False)
 def scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, lam, pol):
     """A photon of wavelength `lam` nm arriving along world direction d on the support of grating row `r` (module
@@ -156,14 +171,7 @@ def scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, lam, pol):
     F = sa.el_f[r]
     T = sa.el_tab
     h = sa.el_i[r, fx.TAB]
-    R = sa.object_from_world[inst]
-    ax = R[0, 0] * dx + R[0, 1] * dy + R[0, 2] * dz
-    ay = R[1, 0] * dx + R[1, 1] * dy + R[1, 2] * dz
-    az = R[2, 0] * dx + R[2, 1] * dy + R[2, 2] * dz
-    du = ax * F[fx.U_X] + ay * F[fx.U_X + 1] + az * F[fx.U_X + 2]
-    dv = ax * F[fx.V_X] + ay * F[fx.V_X + 1] + az * F[fx.V_X + 2]
-    dn = ax * F[fx.N_X] + ay * F[fx.N_X + 1] + az * F[fx.N_X + 2]
-    norm = math.sqrt(du * du + dv * dv + dn * dn)
+    du, dv, dn, norm = in_support(sa, r, inst, dx, dy, dz)
     du, dv, dn = du / norm, dv / norm, dn / norm
     nW, nA, nZ, K = int(T[h, 0]), int(T[h, 1]), int(T[h, 2]), int(T[h, 3])
     px, py, n_amb, n_sub = T[h, 4], T[h, 5], T[h, 6], T[h, 7]
@@ -271,7 +279,7 @@ def scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, lam, pol):
             med[depth] = inst
             depth += 1
         else:
-            depth = _leave(med, depth, inst)
+            depth = leave_part(med, depth, inst)
     return (OUTSIDE_TABLE if outside else CONTINUES), bx, by, bz, 1.0, depth, dim + 4
 
 
@@ -325,7 +333,7 @@ def _apply(pol, T, row, c, q1, q2, q3, parity):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _leave(med, depth, inst):
+def leave_part(med, depth, inst):
     """Pop instance `inst` from the photon's stack of solids (it has left that part); the new depth."""
     for k in range(depth - 1, -1, -1):
         if med[k] == inst:

@@ -310,14 +310,7 @@ def bsdf_scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, pol):
     running sums, the direction uniform over its solid angle). Crossing the face pushes or pops the part's medium;
     the table is unpolarized, so the photon is depolarized."""
     F = sa.el_f[r]
-    R = sa.object_from_world[inst]
-    ax = R[0, 0] * dx + R[0, 1] * dy + R[0, 2] * dz
-    ay = R[1, 0] * dx + R[1, 1] * dy + R[1, 2] * dz
-    az = R[2, 0] * dx + R[2, 1] * dy + R[2, 2] * dz
-    du = ax * F[fx.U_X] + ay * F[fx.U_X + 1] + az * F[fx.U_X + 2]
-    dv = ax * F[fx.V_X] + ay * F[fx.V_X + 1] + az * F[fx.V_X + 2]
-    dn = ax * F[fx.N_X] + ay * F[fx.N_X + 1] + az * F[fx.N_X + 2]
-    norm = math.sqrt(du * du + dv * dv + dn * dn)
+    du, dv, dn, norm = diffraction.in_support(sa, r, inst, dx, dy, dz)
     n_mu = sa.el_i[r, fx.TAB_MU]
     n_phi = sa.el_i[r, fx.TAB_PHI]
     half = n_mu * n_phi
@@ -360,15 +353,7 @@ def bsdf_scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, pol):
         med[depth] = inst
         depth += 1
     elif side_in == 1 and side_out == 0:     # out of the part
-        pos = -1
-        for k in range(depth - 1, -1, -1):
-            if med[k] == inst:
-                pos = k
-                break
-        if pos >= 0:
-            for k in range(pos, depth - 1):
-                med[k] = med[k + 1]
-            depth -= 1
+        depth = diffraction.leave_part(med, depth, inst)
     return CONTINUES, ox * inv, oy * inv, oz * inv, 1.0, depth, dim + 3
 
 
