@@ -224,7 +224,7 @@ def polarization_call(specs: Iterable, counts: Mapping | None = None, twice: Ite
     specs = list(specs)
     counts = Counter(specs) if counts is None else counts
     twice = set(twice)
-    found: list[tuple[float, str]] = [(float(d), GRATING) for d in gratings if d > 0.0][:2]
+    found: list[tuple[float, str]] = [(d, GRATING) for d in sorted(map(float, gratings), reverse=True)[:2] if d > 0]
     again: list[str] = []   # kinds counted twice: their one surface can be met twice
     for spec in dict.fromkeys(specs):
         per, d = polarizing_of(spec)
