@@ -84,7 +84,7 @@ def preparation(quick: bool) -> dict:
         table = grating.prepare(body)
         seconds = time.perf_counter() - t0
         canon = grating.check(body)
-        points = canon["wavelength_count"] * len(canon["angles"]["polar_deg"]) * len(canon["angles"]["azimuth_deg"])
+        points = grating.table_points(canon)
         out[name] = {"seconds": seconds, "estimate_seconds": grating.cost(canon), "points": points,
                      "orders_kept": len(table.orders), "harmonics": grating.harmonics(canon),
                      "bytes": table.nbytes, "npz_bytes": len(table.to_bytes())}

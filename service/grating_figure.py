@@ -4,17 +4,17 @@ One table point's angles (a polar angle and an azimuth the table was solved at, 
 substrate): each order that carries at least `SHOWN` of the light somewhere in the table's wavelengths is a line,
 transmitted solid, reflected dashed, the unpolarized efficiency (the mean of s and p) against the wavelength, the
 sum of all orders beside them (1 for a lossless relief, less where a metal absorbs). Built with matplotlib's
-object-oriented API on an Agg canvas, as the maps are (`service.maps`).
+object-oriented API on an Agg canvas and written by `service.maps.figure_png`, as the maps are.
 """
 
 from __future__ import annotations
 
-import io
 from typing import Any
 
 import numpy as np
 
 from service.errors import Invalid
+from service.maps import figure_png
 
 SHOWN = 0.005   # an order below this efficiency everywhere on the plot is left out (it would be a line on zero)
 LIT_FROM = ("ambient", "substrate")
@@ -65,6 +65,4 @@ def orders_png(table: Any, polar_deg: float | None = None, azimuth_deg: float | 
                  f"{medium}; T transmitted, R reflected)", fontsize=9)
     ax.legend(fontsize=7, ncols=2, loc="center left", bbox_to_anchor=(1.0, 0.5))
     ax.grid(alpha=0.3)
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png")
-    return buf.getvalue()
+    return figure_png(fig)

@@ -157,7 +157,8 @@ def _figure(aspect: float) -> tuple[Figure, Axes]:
     return fig, fig.add_subplot()
 
 
-def _png(fig: Figure) -> bytes:
+def figure_png(fig: Figure) -> bytes:
+    """A figure's PNG bytes (every figure the service draws goes out through here)."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png")
     return buf.getvalue()
@@ -165,7 +166,7 @@ def _png(fig: Figure) -> bytes:
 
 def illuminance_map_png(lux: object, origin: object, u: object, v: object, **options: Any) -> bytes:
     """`illuminance_map_figure` as a PNG (the same arguments)."""
-    return _png(illuminance_map_figure(lux, origin, u, v, **options))
+    return figure_png(illuminance_map_figure(lux, origin, u, v, **options))
 
 
 def illuminance_map_figure(
@@ -297,7 +298,7 @@ def colour_map_png(cie_xy: object, lux: object, origin: object, u: object, v: ob
     mean_xy = np.nanmean(xy[lit], axis=0) if lit.any() else (math.nan, math.nan)
     ax.set_title(f"{title or 'Colour of the light'}\nCIE 1931 mean x {mean_xy[0]:.4f}, y {mean_xy[1]:.4f} · "
                  f"brightness ∝ illuminance (max {e.max():.4g} lx)", fontsize=9)
-    return _png(fig)
+    return figure_png(fig)
 
 
 
@@ -369,7 +370,7 @@ def difference_map_png(
     ax.set_title(f"{title or 'Change in illuminance'}\n{caption}", fontsize=9)
     fig.text(0.01, 0.005, f"grid {nu}×{nv} cells, origin ({o[0]:.3g}, {o[1]:.3g}, {o[2]:.3g}) m",
              fontsize=7, color="0.35")
-    return _png(fig)
+    return figure_png(fig)
 
 
 def summarize_change(
@@ -472,4 +473,4 @@ def luminance_map_png(luminance: object, *, stderr: object | None = None, title:
             caption += f" · median std. error {100 * rel:.2g} % (lit pixels)"
     ax.set_title(f"{title or 'Luminance'}\n{caption}", fontsize=9)
     fig.text(0.01, 0.005, f"camera {w}×{h} pixels", fontsize=7, color="0.35")
-    return _png(fig)
+    return figure_png(fig)

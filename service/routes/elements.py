@@ -140,9 +140,9 @@ def _prepare_job(request: Request, library: Any, canon: dict) -> JSONResponse:
 
     from service.routes.simulation import _accepted, _submit
     from service.simulation import hub_for
-    from tracer.elements.grating_body import cost
+    from tracer.elements.grating_body import cost, table_points
 
-    points = 2 * canon["wavelength_count"] * len(canon["angles"]["polar_deg"]) * len(canon["angles"]["azimuth_deg"])
+    points = 2 * table_points(canon)
 
     def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
         t0 = time.perf_counter()

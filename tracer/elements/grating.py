@@ -98,6 +98,7 @@ from tracer.elements.grating_body import (  # noqa: F401
     cost,
     element_id,
     harmonics,
+    table_points,
 )
 
 

@@ -233,10 +233,15 @@ def harmonics(canon: dict) -> int:
     return g * g if canon["profile"]["shape"] in SHAPES_2D else g
 
 
+def table_points(canon: dict) -> int:
+    """Wavelengths x polar angles x azimuths of a checked body's table: the points solved for each side of the face."""
+    return canon["wavelength_count"] * len(canon["angles"]["polar_deg"]) * len(canon["angles"]["azimuth_deg"])
+
+
 def cost(canon: dict) -> float:
     """Seconds preparing `canon` (a checked body) takes, estimated before any work: per table point (each solved
     twice, lit from either side), a fixed part and, per layer, the cube of the solve's matrix size (2 G)."""
-    points = 2 * canon["wavelength_count"] * len(canon["angles"]["polar_deg"]) * len(canon["angles"]["azimuth_deg"])
+    points = 2 * table_points(canon)
     return points * (SECONDS_PER_POINT + canon["layers"] * SECONDS_PER_LAYER_CUBE * (2 * harmonics(canon)) ** 3)
 
 
@@ -246,7 +251,7 @@ def affordable(canon: dict) -> None:
     seconds = cost(canon)
     if seconds <= MAX_PREPARE_SECONDS:
         return
-    points = canon["wavelength_count"] * len(canon["angles"]["polar_deg"]) * len(canon["angles"]["azimuth_deg"])
+    points = table_points(canon)
     raise ElementError(
         f"this grating would take about {seconds:,.0f} s to prepare ({points} table points, each lit from both sides, "
         f"of {canon['layers']} layer(s) and {harmonics(canon)} Fourier orders); one request prepares at most "
