@@ -47,10 +47,11 @@ typecheck: $(STAMP)
 	$(BIN)/mypy
 
 # pytest in TEST_WORKERS processes (pytest-xdist), a test file to each at a time (its module fixtures, a service or a
-# cluster, are made once); processes that need the same kernel compile it once (tracer.warmup.compiling)
+# cluster, are made once), longest first in the order tests/conftest.py gives; processes that need the same kernel
+# compile it once (tracer.warmup.compiling)
 TEST_WORKERS ?= 2
 test: $(STAMP) $(WEB_STAMP) postgres chromium lint typecheck
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 # A PostgreSQL server for tests/service/test_replicas.py (it starts its own throw-away cluster in a temp dir):
 # Debian's `postgresql` package, installed when no server is there and we may install it (root, apt-get).

@@ -5,56 +5,36 @@ stacks in local memory) and the photon batch kernels of tracer/gpu/transport.py 
 batch), and ptxas for sm_90 assembles each kernel's PTX as a card's driver does (issue 40), where a CUDA toolkit has
 it. No GPU needed.
 
-All of it compiles in one child process (tests/tracer/gpu/gpu_ptx_kernels.py ``sweep rays batches``), once for the
-module: the kernels first, then the sweep compiles alone only the device functions no kernel compiled (a function a
-kernel's PTX holds, with the types the kernel gives it, is "ok" there; the report's ``in_kernel`` names the kernel):
-184 s against 214 s when the sweep compiled every function alone first (issue 49). Skipped, with the reason, where
-numba-cuda (``pip install -e '.[gpu]'``; the dev extra has it) or NVVM (a CUDA toolkit, ``CUDA_HOME``) is missing.
+All of it compiles in one child (tests/tracer/gpu/gpu_ptx_kernels.py ``sweep rays batches``, started by
+`tests.ptx_child`), once for the module: the kernels first, then the sweep compiles alone only the device functions
+no kernel compiled (a function a kernel's PTX holds, with the types the kernel gives it, is "ok" there; the report's
+``in_kernel`` names the kernel): 184 s against 214 s when the sweep compiled every function alone first (issue 49).
+Under ``make test`` the controller starts that child at the session's start at the lowest CPU priority and this
+module reads its report. Skipped, with the reason, where numba-cuda (``pip install -e '.[gpu]'``; the dev extra has
+it) or NVVM (a CUDA toolkit, ``CUDA_HOME``) is missing.
 """
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
+from tests import ptx_child
+
 ROOT = Path(__file__).resolve().parents[3]
-HERE = Path(__file__).resolve().parent
-
-
-def cuda_home() -> str | None:
-    """A CUDA toolkit with NVVM and libdevice (``CUDA_HOME``, else /usr/local/cuda*), or None."""
-    candidates = [os.environ.get("CUDA_HOME", ""), "/usr/local/cuda", *sorted(map(str, Path("/usr/local").glob(
-        "cuda-*")), reverse=True)]
-    for c in candidates:
-        if c and list(Path(c).glob("nvvm/libdevice/libdevice*.bc")) and (
-                list(Path(c).glob("lib*/libnvvm.so*")) or list(Path(c).glob("nvvm/lib64/libnvvm.so*"))):
-            return c
-    return None
-
-
-def ptx_env() -> dict[str, str]:
-    """Environment of a child that compiles to PTX: skips this test where it cannot."""
-    if importlib.util.find_spec("numba_cuda") is None:
-        pytest.skip("numba-cuda is not installed (pip install -e '.[gpu]')")
-    home = cuda_home()
-    if home is None:
-        pytest.skip("no NVVM/libdevice found (set CUDA_HOME to a CUDA toolkit): cannot compile to PTX")
-    return {**os.environ, "CUDA_HOME": home, "NUMBA_FORCE_CUDA_CC": "9.0", "PYTHONPATH": str(ROOT)}
 
 
 @pytest.fixture(scope="module")
 def ptx_report() -> dict:
     """{"sweep": {function: "ok" | error}, "rays": {...}, "batches": {...}}: one child compiles all three."""
-    r = subprocess.run([sys.executable, str(HERE / "gpu_ptx_kernels.py"), "sweep", "rays", "batches"], env=ptx_env(),
-                       cwd=ROOT, capture_output=True, text=True, timeout=900)
-    assert r.returncode == 0, r.stderr[-3000:]
-    return json.loads(r.stdout.strip().splitlines()[-1])
+    try:
+        returncode, stdout, stderr = ptx_child.run()
+    except RuntimeError as why:
+        pytest.skip(str(why))
+    assert returncode == "0", (returncode, stderr[-3000:])
+    return json.loads(stdout.strip().splitlines()[-1])
 
 
 def kernels_compiled_and_assembled(report: dict, names: tuple[str, ...]) -> None:
