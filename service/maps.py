@@ -23,6 +23,7 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import Normalize, TwoSlopeNorm
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
 from service.errors import ServiceError
 
@@ -474,3 +475,41 @@ def luminance_map_png(luminance: object, *, stderr: object | None = None, title:
     ax.set_title(f"{title or 'Luminance'}\n{caption}", fontsize=9)
     fig.text(0.01, 0.005, f"camera {w}×{h} pixels", fontsize=7, color="0.35")
     return figure_png(fig)
+
+
+def conoscope_figure(answer: dict[str, Any]) -> Figure:
+    """A conoscopic view (``POST …/luminance/conoscope``'s answer) as a polar plot: the azimuth around, the polar
+    angle from the normal outwards (degrees), each reading a cell of a cd/m² colour scale from the smallest reading
+    to the largest (so that a near-flat view shows its variation), the on-axis luminance and the flatness min/max
+    with their standard errors in the title."""
+    theta = np.asarray(answer["theta_deg"], float)
+    phi = np.radians(np.asarray(answer["phi_deg"], float))
+    lum = _check_grid("luminance", answer["luminance"], (len(theta), len(phi)))
+    step_t = theta[1] - theta[0]
+    step_p = 2.0 * math.pi / len(phi)
+    r_edges = np.concatenate([[0.0], theta[:-1] + step_t / 2.0, [theta[-1] + step_t / 2.0]])
+    p_edges = np.concatenate([phi - step_p / 2.0, [phi[-1] + step_p / 2.0]])
+    fig = Figure(figsize=(6.4, 6.0), dpi=110, layout="constrained")
+    FigureCanvasAgg(fig)
+    ax: Any = fig.add_subplot(projection="polar")   # a PolarAxes
+    lo, hi = float(lum.min()), float(lum.max())
+    mesh = ax.pcolormesh(p_edges, r_edges, lum, cmap="turbo", shading="flat",
+                         norm=Normalize(lo, hi if hi > lo else lo + max(abs(lo), 1.0) * 1e-6))
+    ax.set_ylim(0.0, r_edges[-1])
+    ax.set_rlabel_position(22.5)
+    ax.yaxis.set_major_locator(MaxNLocator(5))
+    ax.yaxis.set_major_formatter(lambda x, _: f"{x:g}°")
+    bar = fig.colorbar(mesh, ax=ax, shrink=0.8, pad=0.08)
+    bar.set_label("Luminance L (cd/m²)")
+    flat = answer["flatness"]
+    ratio = "—" if flat.get("min_max") is None else f"{flat['min_max']:.4g} ± {flat['min_max_stderr']:.2g}"
+    ax.set_title(f"Conoscopic view: luminance against viewing angle\non axis {answer['on_axis']:.4g} ± "
+                 f"{answer['on_axis_stderr']:.2g} cd/m² · min/max {ratio}", fontsize=9)
+    fig.text(0.01, 0.005, f"polar angle from the normal, 0-{theta[-1]:g}°; azimuth from phi_zero; "
+             f"{answer['aperture_deg']:g}° meters", fontsize=7, color="0.35")
+    return fig
+
+
+def conoscope_png(answer: dict[str, Any]) -> bytes:
+    """`conoscope_figure` as a PNG."""
+    return figure_png(conoscope_figure(answer))

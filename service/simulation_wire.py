@@ -385,7 +385,7 @@ class JobAccepted(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     id: str = Field(description="The job's id.")
-    kind: str = Field(description="`illuminance` or `sensor`.")
+    kind: str = Field(description="What the job computes (as `GET /jobs/{id}`'s `kind`).")
     status: str = Field(description="`queued` at first.")
     scene_id: str = Field(description="The scene's id.")
     revision: int = Field(description="Scene revision the job computes.")
@@ -422,10 +422,10 @@ class JobPublic(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     id: str = Field(description="The job's id.")
-    kind: Literal["illuminance", "sensor", "pack", "prepare"] = Field(
-        description="A point query, a sensor simulation, a pack of a density element, or the preparation of a "
-                    "grating (`POST /elements?mode=async`: no scene, `scene_id` empty; its result the element's "
-                    "summary).")
+    kind: Literal["illuminance", "sensor", "uniformity", "conoscope", "pack", "prepare"] = Field(
+        description="A point query, a sensor simulation, luminance meters (`uniformity`, `conoscope`), a pack of a "
+                    "density element, or the preparation of a grating (`POST /elements?mode=async`: no scene, "
+                    "`scene_id` empty; its result the element's summary).")
     status: Literal["queued", "running", "succeeded", "failed", "cancelled"] = Field(description="Where it is.")
     scene_id: str = Field(description="The scene's id.")
     revision: int = Field(description="Scene revision the job computes.")

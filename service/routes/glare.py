@@ -11,24 +11,30 @@
   display: the centres of its 3 × 3 division), each seen by a meter ``distance`` metres back from it along
   ``direction``; the answer holds each meter's cd/m² ± stderr and the uniformity over them: min/max (U_d), min/mean
   (U₀), with their standard errors (the delta method, the smallest and largest meters held fixed).
+- ``POST /scenes/{id}/luminance/conoscope`` — a conoscopic view of one point of a lit face: the luminance it shows
+  against viewing angle, read by meters on a polar grid (``rings`` polar angles from the face's normal up to
+  ``theta_max_deg``, ``azimuths`` azimuths from ``phi_zero``), measured together; ``?format=png`` draws it as a
+  polar plot (what a conoscope shows), the on-axis luminance and the flatness min/max with their error bars in its
+  title (`tracer.sensors.luminance.conoscope`).
 """
 
 from __future__ import annotations
 
 import math
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
-from fastapi import APIRouter, Query, Request
+from fastapi import APIRouter, Query, Request, Response
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from service.errors import Invalid
+from service.errors import Invalid, TooLarge
 from service.routes.deps import ItemId, SceneId
 from service.routes.images import camera_result
 from service.routes.simulation import _answer, _targeted
 from service.simulation import _refusals, hub_for, resolve_budget
 from service.simulation_wire import FiniteFloat, Mode, QueryBudget, Vec3
 from tracer.photometry.glare import nine_points, ugr_from_image, uniformity
+from tracer.sensors.luminance import CONOSCOPE_AZIMUTHS, CONOSCOPE_MAX_THETA_DEG, CONOSCOPE_RINGS
 
 router = APIRouter(tags=["simulation"])
 MAX_METERS = 1000
@@ -122,16 +128,21 @@ class UniformityQuery(QueryBudget):
             raise ValueError("give either points or nine_points (one of them)")
         if math.hypot(*self.direction) == 0.0:
             raise ValueError("direction must not be the zero vector")
-        if self.estimator == "forward":
-            raise ValueError("estimator: luminance meters are answered by paths from the eye; the forward estimator "
-                             "cannot (photons from the lights almost never enter a meter's cone); use 'backward' or "
-                             "'auto'")
-        for name in ("observe", "physics_left_out"):
-            if getattr(self, name):
-                raise ValueError(f"{name} is not available for luminance meters")
-        if self.reference is not None:
-            raise ValueError("reference is not available for luminance meters")
+        meters_only(self)
         return self
+
+
+def meters_only(query: QueryBudget) -> None:
+    """A ValueError (a 422) for the query options luminance meters cannot answer."""
+    if query.estimator == "forward":
+        raise ValueError("estimator: luminance meters are answered by paths from the eye; the forward estimator "
+                         "cannot (photons from the lights almost never enter a meter's cone); use 'backward' or "
+                         "'auto'")
+    for name in ("observe", "physics_left_out"):
+        if getattr(query, name):
+            raise ValueError(f"{name} is not available for luminance meters")
+    if query.reference is not None:
+        raise ValueError("reference is not available for luminance meters")
 
 
 class Uniformity(BaseModel):
@@ -221,3 +232,132 @@ def _uniformity_query(scene_id: str, query: UniformityQuery, request: Request) -
         return payload
 
     return ("uniformity", scene_id, prepared, work, budget, {"generation": prepared.generation, "points": len(pts)})
+
+
+class ConoscopeQuery(QueryBudget):
+    """Body of ``POST /scenes/{id}/luminance/conoscope``: a polar grid of meters looking at one point."""
+
+    point: Vec3 = Field(description="The point of the lit face looked at, world metres.")
+    normal: Vec3 = Field(description="The face's normal towards the viewer (any non-zero length): θ = 0.")
+    theta_max_deg: Annotated[FiniteFloat, Field(gt=0.0, le=CONOSCOPE_MAX_THETA_DEG)] = Field(
+        default=80.0, description="The largest polar angle from the normal, degrees.")
+    rings: Annotated[int, Field(ge=CONOSCOPE_RINGS[0], le=CONOSCOPE_RINGS[1])] = Field(
+        default=9, description="Polar angles, evenly from 0 to theta_max_deg (one meter on the axis).")
+    azimuths: Annotated[int, Field(ge=CONOSCOPE_AZIMUTHS[0], le=CONOSCOPE_AZIMUTHS[1])] = Field(
+        default=12, description="Azimuths per ring, evenly from phi_zero (360°/azimuths apart).")
+    phi_zero: Vec3 | None = Field(default=None, description="The direction of φ = 0, projected into the face's "
+                                                            "plane (not along the normal); default any.")
+    distance: Annotated[FiniteFloat, Field(gt=0.0)] = Field(
+        default=DEFAULT_DISTANCE_M, description="How far each meter stands from the point, m.")
+    aperture_deg: Annotated[FiniteFloat, Field(gt=0.0, le=180.0)] = Field(
+        default=1.0, description="Each meter's acceptance angle (its cone's full angle), degrees.")
+
+    model_config = ConfigDict(json_schema_extra={"examples": [
+        {"point": [0.0, 0.0, 0.0], "normal": [0.0, 0.0, 1.0], "theta_max_deg": 80.0, "rings": 9, "azimuths": 12,
+         "max_seconds": 10.0}]})
+
+    @model_validator(mode="after")
+    def _check(self) -> ConoscopeQuery:
+        if math.hypot(*self.normal) == 0.0:
+            raise ValueError("normal must not be the zero vector: give the face's normal towards the viewer")
+        if self.phi_zero is not None:
+            n = np.asarray(self.normal, float) / math.hypot(*self.normal)
+            a = np.asarray(self.phi_zero, float)
+            if np.linalg.norm(a - np.dot(a, n) * n) <= 1e-9 * max(float(np.linalg.norm(a)), 1e-300):
+                raise ValueError("phi_zero lies along the normal (or is zero): give a direction in the face's plane")
+        meters_only(self)
+        return self
+
+
+class ConoscopePublic(BaseModel):
+    """Luminance against viewing angle at one point, each reading with its standard error."""
+
+    point: list[float] = Field(description="The point looked at, world metres.")
+    normal: list[float] = Field(description="The face's unit normal (θ = 0).")
+    phi_zero: list[float] = Field(description="The unit direction of φ = 0 in the face's plane.")
+    theta_deg: list[float] = Field(description="The rings' polar angles from the normal, degrees.")
+    phi_deg: list[float] = Field(description="The azimuths, degrees from phi_zero towards normal × phi_zero.")
+    luminance: list[list[float]] = Field(description="cd/m², [ring][azimuth] (ring 0, the axis, one reading "
+                                                     "repeated).")
+    stderr: list[list[float]] = Field(description="Their standard errors, cd/m².")
+    on_axis: float = Field(description="The luminance along the normal, cd/m².")
+    on_axis_stderr: float = Field(description="Its standard error, cd/m².")
+    flatness: Uniformity = Field(description="min/max and min/mean over the view's distinct readings, with their "
+                                             "standard errors (1 for a Lambertian face evenly lit).")
+    aperture_deg: float = Field(description="Each meter's acceptance angle, degrees.")
+    distance: float = Field(description="How far each meter stood from the point, m.")
+    photons: int = Field(description="Paths from the eye traced (all meters).")
+    seconds: float = Field(description="Seconds the run took, s.")
+    revision: int = Field(description="Scene revision the readings describe.")
+    estimator: str = Field(description="The estimator that ran (`backward`: paths from the eye).")
+    stop_reason: str = Field(description="Which rule stopped the run.")
+    effects: list[str] = Field(description="The effect set the simulation ran with.")
+    strategy: str = Field(description="The estimator in words.")
+    unreachable: dict[str, Any] | None = Field(None, description="Light the paths from the eye cannot find here "
+                                                                 "(then missing from the readings), or null.")
+    cost: dict[str, Any] | None = Field(None, description="What tighter errors would cost (as for lux).")
+
+
+PNG = {"content": {"image/png": {}}, "description": "With ?format=png: the view as a polar plot."}
+
+
+@router.post("/scenes/{scene_id}/luminance/conoscope", response_model=ConoscopePublic,
+             responses={200: PNG, 202: {}, 413: {}, 503: {}})
+async def luminance_conoscope(scene_id: SceneId, query: ConoscopeQuery, request: Request, mode: Mode = "sync",
+                              format: Annotated[Literal["json", "png"], Query(
+                                  description="`png`: the answer drawn as a polar plot (sync only).")] = "json",
+                              ) -> Any:
+    """A conoscopic view: the luminance a point of a lit face shows against viewing angle (polar angle from its
+    normal, azimuth), read by meters on a polar grid in one run, each value with its standard error; the on-axis
+    luminance and the flatness (min/max, min/mean) over the view."""
+    if format == "png" and mode == "async":
+        raise Invalid("format=png answers at once: ask it with mode=sync (an async job's result is JSON)")
+    payload = await _answer(request, mode, _conoscope_query, scene_id, query, request)
+    if format == "png":
+        from service.maps import conoscope_png
+
+        return Response(conoscope_png(payload), media_type="image/png")
+    return payload
+
+
+def _conoscope_query(scene_id: str, query: ConoscopeQuery, request: Request) -> tuple:
+    hub = hub_for(request.app)
+    count = 1 + (query.rings - 1) * query.azimuths
+    if count > hub.limits.max_points:
+        raise TooLarge(f"{query.rings} rings of {query.azimuths} azimuths are {count} meters; this service answers "
+                       f"at most {hub.limits.max_points} per query: ask fewer rings or azimuths",
+                       limit=hub.limits.max_points)
+    budget = resolve_budget(hub.limits, query.target_relative_error, query.max_seconds, query.max_photons,
+                            query.target_scope)
+    prepared = hub.prepare(scene_id)
+    hub.check_query(prepared, query.estimator, tuple(query.force_effects))
+
+    def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
+        from tracer.sensors.luminance import conoscope
+
+        with _refusals():
+            views, res = conoscope(prepared.simulation, query.point, query.normal, query.theta_max_deg, query.rings,
+                                   query.azimuths, query.distance, query.aperture_deg, query.phi_zero,
+                                   target_relative_error=budget.target, target_scope=budget.scope,
+                                   max_seconds=budget.max_seconds, max_photons=budget.max_photons, seed=query.seed,
+                                   estimator=query.estimator, force_effects=tuple(query.force_effects),
+                                   progress=progress, cancel=cancel)
+        lum, err = np.asarray(res.luminance, float), np.asarray(res.stderr, float)
+        payload = {"point": list(query.point), "normal": views["normal"].tolist(),
+                   "phi_zero": views["phi_zero"].tolist(), "theta_deg": views["theta_deg"].tolist(),
+                   "phi_deg": views["phi_deg"].tolist(), "luminance": views["luminance"].tolist(),
+                   "stderr": views["stderr"].tolist(), "on_axis": float(lum[0]), "on_axis_stderr": float(err[0]),
+                   "flatness": _finite(uniformity(lum, err)), "aperture_deg": query.aperture_deg,
+                   "distance": query.distance, "photons": int(res.photons), "seconds": float(res.seconds),
+                   "revision": int(prepared.live.revision), "estimator": str(res.estimator),
+                   "stop_reason": str(res.stop_reason), "effects": sorted(str(e) for e in res.effects),
+                   "strategy": str(res.strategy), "unreachable": res.unreachable, "cost": res.cost}
+        if query.cost_targets:
+            flat = {"luminance": lum.tolist(), "stderr": err.tolist(), "photons": int(res.photons),
+                    "seconds": float(res.seconds), "compile_seconds": float(getattr(res, "compile_seconds", 0.0))}
+            _targeted(flat, query.cost_targets)
+            payload["cost"] = flat["cost"]
+        payload["current"] = hub.is_current(scene_id, prepared.generation)
+        return payload
+
+    return ("conoscope", scene_id, prepared, work, budget, {"generation": prepared.generation, "points": count})

@@ -11,6 +11,9 @@
 Answered by paths from the eye (`tracer.transport.radiance`; estimator "auto" or "backward"), uniform in solid
 angle over the cone. The answer: `tracer.sensors.views.LuminanceResult` with scalar ``luminance`` and ``stderr``
 (cd/m²). A meter looking at a Lambertian surface of reflectance ρ under illuminance E reads ρE/π.
+
+`meters` measures k meters in one run; `conoscope` places them on a polar grid around one point (luminance against
+viewing angle, ``POST /scenes/{id}/luminance/conoscope``).
 """
 
 from __future__ import annotations
@@ -95,3 +98,65 @@ def meters(sim, positions, directions, aperture_deg: float = DEFAULT_APERTURE_DE
         query["target"] = query.pop("target_relative_error")
     probe, res = sim.measure(meters_probe, body, **query)
     return luminance_result(sim, res, (probe.view.kind.shape[0],))
+
+
+#: the conoscope's limits: polar angles below grazing, and rings and azimuths a plot can show
+CONOSCOPE_MAX_THETA_DEG = 85.0
+CONOSCOPE_RINGS = (2, 46)
+CONOSCOPE_AZIMUTHS = (1, 72)
+
+
+def conoscope_views(point, normal, theta_max_deg: float, rings: int, azimuths: int, distance: float,
+                    phi_zero=None) -> dict[str, np.ndarray]:
+    """Where the meters of a conoscopic view stand and look: ``rings`` polar angles θ from 0 to `theta_max_deg`
+    (degrees, from `normal`: the face's normal towards the viewer) times ``azimuths`` azimuths φ from 0 (`phi_zero`,
+    any direction not along `normal`, projected into the face's plane; default `onb`'s tangent) in steps of
+    360°/azimuths; one meter on the axis for θ = 0. Returns {"theta_deg": (rings,), "phi_deg": (azimuths,),
+    "eyes": (k, 3) m, "directions": (k, 3) unit, each meter looking at `point` from `distance` m, "cell": (k, 2)
+    int (ring, azimuth) of each meter, ring 0's one meter at azimuth 0, "normal" and "phi_zero": the unit vectors
+    used}. `SimulationError` naming the argument."""
+    p = vec3(point, "point")
+    n = unit(vec3(normal, "normal"), "normal")
+    if not 0.0 < float(theta_max_deg) <= CONOSCOPE_MAX_THETA_DEG:
+        raise SimulationError(f"theta_max_deg must be in (0, {CONOSCOPE_MAX_THETA_DEG:g}] degrees, got "
+                              f"{theta_max_deg}")
+    for name, value, (lo, hi) in (("rings", rings, CONOSCOPE_RINGS), ("azimuths", azimuths, CONOSCOPE_AZIMUTHS)):
+        if int(value) != value or not lo <= value <= hi:
+            raise SimulationError(f"{name} must be a whole number in [{lo}, {hi}], got {value}")
+    if not (math.isfinite(distance) and distance > 0.0):
+        raise SimulationError(f"distance must be a positive number of metres, got {distance}")
+    if phi_zero is None:
+        e1 = np.asarray(onb(*n)[0], float)
+    else:
+        a = vec3(phi_zero, "phi_zero")
+        e1 = a - np.dot(a, n) * n
+        if float(np.linalg.norm(e1)) <= 1e-9 * max(float(np.linalg.norm(a)), 1e-300):
+            raise SimulationError("phi_zero lies along the normal: give a direction in (or across) the face's plane")
+        e1 = e1 / np.linalg.norm(e1)
+    e2 = np.cross(n, e1)
+    theta = np.linspace(0.0, float(theta_max_deg), int(rings))
+    phi = 360.0 * np.arange(int(azimuths)) / int(azimuths)
+    cell = [(0, 0)] + [(i, j) for i in range(1, int(rings)) for j in range(int(azimuths))]
+    t = np.radians([theta[i] for i, _ in cell])[:, None]
+    f = np.radians([phi[j] for _, j in cell])[:, None]
+    towards_eye = np.sin(t) * (np.cos(f) * e1 + np.sin(f) * e2) + np.cos(t) * n
+    return {"theta_deg": theta, "phi_deg": phi, "eyes": p + float(distance) * towards_eye,
+            "directions": -towards_eye, "cell": np.array(cell, np.int64), "normal": n, "phi_zero": e1}
+
+
+def conoscope(sim, point, normal, theta_max_deg: float = 80.0, rings: int = 9, azimuths: int = 12,
+              distance: float = 0.5, aperture_deg: float = DEFAULT_APERTURE_DEG, phi_zero=None,
+              **query) -> tuple[dict[str, np.ndarray], LuminanceResult]:
+    """A conoscopic view of `point`: the luminance (cd/m²) it shows against viewing angle, measured by meters at the
+    polar grid of `conoscope_views` in one run (one stop rule over all of them). Returns (the views, with
+    "luminance" and "stderr" of shape (rings, azimuths), ring 0's one reading repeated; the meters' own
+    `LuminanceResult`). `query`: as `meters`'."""
+    views = conoscope_views(point, normal, theta_max_deg, rings, azimuths, distance, phi_zero)
+    res = meters(sim, views["eyes"], views["directions"], aperture_deg, **query)
+    grid = np.empty((int(rings), int(azimuths)))
+    err = np.empty_like(grid)
+    lum, se = np.asarray(res.luminance, float), np.asarray(res.stderr, float)
+    grid[0], err[0] = lum[0], se[0]
+    grid[1:] = lum[1:].reshape(int(rings) - 1, int(azimuths))
+    err[1:] = se[1:].reshape(int(rings) - 1, int(azimuths))
+    return {**views, "luminance": grid, "stderr": err}, res
