@@ -10,27 +10,31 @@ reports each on its standard output as it ends ("STAGE SECONDS KERNEL ...", the 
 
 - ``probe``: the walk of one ray, which places a query's receivers (`tracer.accel.traverse.closest_each`; it compiles
   the walk the forward kernel calls, `tracer.accel.traverse.closest_with_stacks`);
-- ``optics``: every function the forward kernel calls that is a kernel of its own (each surface kind's
-  ``scatter``, each light kind's ``sample``, the media, the receivers' crossings and tallies; `forward_callees`),
-  so that the forward kernel loads them instead of compiling them;
+- ``optics``: every function the forward kernel calls that is a kernel of its own (the surfaces' and lights'
+  switches, the media, the receivers' crossings and tallies; `forward_callees`), so that the forward kernel loads
+  them instead of compiling them;
 - ``forward``: the forward photon kernel (`tracer.transport.forward.forward_kernel`);
+- ``kinds``: each surface kind's ``scatter``, each light kind's ``sample``, an element table's scatter
+  (`kind_callees`): the kernels call them at their addresses, so none waits for them, and a query binds those its
+  scene holds (until 2026-11-29 they were part of ``optics``, and the forward kernel of a first query waited for
+  every kind: a grating's orders, measured BSDFs, rough glass);
 - ``backward``: the backward kernel (`tracer.transport.backward.backward_batches`);
 - ``scene``: the builders of a small room scene (what a later first push needs);
 - ``radiance``: the luminance kernel (`tracer.transport.radiance`: paths from the eye, light tracing), by running a
   luminance meter in that room, at the lowest CPU priority (`LOW_PRIORITY`): about 50 s of a core cold, which a
   first luminance meter or camera would otherwise wait for.
 
-Child 1 compiles probe, optics, forward; child 2 optics, backward, scene, radiance (`CHILDREN`). Both compile the
-optics, from opposite ends of the list: each kernel the other child has already compiled is loaded from numba's
-cache instead (numba looks there before it compiles), so the two share that work whatever else keeps either core
-busy, and child 1 starts the forward kernel as soon as both have met. Every stage but ``scene`` and ``radiance``
-compiles by signature (`kernel_types`) and runs nothing, so no child compiles the scene builders the service's push
-compiles anyway before the push needs them (`tests/tracer/test_warmup.py` checks that a first query after the
-children compiles nothing). A query's first use of a kernel goes through `first_use(stage)`: it waits for that stage
-of this process's child in flight, then holds the kernel's machine-wide compile lock (`compiling`) while it compiles
-or loads it, so that no kernel is compiled twice, by this process or another (a second service, a Dask worker, a
-test worker); it goes on at once where nothing holds it (or the children failed: then the query compiles for
-itself, as it would have).
+Child 1 compiles probe, optics, forward, kinds; child 2 kinds, optics, backward, scene, radiance (`CHILDREN`). Both
+compile the kinds and the optics, from opposite ends of the lists: each kernel the other child has already compiled is
+loaded from numba's cache instead (numba looks there before it compiles), so the two share that work whatever else keeps
+either core busy, and child 1 reaches the forward kernel without waiting for any kind. Every stage but ``scene`` and
+``radiance`` compiles by signature (`kernel_types`) and runs nothing, so no child compiles the scene builders the
+service's push compiles anyway before the push needs them (`tests/tracer/test_warmup.py` checks that a first query after
+the children compiles nothing). A query's first use of a kernel goes through `first_use(stage)`: it waits for that stage
+of this process's child in flight, then holds the kernel's machine-wide compile lock (`compiling`) while it compiles or
+loads it, so that no kernel is compiled twice, by this process or another (a second service, a Dask worker, a test
+worker); it goes on at once where nothing holds it (or the children failed: then the query compiles for itself, as it
+would have).
 """
 
 from __future__ import annotations
@@ -52,8 +56,9 @@ __all__ = ["Background", "compile_query_kernels", "compile_stage", "compiling", 
            "wait_background"]
 
 #: the stages each child compiles, in order, and whether it compiles the optics from the end of their list
-CHILDREN = ((("probe", "optics", "forward"), True), (("optics", "backward", "scene", "radiance"), False))
-STAGES = ("probe", "optics", "forward", "backward", "scene", "radiance")
+CHILDREN = ((("probe", "optics", "forward", "kinds"), True),
+            (("kinds", "optics", "backward", "scene", "radiance"), False))
+STAGES = ("probe", "optics", "forward", "kinds", "backward", "scene", "radiance")
 #: stages a child compiles at the lowest CPU priority (``nice``): what a first query of another kind needs, compiled
 #: with what the cores have left, so that it never slows the compile a running query waits for, nor the query
 LOW_PRIORITY = ("radiance",)
@@ -120,14 +125,10 @@ def forward_callees() -> list[tuple[Any, tuple]]:
     t = kernel_types()
     sa, mats, i8, u8, f8, vi, vf, mf = (t[k] for k in ("sa", "mats", "i8", "u8", "f8", "vi", "vf", "mf"))
     scatter = (sa, mats, i8, i8, *[f8] * 8, vi, i8, u8, i8, f8, vf)
-    sample = (t["lights"], i8, *[f8] * 5)
-    own = [(kind.scatter, scatter) for kind in surfaces.KINDS]
-    own += [(kind.sample, sample) for kind in lights.KINDS]
-    own += [(surfaces.scatter, scatter), (surfaces.table_row, (sa, i8, i8)), (surfaces.feature_surface, (sa, i8, i8)),
-            (pick_light, (t["lights"], f8)), (lights.sample_emission, (t["lights"], i8, *[f8] * 5)),
-            (lights.emit_wavelength, (t["lights"], i8, f8))]
-    own += [(surfaces.element_table_scatter, scatter),   # an element's table: a tabulated BSDF, a grating's orders
-            (media.medium_coefficients, (mats, i8, f8)), (media.medium_event, (mats, i8, *[f8] * 6, u8, i8, vf)),
+    own = [(surfaces.scatter, scatter), (surfaces.table_row, (sa, i8, i8)), (surfaces.feature_surface, (sa, i8, i8)),
+           (pick_light, (t["lights"], f8)), (lights.sample_emission, (t["lights"], i8, *[f8] * 5)),
+           (lights.emit_wavelength, (t["lights"], i8, f8))]
+    own += [(media.medium_coefficients, (mats, i8, f8)), (media.medium_event, (mats, i8, *[f8] * 6, u8, i8, vf)),
             (homogeneous.sample_free_flight, (f8, f8)), (homogeneous.transmittance, (f8, f8)),
             (spectra.sample_grid, (vf, vf, f8)), (spectra.luminous, (f8,)), (frames.find_in_cdf, (vf, i8, i8, f8)),
             (polarization.emit, (vf, mf, i8, f8, f8, f8)),
@@ -136,6 +137,22 @@ def forward_callees() -> list[tuple[Any, tuple]]:
             (transport.record_stokes, (vf, i8, i8, f8, vf, f8, f8, f8, mf, i8)),
             (rng.path_key, (i8, i8, i8)), (rng.uniform, (u8, i8)), (spawn.offset_ray_origin, tuple([f8] * 9))]
     return own
+
+
+def kind_callees() -> list[tuple[Any, tuple]]:
+    """``(kernel, signature)`` of each surface kind's ``scatter``, each light kind's ``sample`` (from their
+    registrations, so a new kind is included) and an element table's scatter (a tabulated BSDF, a grating's orders):
+    the kernels call them at their addresses (`tracer.jit.kind_table`), bound for the kinds a scene holds, so no
+    kernel waits for them and a first query waits only for the kinds its own scene holds."""
+    from tracer.optics.lights import dispatch as lights
+    from tracer.optics.surfaces import dispatch as surfaces
+
+    t = kernel_types()
+    sa, mats, i8, u8, f8, vi, vf = (t[k] for k in ("sa", "mats", "i8", "u8", "f8", "vi", "vf"))
+    scatter = (sa, mats, i8, i8, *[f8] * 8, vi, i8, u8, i8, f8, vf)
+    sample = (t["lights"], i8, *[f8] * 5)
+    return ([(kind.scatter, scatter) for kind in surfaces.KINDS] + [(kind.sample, sample) for kind in lights.KINDS]
+            + [(surfaces.element_table_scatter, scatter)])
 
 
 #: the stages whose compile `compiling` makes one process's at a time (the optics are shared kernel by kernel
@@ -171,8 +188,8 @@ def _compile_stage(stage: str, reverse: bool) -> None:
             sim.run({"type": "luminance", "position": [3.5, 3.5, 1.5], "direction": [-1.0, -1.0, -1.0]},
                     max_photons=200)
         return
-    if stage == "optics":
-        callees = forward_callees()
+    if stage in ("optics", "kinds"):
+        callees = forward_callees() if stage == "optics" else kind_callees()
         for kernel, signature in reversed(callees) if reverse else callees:
             kernel.compile(signature)
         return
