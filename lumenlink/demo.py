@@ -321,19 +321,9 @@ def _assignments(http: Any, scene_id: str) -> dict[str, Any]:
     return out
 
 
-def _run(report: DemoReport, n: Narrator, photons: int, keep_data: bool, clock: CompileClock,
-         serve: Callable[[str], None] | None = None) -> None:
-    import httpx
-
-    out = report.out_dir
-    out.mkdir(parents=True, exist_ok=True)
-    for old in ("car.step", "car.step.lumenlink.json", "car.lumenlink.json"):
-        (out / old).unlink(missing_ok=True)
-    data_dir = out / "var"
-    shutil.rmtree(data_dir, ignore_errors=True)
-
-    # 1 -------------------------------------------------------------------------------- CAD model
-    n.step("1. Building a car-like CAD model with cadquery and saving it as STEP")
+def _build_car(report: DemoReport, n: Narrator, out: Path) -> tuple[Any, Any, Path, Callable[[float, float], Any]]:
+    """1. The car as cadquery builds it, saved as STEP (UUIDs carried in the file), read back and tessellated:
+    (document, tessellation, the STEP file, `export(door_deg, lens_mm)` that does it again for an edit)."""
     samples = need("cad_adapter.samples", 4, "car_assembly")
     adapter = need("cad_adapter", 4, "read_document", "tessellate", "TessellationCache")
     writer = need("cad_adapter.step_uuid", 4, "write_step")
@@ -350,17 +340,43 @@ def _run(report: DemoReport, n: Narrator, photons: int, keep_data: bool, clock: 
 
     doc, tess = export(0.0, LENS_RADIUS_BEFORE_MM)
     report.step_files.append(step)
-    uuid_of = {node.name: node.uuid for node in doc.nodes}
     parts = {node.part for node in doc.nodes if node.part is not None}
     triangles = sum(len(m.triangles) for m in tess.meshes.values())
     n.say(f"{len(doc.nodes)} nodes, {len(parts)} distinct parts (the four wheels are one part), "
           f"{triangles:,} triangles; {step} ({step.stat().st_size / 1024:.0f} KiB, unit {doc.length_unit})")
 
-    # 2 -------------------------------------------------------------------------------- service + push
-    n.step("2. Starting the service and pushing the model through the adapter and the REST API")
+    return doc, tess, step, export
+
+
+def _run(report: DemoReport, n: Narrator, photons: int, keep_data: bool, clock: CompileClock,
+         serve: Callable[[str], None] | None = None) -> None:
+    import httpx
+
+    out = report.out_dir
+    out.mkdir(parents=True, exist_ok=True)
+    for old in ("car.step", "car.step.lumenlink.json", "car.lumenlink.json"):
+        (out / old).unlink(missing_ok=True)
+    data_dir = out / "var"
+    shutil.rmtree(data_dir, ignore_errors=True)
+
+    # 1 -------------------------------------------------------------------------------- service + CAD model
+    n.step("1. Starting the service (its query kernels start compiling in two background processes) and building a "
+           "car-like CAD model with cadquery, saved as STEP")
+    service = contextlib.ExitStack()   # started first: the kernels compile while the car is built
+    base = service.enter_context(running_service(data_dir))
+    try:
+        doc, tess, step, export = _build_car(report, n, out)
+    except BaseException:
+        service.close()
+        raise
+    adapter = need("cad_adapter", 4, "Pusher")
+    uuid_of = {node.name: node.uuid for node in doc.nodes}
+
+    # 2 -------------------------------------------------------------------------------- push
+    n.step("2. Pushing the model through the adapter and the REST API")
     token = os.environ.get("LUMENLINK_TOKEN")   # the in-process service reads it too (Settings)
     headers = {"Authorization": f"Bearer {token}"} if token else {}
-    with running_service(data_dir) as base, httpx.Client(base_url=base, timeout=300.0, headers=headers) as http:
+    with service, httpx.Client(base_url=base, timeout=300.0, headers=headers) as http:
         n.say(f"service at {base} (SQLite and BLAS cache in {data_dir})")
         compiled = clock.seconds
         with adapter.Pusher(base) as pusher:

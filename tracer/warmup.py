@@ -24,17 +24,18 @@ reports each on its standard output as it ends ("STAGE SECONDS KERNEL ...", the 
   luminance meter in that room, at the lowest CPU priority (`LOW_PRIORITY`): about 50 s of a core cold, which a
   first luminance meter or camera would otherwise wait for.
 
-Child 1 compiles probe, optics, forward, kinds; child 2 kinds, optics, backward, scene, radiance (`CHILDREN`). Both
+Child 1 compiles probe, optics, forward, kinds; child 2 scene, kinds, optics, backward, radiance (`CHILDREN`). Both
 compile the kinds and the optics, from opposite ends of the lists: each kernel the other child has already compiled is
 loaded from numba's cache instead (numba looks there before it compiles), so the two share that work whatever else keeps
-either core busy, and child 1 reaches the forward kernel without waiting for any kind. Every stage but ``scene`` and
-``radiance`` compiles by signature (`kernel_types`) and runs nothing, so no child compiles the scene builders the
-service's push compiles anyway before the push needs them (`tests/tracer/test_warmup.py` checks that a first query after
-the children compiles nothing). A query's first use of a kernel goes through `first_use(stage)`: it waits for that stage
-of this process's child in flight, then holds the kernel's machine-wide compile lock (`compiling`) while it compiles or
-loads it, so that no kernel is compiled twice, by this process or another (a second service, a Dask worker, a test
-worker); it goes on at once where nothing holds it (or the children failed: then the query compiles for itself, as it
-would have).
+either core busy, and child 1 reaches the forward kernel without waiting for any kind. Child 2 starts with the scene
+builders, which a service's first push needs: they take their compile lock in any process's first `tracer.Scene`, so a
+push that arrives meanwhile waits for them instead of compiling them again (the demo's first push compiled them itself
+for 35 s while the children compiled other things). Every stage but ``scene`` and ``radiance`` compiles by signature
+(`kernel_types`) and runs nothing (`tests/tracer/test_warmup.py` checks that a first query after the children compiles
+nothing). A query's first use of a kernel goes through `first_use(stage)`: it waits for that stage of this process's
+child in flight, then holds the kernel's machine-wide compile lock (`compiling`) while it compiles or loads it, so that
+no kernel is compiled twice, by this process or another (a second service, a Dask worker, a test worker); it goes on at
+once where nothing holds it (or the children failed: then the query compiles for itself, as it would have).
 """
 
 from __future__ import annotations
@@ -57,7 +58,7 @@ __all__ = ["Background", "compile_query_kernels", "compile_stage", "compiling", 
 
 #: the stages each child compiles, in order, and whether it compiles the optics from the end of their list
 CHILDREN = ((("probe", "optics", "forward", "kinds"), True),
-            (("kinds", "optics", "backward", "scene", "radiance"), False))
+            (("scene", "kinds", "optics", "backward", "radiance"), False))
 STAGES = ("probe", "optics", "forward", "kinds", "backward", "scene", "radiance")
 #: stages a child compiles at the lowest CPU priority (``nice``): what a first query of another kind needs, compiled
 #: with what the cores have left, so that it never slows the compile a running query waits for, nor the query
