@@ -321,33 +321,6 @@ def _assignments(http: Any, scene_id: str) -> dict[str, Any]:
     return out
 
 
-def _build_car(report: DemoReport, n: Narrator, out: Path) -> tuple[Any, Any, Path, Callable[[float, float], Any]]:
-    """1. The car as cadquery builds it, saved as STEP (UUIDs carried in the file), read back and tessellated:
-    (document, tessellation, the STEP file, `export(door_deg, lens_mm)` that does it again for an edit)."""
-    samples = need("cad_adapter.samples", 4, "car_assembly")
-    adapter = need("cad_adapter", 4, "read_document", "tessellate", "TessellationCache")
-    writer = need("cad_adapter.step_uuid", 4, "write_step")
-    step = out / "car.step"
-    sidecar = out / "car.lumenlink.json"  # remembers the UUIDs of the cadquery nodes by occurrence path
-    tess_cache = adapter.TessellationCache()
-
-    def export(door_deg: float, lens_mm: float) -> tuple[Any, Any]:
-        """Build the assembly, save it as STEP (UUIDs carried in the file), read the STEP back, tessellate."""
-        built = adapter.read_document(samples.car_assembly(door_deg, lens_mm), sidecar=sidecar)
-        writer.write_step(built, step)
-        doc = adapter.read_document(step)
-        return doc, adapter.tessellate(doc, cache=tess_cache)
-
-    doc, tess = export(0.0, LENS_RADIUS_BEFORE_MM)
-    report.step_files.append(step)
-    parts = {node.part for node in doc.nodes if node.part is not None}
-    triangles = sum(len(m.triangles) for m in tess.meshes.values())
-    n.say(f"{len(doc.nodes)} nodes, {len(parts)} distinct parts (the four wheels are one part), "
-          f"{triangles:,} triangles; {step} ({step.stat().st_size / 1024:.0f} KiB, unit {doc.length_unit})")
-
-    return doc, tess, step, export
-
-
 def _run(report: DemoReport, n: Narrator, photons: int, keep_data: bool, clock: CompileClock,
          serve: Callable[[str], None] | None = None) -> None:
     import httpx
@@ -360,23 +333,34 @@ def _run(report: DemoReport, n: Narrator, photons: int, keep_data: bool, clock: 
     shutil.rmtree(data_dir, ignore_errors=True)
 
     # 1 -------------------------------------------------------------------------------- service + CAD model
-    n.step("1. Starting the service (its query kernels start compiling in two background processes) and building a "
-           "car-like CAD model with cadquery, saved as STEP")
-    service = contextlib.ExitStack()   # started first: the kernels compile while the car is built
-    base = service.enter_context(running_service(data_dir))
-    try:
-        doc, tess, step, export = _build_car(report, n, out)
-    except BaseException:
-        service.close()
-        raise
-    adapter = need("cad_adapter", 4, "Pusher")
-    uuid_of = {node.name: node.uuid for node in doc.nodes}
-
-    # 2 -------------------------------------------------------------------------------- push
-    n.step("2. Pushing the model through the adapter and the REST API")
+    n.step("1. Starting the service (its kernels compile in the background) and building the car in cadquery, as STEP")
     token = os.environ.get("LUMENLINK_TOKEN")   # the in-process service reads it too (Settings)
     headers = {"Authorization": f"Bearer {token}"} if token else {}
-    with service, httpx.Client(base_url=base, timeout=300.0, headers=headers) as http:
+    with running_service(data_dir) as base, httpx.Client(base_url=base, timeout=300.0, headers=headers) as http:
+        samples = need("cad_adapter.samples", 4, "car_assembly")
+        adapter = need("cad_adapter", 4, "read_document", "tessellate", "TessellationCache")
+        writer = need("cad_adapter.step_uuid", 4, "write_step")
+        step = out / "car.step"
+        sidecar = out / "car.lumenlink.json"  # remembers the UUIDs of the cadquery nodes by occurrence path
+        tess_cache = adapter.TessellationCache()
+
+        def export(door_deg: float, lens_mm: float) -> tuple[Any, Any]:
+            """Build the assembly, save it as STEP (UUIDs carried in the file), read the STEP back, tessellate."""
+            built = adapter.read_document(samples.car_assembly(door_deg, lens_mm), sidecar=sidecar)
+            writer.write_step(built, step)
+            doc = adapter.read_document(step)
+            return doc, adapter.tessellate(doc, cache=tess_cache)
+
+        doc, tess = export(0.0, LENS_RADIUS_BEFORE_MM)
+        report.step_files.append(step)
+        parts = {node.part for node in doc.nodes if node.part is not None}
+        triangles = sum(len(m.triangles) for m in tess.meshes.values())
+        n.say(f"{len(doc.nodes)} nodes, {len(parts)} distinct parts (the four wheels are one part), "
+              f"{triangles:,} triangles; {step} ({step.stat().st_size / 1024:.0f} KiB, unit {doc.length_unit})")
+        uuid_of = {node.name: node.uuid for node in doc.nodes}
+
+        # 2 ---------------------------------------------------------------------------- push
+        n.step("2. Pushing the model through the adapter and the REST API")
         n.say(f"service at {base} (SQLite and BLAS cache in {data_dir})")
         compiled = clock.seconds
         with adapter.Pusher(base) as pusher:

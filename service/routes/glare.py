@@ -157,16 +157,9 @@ class Uniformity(BaseModel):
     min_mean_stderr: float | None = Field(description="Its standard error.")
 
 
-class UniformityPublic(BaseModel):
-    """The meters' readings and their uniformity."""
+class MetersRun(BaseModel):
+    """What an answer of luminance meters says of the run that measured them (`run_fields`)."""
 
-    figure: str = Field(description="`9-point` for nine_points, else `points`.")
-    points: list[list[float]] = Field(description="The points looked at, world metres.")
-    positions: list[list[float]] = Field(description="Each meter's eye, world metres.")
-    luminance: list[float] = Field(description="Each meter's reading, cd/m².")
-    stderr: list[float] = Field(description="Its standard error, cd/m².")
-    uniformity: Uniformity = Field(description="min/max (U_d) and min/mean (U₀) of the readings, with their "
-                                               "standard errors; min, mean, max in cd/m².")
     aperture_deg: float = Field(description="Each meter's acceptance angle, degrees.")
     photons: int = Field(description="Paths from the eye traced (all meters).")
     seconds: float = Field(description="Seconds the run took, s.")
@@ -178,6 +171,28 @@ class UniformityPublic(BaseModel):
     unreachable: dict[str, Any] | None = Field(None, description="Light the paths from the eye cannot find here "
                                                                  "(then missing from the readings), or null.")
     cost: dict[str, Any] | None = Field(None, description="What tighter errors would cost (as for lux).")
+
+
+def run_fields(res: Any, prepared: Any, aperture_deg: float) -> dict[str, Any]:
+    """`MetersRun`'s fields of a meters' result `res` (`tracer.sensors.views.LuminanceResult`), and its compile
+    seconds (for `cost`)."""
+    return {"aperture_deg": aperture_deg, "photons": int(res.photons), "seconds": float(res.seconds),
+            "compile_seconds": float(getattr(res, "compile_seconds", 0.0)), "revision": int(prepared.live.revision),
+            "estimator": str(res.estimator), "stop_reason": str(res.stop_reason),
+            "effects": sorted(str(e) for e in res.effects), "strategy": str(res.strategy),
+            "unreachable": res.unreachable, "cost": res.cost}
+
+
+class UniformityPublic(MetersRun):
+    """The meters' readings and their uniformity."""
+
+    figure: str = Field(description="`9-point` for nine_points, else `points`.")
+    points: list[list[float]] = Field(description="The points looked at, world metres.")
+    positions: list[list[float]] = Field(description="Each meter's eye, world metres.")
+    luminance: list[float] = Field(description="Each meter's reading, cd/m².")
+    stderr: list[float] = Field(description="Its standard error, cd/m².")
+    uniformity: Uniformity = Field(description="min/max (U_d) and min/mean (U₀) of the readings, with their "
+                                               "standard errors; min, mean, max in cd/m².")
 
 
 @router.post("/scenes/{scene_id}/luminance/uniformity", response_model=UniformityPublic,
@@ -221,12 +236,7 @@ def _uniformity_query(scene_id: str, query: UniformityQuery, request: Request) -
         lum, err = np.asarray(res.luminance, float), np.asarray(res.stderr, float)
         payload = {"figure": figure, "points": pts.tolist(), "positions": eyes.tolist(), "luminance": lum.tolist(),
                    "stderr": err.tolist(), "uniformity": _finite(uniformity(lum, err)),
-                   "aperture_deg": query.aperture_deg,
-                   "photons": int(res.photons), "seconds": float(res.seconds),
-                   "compile_seconds": float(getattr(res, "compile_seconds", 0.0)),
-                   "revision": int(prepared.live.revision), "estimator": str(res.estimator),
-                   "stop_reason": str(res.stop_reason), "effects": sorted(str(e) for e in res.effects),
-                   "strategy": str(res.strategy), "unreachable": res.unreachable, "cost": res.cost}
+                   **run_fields(res, prepared, query.aperture_deg)}
         _targeted(payload, query.cost_targets)
         payload["current"] = hub.is_current(scene_id, prepared.generation)
         return payload
@@ -269,7 +279,7 @@ class ConoscopeQuery(QueryBudget):
         return self
 
 
-class ConoscopePublic(BaseModel):
+class ConoscopePublic(MetersRun):
     """Luminance against viewing angle at one point, each reading with its standard error."""
 
     point: list[float] = Field(description="The point looked at, world metres.")
@@ -284,18 +294,7 @@ class ConoscopePublic(BaseModel):
     on_axis_stderr: float = Field(description="Its standard error, cd/m².")
     flatness: Uniformity = Field(description="min/max and min/mean over the view's distinct readings, with their "
                                              "standard errors (1 for a Lambertian face evenly lit).")
-    aperture_deg: float = Field(description="Each meter's acceptance angle, degrees.")
     distance: float = Field(description="How far each meter stood from the point, m.")
-    photons: int = Field(description="Paths from the eye traced (all meters).")
-    seconds: float = Field(description="Seconds the run took, s.")
-    revision: int = Field(description="Scene revision the readings describe.")
-    estimator: str = Field(description="The estimator that ran (`backward`: paths from the eye).")
-    stop_reason: str = Field(description="Which rule stopped the run.")
-    effects: list[str] = Field(description="The effect set the simulation ran with.")
-    strategy: str = Field(description="The estimator in words.")
-    unreachable: dict[str, Any] | None = Field(None, description="Light the paths from the eye cannot find here "
-                                                                 "(then missing from the readings), or null.")
-    cost: dict[str, Any] | None = Field(None, description="What tighter errors would cost (as for lux).")
 
 
 PNG = {"content": {"image/png": {}}, "description": "With ?format=png: the view as a polar plot."}
@@ -347,14 +346,10 @@ def _conoscope_query(scene_id: str, query: ConoscopeQuery, request: Request) -> 
                    "phi_zero": views["phi_zero"].tolist(), "theta_deg": views["theta_deg"].tolist(),
                    "phi_deg": views["phi_deg"].tolist(), "luminance": views["luminance"].tolist(),
                    "stderr": views["stderr"].tolist(), "on_axis": float(lum[0]), "on_axis_stderr": float(err[0]),
-                   "flatness": _finite(uniformity(lum, err)), "aperture_deg": query.aperture_deg,
-                   "distance": query.distance, "photons": int(res.photons), "seconds": float(res.seconds),
-                   "revision": int(prepared.live.revision), "estimator": str(res.estimator),
-                   "stop_reason": str(res.stop_reason), "effects": sorted(str(e) for e in res.effects),
-                   "strategy": str(res.strategy), "unreachable": res.unreachable, "cost": res.cost}
-        if query.cost_targets:
-            flat = {"luminance": lum.tolist(), "stderr": err.tolist(), "photons": int(res.photons),
-                    "seconds": float(res.seconds), "compile_seconds": float(getattr(res, "compile_seconds", 0.0))}
+                   "flatness": _finite(uniformity(lum, err)), "distance": query.distance,
+                   **run_fields(res, prepared, query.aperture_deg)}
+        if query.cost_targets:   # of the meters' own readings, the axis once
+            flat = {**payload, "luminance": lum.tolist(), "stderr": err.tolist()}
             _targeted(flat, query.cost_targets)
             payload["cost"] = flat["cost"]
         payload["current"] = hub.is_current(scene_id, prepared.generation)
