@@ -18,6 +18,8 @@ SHARED_FIXTURES = ROOT.parent / "shared" / "fixtures"
 
 #: the warm-up children the controller started (`pytest_configure`)
 WARM_UP = pytest.StashKey()
+#: the PTX child the controller started, where the session runs tests/tracer/gpu/test_gpu_ptx.py
+PTX_CHILD = pytest.StashKey()
 
 
 def pytest_configure(config):
@@ -36,13 +38,18 @@ def pytest_configure(config):
         cold = cache_is_empty()
         config.stash[WARM_UP] = start_background()
         report_when_done(config.stash[WARM_UP], cold)
-        ptx_child.start_background()
+        if ptx_child.wanted(list(config.args), Path(str(config.invocation_params.dir))):
+            config.stash[PTX_CHILD] = ptx_child.start_background()
 
 
 def pytest_unconfigure(config):
     background = config.stash.get(WARM_UP, None)
     if background is not None:
         background.stop()
+    if config.stash.get(PTX_CHILD, None) is not None:
+        from tests import ptx_child
+
+        ptx_child.stop(config.stash[PTX_CHILD])
 
 
 #: wall seconds of the files that take longest under ``make test`` (2026-11-29, empty numba cache): they start first,

@@ -49,10 +49,17 @@ def environment() -> dict[str, str] | str:
     return {**os.environ, "CUDA_HOME": home, "NUMBA_FORCE_CUDA_CC": "9.0", "PYTHONPATH": str(ROOT)}
 
 
-def start_background() -> Path | None:
+def wanted(args: list[str], root: Path) -> bool:
+    """Whether a session over the paths `args` (pytest's, relative to `root`; node ids allowed) runs the PTX check."""
+    test = SCRIPT.with_name("test_gpu_ptx.py")
+    paths = [(root / a.split("::")[0]).resolve() for a in args] or [root.resolve()]
+    return any(test == p or p in test.parents for p in paths)
+
+
+def start_background() -> subprocess.Popen | None:
     """In the controller: start the child at ``nice`` 19, its output going to a new folder named in the environment
     the workers inherit (`PTX_REPORT`): ``stdout``, ``stderr``, then ``returncode`` once it has ended. None where
-    it cannot run here (the test then skips, saying why)."""
+    it cannot run here (the test then skips, saying why). The caller stops it (`stop`) when the session ends."""
     env = environment()
     if isinstance(env, str):
         return None
@@ -73,7 +80,14 @@ def start_background() -> Path | None:
 
     threading.Thread(target=wait, name="lumenlink-ptx-child", daemon=True).start()
     os.environ[PTX_REPORT] = str(folder)
-    return folder
+    return proc
+
+
+def stop(proc: subprocess.Popen | None) -> None:
+    """End the child where it still runs (a session that ended, or was interrupted, before it did)."""
+    if proc is not None and proc.poll() is None:
+        proc.kill()
+        proc.wait(timeout=30)
 
 
 def run() -> tuple[str, str, str]:
