@@ -107,12 +107,17 @@ def kernel_types() -> dict[str, Any]:
             "vf": types.float64[::1], "mf": types.float64[:, ::1]}
 
 
+def scatter_types(t: dict[str, Any]) -> tuple:
+    """The argument types a surface's ``scatter`` gets from the forward kernel (`t`: `kernel_types`)."""
+    sa, mats, i8, u8, f8, vi, vf = (t[k] for k in ("sa", "mats", "i8", "u8", "f8", "vi", "vf"))
+    return (sa, mats, i8, i8, *[f8] * 8, vi, i8, u8, i8, f8, vf)
+
+
 def forward_callees() -> list[tuple[Any, tuple]]:
     """``(kernel, signature)`` of every function the forward kernel (`tracer.transport.forward.trace_photons`) calls
-    with the argument types the forward kernel passes: the surface and light switches, each surface kind's
-    ``scatter`` and each light kind's ``sample`` (from their registrations, so a new kind is included), the media's
-    switch, the receivers' crossings and tallies, the random numbers. Helpers that LLVM inlines (`tracer.jit`) are
-    compiled on their own too, once per argument types, so they are here as well."""
+    with the argument types the forward kernel passes: the surface and light switches (the kinds behind them are
+    `kind_callees`), the media's switch, the receivers' crossings and tallies, the random numbers. Helpers that LLVM
+    inlines (`tracer.jit`) are compiled on their own too, once per argument types, so they are here as well."""
     from tracer import rng
     from tracer.accel import spawn, traverse
     from tracer.optics import frames, polarization, spectra
@@ -125,7 +130,7 @@ def forward_callees() -> list[tuple[Any, tuple]]:
 
     t = kernel_types()
     sa, mats, i8, u8, f8, vi, vf, mf = (t[k] for k in ("sa", "mats", "i8", "u8", "f8", "vi", "vf", "mf"))
-    scatter = (sa, mats, i8, i8, *[f8] * 8, vi, i8, u8, i8, f8, vf)
+    scatter = scatter_types(t)
     own = [(surfaces.scatter, scatter), (surfaces.table_row, (sa, i8, i8)), (surfaces.feature_surface, (sa, i8, i8)),
            (pick_light, (t["lights"], f8)), (lights.sample_emission, (t["lights"], i8, *[f8] * 5)),
            (lights.emit_wavelength, (t["lights"], i8, f8))]
@@ -149,9 +154,8 @@ def kind_callees() -> list[tuple[Any, tuple]]:
     from tracer.optics.surfaces import dispatch as surfaces
 
     t = kernel_types()
-    sa, mats, i8, u8, f8, vi, vf = (t[k] for k in ("sa", "mats", "i8", "u8", "f8", "vi", "vf"))
-    scatter = (sa, mats, i8, i8, *[f8] * 8, vi, i8, u8, i8, f8, vf)
-    sample = (t["lights"], i8, *[f8] * 5)
+    scatter = scatter_types(t)
+    sample = (t["lights"], t["i8"], *[t["f8"]] * 5)
     return ([(kind.scatter, scatter) for kind in surfaces.KINDS] + [(kind.sample, sample) for kind in lights.KINDS]
             + [(surfaces.element_table_scatter, scatter)])
 

@@ -33,8 +33,9 @@ from service.routes.images import camera_result
 from service.routes.simulation import _answer, _targeted
 from service.simulation import _refusals, hub_for, resolve_budget
 from service.simulation_wire import FiniteFloat, Mode, QueryBudget, Vec3
+from tracer.errors import SimulationError
 from tracer.photometry.glare import nine_points, ugr_from_image, uniformity
-from tracer.sensors.luminance import CONOSCOPE_AZIMUTHS, CONOSCOPE_MAX_THETA_DEG, CONOSCOPE_RINGS
+from tracer.sensors.luminance import CONOSCOPE_AZIMUTHS, CONOSCOPE_MAX_THETA_DEG, CONOSCOPE_RINGS, conoscope_views
 
 router = APIRouter(tags=["simulation"])
 MAX_METERS = 1000
@@ -268,13 +269,11 @@ class ConoscopeQuery(QueryBudget):
 
     @model_validator(mode="after")
     def _check(self) -> ConoscopeQuery:
-        if math.hypot(*self.normal) == 0.0:
-            raise ValueError("normal must not be the zero vector: give the face's normal towards the viewer")
-        if self.phi_zero is not None:
-            n = np.asarray(self.normal, float) / math.hypot(*self.normal)
-            a = np.asarray(self.phi_zero, float)
-            if np.linalg.norm(a - np.dot(a, n) * n) <= 1e-9 * max(float(np.linalg.norm(a)), 1e-300):
-                raise ValueError("phi_zero lies along the normal (or is zero): give a direction in the face's plane")
+        try:   # the tracer's own checks of the grid (a zero normal, a phi_zero along it), before any job starts
+            conoscope_views(self.point, self.normal, self.theta_max_deg, self.rings, self.azimuths, self.distance,
+                            self.phi_zero)
+        except SimulationError as exc:
+            raise ValueError(str(exc)) from exc
         meters_only(self)
         return self
 
