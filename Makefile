@@ -8,7 +8,7 @@ BENCH_STAMP := $(VENV)/.installed-bench
 WEB    := service/web
 WEB_STAMP := $(WEB)/node_modules/.installed
 
-.PHONY: demo demo-guide serve test lint typecheck bench clean postgres chromium web
+.PHONY: demo demo-guide serve test lint typecheck bench clean postgres chromium freecad web
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -50,7 +50,7 @@ typecheck: $(STAMP)
 # cluster, are made once), longest first in the order tests/conftest.py gives; processes that need the same kernel
 # compile it once (tracer.warmup.compiling)
 TEST_WORKERS ?= 2
-test: $(STAMP) $(WEB_STAMP) postgres chromium lint typecheck
+test: $(STAMP) $(WEB_STAMP) postgres chromium freecad lint typecheck
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 # A PostgreSQL server for tests/service/test_replicas.py (it starts its own throw-away cluster in a temp dir):
@@ -85,6 +85,22 @@ chromium:
 		echo "chromium: installing Debian's chromium package (for tests/e2e/test_pages.py)"; \
 		{ apt-get update -q && DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends \
 		    chromium; } || echo "chromium: installing chromium failed: tests/e2e/test_pages.py is skipped"; \
+	fi
+
+# FreeCAD for tests/cad_adapter/test_freecad.py (a real CAD system: `lumenlink push model.FCStd` runs its headless
+# freecadcmd): Debian's `freecad` package, installed when freecadcmd is missing and we may install it (root, apt-get).
+freecad:
+	@if command -v freecadcmd >/dev/null 2>&1 || command -v FreeCADCmd >/dev/null 2>&1; then \
+		:; \
+	elif [ "$$(id -u)" != 0 ]; then \
+		echo "freecad: freecadcmd missing and not root: not installing Debian's freecad package" \
+		     "(apt-get needs root); tests/cad_adapter/test_freecad.py is skipped"; \
+	elif ! command -v apt-get >/dev/null 2>&1; then \
+		echo "freecad: freecadcmd missing and no apt-get to install it with: tests/cad_adapter/test_freecad.py is skipped"; \
+	else \
+		echo "freecad: installing Debian's freecad package (for tests/cad_adapter/test_freecad.py)"; \
+		{ apt-get update -q && DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends \
+		    freecad; } || echo "freecad: installing freecad failed: tests/cad_adapter/test_freecad.py is skipped"; \
 	fi
 
 bench: $(BENCH_STAMP)

@@ -170,7 +170,7 @@ class Pusher(ServiceClient):
         return self._answer(resp, "pushing the document", ok=(200,))
 
     def push(self, doc: Document, tess: Tessellation, scene: str, base_revision: int | None = None,
-             dry_run: bool = False) -> PushResult:
+             dry_run: bool = False, identity: bool = True) -> PushResult:
         """Push a document: scene, missing meshes, upload, tree.
 
         Parameters
@@ -185,6 +185,9 @@ class Pusher(ServiceClient):
         dry_run : bool
             Upload nothing, change nothing: the answer is the diff the push would make (a scene that
             does not exist yet is not created: the answer is then every node added).
+        identity : bool
+            Send the shape signatures the next STEP push is reconciled with (False where the UUIDs come from
+            the CAD system itself, `cad_adapter.freecad`: its parts carry no OCP shape).
 
         Raises
         ------
@@ -193,12 +196,12 @@ class Pusher(ServiceClient):
         seconds: dict[str, float] = {}
         t = time.perf_counter()
         if dry_run:
-            return self._dry_run(doc, tess, scene, base_revision)
+            return self._dry_run(doc, tess, scene, base_revision, identity)
         info, created = self.find_or_create_scene(scene)
         scene_id = str(info["id"])
         if base_revision is None:
             base_revision = int(info["revision"]) if created else self.revision(scene_id)
-        body = build_push(doc, tess, base_revision)
+        body = build_push(doc, tess, base_revision, identity)
         seconds["scene"] = time.perf_counter() - t
         t = time.perf_counter()
         by_gid: dict[str, Mesh] = {m.geometry_id: m for m in tess.meshes.values()}
@@ -222,10 +225,11 @@ class Pusher(ServiceClient):
         seconds["push"] = time.perf_counter() - t
         return PushResult(answer, scene_id, created, len(used), len(missing), sent, seconds)
 
-    def _dry_run(self, doc: Document, tess: Tessellation, scene: str, base_revision: int | None) -> PushResult:
+    def _dry_run(self, doc: Document, tess: Tessellation, scene: str, base_revision: int | None,
+                 identity: bool = True) -> PushResult:
         t = time.perf_counter()
         info = self.scene_by_name(scene)
-        body = build_push(doc, tess, base_revision)
+        body = build_push(doc, tess, base_revision, identity)
         used = sorted({n["geometry"] for n in body["nodes"] if n["geometry"]})
         if info is None:  # nothing to diff against: everything would be added
             answer = {"scene": None, "revision": 0, "base_revision": base_revision, "dry_run": True,

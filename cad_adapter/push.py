@@ -26,11 +26,16 @@ def push_file(file: Path, scene: str, server: str, linear: float | None = None, 
               upload_progress: Any = None, token: str | None = None) -> tuple[Any, Any, Any, float, list[dict] | None]:
     """Read a STEP file, recognise its nodes in the scene called `scene` (`identify` against what the scene holds),
     tessellate what changed and push it: what ``lumenlink push`` does, without printing (`lumenlink.Client.push`
-    calls it too). ``on_read(doc)`` is called once the file is read and identified; the progress callables as
-    `tessellate`'s and `Pusher`'s. Returns (PushResult, Document, Tessellation, read seconds, the scene's nodes
-    before the push or None). Raises the adapter's errors (`CadImportError`, `TessellationError`, `PushError`...).
-    ``dry_run``: diff only; no upload, no sidecar, no scene. ``token``: the bearer token (None:
-    ``$LUMENLINK_TOKEN``)."""
+    calls it too). A FreeCAD document (.FCStd) carries its own UUIDs: `cad_adapter.freecad.push_fcstd`.
+    ``on_read(doc)`` is called once the file is read and identified; the progress callables as `tessellate`'s and
+    `Pusher`'s. Returns (PushResult, Document, Tessellation, read seconds, the scene's nodes before the push or
+    None). Raises the adapter's errors (`CadImportError`, `TessellationError`, `PushError`...). ``dry_run``: diff
+    only; no upload, no sidecar, no scene. ``token``: the bearer token (None: ``$LUMENLINK_TOKEN``)."""
+    from .freecad import is_freecad_file, push_fcstd
+
+    if is_freecad_file(file):
+        return push_fcstd(file, scene, server, linear, angular, relative, transport=transport, dry_run=dry_run,
+                          on_read=on_read, upload_progress=upload_progress, token=token)
     from .client import Pusher
     from .identity import confirm_same_surface, identify
     from .step_reader import read_step

@@ -59,7 +59,7 @@ def serve(
 
 @app.command()
 def push(
-    file: Annotated[Path, typer.Argument(help="STEP file to read.", exists=False)],
+    file: Annotated[Path, typer.Argument(help="STEP file, or FreeCAD document (.FCStd), to read.", exists=False)],
     scene: Annotated[str, typer.Option(help="Scene name; created if no scene has it.")],
     server: Annotated[str, typer.Option(envvar="LUMENLINK_SERVER", help="Service URL.")] = "http://127.0.0.1:8000",
     linear: Annotated[float | None, typer.Option(
@@ -82,7 +82,7 @@ def push(
 
 @app.command()
 def watch(
-    file: Annotated[Path, typer.Argument(help="STEP file to watch.")],
+    file: Annotated[Path, typer.Argument(help="STEP file, or FreeCAD document (.FCStd), to watch.")],
     scene: Annotated[str, typer.Option(help="Scene name; created if no scene has it.")],
     server: Annotated[str, typer.Option(envvar="LUMENLINK_SERVER", help="Service URL.")] = "http://127.0.0.1:8000",
     linear: Annotated[float | None, typer.Option(
