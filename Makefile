@@ -87,20 +87,21 @@ chromium:
 		    chromium; } || echo "chromium: installing chromium failed: tests/e2e/test_pages.py is skipped"; \
 	fi
 
-# FreeCAD for tests/cad_adapter/test_freecad.py (a real CAD system: `lumenlink push model.FCStd` runs its headless
-# freecadcmd): Debian's `freecad` package, installed when freecadcmd is missing and we may install it (root, apt-get).
+# FreeCAD for tests/cad_adapter/test_freecad*.py (a real CAD system: `lumenlink push model.FCStd` runs its headless
+# freecadcmd; the add-on's workbench runs in its GUI under Xvfb): Debian's `freecad` and `xvfb` packages, installed
+# when missing and we may install them (root, apt-get).
 freecad:
-	@if command -v freecadcmd >/dev/null 2>&1 || command -v FreeCADCmd >/dev/null 2>&1; then \
+	@if { command -v freecadcmd || command -v FreeCADCmd; } >/dev/null 2>&1 && command -v xvfb-run >/dev/null 2>&1; then \
 		:; \
 	elif [ "$$(id -u)" != 0 ]; then \
-		echo "freecad: freecadcmd missing and not root: not installing Debian's freecad package" \
-		     "(apt-get needs root); tests/cad_adapter/test_freecad.py is skipped"; \
+		echo "freecad: freecadcmd or xvfb-run missing and not root: not installing Debian's freecad and xvfb" \
+		     "packages (apt-get needs root); tests/cad_adapter/test_freecad*.py are skipped"; \
 	elif ! command -v apt-get >/dev/null 2>&1; then \
-		echo "freecad: freecadcmd missing and no apt-get to install it with: tests/cad_adapter/test_freecad.py is skipped"; \
+		echo "freecad: freecadcmd or xvfb-run missing and no apt-get to install them: tests/cad_adapter/test_freecad*.py are skipped"; \
 	else \
-		echo "freecad: installing Debian's freecad package (for tests/cad_adapter/test_freecad.py)"; \
+		echo "freecad: installing Debian's freecad and xvfb packages (for tests/cad_adapter/test_freecad*.py)"; \
 		{ apt-get update -q && DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends \
-		    freecad; } || echo "freecad: installing freecad failed: tests/cad_adapter/test_freecad.py is skipped"; \
+		    freecad xvfb xauth; } || echo "freecad: installing freecad failed: tests/cad_adapter/test_freecad*.py are skipped"; \
 	fi
 
 bench: $(BENCH_STAMP)

@@ -35,13 +35,20 @@ from .tree import Document, Node, Part, assign_paths
 MOD = Path(__file__).resolve().parent / "freecad_mod"
 RUNNER = MOD / "lumenlink_run.py"
 SUFFIXES = (".fcstd",)
+#: what the add-on inside FreeCAD's GUI writes and hands to ``lumenlink push`` (`lumenlink_freecad.link`)
+EXPORT_SUFFIX = ".lumenlink-freecad.json"
 FORMAT = "lumenlink-freecad-1"
 #: seconds one freecadcmd task may take (a large document's meshes)
 TIMEOUT = 600.0
 
 
 def is_freecad_file(path: Path) -> bool:
-    return Path(path).suffix.lower() in SUFFIXES
+    """A FreeCAD document, or the add-on's export of one."""
+    return Path(path).suffix.lower() in SUFFIXES or is_export(path)
+
+
+def is_export(path: Path) -> bool:
+    return Path(path).name.lower().endswith(EXPORT_SUFFIX)
 
 
 def freecadcmd() -> str | None:
@@ -105,7 +112,8 @@ def document_of(export: dict, source: Path) -> tuple[Document, Tessellation]:
              for i, n in enumerate(export["nodes"])]
     parts = {key: Part(key, p["name"], None) for key, p in export["parts"].items()}
     issued = sum(1 for n in export["nodes"] if n["issued"])
-    doc = Document(name=source.name, length_unit=export["length_unit"], nodes=nodes, parts=parts, source=source,
+    name = Path(export["file"]).name if export.get("file") else str(export.get("name") or source.name)
+    doc = Document(name=name, length_unit=export["length_unit"], nodes=nodes, parts=parts, source=source,
                    warnings=list(export["warnings"]),
                    reconciliation={"source": "the FreeCAD document",
                                    "matched": {"freecad": len(nodes) - issued, "freecad-new": issued}},
@@ -136,12 +144,32 @@ def read_fcstd(path: Path, linear: float | None = None, angular: float | None = 
     path = Path(path)
     if not path.is_file():
         raise CadImportError(f"{path}: no such file")
+    t = time.perf_counter()
+    if is_export(path):   # the add-on meshed it already, at its own settings
+        if linear is not None or angular is not None:
+            raise TessellationError(f"{path.name} was meshed inside FreeCAD by the LumenLink add-on: its deflections "
+                                    "are the add-on's settings, not --linear/--angular")
+        try:
+            export = json.loads(path.read_text())
+        except (OSError, ValueError) as exc:
+            raise CadImportError(f"{path}: not a LumenLink FreeCAD export ({exc})") from exc
+        return _read(export, path, t)
     settings = Settings(DEFAULT_LINEAR_MM if linear is None else linear,
                         DEFAULT_ANGULAR if angular is None else angular)   # the adapter's checks and messages
-    t = time.perf_counter()
     export = run_task({"action": "export", "file": str(path.resolve()), "linear": settings.linear,
                        "angular": settings.angular})
-    doc, tess = document_of(export, path)
+    return _read(export, path, t)
+
+
+def _read(export: Any, path: Path, t: float) -> tuple[Document, Tessellation, float]:
+    if not isinstance(export, dict):
+        raise CadImportError(f"{path}: not a LumenLink FreeCAD export (a JSON object of format {FORMAT})")
+    try:
+        doc, tess = document_of(export, path)
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        if isinstance(exc, CadImportError):
+            raise
+        raise CadImportError(f"{path}: not a valid LumenLink FreeCAD export ({type(exc).__name__}: {exc})") from exc
     seconds = time.perf_counter() - t
     tess.seconds = seconds
     if not doc.nodes:
@@ -168,16 +196,35 @@ def push_fcstd(file: Path, scene: str, server: str, linear: float | None = None,
     if relative:
         raise TessellationError("a FreeCAD document is meshed with an absolute linear deflection in mm (--linear) "
                                 "and an angular one (--angular); --relative does not apply to it")
+    doc, tess, read_seconds = read_fcstd(file, linear, angular)   # a bad file says so before any service call
     with Pusher(server, transport=transport, token=token) as pusher:
         tree = pusher.scene_tree(scene)
-    doc, tess, read_seconds = read_fcstd(file, linear, angular)
     if on_read is not None:
         on_read(doc)
     with Pusher(server, transport=transport, upload_progress=upload_progress, token=token) as pusher:
         result = pusher.push(doc, tess, scene, base_revision=tree.revision if tree else None, dry_run=dry_run,
                              identity=False)
-    if not dry_run:
+    if not dry_run and not is_export(file):   # the add-on stamps its own document
         stamped = stamp_fcstd(file, doc)
         if stamped:
             tess.warnings.append(f"{stamped} new UUID(s) written into {Path(file).name}")
     return result, doc, tess, read_seconds, tree.nodes if tree is not None else None
+
+
+def install_addon(target: Path | None = None) -> tuple[Path, str]:
+    """Install the add-on for FreeCAD's GUI: a link ``<FreeCAD's user folder>/Mod/LumenLink`` to `MOD` (or to
+    ``target``/LumenLink). Answers (the link, FreeCAD's version). A folder of that name that is not our link is
+    left alone (CadImportError saying so)."""
+    version = "?"
+    if target is None:
+        where = run_task({"action": "where"})
+        target, version = Path(where["user_dir"]) / "Mod", where["version"]
+    link = Path(target) / "LumenLink"
+    if link.is_symlink():
+        link.unlink()
+    elif link.exists():
+        raise CadImportError(f"{link} exists and is not LumenLink's link to {MOD}: remove it, then install again")
+    link.parent.mkdir(parents=True, exist_ok=True)
+    link.symlink_to(MOD, target_is_directory=True)
+    return link, version
+

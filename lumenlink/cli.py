@@ -100,6 +100,24 @@ def watch(
     raise typer.Exit(code or 0)
 
 
+@app.command("freecad-addon")
+def freecad_addon(
+    target: Annotated[Path | None, typer.Option(help="A FreeCAD Mod folder (default: FreeCAD's own, asked of "
+                                                     "freecadcmd).")] = None,
+) -> None:
+    """Install the FreeCAD add-on (a LumenLink workbench: push, push on recompute or save, show light)."""
+    from cad_adapter.errors import CadImportError
+    from cad_adapter.freecad import install_addon
+
+    try:
+        where, version = install_addon(target)
+    except (CadImportError, OSError) as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2) from exc
+    typer.echo(f"installed {where} (FreeCAD {version}); restart FreeCAD and choose the LumenLink workbench, or "
+               f"push from a script: from lumenlink_freecad import link; link.push_now(App.ActiveDocument)")
+
+
 # ---------------------------------------------------------------- the engineer's loop (issue 22)
 # Built on lumenlink.Client; exit codes as push: 2 bad usage (options, files, a URL without its scheme, an unknown
 # scene or node path, a body the service refuses), 3 the service unreachable, 1 anything else.

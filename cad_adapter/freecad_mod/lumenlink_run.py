@@ -4,6 +4,7 @@ The task is the JSON file named by ``LUMENLINK_FREECAD_TASK``: ``{"action": "exp
 "angular"}``
 writes `lumenlink_freecad.document.export` of the document to ``out``; ``{"action": "stamp", "file", "out",
 "uuids": {object Name: UUID}}`` writes the UUIDs into the document's objects and saves it where any changed.
+``{"action": "where"}`` answers FreeCAD's user data folder (its ``Mod`` holds add-ons) and version.
 ``out`` always receives a JSON object: the answer, or ``{"error": why}``; the exit code is 0 or 1 (freecadcmd
 itself answers 0 for an uncaught exception, so nothing is left to it).
 """
@@ -20,6 +21,8 @@ def run(task: dict) -> dict:
     import FreeCAD as App
     from lumenlink_freecad import document
 
+    if task["action"] == "where":   # where this FreeCAD looks for add-ons (lumenlink freecad-addon)
+        return {"user_dir": App.getUserAppDataDir(), "version": ".".join(App.Version()[:3])}
     path = task["file"]
     if not os.path.isfile(path):
         return {"error": f"{path}: no such file"}

@@ -186,6 +186,12 @@ def _b64(kind: str, values) -> str:
     return base64.b64encode(data.tobytes()).decode("ascii")
 
 
+def _snap(x: float) -> float:
+    """``x`` on a 1e-9 grid, -0.0 as 0.0: a recompute that rebuilds the same B-rep leaves noise of ~1e-17 (and signed
+    zeros) in a few coordinates, which the geometry id's float32 would keep: a part that did not change would."""
+    return round(x, 9) + 0.0
+
+
 def mesh(obj, linear: float, angular: float) -> dict:
     """The shape of ``obj`` meshed in its own frame: ``{vertices, normals, triangles, face_ids}`` (base64 of
     little-endian float64, float64, uint32, uint32), ``{"empty": why}`` for a shape without faces, or
@@ -204,9 +210,9 @@ def mesh(obj, linear: float, angular: float) -> dict:
             points, facets = face.tessellate(linear)
             base = len(vertices) // 3
             for p in points:
-                vertices += (p.x, p.y, p.z)
+                vertices += (_snap(p.x), _snap(p.y), _snap(p.z))
                 n = face.normalAt(*face.Surface.parameter(p))
-                normals += (n.x, n.y, n.z)
+                normals += (_snap(n.x), _snap(n.y), _snap(n.z))
             for a, b, c in facets:
                 triangles += (base + a, base + b, base + c)
                 faces.append(index)
