@@ -136,9 +136,20 @@ def disc_mean_direct(center: list[float], light: list[float], intensity: float) 
 
 
 def test_bad_input_says_why_and_leaves_the_document_alone(service, lamp, tmp_path) -> None:
+    """A service that is down (exit 3), a wrong token (exit 1, the 401), a file FreeCAD cannot open, a deflection
+    that does not apply, a document that shows nothing (exit 2), a part without faces (warned, pushed without
+    geometry): each says why, and the lamp's file is byte for byte what it was."""
     before = lamp.read_bytes()
     down = push(str(lamp), "--scene", "lamp", "--server", f"http://127.0.0.1:{free_port()}")
     assert down.returncode == 3 and "127.0.0.1" in down.stderr
+    token = "freecad-test-token-of-32-characters"
+    with running_service(tmp_path / "tokened", env={"LUMENLINK_TOKEN": token}) as guarded:
+        wrong = push(str(lamp), "--scene", "lamp", "--server", guarded, env_extra={"LUMENLINK_TOKEN": "wrong-" + token})
+        assert wrong.returncode == 1 and "401" in wrong.stderr, wrong.stderr
+        assert lamp.read_bytes() == before
+        right = push(str(lamp), "--scene", "lamp", "--server", guarded, env_extra={"LUMENLINK_TOKEN": token})
+        assert right.returncode == 0, right.stderr
+    before = lamp.read_bytes()   # a push that succeeded may have written the UUIDs it issued
     not_fc = tmp_path / "notes.FCStd"
     not_fc.write_text("not a FreeCAD document")
     bad = push(str(not_fc), "--scene", "lamp", "--server", service)
