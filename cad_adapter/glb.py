@@ -9,7 +9,6 @@ check that the id survives.
 from __future__ import annotations
 
 import numpy as np
-import trimesh
 
 from lumenlink import glb as lumenlink_glb
 from tracer.geometry_id import canonical_arrays, canonical_faces
@@ -57,6 +56,8 @@ def encode_glb(vertices: np.ndarray, triangles: np.ndarray, normals: np.ndarray 
             raise CadAdapterError("cannot encode mesh: a vertex is shared by triangles of different B-rep faces "
                                   "(face indices travel per vertex: give each face its own vertices)")
         kwargs["vertex_attributes"] = {lumenlink_glb.FACE_ATTRIBUTE: per_vertex}
+    import trimesh  # on the first upload: a push that uploads nothing does not pay for it
+
     mesh = trimesh.Trimesh(vertices=v, faces=f, process=False, validate=False, **kwargs)
     # unitize_normals=False: trimesh would otherwise renormalise and move some normals by an ulp
     data = mesh.export(file_type="glb", include_normals=n is not None, unitize_normals=False)

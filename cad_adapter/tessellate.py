@@ -40,18 +40,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from OCP.BinTools import BinTools, BinTools_FormatVersion
-from OCP.Bnd import Bnd_Box
-from OCP.BRep import BRep_Tool
-from OCP.BRepBndLib import BRepBndLib
-from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy
-from OCP.BRepLib import BRepLib_ToolTriangulatedShape
-from OCP.BRepMesh import BRepMesh_IncrementalMesh
-from OCP.BRepTools import BRepTools
-from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED
-from OCP.TopExp import TopExp_Explorer
-from OCP.TopLoc import TopLoc_Location
-from OCP.TopoDS import TopoDS
 
 from tracer.geometry_id import canonical_arrays, geometry_id
 
@@ -176,6 +164,8 @@ def shape_digest(shape) -> str:
     Two readings of the same file, or two builds of the same cadquery model, give the same digest, so
     the cache works across re-imports and ``watch`` cycles; any edit of the geometry changes it.
     """
+    from OCP.BinTools import BinTools, BinTools_FormatVersion
+
     buf = io.BytesIO()
     BinTools.Write_s(shape, buf, False, False, BinTools_FormatVersion.BinTools_FormatVersion_CURRENT)
     return hashlib.sha256(buf.getvalue()).hexdigest()
@@ -183,6 +173,9 @@ def shape_digest(shape) -> str:
 
 def bbox_diagonal(shape) -> float:
     """Diagonal of the shape's tight bounding box (document units); 0 for an empty shape."""
+    from OCP.Bnd import Bnd_Box
+    from OCP.BRepBndLib import BRepBndLib
+
     box = Bnd_Box()
     BRepBndLib.AddOptimal_s(shape, box, False, False)
     if box.IsVoid():
@@ -192,6 +185,9 @@ def bbox_diagonal(shape) -> float:
 
 
 def has_faces(shape) -> bool:
+    from OCP.TopAbs import TopAbs_FACE
+    from OCP.TopExp import TopExp_Explorer
+
     return TopExp_Explorer(shape, TopAbs_FACE).More()
 
 
@@ -219,6 +215,9 @@ def face_table(shape) -> list[dict]:
     from OCP.BRepGProp import BRepGProp
     from OCP.GeomAbs import GeomAbs_Plane
     from OCP.GProp import GProp_GProps
+    from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
 
     kinds = {0: "plane", 1: "cylinder", 2: "cone", 3: "sphere", 4: "torus"}
     out = []
@@ -245,6 +244,13 @@ def face_table(shape) -> list[dict]:
 def _read_faces(shape) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, np.ndarray]:
     """Collect every face's triangulation: vertices float64 (n,3), triangles int64 (m,3), normals float64, the
     faces without triangles, and each triangle's B-rep face index (uint32 (m,))."""
+    from OCP.BRep import BRep_Tool
+    from OCP.BRepLib import BRepLib_ToolTriangulatedShape
+    from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopLoc import TopLoc_Location
+    from OCP.TopoDS import TopoDS
+
     verts: list[np.ndarray] = []
     tris: list[np.ndarray] = []
     norms: list[np.ndarray] = []
@@ -326,6 +332,10 @@ def mesh_shape(shape, deflection: float, angular: float, parallel: bool = True) 
     TessellationError
         OCCT failed, or no face could be meshed.
     """
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy
+    from OCP.BRepMesh import BRepMesh_IncrementalMesh
+    from OCP.BRepTools import BRepTools
+
     if not has_faces(shape):
         return None, 0
     # mesh a deep copy without any triangulation: meshing also adjusts edge tolerances, so meshing the
