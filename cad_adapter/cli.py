@@ -18,6 +18,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from .errors import CadAdapterError, CadImportError, PushError, RevisionConflict, ServiceUnavailable, TessellationError
+from .freecad import is_freecad_file
 from .push import default_cache_dir, push_file
 from .tessellate import Settings, TessellationCache
 
@@ -241,7 +242,8 @@ def watch(file: Path, scene: str, server: str, linear: float | None = None, angu
                     console.print(f"[bold]{time.strftime('%H:%M:%S')}[/] {file.name} changed: pushing")
                     last_code = push_once(file, scene, server, linear, angular, relative, cache, console,
                                           transport=transport)
-                    pushed_stamp = stamp
+                    # a FreeCAD document's push writes the UUIDs it issued into the file: that is not a change
+                    pushed_stamp = _stamp(file) if is_freecad_file(file) else stamp
                     pushes += 1
                     if max_pushes is not None and pushes >= max_pushes:
                         return last_code

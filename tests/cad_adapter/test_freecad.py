@@ -10,6 +10,8 @@ from __future__ import annotations
 import json
 import math
 import sys
+import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -178,3 +180,28 @@ def test_bad_input_says_why_and_leaves_the_document_alone(service, lamp, tmp_pat
     assert partly.returncode == 0 and "Outline" in partly.stderr and "no faces" in partly.stderr
     assert len(json.loads(partly.stdout)["added"]) == 2
     assert lamp.read_bytes() == before
+
+
+def test_watch_pushes_a_freecad_document_again_on_each_save_and_not_for_its_own_stamp(service, tmp_path,
+                                                                                      capsys) -> None:
+    """``lumenlink watch lamp.FCStd``: the first push writes the UUIDs it issued into the file; that rewrite is not a
+    save to push again, a designer's save (a link moved) is."""
+    from cad_adapter import cli
+
+    path = lamp_file(tmp_path)
+    done: list[int] = []
+    watcher = threading.Thread(target=lambda: done.append(cli.watch(
+        path, "watched", service, linear=0.2, debounce=0.3, poll=0.1, max_pushes=2, timeout=90)))
+    watcher.start()
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and not uuids_in_file(path):
+        time.sleep(0.5)
+    time.sleep(2.0)            # long enough for a push the stamp would (wrongly) cause
+    assert capsys.readouterr().err.count("changed: pushing") == 1
+    edited(path, path.name, 'link = doc.getObject("WheelLeft")\n'
+                            'link.Placement.Base = link.Placement.Base + App.Vector(0, 0, 5)')
+    watcher.join(90)
+    assert done == [0] and capsys.readouterr().err.count("changed: pushing") == 1
+    with Client(service) as ll:
+        moved = [n for n in ll.nodes("watched") if n["name"] == "WheelLeft"]
+    assert moved and moved[0]["uuid"] == uuids_in_file(path)["WheelLeft"]
