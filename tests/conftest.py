@@ -66,6 +66,7 @@ LONGEST_FIRST = {
     "tests/tracer/transport/test_spectral_transport.py": 23, "tests/tracer/transport/test_physics_left_out.py": 22,
     "tests/service/test_tree_diff.py": 22, "tests/e2e/test_engineer_loop.py": 21, "tests/service/test_pages_api.py": 21,
     "tests/service/test_replicas.py": 21, "tests/service/test_cuda_service.py": 20,
+    "tests/cad_adapter/test_freecad.py": 100, "tests/cad_adapter/test_freecad_gui.py": 30,
 }
 #: files that run last, in this order: the benchmarks' smoke tests, whose child processes then load the tracer's
 #: kernels from numba's cache, which the tests before them filled, instead of compiling them all again on a cold

@@ -45,6 +45,7 @@ USER_CFG = """<?xml version="1.0" encoding="UTF-8" standalone="no" ?>
 <FCText Name="server">{server}</FCText><FCText Name="command">{command}</FCText>
 <FCText Name="push_on">recompute</FCText>
 <FCFloat Name="debounce_s" Value="0.2"/><FCFloat Name="linear" Value="0.2"/><FCFloat Name="light_seconds" Value="3"/>
+<FCText Name="light_sensor">housing</FCText>
 </FCParamGroup></FCParamGroup></FCParamGroup></FCParamGroup></FCParamGroup></FCParameters>
 """
 
@@ -66,11 +67,14 @@ def finish():
     json.dump(report, open(REPORT, "w"))
     os._exit(0)
 
-def after_push(count, then, waited=0):
-    if len(gui.LINK.outcomes) >= count or waited > 1200:
+def after(ready, then, waited=0):
+    if ready() or waited > 1200:
         step(then)
     else:
-        QtCore.QTimer.singleShot(100, lambda: after_push(count, then, waited + 1))
+        QtCore.QTimer.singleShot(100, lambda: after(ready, then, waited + 1))
+
+def after_push(count, then):
+    after(lambda: len(gui.LINK.outcomes) >= count, then)
 
 def step(fn):
     try:
@@ -85,7 +89,11 @@ def push_from_the_workbench():
     after_push(1, show_the_light)
 
 def show_the_light():
-    report["legend"] = gui.show_light(doc, "housing")
+    Gui.runCommand("LumenLink_ShowLight")      # the sensor named in the settings, simulated in the background
+    after(lambda: gui.LEGENDS, painted)
+
+def painted():
+    report["legend"] = gui.LEGENDS[-1]
     report["colours"] = [list(c)[:3] for c in doc.getObject("Housing").ViewObject.DiffuseColor]
     view = Gui.ActiveDocument.ActiveView
     view.viewIsometric()
@@ -108,6 +116,11 @@ def push_to_a_service_that_is_down():
 
 def check_the_copy():
     report["copy_owner"] = getattr(doc.getObject(report["copy"]), "LumenLinkOwner", None)
+    Gui.runCommand("LumenLink_ShowLight")      # the service is still down
+    after(lambda: len(gui.LEGENDS) > 1, light_from_a_service_that_is_down)
+
+def light_from_a_service_that_is_down():
+    report["light_down"] = gui.LEGENDS[-1]
     finish()
 
 Gui.activateWorkbench("LumenLinkWorkbench")
@@ -150,6 +163,7 @@ def test_the_workbench_pushes_on_recompute_and_shows_the_light(tmp_path) -> None
     assert not down["ok"] and "cannot be reached" in down["message"], down
     # the copy carries the lens's properties as FreeCAD copied them: a failed push stamped no UUID of its own on it
     assert got["copy_owner"] == "Lens" and got["copy"] != "Lens"
+    assert "cannot be reached" in got["light_down"]["error"], got["light_down"]
     legend = got["legend"]
     assert legend["faces"] == 6 and 0 <= legend["low"] < legend["high"]   # the box's six faces; the bottom is dark
     assert len(got["colours"]) == 6 and len({tuple(c) for c in got["colours"]}) > 1

@@ -7,6 +7,8 @@ settings' ``debounce_s`` make one push. Every outcome goes to the report view.
 
 from __future__ import annotations
 
+import threading
+
 import FreeCAD as App
 import FreeCADGui as Gui
 from PySide2 import QtCore, QtWidgets
@@ -68,6 +70,9 @@ class LiveLink:
 
 
 LINK: LiveLink | None = None
+#: Show light's runs in progress, and the legends it painted (or {"error": why}), newest last
+RUNNING: set = set()
+LEGENDS: list[dict] = []
 OBSERVERS: list = []    # FreeCAD keeps a weak hold on its observers
 
 
@@ -85,11 +90,16 @@ class Observer:
 
 def show_light(doc, sensor: str) -> dict:
     """Simulate the surface sensor (for the settings' ``light_seconds``), colour ``doc``'s faces by its answer and
-    put its legend over the 3D view; answers
-    the legend (`light.face_colours`). Raises `light.ServiceError` or ValueError, saying why."""
+    put its legend over the 3D view, waiting here (scripts; the command does it in the background); answers the
+    legend (`light.face_colours`). Raises `light.ServiceError` or ValueError, saying why."""
     settings = link.Settings.load()
     export = document.export(doc, settings.linear, settings.angular)
     result = light.simulate_surface(settings, settings.scene or doc.Label, sensor, settings.light_seconds)
+    return paint(doc, export, result, sensor)
+
+
+def paint(doc, export: dict, result: dict, sensor: str) -> dict:
+    """Colour ``doc``'s faces by a surface sensor's answer over ``export`` (the document as it was pushed)."""
     colours, legend = light.face_colours(export, result)
     for name, faces in colours.items():
         obj = doc.getObject(name)
@@ -105,7 +115,46 @@ def show_light(doc, sensor: str) -> dict:
     _legend_label(light.legend_html(legend, sensor))
     App.Console.PrintMessage(f"LumenLink: {sensor}: {legend['low']:,.0f} to {legend['high']:,.0f} lx over "
                              f"{legend['faces']} faces, +- {legend['stderr']:,.0f} lx\n")
+    LEGENDS.append(legend)
     return legend
+
+
+class LightInBackground:
+    """Show light without freezing FreeCAD: the simulation (an HTTP call of up to ``light_seconds``) in a thread,
+    the painting on the GUI thread once it answered."""
+
+    def __init__(self, doc, sensor: str) -> None:
+        settings = link.Settings.load()
+        self.doc, self.sensor = doc, sensor
+        self.export = document.export(doc, settings.linear, settings.angular)
+        self.answer: dict = {}
+        scene = settings.scene or doc.Label
+        self.thread = threading.Thread(target=self._simulate, args=(settings, scene), daemon=True)
+        self.thread.start()
+        self.timer = QtCore.QTimer()
+        self.timer.setInterval(100)
+        self.timer.timeout.connect(self._poll)
+        self.timer.start()
+        App.Console.PrintMessage(f"LumenLink: simulating {sensor} for up to {settings.light_seconds:g} s\n")
+
+    def _simulate(self, settings, scene: str) -> None:
+        try:
+            self.answer["result"] = light.simulate_surface(settings, scene, self.sensor, settings.light_seconds)
+        except (light.ServiceError, ValueError) as exc:
+            self.answer["error"] = str(exc)
+
+    def _poll(self) -> None:
+        if self.thread.is_alive():
+            return
+        self.timer.stop()
+        RUNNING.discard(self)
+        try:
+            if "error" in self.answer:
+                raise ValueError(self.answer["error"])
+            paint(self.doc, self.export, self.answer["result"], self.sensor)
+        except ValueError as exc:
+            App.Console.PrintError(f"LumenLink: cannot show the light: {exc}\n")
+            LEGENDS.append({"error": str(exc)})
 
 
 def _legend_label(html: str) -> None:
@@ -144,11 +193,14 @@ class ShowLightCommand:
         return App.ActiveDocument is not None
 
     def Activated(self) -> None:  # noqa: N802
-        sensor, ok = QtWidgets.QInputDialog.getText(None, "LumenLink", "Surface sensor (name or id):")
+        settings = link.Settings.load()
+        sensor, ok = settings.light_sensor, True
+        if not sensor:
+            sensor, ok = QtWidgets.QInputDialog.getText(None, "LumenLink", "Surface sensor (name or id):")
         if ok and sensor:
             try:
-                show_light(App.ActiveDocument, sensor)
-            except (light.ServiceError, ValueError) as exc:
+                RUNNING.add(LightInBackground(App.ActiveDocument, sensor))
+            except ValueError as exc:
                 App.Console.PrintError(f"LumenLink: cannot show the light: {exc}\n")
 
 
@@ -169,7 +221,7 @@ class SettingsDialog(QtWidgets.QDialog):
         s = link.Settings.load()
         form = QtWidgets.QFormLayout(self)
         self.edits = {name: QtWidgets.QLineEdit(str(getattr(s, name))) for name in ("server", "scene", "token",
-                                                                                       "command")}
+                                                                                       "command", "light_sensor")}
         self.edits["token"].setEchoMode(QtWidgets.QLineEdit.Password)
         self.numbers = {name: QtWidgets.QLineEdit(str(getattr(s, name))) for name in ("linear", "angular",
                                                                                         "debounce_s", "light_seconds")}

@@ -40,6 +40,7 @@ class Settings:
     push_on: str = "off"
     debounce_s: float = 1.0
     light_seconds: float = 5.0   # the budget of Show light's simulation
+    light_sensor: str = ""       # the surface sensor Show light shows; '' : asked each time
 
     @classmethod
     def load(cls) -> Settings:
