@@ -8,7 +8,7 @@ BENCH_STAMP := $(VENV)/.installed-bench
 WEB    := service/web
 WEB_STAMP := $(WEB)/node_modules/.installed
 
-.PHONY: demo demo-guide serve test lint typecheck bench clean postgres chromium freecad web
+.PHONY: demo demo-guide serve test lint typecheck bench clean system postgres chromium freecad web
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -50,59 +50,35 @@ typecheck: $(STAMP)
 # cluster, are made once), longest first in the order tests/conftest.py gives; processes that need the same kernel
 # compile it once (tracer.warmup.compiling)
 TEST_WORKERS ?= 2
-test: $(STAMP) $(WEB_STAMP) postgres chromium freecad lint typecheck
+test: $(STAMP) $(WEB_STAMP) system lint typecheck
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
-# A PostgreSQL server for tests/service/test_replicas.py (it starts its own throw-away cluster in a temp dir):
-# Debian's `postgresql` package, installed when no server is there and we may install it (root, apt-get).
-postgres:
-	@if ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1; then \
+# What some tests need from Debian, installed when missing and we may install it (root, apt-get), in one apt-get
+# (a fresh machine pays one index update and one dpkg run for all of them); where we may not, those tests are skipped,
+# saying why:
+#   postgresql         a PostgreSQL server for tests/service/test_replicas.py (its own throw-away cluster)
+#   chromium           the browser Playwright drives in tests/e2e/test_pages.py (no browser download of its own)
+#   freecad xvfb xauth a real CAD system for tests/cad_adapter/test_freecad*.py (headless freecadcmd; its GUI under Xvfb)
+system:
+	@missing=""; \
+	ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 || missing="$$missing postgresql"; \
+	[ -x /usr/bin/chromium ] || missing="$$missing chromium"; \
+	{ command -v freecadcmd || command -v FreeCADCmd; } >/dev/null 2>&1 || missing="$$missing freecad"; \
+	command -v xvfb-run >/dev/null 2>&1 || missing="$$missing xvfb xauth"; \
+	if [ -z "$$missing" ]; then \
 		:; \
-	elif [ "$$(id -u)" != 0 ]; then \
-		echo "postgres: no PostgreSQL server installed and not root: not installing Debian's postgresql" \
-		     "package (apt-get needs root); tests/service/test_replicas.py is skipped"; \
-	elif ! command -v apt-get >/dev/null 2>&1; then \
-		echo "postgres: no PostgreSQL server installed and no apt-get to install it with:" \
-		     "tests/service/test_replicas.py is skipped"; \
+	elif [ "$$(id -u)" != 0 ] || ! command -v apt-get >/dev/null 2>&1; then \
+		echo "system: missing Debian packages:$$missing; not root or no apt-get: not installing them; the tests" \
+		     "that need them are skipped, saying why"; \
 	else \
-		echo "postgres: installing Debian's postgresql package (for tests/service/test_replicas.py)"; \
-		{ apt-get update -q && DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends \
-		    postgresql; } || echo "postgres: installing postgresql failed: tests/service/test_replicas.py is skipped"; \
+		echo "system: installing Debian packages:$$missing"; \
+		export DEBIAN_FRONTEND=noninteractive; \
+		apt-get update -q && { apt-get install -y -q --no-install-recommends $$missing || \
+			for p in $$missing; do apt-get install -y -q --no-install-recommends $$p || \
+				echo "system: installing $$p failed: the tests that need it are skipped"; done; }; \
 	fi
 
-# Chromium for the browser tests (tests/e2e/test_pages.py drives it with Playwright): Debian's `chromium` package,
-# installed when /usr/bin/chromium is missing and we may install it (root, apt-get); Playwright's own browser
-# download is not used.
-chromium:
-	@if [ -x /usr/bin/chromium ]; then \
-		:; \
-	elif [ "$$(id -u)" != 0 ]; then \
-		echo "chromium: /usr/bin/chromium missing and not root: not installing Debian's chromium package" \
-		     "(apt-get needs root); tests/e2e/test_pages.py is skipped"; \
-	elif ! command -v apt-get >/dev/null 2>&1; then \
-		echo "chromium: /usr/bin/chromium missing and no apt-get to install it with: tests/e2e/test_pages.py is skipped"; \
-	else \
-		echo "chromium: installing Debian's chromium package (for tests/e2e/test_pages.py)"; \
-		{ apt-get update -q && DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends \
-		    chromium; } || echo "chromium: installing chromium failed: tests/e2e/test_pages.py is skipped"; \
-	fi
-
-# FreeCAD for tests/cad_adapter/test_freecad*.py (a real CAD system: `lumenlink push model.FCStd` runs its headless
-# freecadcmd; the add-on's workbench runs in its GUI under Xvfb): Debian's `freecad` and `xvfb` packages, installed
-# when missing and we may install them (root, apt-get).
-freecad:
-	@if { command -v freecadcmd || command -v FreeCADCmd; } >/dev/null 2>&1 && command -v xvfb-run >/dev/null 2>&1; then \
-		:; \
-	elif [ "$$(id -u)" != 0 ]; then \
-		echo "freecad: freecadcmd or xvfb-run missing and not root: not installing Debian's freecad and xvfb" \
-		     "packages (apt-get needs root); tests/cad_adapter/test_freecad*.py are skipped"; \
-	elif ! command -v apt-get >/dev/null 2>&1; then \
-		echo "freecad: freecadcmd or xvfb-run missing and no apt-get to install them: tests/cad_adapter/test_freecad*.py are skipped"; \
-	else \
-		echo "freecad: installing Debian's freecad and xvfb packages (for tests/cad_adapter/test_freecad*.py)"; \
-		{ apt-get update -q && DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends \
-		    freecad xvfb xauth; } || echo "freecad: installing freecad failed: tests/cad_adapter/test_freecad*.py are skipped"; \
-	fi
+postgres chromium freecad: system
 
 bench: $(BENCH_STAMP)
 	$(BIN)/lumenlink bench

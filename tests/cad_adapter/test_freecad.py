@@ -29,6 +29,7 @@ pytestmark = [pytest.mark.skipif(FREECAD is None, reason=WHY), pytest.mark.slow]
 #: the lux meters' radius, m
 RADIUS = 0.003
 
+
 @pytest.fixture(scope="module")
 def service(tmp_path_factory):
     with running_service(tmp_path_factory.mktemp("service")) as url:

@@ -131,14 +131,16 @@ class Push:
         if settings.token:
             env["LUMENLINK_TOKEN"] = settings.token
         command = settings.executable() or settings.command or "lumenlink"
+        # its output to files: a pipe that nobody reads while the push runs would stop a child with a long answer
+        self.out, self.err = (open(os.path.join(self.folder, name), "w+") for name in ("stdout", "stderr"))
         self.proc = subprocess.Popen([command, "push", path, "--scene", self.scene, "--server", settings.server,
-                                      "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+                                      "--json"], stdout=self.out, stderr=self.err, text=True, env=env)
 
     def poll(self) -> Outcome | None:
         """None while the push runs; then how it ended (the UUIDs it issued are then in the document)."""
         if self.proc.poll() is None:
             return None
-        out, err = self.proc.communicate()
+        out, err = (self._read(f) for f in (self.out, self.err))
         shutil.rmtree(self.folder, ignore_errors=True)
         if self.proc.returncode != 0:
             return Outcome(False, failure(err, self.proc.returncode))
@@ -147,8 +149,19 @@ class Push:
         except ValueError:
             return Outcome(False, f"LumenLink: the lumenlink command answered no JSON: {out[-300:]!r}")
         issued = {n["object"]: n["uuid"] for n in self.export["nodes"] if n["issued"] and n["object"]}
-        document.stamp(self.doc, issued)
-        return Outcome(True, report(answer, self.scene, time.monotonic() - self.started), answer)
+        line = report(answer, self.scene, time.monotonic() - self.started)
+        try:
+            document.stamp(self.doc, issued)
+        except Exception as exc:   # the document was closed meanwhile
+            line += f"; the {len(issued)} new UUID(s) could not be written into the document ({exc})"
+        return Outcome(True, line, answer)
+
+    @staticmethod
+    def _read(file) -> str:
+        file.seek(0)
+        text = file.read()
+        file.close()
+        return text
 
     def wait(self, timeout: float = 600.0) -> Outcome:
         deadline = time.monotonic() + timeout
