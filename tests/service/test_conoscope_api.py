@@ -91,6 +91,24 @@ def test_the_view_as_a_polar_plot(client: Any, floor: str) -> None:
     assert len(r.content) > 10_000
 
 
+def test_the_python_client_asks_the_same_view(client: Any, floor: str) -> None:
+    """`lumenlink.Client.conoscope`: the same body, the same answer on the same seed; its PNG; a bad normal is a
+    usage error before anything is sent."""
+    from lumenlink import Client, LumenLinkError
+
+    ll = Client("http://testserver", transport=client._transport)
+    body = {"point": POINT, "normal": [0, 0, 1], "rings": 3, "azimuths": 4, "max_photons": 8000, "seed": 3}
+    direct = client.post(f"/scenes/{floor}/luminance/conoscope", json=body).json()
+    got = ll.conoscope(floor, POINT, [0, 0, 1], rings=3, azimuths=4, max_photons=8000, seed=3)
+    assert got["luminance"] == direct["luminance"] and got["stderr"] == direct["stderr"]
+    assert ll.conoscope(floor, POINT, [0, 0, 1], rings=2, azimuths=4, max_photons=2000, png=True)[:4] == b"\x89PNG"
+    with pytest.raises(LumenLinkError, match="normal"):
+        ll.conoscope(floor, POINT, [0, 0], rings=2)
+    with pytest.raises(LumenLinkError) as refused:   # the service's own check: a zero normal
+        ll.conoscope(floor, POINT, [0, 0, 0], rings=2)
+    assert refused.value.status == 422
+
+
 @pytest.mark.parametrize(("route", "body", "kind"), [
     ("conoscope", {"point": POINT, "normal": [0, 0, 1], "rings": 2, "azimuths": 4}, "conoscope"),
     ("uniformity", {"points": [POINT], "direction": [0, 0, -1]}, "uniformity"),   # was a 500 at GET /jobs/{id}

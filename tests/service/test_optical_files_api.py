@@ -106,7 +106,8 @@ def test_lights_and_materials_name_a_file_by_id_and_an_unknown_id_is_a_422(tmp_p
 
 
 def test_the_client_uploads_a_file_streamed_and_guesses_its_format(tmp_path: Path) -> None:
-    from lumenlink.client import Client, _optical_format
+    from lumenlink.client import Client
+    from lumenlink.client_elements import _optical_format
 
     (tmp_path / "a.tm25ray").write_bytes(tm25_bytes(tmp_path, beam()[:100], flux="radiant", single_nm=555.0))
     (tmp_path / "t.brdf.txt").write_text("# a table\n" + BRDF)
@@ -124,7 +125,8 @@ def test_the_client_uploads_a_file_streamed_and_guesses_its_format(tmp_path: Pat
 def test_a_zemax_bsdf_file_uploads_as_a_brdf_and_reads_as_its_table(tmp_path: Path) -> None:
     """A Zemax / Radiant BSDF Data Interchange file of a Lambertian sample (ρ 0.4, values in relative units) is a
     `brdf` file: the client guesses it, the service reads it into a table of albedo 0.4, and a material names it."""
-    from lumenlink.client import Client, _optical_format
+    from lumenlink.client import Client
+    from lumenlink.client_elements import _optical_format
     from tracer.optics.surfaces import zemax_bsdf
 
     text = zemax_bsdf.write(lambda ti, r, a: 0.4 / math.pi * np.ones(np.broadcast(r, a).shape), [0, 45],
