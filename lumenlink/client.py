@@ -36,7 +36,7 @@ from lumenlink.client_images import ImageCalls
 from lumenlink.client_results import ResultCalls, sensor_csv
 from lumenlink.client_values import triples
 from lumenlink.errors import LumenLinkError, ServiceUnreachable
-from lumenlink.http import DEFAULT_SERVER, ServiceClient, check_server
+from lumenlink.http import DEFAULT_SERVER, check_server
 
 __all__ = ["DEFAULT_SERVER", "Client", "LumenLinkError", "ServiceUnreachable", "check_server", "sensor_csv",
            "triples"]
@@ -49,7 +49,7 @@ def _is_uuid(s: str) -> bool:
     return bool(_UUID.match(s))
 
 
-class Client(ServiceClient, AssignmentCalls, ElementCalls, ImageCalls, ResultCalls):
+class Client(AssignmentCalls, ElementCalls, ImageCalls, ResultCalls):
     """A client of one LumenLink service (its connection, token and errors: `lumenlink.http.ServiceClient`).
 
     Parameters

@@ -9,11 +9,12 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
+from lumenlink.client_base import ClientBase
 from lumenlink.client_values import triples
 from lumenlink.errors import LumenLinkError
 
 
-class AssignmentCalls:
+class AssignmentCalls(ClientBase):
     """Materials, lights and sensors (`Client` is made of it)."""
 
     def assign(self, scene: str | dict, path_or_uuid: str, material: dict[str, Any]) -> dict[str, Any]:

@@ -7,11 +7,12 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from lumenlink.client_base import ClientBase
 from lumenlink.client_values import triples
 from lumenlink.errors import LumenLinkError
 
 
-class ElementCalls:
+class ElementCalls(ClientBase):
     """Optical files and elements with an inside (`Client` is made of it)."""
 
     # ------------------------------------------------------------ optical files (ray files, BRDF tables)

@@ -6,11 +6,12 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from lumenlink.client_base import ClientBase
 from lumenlink.client_values import triples
 from lumenlink.errors import LumenLinkError
 
 
-class ImageCalls:
+class ImageCalls(ClientBase):
     """Maps, images, UGR, uniformity, exports (`Client` is made of it)."""
 
     def map_png(self, scene: str | dict, sensor_id: str, vmax: float | None = None) -> bytes:

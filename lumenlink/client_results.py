@@ -9,10 +9,11 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
+from lumenlink.client_base import ClientBase
 from lumenlink.errors import LumenLinkError
 
 
-class ResultCalls:
+class ResultCalls(ClientBase):
     """Kept results and comparisons (`Client` is made of it)."""
 
     # ------------------------------------------------------------ kept results and comparisons
