@@ -414,10 +414,35 @@ def uniformity(
     json_out: Annotated[bool, typer.Option("--json", help="Print the answer as JSON.")] = False,
 ) -> None:
     """Luminance uniformity over a grid of meters: each reading (CSV on stdout) and min/max, min/mean ± error."""
-    raise typer.Exit(_call("lumenlink.commands", "uniformity", 37, scene=scene, server=server, direction=direction,
-                           nine_points=nine_points, points=point, distance=distance, aperture=aperture,
-                           target=target, max_seconds=max_seconds, max_photons=max_photons, seed=seed,
-                           json_out=json_out) or 0)
+    raise typer.Exit(_call("lumenlink.commands_luminance", "uniformity", 37, scene=scene, server=server,
+                           direction=direction, nine_points=nine_points, points=point, distance=distance,
+                           aperture=aperture, target=target, max_seconds=max_seconds, max_photons=max_photons,
+                           seed=seed, json_out=json_out) or 0)
+
+
+@app.command()
+def conoscope(
+    scene: SceneOpt,
+    point: Annotated[str, typer.Option(help="The point of the lit face, X,Y,Z (m).")],
+    normal: Annotated[str, typer.Option(help="The face's normal there, X,Y,Z (the viewing angles' axis).")],
+    theta_max: Annotated[float | None, typer.Option(help="Largest polar angle, degrees (<= 85; default 80).")] = None,
+    rings: Annotated[int | None, typer.Option(help="Polar angles from the normal to --theta-max.")] = None,
+    azimuths: Annotated[int | None, typer.Option(help="Meters per ring.")] = None,
+    distance: Annotated[float | None, typer.Option(help="How far each meter stands back, m.")] = None,
+    aperture: Annotated[float | None, typer.Option(help="Each meter's acceptance angle, degrees.")] = None,
+    target: Annotated[float | None, typer.Option(help="Stop at this relative error (0.01 = 1 %).")] = None,
+    max_seconds: Annotated[float | None, typer.Option(help="Time budget, s.")] = None,
+    max_photons: Annotated[int | None, typer.Option(help="Path budget (all meters).")] = None,
+    seed: Annotated[int, typer.Option(help="Same seed and revision: the same numbers.")] = 0,
+    png: Annotated[str | None, typer.Option(help="Also write the polar plot to this PNG file.")] = None,
+    server: Server = "http://127.0.0.1:8000",
+    json_out: Annotated[bool, typer.Option("--json", help="Print the answer as JSON.")] = False,
+) -> None:
+    """A conoscopic view: the luminance one point of a lit face shows against viewing angle (CSV on stdout)."""
+    raise typer.Exit(_call("lumenlink.commands_luminance", "conoscope", 53, scene=scene, server=server, point=point,
+                           normal=normal, theta_max=theta_max, rings=rings, azimuths=azimuths, distance=distance,
+                           aperture=aperture, target=target, max_seconds=max_seconds, max_photons=max_photons,
+                           seed=seed, png=png, json_out=json_out) or 0)
 
 
 @app.command()

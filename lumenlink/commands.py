@@ -660,37 +660,3 @@ def ugr(scene: str, server: str, sensor: str, background: float | None = None, t
               f"pixels ≥ {out['threshold']:.4g} cd/m², revision {out['revision']})")
         return EXIT_OK
     return _run(work)
-
-
-def uniformity(scene: str, server: str, direction: str, nine_points: tuple[str, str, str] | None = None,
-               points: list[str] | None = None, distance: float | None = None, aperture: float | None = None,
-               target: float | None = None, max_seconds: float | None = None, max_photons: int | None = None,
-               seed: int = 0, json_out: bool = False) -> int:
-    """Luminance meters at points (or the 9-point figure of a rectangle): each reading and the uniformity, with
-    error bars."""
-    def work(console: Console) -> int:
-        if (nine_points is None) == (not points):
-            raise LumenLinkError("give --nine-points ORIGIN U V or one or more --point X,Y,Z", usage=True)
-        d = vec3(direction, "--direction", DIRECTION)
-        kwargs: dict[str, Any] = {}
-        if nine_points is not None:
-            kwargs["nine_points"] = [vec3(t, "--nine-points") for t in nine_points]
-        else:
-            kwargs["points"] = [vec3(t, "--point") for t in points or []]
-        with Client(server) as ll:
-            info = ll.scene(scene)
-            out = ll.uniformity(info, direction=d, distance=distance, aperture_deg=aperture, target=target,
-                                max_seconds=max_seconds, max_photons=max_photons, seed=seed, **kwargs)
-        if json_out:
-            print(json.dumps(out))
-            return EXIT_OK
-        print("point,x_m,y_m,z_m,cd_m2,stderr_cd_m2")
-        for k, (p, v, e) in enumerate(zip(out["points"], out["luminance"], out["stderr"], strict=True)):
-            print(f"{k},{p[0]:.9g},{p[1]:.9g},{p[2]:.9g},{v!r},{e!r}")
-        u = out["uniformity"]
-        console.print(f"{out['figure']}: min {u['min']:.4g}, mean {u['mean']:.4g}, max {u['max']:.4g} cd/m²; "
-                      f"min/max {_pm(u['min_max'], u['min_max_stderr'])}, min/mean "
-                      f"{_pm(u['min_mean'], u['min_mean_stderr'])}; {out['photons']:,} paths in "
-                      f"{out['seconds']:.2f} s")
-        return EXIT_OK
-    return _run(work)

@@ -109,6 +109,38 @@ def test_the_python_client_asks_the_same_view(client: Any, floor: str) -> None:
     assert refused.value.status == 422
 
 
+def test_the_command_line_prints_each_meter_and_writes_the_plot(client: Any, floor: str, monkeypatch: Any,
+                                                                tmp_path: Path) -> None:
+    """``lumenlink conoscope``: one CSV row per meter (the axis once), the answer's numbers; ``--png``; bad usage is
+    exit 2 naming the option."""
+    import json
+
+    from typer.testing import CliRunner
+
+    import lumenlink.commands_luminance as commands_luminance
+    from lumenlink import Client
+    from lumenlink.cli import app
+
+    monkeypatch.setattr(commands_luminance, "Client", lambda server: Client("http://testserver",
+                                                                            transport=client._transport))
+    point = ",".join(map(str, POINT))
+    args = ["conoscope", "--scene", floor, "--point", point, "--normal", "0,0,1", "--rings", "3", "--azimuths", "4",
+            "--max-photons", "8000", "--seed", "3"]
+    runner = CliRunner()
+    as_json = runner.invoke(app, [*args, "--json"])
+    assert as_json.exit_code == 0, as_json.output
+    out = json.loads(as_json.stdout)
+    plot = tmp_path / "view.png"
+    r = runner.invoke(app, [*args, "--png", str(plot)])
+    assert r.exit_code == 0, r.output
+    rows = r.stdout.splitlines()
+    assert rows[0] == "ring,azimuth,theta_deg,phi_deg,cd_m2,stderr_cd_m2" and len(rows) == 1 + 3 * 4
+    assert float(rows[-1].split(",")[4]) == out["luminance"][2][3]
+    assert "on axis" in r.output and plot.read_bytes()[:4] == b"\x89PNG"
+    bad = runner.invoke(app, ["conoscope", "--scene", floor, "--point", "0,0", "--normal", "0,0,1"])
+    assert bad.exit_code == 2 and "--point" in bad.output
+
+
 @pytest.mark.parametrize(("route", "body", "kind"), [
     ("conoscope", {"point": POINT, "normal": [0, 0, 1], "rings": 2, "azimuths": 4}, "conoscope"),
     ("uniformity", {"points": [POINT], "direction": [0, 0, -1]}, "uniformity"),   # was a 500 at GET /jobs/{id}

@@ -214,6 +214,7 @@ def test_client_and_cli_uniformity_and_ugr(client: Any, floor: str, monkeypatch:
     from typer.testing import CliRunner
 
     import lumenlink.commands as commands
+    import lumenlink.commands_luminance as commands_luminance
     from lumenlink.cli import app
 
     with _client_on(client) as ll:
@@ -230,6 +231,7 @@ def test_client_and_cli_uniformity_and_ugr(client: Any, floor: str, monkeypatch:
         assert cam["id"]
 
     monkeypatch.setattr(commands, "Client", lambda server: _client_on(client))
+    monkeypatch.setattr(commands_luminance, "Client", lambda server: _client_on(client))
     runner = CliRunner()
     r = runner.invoke(app, ["uniformity", "--scene", floor, "--direction", "0,0,-1", "--nine-points", "-1,-0.6,0",
                             "2,0,0", "0,1.2,0", "--max-photons", "9000", "--seed", "4", "--json"])
