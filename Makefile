@@ -73,9 +73,13 @@ system:
 	else \
 		echo "system: installing Debian packages:$$missing"; \
 		export DEBIAN_FRONTEND=noninteractive; \
-		apt-get update -q && { apt-get install -y -q --no-install-recommends $$missing || \
+		if apt-get update -q; then \
+			apt-get install -y -q --no-install-recommends $$missing || \
 			for p in $$missing; do apt-get install -y -q --no-install-recommends $$p || \
-				echo "system: installing $$p failed: the tests that need it are skipped"; done; }; \
+				echo "system: installing $$p failed: the tests that need it are skipped"; done; \
+		else \
+			echo "system: apt-get update failed: not installing$$missing; the tests that need them are skipped"; \
+		fi; \
 	fi
 
 postgres chromium freecad: system
