@@ -33,8 +33,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bench.bench_luminance import EYE, FOV, LOOK, camera  # noqa: E402
-from bench.bench_transport import INTENSITY, LIGHT, RADIANCE_EFFICACY, RHO, radiance_room, room_scene  # noqa: E402
+from bench.bench_luminance import camera, rpict_luminance, rpict_view  # noqa: E402
+from bench.bench_transport import INTENSITY, LIGHT, RHO, radiance_room, room_scene  # noqa: E402
 
 BUDGETS = (0.5, 1.0, 2.0, 4.0, 8.0, 16.0)
 RPICT = {
@@ -87,21 +87,14 @@ def rpict_image(w: int, h: int, params: list[str], octree: Path, timeout: float)
 
     import pyradiance as pr
 
-    vh = 2 * math.degrees(math.atan(math.tan(math.radians(FOV / 2)) * w / h))
-    d = np.subtract(LOOK, EYE)
-    view = ["-vtv", "-vp", *map(str, EYE), "-vd", *map(str, d), "-vu", "0", "0", "1", "-vv", str(FOV), "-vh",
-            f"{vh:.9g}"]
-    cmd = [str(Path(pr.__file__).parent / "bin" / "rpict"), *view, "-x", str(w), "-y", str(h), *params,
+    cmd = [str(Path(pr.__file__).parent / "bin" / "rpict"), *rpict_view(w, h), "-x", str(w), "-y", str(h), *params,
            *CENTRE_RAY, str(octree)]
     t = time.perf_counter()
     try:
         pic = subprocess.run(cmd, check=True, capture_output=True, timeout=timeout).stdout
     except subprocess.TimeoutExpired:
         return time.perf_counter() - t, None
-    seconds = time.perf_counter() - t
-    raw = pr.pvalue(pic, header=False, resstr=False, dataonly=True)
-    rgb = np.array([float(x) for x in raw.decode().split()]).reshape(h, w, 3)
-    return seconds, RADIANCE_EFFICACY * (0.265 * rgb[..., 0] + 0.670 * rgb[..., 1] + 0.065 * rgb[..., 2])
+    return time.perf_counter() - t, rpict_luminance(pic, w, h)
 
 
 def fit(rows: list[dict], key: str) -> float:

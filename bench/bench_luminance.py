@@ -67,26 +67,37 @@ def ours(w: int, h: int, budget: float) -> tuple[dict, np.ndarray, np.ndarray]:
              "mean_cd_m2": float(r.luminance.mean())}, r.luminance, r.stderr)
 
 
+def rpict_view(w: int, h: int) -> list[str]:
+    """rpict's view options for `camera`'s eye, aim and field at w x h pixels."""
+    vh = 2 * math.degrees(math.atan(math.tan(math.radians(FOV / 2)) * w / h))
+    d = np.subtract(LOOK, EYE)
+    return ["-vtv", "-vp", *map(str, EYE), "-vd", *map(str, d), "-vu", "0", "0", "1", "-vv", str(FOV), "-vh",
+            f"{vh:.9g}"]
+
+
+def rpict_luminance(pic: bytes, w: int, h: int) -> np.ndarray:
+    """An rpict picture as luminance, cd/m² (h, w)."""
+    import pyradiance as pr
+
+    raw = pr.pvalue(pic, header=False, resstr=False, dataonly=True)
+    rgb = np.array([float(x) for x in raw.decode().split()]).reshape(h, w, 3)
+    return RADIANCE_EFFICACY * (0.265 * rgb[..., 0] + 0.670 * rgb[..., 1] + 0.065 * rgb[..., 2])
+
+
 def radiance(w: int, h: int) -> tuple[dict, np.ndarray | None]:
     try:
         import pyradiance as pr
     except Exception as exc:   # an optional peer: say why it did not run
         return {"error": f"pyradiance could not be imported: {exc!r}"}, None
-    vh = 2 * math.degrees(math.atan(math.tan(math.radians(FOV / 2)) * w / h))
-    d = np.subtract(LOOK, EYE)
-    view = ["-vtv", "-vp", *map(str, EYE), "-vd", *map(str, d), "-vu", "0", "0", "1", "-vv", str(FOV), "-vh",
-            f"{vh:.9g}"]
     with tempfile.TemporaryDirectory() as tmp:
         try:
             octree = radiance_room(Path(tmp))
             t = time.perf_counter()
-            pic = pr.rpict(view, octree, xres=w, yres=h, params=RAD_PARAMS)
+            pic = pr.rpict(rpict_view(w, h), octree, xres=w, yres=h, params=RAD_PARAMS)
             seconds = time.perf_counter() - t
-            raw = pr.pvalue(pic, header=False, resstr=False, dataonly=True)
+            lum = rpict_luminance(pic, w, h)
         except Exception as exc:
             return {"error": f"rpict failed: {exc!r}"}, None
-    rgb = np.array([float(x) for x in raw.decode().split()]).reshape(h, w, 3)
-    lum = RADIANCE_EFFICACY * (0.265 * rgb[..., 0] + 0.670 * rgb[..., 1] + 0.065 * rgb[..., 2])
     return {"params": RAD_PARAMS, "seconds": seconds, "mean_cd_m2": float(lum.mean())}, lum
 
 

@@ -187,7 +187,7 @@ def stamp_fcstd(path: Path, doc: Document) -> int:
 
 def push_fcstd(file: Path, scene: str, server: str, linear: float | None = None, angular: float | None = None,
                relative: bool = False, *, transport: Any = None, dry_run: bool = False, on_read: Any = None,
-               upload_progress: Any = None, token: str | None = None, **_: Any) -> tuple[Any, Any, Any, float, Any]:
+               upload_progress: Any = None, token: str | None = None) -> tuple[Any, Any, Any, float, Any]:
     """`cad_adapter.push.push_file` for a .FCStd: read it in FreeCAD, push, and write the new UUIDs into the file
     (not on a dry run, not when the push fails). ``relative`` is refused: the deflections are absolute (mm,
     radians)."""

@@ -31,6 +31,8 @@ class LiveLink:
         self.running: link.Push | None = None
         self.pending = None
         self.outcomes: list[link.Outcome] = []
+        #: the export each document was last pushed with (its meshes are what the service's results refer to)
+        self.pushed: dict[str, dict] = {}
 
     def request(self, doc, delay_s: float | None = None) -> None:
         self.pending = doc
@@ -59,6 +61,8 @@ class LiveLink:
         if outcome is None:
             return
         self.poller.stop()
+        if outcome.ok:
+            self.pushed[self.running.doc.Name] = self.running.export
         self.running = None
         self._done(outcome)
         if self.pending is not None:
@@ -93,9 +97,16 @@ def show_light(doc, sensor: str) -> dict:
     put its legend over the 3D view, waiting here (scripts; the command does it in the background); answers the
     legend (`light.face_colours`). Raises `light.ServiceError` or ValueError, saying why."""
     settings = link.Settings.load()
-    export = document.export(doc, settings.linear, settings.angular)
+    export = pushed_export(doc, settings)
     result = light.simulate_surface(settings, settings.scene or doc.Label, sensor, settings.light_seconds)
     return paint(doc, export, result, sensor)
+
+
+def pushed_export(doc, settings: link.Settings) -> dict:
+    """The export ``doc`` was last pushed with in this session (the meshes the service's answer is about), else the
+    document exported now (pushed before, from the command line or another session)."""
+    pushed = LINK.pushed.get(doc.Name) if LINK is not None else None
+    return pushed if pushed is not None else document.export(doc, settings.linear, settings.angular)
 
 
 def paint(doc, export: dict, result: dict, sensor: str) -> dict:
@@ -126,7 +137,7 @@ class LightInBackground:
     def __init__(self, doc, sensor: str) -> None:
         settings = link.Settings.load()
         self.doc, self.sensor = doc, sensor
-        self.export = document.export(doc, settings.linear, settings.angular)
+        self.export = pushed_export(doc, settings)
         self.answer: dict = {}
         scene = settings.scene or doc.Label
         self.thread = threading.Thread(target=self._simulate, args=(settings, scene), daemon=True)
