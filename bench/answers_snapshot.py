@@ -6,8 +6,11 @@
 
 The queries: points forward and backward, observe spectrum and Stokes, a "lit" target scope, a grid with both
 estimators, a surface, a far field, and physics_left_out on points and on a grid (a glass room, so that the
-polarization pilot runs). Seconds, compile seconds and cost (which depend on the machine) are left out; every other
-field is compared with np.array_equal (NaN equal to NaN). Used for issue 35's moves (docs/guides/benchmarks.md).
+polarization pilot runs), and luminance (paths from the eye, `tracer.transport.radiance`): a meter and a camera
+in a room lit by an area light with a mirror wall, a camera on a caustic of a point light in a mirror (light
+tracing) and on a floor under a collimated beam. Seconds, compile seconds and cost (which depend on the machine)
+are left out; every other field is compared with np.array_equal (NaN equal to NaN). Used for issue 35's moves
+(docs/guides/benchmarks.md).
 """
 
 from __future__ import annotations
@@ -57,9 +60,34 @@ def record(path: str) -> None:
                                                   physics_left_out=["polarization"]))
     out["grid_left_out"] = fields_of(glass.grid([-1.5, -1.5, 0.1], [3, 0, 0], [0, 3, 0], 2, 2, max_photons=20000,
                                                 seed=8, physics_left_out=["polarization"]))
+    out.update(luminance_queries())
     with open(path, "wb") as f:
         pickle.dump(out, f)
     print(f"recorded {len(out)} queries to {path}")
+
+
+def luminance_queries() -> dict:
+    """Paths from the eye with each light capability: an area light (MIS), a point light seen in a mirror (light
+    tracing of a caustic), a collimated beam (light tracing always)."""
+    from tests.tracer.transport_scenes import quad, scene_of
+    from tracer.simulate import Simulation
+
+    s, ids = scene_of(quad([0, -5, 0], [10, 0, 0], [0, 10, 0]), quad([0, -5, 0], [0, 10, 0], [0, 0, 5]),
+                      quad([2, -0.5, 3], [0, 1, 0], [1, 0, 0]))   # floor (+z), mirror (+x), panel facing down
+    floor, mirror, panel = ({"type": "lambertian", "reflectance": 0.7}, {"type": "mirror", "reflectance": 0.9},
+                            {"type": "lambertian", "reflectance": 0.2})
+    mats = dict(zip(ids, (floor, mirror, panel), strict=True))
+    camera = {"type": "camera", "position": [3.0, 0.0, 2.5], "look_at": [2.0, 0.0, 0.0], "fov_deg": 30.0,
+              "width": 6, "height": 4}
+    meter = {"type": "luminance", "position": [1.5, 0.0, 1.5], "direction": [0.0, 0.0, -1.0], "aperture_deg": 10.0}
+    area = Simulation(s, mats, [{"type": "area", "instances": [ids[2]], "exitance_lm_m2": 5000.0}])
+    point = Simulation(s, mats, [{"type": "point", "position": [0.5, 0.0, 1.0], "intensity_cd": 300.0}])
+    beam = Simulation(s, mats, [{"type": "collimated", "origin": [3.0, 0.0, 2.0], "direction": [0.0, 0.0, -1.0],
+                                 "width": 1.0, "height": 1.0, "illuminance_lx": 1000.0}])
+    return {"lum_area_meter": fields_of(area.run(meter, max_photons=4000, seed=11)),
+            "lum_area_camera": fields_of(area.run(camera, max_photons=8000, seed=12)),
+            "lum_point_camera": fields_of(point.run(camera, max_photons=8000, seed=13)),
+            "lum_beam_camera": fields_of(beam.run(camera, max_photons=8000, seed=14))}
 
 
 def same(x, y) -> bool:

@@ -63,6 +63,7 @@ from tracer.optics.surfaces.dispatch import effects_of, material_spec, module_of
 
 EFFECTS = ("lambertian", "specular", "fresnel", "absorption", "scattering", "spectral", "dispersion", "coating",
            "fluorescence", "mie", "diffraction", "polarization")
+BASELINE = "lambertian"   # diffuse reflection: every scene has it, and it costs nothing
 NEEDS_WAVELENGTH = ("dispersion", "coating", "fluorescence", "mie", "diffraction")
 GRATING = "grating element"   # how the reasons name a grating (`explain_effects`), beside materials' kinds
 PHOTON_STATES = ("white", "spectral", "polarized", "polarized-spectral")
@@ -178,15 +179,15 @@ def explain_effects(materials: Iterable, lights: Iterable[dict] = (), counts: Ma
     gratings = [float(d) for d in gratings]
     by_effect: dict[str, list[str]] = {}
     for spec in dict.fromkeys(specs):
-        for e in effects_of([spec]) - {"lambertian"}:
+        for e in effects_of([spec]) - {BASELINE}:
             by_effect.setdefault(e, []).append(module_of(spec).NAME)
     if gratings:
         for e in ("diffraction", "spectral"):
             by_effect.setdefault(e, []).append(GRATING)
     polarized_lights = [i for i, b in enumerate(lights) if isinstance(b, dict) and b.get("polarization")]
     reasons: dict[str, str] = {}
-    on = {"lambertian"}
-    reasons["lambertian"] = "on: diffuse reflection is the baseline of every scene (it costs nothing)"
+    on = {BASELINE}
+    reasons[BASELINE] = "on: diffuse reflection is the baseline of every scene (it costs nothing)"
     for e in EFFECTS[1:]:
         kinds = sorted(set(by_effect.get(e, [])))
         if e == "polarization":

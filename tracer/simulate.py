@@ -47,6 +47,7 @@ import numpy as np
 
 from tracer.backends import IN_PROCESS, Shipment, is_backend
 from tracer.effects import (
+    BASELINE,
     EFFECTS,
     OPTIONAL,
     EffectError,
@@ -183,8 +184,8 @@ class Simulation:
         ok, why = backward_ok(self._specs)   # first: it names the material kind
         if not ok:
             return False, why
-        if set(effects) - {"lambertian"}:
-            return False, (f"the scene needs {sorted(set(effects) - {'lambertian'})}: point-like sources cannot be "
+        if set(effects) - {BASELINE}:
+            return False, (f"the scene needs {sorted(set(effects) - {BASELINE})}: point-like sources cannot be "
                            f"reached through specular or refractive surfaces by shadow rays")
         return connectable(self._lights)
 
@@ -330,7 +331,7 @@ class Simulation:
         if (probe.surface is not None or probe.far is not None) and which != "forward":
             raise SimulationError("the surface and far-field tallies are forward only")
         if which == "backward":
-            effects = ["lambertian"]
+            effects = [BASELINE]
         t0 = time.perf_counter()
         backend = QueryBackend(self.backend)
         if which == "forward":

@@ -12,6 +12,8 @@ from typing import Any
 import numpy as np
 
 from tracer.errors import SimulationError
+from tracer.optics.lights.base import DELTA_DIRECTION, DELTA_POSITION
+from tracer.optics.lights.dispatch import flags_of
 from tracer.sensors.base import IlluminanceResult, Readout
 
 #: what ran, as every luminance answer states it (`tracer.transport.radiance`)
@@ -23,8 +25,6 @@ LIGHT_TRACING = ("; light tracing from the point-like, collimated and rayfile li
                  "paths from the eye miss (a caustic: photons through specular surfaces; a beam): each diffuse vertex "
                  "of a photon whose first bounce was specular (any photon of a beam) joined to the eye, the paths "
                  "split so that none is counted by both; both unbiased")
-POINT_LIKE = ("point", "spot", "goniometric")
-BEAMS = ("collimated", "rayfile")
 BODY_COMMON = frozenset({"type", "id", "name", "attached_to"})   # kept by the service, ignored here
 
 
@@ -57,8 +57,9 @@ def unreachable(sim, share: np.ndarray, caustic_paths: int, light_traced: bool =
     """What the paths from the eye (and light tracing, where it ran: `light_traced`) could not find in this scene
     (see `LuminanceResult.unreachable`)."""
     bodies = sim.light_bodies
-    beams = [j for j, b in enumerate(bodies) if b.get("type") in BEAMS]
-    point_like = [j for j, b in enumerate(bodies) if b.get("type") in POINT_LIKE]
+    flags = [flags_of(b) for b in bodies]
+    beams = [j for j, f in enumerate(flags) if f & DELTA_DIRECTION]   # no shadow ray reaches them
+    point_like = [j for j, f in enumerate(flags) if f == DELTA_POSITION]
     top = float(np.max(share)) if share.size else 0.0
     lights: list[int] = []
     why = []

@@ -20,8 +20,8 @@ weight (≤ 1) as probability and divides by it: unbiased.
 Limits (why `Simulation` chooses the forward estimator for such scenes): point-like and collimated
 sources cannot be reached through mirrors or glass by a shadow ray, so only scenes whose surfaces are
 purely diffuse (each surface kind's `diffuse_only`; their albedo from `tracer.optics.surfaces.dispatch.albedo`)
-and whose lights can be connected to (each light kind's `CONNECTABLE`, sampled by `light_connect`) are
-traced backward.
+and whose lights can be connected to (a light kind's `FLAGS` without a delta direction, sampled by
+`light_connect`) are traced backward.
 """
 
 from __future__ import annotations

@@ -53,15 +53,15 @@ import numpy as np
 
 from tracer.accel.spawn import offset_ray_origin
 from tracer.accel.traverse import any_with_stacks, closest_with_stacks, new_stacks
-from tracer.elements.features import MAT_LAMBERTIAN, MAT_PART
+from tracer.effects import BASELINE
 from tracer.jit import njit
 from tracer.optics.frames import find_in_cdf, sample_cosine
 from tracer.optics.lights import light_connect, pick_light, sample_emission
-from tracer.optics.lights.base import P_I0
-from tracer.optics.lights.dispatch import AREA, COLLIMATED, RAYFILE
+from tracer.optics.lights.base import AREA_EMITTER, DELTA_DIRECTION, P_I0
+from tracer.optics.lights.dispatch import LIGHT_FLAGS, flags_of, light_flags
 from tracer.optics.polarization import N_POL
-from tracer.optics.surfaces.base import CONTINUES, STACK_FULL, arrival_normal, reflect_specular
-from tracer.optics.surfaces.dispatch import BLACK, LAMBERTIAN, feature_surface, scatter, surface_albedo
+from tracer.optics.surfaces.base import CONTINUES, DIFFUSE, STACK_FULL, arrival_normal, reflect_specular
+from tracer.optics.surfaces.dispatch import scatter, surface_albedo, surface_flags
 from tracer.rng import path_key, uniform
 
 RR_DEPTH = 3            # diffuse bounces before Russian roulette (as `tracer.transport.backward`)
@@ -114,7 +114,7 @@ def emitters(light_bodies: list[dict], n_inst: int) -> Emitters:
     le = np.zeros(max(n_inst, 1))
     light = np.full(max(n_inst, 1), -1, np.int64)
     for j, body in enumerate(light_bodies):
-        if body.get("type") == "area":
+        if flags_of(body) & AREA_EMITTER:
             for i in body["instances"]:
                 le[int(i)] += float(body["exitance_lm_m2"]) / math.pi
                 light[int(i)] = j
@@ -164,7 +164,7 @@ def light_along(L, j, ox, oy, oz, ax, ay, az):
     """Light j as a view at o with axis a sees it directly: (E⊥ at o, lx; the offset to it (3); the shadow ray's
     t_max; its distance; the cosine of its angle from the axis). E⊥ is 0 where the view sees none of it: an area
     light (the paths themselves find it), a light that gives o nothing, or one behind the view."""
-    if L.kind[j] == AREA:
+    if light_flags(L, j) & AREA_EMITTER:
         return 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0
     e, sx, sy, sz, t_max = light_connect(L, j, ox, oy, oz, ax, ay, az, 0.5, 0.5, 0.5)
     if e <= 0.0:
@@ -229,7 +229,7 @@ def light_sample(sa, L, x, y, z, nx, ny, nz, pb_scale, u0, u1, u2, u3, stack, ts
     if any_with_stacks(sa, x, y, z, sx, sy, sz, t_max, stack, tstack):
         return 0.0
     est = e / pj
-    if L.kind[j] == AREA and pb_scale > 0.0:
+    if light_flags(L, j) & AREA_EMITTER and pb_scale > 0.0:
         cos_x = (sx * nx + sy * ny + sz * nz) / math.sqrt(sx * sx + sy * sy + sz * sz)
         # the light's density in solid angle, pj d²/(cosθ_l A) = pj M cosθ_x/(π e) (e = M/π cosθ_l cosθ_x A/d²)
         pl = pj * L.par[j, P_I0] * cos_x / (math.pi * e)
@@ -294,12 +294,12 @@ def light_paths(L, effects, photons: int, width: int) -> LightPaths:
     something paths from the eye miss from it: a collimated or rayfile light (no shadow ray reaches it), or a
     point-like light and a specular surface (a caustic). `L`: the packed lights (`LightArrays`); `effects`: the
     scene's (`tracer.effects`); `photons` a batch; `width`: a camera's columns, 0 for meters."""
-    kind = np.asarray(L.kind)
-    n = len(kind)
+    flags = LIGHT_FLAGS[np.asarray(L.kind)]
+    n = len(flags)
     pick = np.diff(np.concatenate([[0.0], np.asarray(L.cdf, float)])) * float(L.flux_total[0])
-    traced = (kind != AREA) & (pick > 0.0)
-    always = ((kind == COLLIMATED) | (kind == RAYFILE)).astype(np.int64)
-    specular = any(e != "lambertian" for e in effects)
+    traced = (flags & AREA_EMITTER == 0) & (pick > 0.0)
+    always = (flags & DELTA_DIRECTION != 0).astype(np.int64)   # no shadow ray reaches it
+    specular = bool(set(effects) - {BASELINE})
     if n == 0 or not traced.any() or not (np.any(always[traced]) or specular):
         return no_light_paths(n)
     flux = float(pick[traced].sum())
@@ -427,8 +427,7 @@ def trace_light(sa, M, L, V, P, seed, batch, first, lum, counters, med, pol, sta
                 break
             if bounce == 0 and not eligible:
                 # the first bounce: specular (a mirror, glass, the specular lobe of a mix) or diffuse
-                own, _ = feature_surface(sa, inst, prim)
-                if own == MAT_LAMBERTIAN or (own == MAT_PART and M.kind[inst] == LAMBERTIAN):
+                if surface_flags(sa, M, inst, prim) == DIFFUSE:
                     truncated = False
                     break
                 if rho > 0.0 and ux * fx + uy * fy + uz * fz > 0.0:
@@ -489,8 +488,8 @@ def trace_view(sa, M, L, V, E, q, key, counters, med, pol, stack, tstack):
         fx, fy, fz = arrival_normal(ngx, ngy, ngz, dx, dy, dz)
         sx, sy, sz = offset_ray_origin(px, py, pz, ngx, ngy, ngz, fx, fy, fz)
         rho = surface_albedo(sa, M, inst, prim)
-        own, _ = feature_surface(sa, inst, prim)   # an element's feature with a surface of its own
-        lambertian = own == MAT_LAMBERTIAN or (own == MAT_PART and M.kind[inst] == LAMBERTIAN)
+        flags = surface_flags(sa, M, inst, prim)   # an element's feature may have a surface of its own
+        lambertian = flags == DIFFUSE   # only a Lambertian lobe: sampled here, by its cosine
         if rho > 0.0:
             lobe = 1.0 / math.pi if lambertian else rho / math.pi   # the diffuse lobe's density / cosθ
             lum += w * rho / math.pi * light_sample(sa, L, sx, sy, sz, fx, fy, fz, lobe, uniform(key, dim),
@@ -517,7 +516,7 @@ def trace_view(sa, M, L, V, E, q, key, counters, med, pol, stack, tstack):
                 w /= survive
             continue
         # a specular surface (met, whether it reflects or absorbs)
-        if rho == 0.0 and M.kind[inst] != BLACK and own == MAT_PART:
+        if rho == 0.0 and flags != 0:
             if from_eye:
                 through_specular = 1.0
             else:

@@ -21,7 +21,17 @@ from tracer.jit import njit
 from tracer.optics.elements.base import parse_axis
 from tracer.optics.polarization import N_POL, ON, S1, S3, E
 from tracer.optics.surfaces import dispatch
-from tracer.optics.surfaces.base import ABSORBED, CONTINUES, STACK_FULL, MaterialError, spec_from_body
+from tracer.optics.surfaces.base import (
+    ABSORBED,
+    CONTINUES,
+    DIFFUSE,
+    GLOSSY,
+    SPECULAR,
+    STACK_FULL,
+    TRANSMITS,
+    MaterialError,
+    spec_from_body,
+)
 from tracer.optics.surfaces.measured_brdf import parse_table
 from tracer.optics.surfaces.mirror import parse_metal
 from tracer.rng import path_key
@@ -337,6 +347,7 @@ def check_contract(case: Case, out: np.ndarray, med: np.ndarray) -> None:
     assert np.all(c != 0.0), f"{case}: an outgoing direction in the surface's plane"
     far = np.zeros(len(out), bool)
     far[alive] = c < 0
+    check_flags(case, d_out, alive, far)
     # the medium stack: only a solid's transmitted photon pushes (entering) or pops (leaving) the solid itself
     same_depth = depth == case.depth0
     same_med = (med == case.med0).all(axis=1)
@@ -350,6 +361,26 @@ def check_contract(case: Case, out: np.ndarray, med: np.ndarray) -> None:
     else:
         assert (depth[far] == 1).all() and (med[far, 0] == case.inst).all(), \
             f"{case}: a photon entering the solid did not push it"
+
+
+def check_flags(case: Case, d_out: np.ndarray, alive: np.ndarray, far: np.ndarray) -> None:
+    """The kind's `FLAGS` say what it may do, and it does nothing else: no photon continues from a kind without
+    lobes, none goes through one without `TRANSMITS`, and one without a spread lobe (`DIFFUSE`, `GLOSSY`) sends each
+    photon along an exact direction (mirrored, straight on, refracted), one without `SPECULAR` none."""
+    flags = case.module.FLAGS
+    assert flags == dispatch.SURFACE_FLAGS[dispatch.KIND_OF[case.module.NAME]]
+    assert not (flags == 0 and alive.any()), f"{case}: FLAGS 0 (absorbs everything), but photons continue"
+    assert flags & TRANSMITS or not far.any(), f"{case}: photons go through, FLAGS lack TRANSMITS"
+    lobes = ["mirror", "straight"] + (["refract"] if hasattr(case.spec, "ior") else [])
+    exact = np.zeros(len(d_out), bool)
+    for lobe in lobes:
+        e = exact_direction(lobe, case, case.spec)
+        if e is not None:
+            exact |= alive & (np.linalg.norm(d_out - e, axis=1) < DIR_TOL)
+    if not flags & (DIFFUSE | GLOSSY):
+        assert (exact == alive).all(), f"{case}: FLAGS state no spread lobe, but a photon leaves off every exact one"
+    if not flags & SPECULAR:
+        assert not exact.any(), f"{case}: FLAGS lack SPECULAR, but {int(exact.sum())} photons leave along an exact one"
 
 
 def check_closed_form(case: Case, out: np.ndarray, med: np.ndarray) -> str | None:

@@ -41,7 +41,16 @@ from tests.tracer.transport_scenes import box, mesh_area, quad, scene_of
 from tracer.jit import njit
 from tracer.optics.lights import LightError, connectable, light_connect, pack_lights
 from tracer.optics.lights import dispatch as lights_dispatch
-from tracer.optics.lights.base import P_AXIS, P_FLUX, P_POS, SHADOW_SHORTEN
+from tracer.optics.lights.base import (
+    AREA_EMITTER,
+    DELTA_DIRECTION,
+    DELTA_POSITION,
+    P_AXIS,
+    P_FLUX,
+    P_POS,
+    SHADOW_SHORTEN,
+    shadow_rays_reach,
+)
 from tracer.photometry.files import parse_photometry
 
 FIX = Path(__file__).resolve().parents[2] / "fixtures" / "photometry"
@@ -197,8 +206,9 @@ def test_every_kind_keeps_the_contract_and_its_id_is_its_position():
         assert dataclasses.is_dataclass(module.Spec) and module.Spec.__dataclass_params__.frozen
         assert callable(module.Spec.from_body) and callable(module.pack)
         assert callable(module.sample.py_func) and callable(module.connect.py_func)   # jitted
-        assert isinstance(module.CONNECTABLE, bool) and module.EFFECTS == ()
-        if not module.CONNECTABLE:
+        assert module.EFFECTS == () and lights_dispatch.LIGHT_FLAGS[k] == module.FLAGS
+        assert module.FLAGS in (DELTA_POSITION, DELTA_DIRECTION, DELTA_POSITION | DELTA_DIRECTION, AREA_EMITTER)
+        if not shadow_rays_reach(module.FLAGS):
             assert module.NAME in module.WHY_NOT_CONNECTABLE
         assert isinstance(module.Spec.from_body(BODIES[module.NAME], "light 0"), module.Spec)
     d = lights_dispatch
@@ -340,9 +350,17 @@ def test_emission_carries_the_stated_flux_from_where_the_kind_says(body):
     if on_surface.any():
         assert np.all(np.abs(np.linalg.norm(n[on_surface], axis=1) - 1) < 1e-12)
         assert np.all(np.einsum("ij,ij->i", d[on_surface], n[on_surface]) > 0), f"{name}: emitted behind its surface"
+    # the flags are what the samples show: an area emitter's photons start on its surfaces, a delta position's at
+    # one point, a delta direction's never where a shadow ray could find them (its `connect` gives nothing)
+    flags = lights_dispatch.LIGHT_FLAGS[L.kind[0]]
+    assert bool(flags & AREA_EMITTER) == bool(on_surface.all()) and (on_surface.all() or not on_surface.any()), name
+    if flags == DELTA_POSITION:
+        assert np.all(o == o[0]), f"{name}: FLAGS say a delta position, but photons start at several points"
+    if flags & DELTA_DIRECTION:
+        assert light_connect(L, 0, *(o[0] + d[0]), *-d[0], 0.3, 0.6, 0.9)[0] == 0.0, name
     if np.all(o == o[0]):
         np.testing.assert_array_equal(o[0], L.par[0, P_POS:P_POS + 3])
-        if lights_dispatch.KINDS[L.kind[0]].CONNECTABLE:
+        if shadow_rays_reach(flags):
             check_intensity(L, d, f, flux, name)
     WHERE[name](body, L, mesh, o, d, f, n, on_surface)
 

@@ -23,10 +23,11 @@ from tracer.jit import njit
 from tracer.optics.frames import sample_cosine
 from tracer.optics.polarization import depolarize
 from tracer.optics.spectra import grid_or_value, scalar, varies
-from tracer.optics.surfaces.base import ABSORBED, CONTINUES, arrival_normal, bounds, param
+from tracer.optics.surfaces.base import ABSORBED, CONTINUES, DIFFUSE, TRANSMITS, arrival_normal, bounds, param
 from tracer.rng import uniform
 
 NAME = "diffuser"
+FLAGS = DIFFUSE | TRANSMITS
 
 
 @dataclass(frozen=True)

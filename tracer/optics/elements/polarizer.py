@@ -26,10 +26,11 @@ import numpy as np
 from tracer.jit import njit
 from tracer.optics.elements.base import parse_axis, sheet_axis
 from tracer.optics.polarization import ON, across, apply_interface, interface_power, rotate_into
-from tracer.optics.surfaces.base import ABSORBED, CONTINUES, bounds
+from tracer.optics.surfaces.base import ABSORBED, CONTINUES, SPECULAR, TRANSMITS, bounds
 from tracer.rng import uniform
 
 NAME = "polarizer"
+FLAGS = SPECULAR | TRANSMITS
 
 
 @dataclass(frozen=True)

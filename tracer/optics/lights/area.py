@@ -28,7 +28,16 @@ import numpy as np
 from tracer.jit import njit
 from tracer.optics.fields import BodyField, fields
 from tracer.optics.frames import find_in_cdf, sample_cosine
-from tracer.optics.lights.base import P_FLUX, P_I0, SHADOW_SHORTEN, LightError, Packing, check_fields, field_value
+from tracer.optics.lights.base import (
+    AREA_EMITTER,
+    P_FLUX,
+    P_I0,
+    SHADOW_SHORTEN,
+    LightError,
+    Packing,
+    check_fields,
+    field_value,
+)
 from tracer.optics.polarization import unit_axis
 
 NAME = "area"
@@ -41,7 +50,7 @@ FIELDS = fields(
               required=False))
 EXAMPLE = {"type": "area", "name": "ceiling panel", "node": "room/ceiling_panel", "exitance_lm_m2": 2000.0}
 EFFECTS = ()
-CONNECTABLE = True
+FLAGS = AREA_EMITTER
 
 
 @dataclass(frozen=True)

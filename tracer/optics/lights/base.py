@@ -11,10 +11,12 @@ once in `dispatch.KINDS` (its kind id is its position there). Each module holds:
 - ``EXAMPLE`` (optional): a body the API docs show.
 - ``EFFECTS``: the effects (`tracer.effects`) the light needs beyond the baseline: ``()`` for every
   current kind.
-- ``CONNECTABLE``: whether a shadow ray can reach the light, so that next-event estimation
-  (`tracer.transport.backward`) can sample it: True for point, spot, goniometric and area lights, False for a
-  collimated beam (no point of it lies in a direction a shadow ray could pick). A kind that is not
-  connectable says why in ``WHY_NOT_CONNECTABLE`` (a sentence naming it, for error messages).
+- ``FLAGS``: what the light is, as transport asks it (pbrt's light flags; transport never names a kind): a sum of
+  `DELTA_POSITION` (it emits from points no ray can hit: point, spot, goniometric; a ray file's exact rays),
+  `DELTA_DIRECTION` (each point emits in one direction: a collimated beam, a ray file) and `AREA_EMITTER` (it emits
+  from the surfaces of parts, which paths can hit). A shadow ray can reach a light unless it is `DELTA_DIRECTION`
+  (`shadow_rays_reach`); such a kind says why not in ``WHY_NOT_CONNECTABLE`` (a sentence naming it, for error
+  messages).
 - ``Spec``: a frozen dataclass; ``Spec.from_body(body: dict, where: str) -> Spec`` validates a light
   body and raises `LightError` naming the light (`where`) and the field.
 - ``pack(spec, j, out: Packing, where: str) -> float``: fills row j of ``out.par`` (the ``P_*``
@@ -55,7 +57,15 @@ N_LPAR = 20
 P_POS, P_AXIS, P_T, P_B = 0, 3, 6, 9
 P_I0, P_COS_OUT, P_COS_IN, P_R, P_H, P_FLUX, P_SOLID, P_SHAPE = 12, 13, 14, 15, 16, 17, 18, 19
 
+DELTA_POSITION, DELTA_DIRECTION, AREA_EMITTER = 1, 2, 4   # a kind's FLAGS (see above)
 SHADOW_SHORTEN = 1e-6  # a shadow ray toward a point on an emitting surface stops this fraction short of it
+
+
+
+def shadow_rays_reach(flags: int) -> bool:
+    """Whether next-event estimation can reach a light of these `FLAGS` by a shadow ray: not a delta direction."""
+    return not flags & DELTA_DIRECTION
+
 
 COMMON_FIELDS = frozenset({"id", "name", "attached_to", "type"})  # kept by the service, ignored here
 SPECTRAL_FIELDS = frozenset({"spectrum", "flux_w", "polarization"})  # any kind's; `dispatch.pack_lights` reads them

@@ -31,6 +31,7 @@ from tracer.jit import njit
 from tracer.optics.fields import BodyField, fields
 from tracer.optics.frames import onb
 from tracer.optics.lights.base import (
+    DELTA_DIRECTION,
     MAX_FLUX_LM,
     P_AXIS,
     P_B,
@@ -64,7 +65,7 @@ EXAMPLE = {"type": "collimated", "name": "sun", "origin": [0.0, 0.0, 3.0], "dire
            "height": 4.0, "up": [0.0, 1.0, 0.0], "illuminance_lx": 100000.0,
            "spectrum": {"type": "blackbody", "kelvin": 5778.0}}
 EFFECTS = ()
-CONNECTABLE = False
+FLAGS = DELTA_DIRECTION
 WHY_NOT_CONNECTABLE = "a collimated beam cannot be reached by shadow rays"
 DISK, RECTANGLE = 0, 1  # the aperture's shape, in the P_SHAPE column
 
@@ -158,5 +159,5 @@ def sample(L, j, u0, u1, u2, u3, u4):
 
 @njit(cache=True, _nrt=False)
 def connect(L, j, x, y, z, nx, ny, nz, u1, u2, u3):
-    """Nothing: a parallel beam cannot be reached by a shadow ray (CONNECTABLE is False)."""
+    """Nothing: a parallel beam cannot be reached by a shadow ray (its FLAGS hold DELTA_DIRECTION)."""
     return 0.0, 0.0, 0.0, 0.0, 0.0

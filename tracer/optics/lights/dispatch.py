@@ -16,13 +16,24 @@ from tracer.jit import kind_switch, kind_table, njit
 from tracer.optics import spectra
 from tracer.optics.fields import BodyField
 from tracer.optics.lights import area, collimated, goniometric, point, rayfile, spot
-from tracer.optics.lights.base import FLUX_W, MAX_FLUX_LM, P_FLUX, LightArrays, LightError, Packing
+from tracer.optics.lights.base import (
+    FLUX_W,
+    MAX_FLUX_LM,
+    P_FLUX,
+    LightArrays,
+    LightError,
+    Packing,
+    shadow_rays_reach,
+)
 from tracer.optics.polarization import PolarizationError, light_polarization
 from tracer.optics.spectra import sample_grid
 
 KINDS = (point, spot, collimated, goniometric, area, rayfile)
 POINT, SPOT, COLLIMATED, GONIOMETRIC, AREA, RAYFILE = 0, 1, 2, 3, 4, 5
 KIND_OF_NAME = {module.NAME: k for k, module in enumerate(KINDS)}
+#: each kind's capability flags (`base`: DELTA_POSITION, DELTA_DIRECTION, AREA_EMITTER), indexed by kind id: what the
+#: transport asks of a light instead of its kind
+LIGHT_FLAGS = np.array([module.FLAGS for module in KINDS], np.int64)
 
 
 def pack_lights(lights: list[dict], scene=None, sensor_ids: frozenset = frozenset()) -> LightArrays:
@@ -137,9 +148,20 @@ def polarized_lights(L: LightArrays) -> LightArrays:
 def connectable(L: LightArrays) -> tuple[bool, str]:
     """Whether next-event estimation can sample every light of L, and if not why ("" if it can)."""
     for k in sorted(set(int(k) for k in L.kind)):
-        if not KINDS[k].CONNECTABLE:
+        if not shadow_rays_reach(KINDS[k].FLAGS):
             return False, KINDS[k].WHY_NOT_CONNECTABLE
     return True, ""
+
+
+def flags_of(body: dict) -> int:
+    """The capability flags (`LIGHT_FLAGS`) of a validated light body's kind."""
+    return KINDS[KIND_OF_NAME[body["type"]]].FLAGS
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def light_flags(L, j):
+    """Light j's capability flags (`LIGHT_FLAGS`)."""
+    return LIGHT_FLAGS[L.kind[j]]
 
 
 def _sample_signature(head):

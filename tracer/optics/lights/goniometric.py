@@ -32,6 +32,7 @@ from tracer.jit import njit
 from tracer.optics.fields import BodyField, fields
 from tracer.optics.frames import find_in_cdf
 from tracer.optics.lights.base import (
+    DELTA_POSITION,
     P_AXIS,
     P_B,
     P_FLUX,
@@ -61,7 +62,7 @@ IES_EXAMPLE = ("IESNA:LM-63-2002\n[TEST]LumenLink example\n[MANUFAC]LumenLink\n[
 EXAMPLE = {"type": "goniometric", "name": "downlight", "position": [0.0, 0.0, 2.8], "format": "ies",
            "data": IES_EXAMPLE}
 EFFECTS = ()
-CONNECTABLE = True
+FLAGS = DELTA_POSITION
 
 
 def _frame(body: dict, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

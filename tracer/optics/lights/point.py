@@ -21,6 +21,7 @@ import numpy as np
 from tracer.jit import njit
 from tracer.optics.fields import BodyField, fields
 from tracer.optics.lights.base import (
+    DELTA_POSITION,
     FLUX_LM,
     INTENSITY_CD,
     P_FLUX,
@@ -39,7 +40,7 @@ FIELDS = fields(BodyField("position", "point", "[x, y, z], m (world, or the atta
                 INTENSITY_CD, FLUX_LM)
 EXAMPLE = {"type": "point", "name": "bulb", "position": [0.0, 0.0, 2.0], "intensity_cd": 100.0}
 EFFECTS = ()
-CONNECTABLE = True
+FLAGS = DELTA_POSITION
 
 
 @dataclass(frozen=True)

@@ -46,6 +46,8 @@ from tracer.optics.fields import BodyField, fields
 from tracer.optics.frames import find_in_cdf
 from tracer.optics.lights import tm25
 from tracer.optics.lights.base import (
+    DELTA_DIRECTION,
+    DELTA_POSITION,
     FLUX_LM,
     P_AXIS,
     P_B,
@@ -78,7 +80,7 @@ FIELDS = fields(
 EXAMPLE = {"type": "rayfile", "name": "LED near field", "position": [0.0, 0.0, 0.01], "units": "mm",
            "data": "# x y z l m n flux\n0 0 0 0 0 1 0.5\n0.1 0 0 0.6 0 0.8 0.5\n"}
 EFFECTS = ()
-CONNECTABLE = False
+FLAGS = DELTA_POSITION | DELTA_DIRECTION
 WHY_NOT_CONNECTABLE = "a 'rayfile' light is a set of exact rays, which a shadow ray cannot pick"
 
 

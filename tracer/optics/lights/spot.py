@@ -29,6 +29,7 @@ from tracer.jit import njit
 from tracer.optics.fields import BodyField, fields
 from tracer.optics.frames import onb
 from tracer.optics.lights.base import (
+    DELTA_POSITION,
     FLUX_LM,
     INTENSITY_CD,
     P_AXIS,
@@ -61,7 +62,7 @@ FIELDS = fields(
 EXAMPLE = {"type": "spot", "name": "downlight", "position": [1.0, 0.0, 2.5], "direction": [0.0, 0.0, -1.0],
            "cone_deg": 30.0, "falloff_deg": 25.0, "flux_lm": 800.0, "spectrum": {"type": "blackbody", "kelvin": 3000.0}}
 EFFECTS = ()
-CONNECTABLE = True
+FLAGS = DELTA_POSITION
 
 
 def spot_solid_angle(cos_out: float, cos_in: float) -> float:

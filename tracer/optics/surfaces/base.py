@@ -15,6 +15,11 @@ A surface kind is one module in this folder (or in `tracer/optics/elements/`, fo
   and `mparam` by photons that carry a wavelength. A ``coating`` field (`tracer.optics.coating`) is packed
   into ``layers``/``coat`` the same way.
 - ``effects(spec) -> tuple[str, ...]``: the effects it calls for (`tracer.effects.EFFECTS`).
+- ``FLAGS``: the lobes the kind may have, as transport asks them (pbrt's BxDF flags; transport never names a
+  kind): a sum of `DIFFUSE` (a Lambertian lobe, of the albedo `dispatch.surface_albedo` gives), `GLOSSY` (a spread
+  lobe that is not Lambertian), `SPECULAR` (a delta lobe: a mirror, a refraction) and `TRANSMITS` (light may go
+  through); 0 for a surface that absorbs everything. Where the flags are exactly `DIFFUSE` the paths from the eye
+  sample the lobe themselves (`tracer.transport.radiance`).
 - ``diffuse_only(spec) -> bool``: whether the backward estimator can follow it (it reflects only
   diffusely; a black surface is diffuse with albedo 0). A kind that can be diffuse also has the jitted
   ``albedo(M, inst)``, its diffuse albedo, and a branch in `dispatch.albedo` (0 for every other kind).
@@ -57,6 +62,7 @@ from tracer.errors import TracerError
 from tracer.jit import njit
 from tracer.optics import spectra
 
+DIFFUSE, GLOSSY, SPECULAR, TRANSMITS = 1, 2, 4, 8   # a kind's FLAGS (see above); 0: absorbs everything
 N_PAR = 10          # parameter row of a surface (a kind's `row` may be shorter: the rest is zero)
 N_MPAR = 8          # parameter row of the medium inside a solid
 NONE = -1           # no material: a sensor instance or an id the scene does not hold

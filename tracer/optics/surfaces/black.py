@@ -17,6 +17,7 @@ from tracer.jit import njit
 from tracer.optics.surfaces.base import ABSORBED, N_PAR
 
 NAME = "black"
+FLAGS = 0   # absorbs everything
 
 
 @dataclass(frozen=True)

@@ -46,7 +46,9 @@ from tracer.optics.surfaces.base import (
     CONTINUES,
     N_MPAR,
     NO_MEDIUM,
+    SPECULAR,
     STACK_FULL,
+    TRANSMITS,
     MaterialError,
     arrival_normal,
     bounds,
@@ -59,6 +61,7 @@ from tracer.optics.thinfilm import stack_mueller
 from tracer.rng import uniform
 
 NAME = "dielectric"
+FLAGS = SPECULAR | TRANSMITS
 
 
 @dataclass(frozen=True)

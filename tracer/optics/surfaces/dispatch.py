@@ -61,6 +61,11 @@ KINDS = (black, lambertian, mirror, mix, dielectric, diffuser, polarizer, retard
 (BLACK, LAMBERTIAN, MIRROR, MIX, DIELECTRIC, DIFFUSER, POLARIZER, RETARDER, MICROFACET, MEASURED_BRDF,
  ROUGH_DIELECTRIC) = range(len(KINDS))
 KIND_OF = {m.NAME: k for k, m in enumerate(KINDS)}
+#: each kind's lobes (`base`: DIFFUSE, GLOSSY, SPECULAR, TRANSMITS; 0 absorbs), indexed by kind id, and those of an
+#: element feature's own surface (`fx.MAT_BLACK`, `fx.MAT_LAMBERTIAN`): what the transport asks instead of a kind
+SURFACE_FLAGS = np.array([m.FLAGS for m in KINDS], np.int64)
+FEATURE_FLAGS = np.zeros(max(fx.MAT_BLACK, fx.MAT_LAMBERTIAN) + 1, np.int64)
+FEATURE_FLAGS[fx.MAT_BLACK], FEATURE_FLAGS[fx.MAT_LAMBERTIAN] = black.FLAGS, lambertian.FLAGS
 _MODULE_OF_SPEC = {m.Spec: m for m in KINDS}
 
 
@@ -289,6 +294,15 @@ def feature_surface(sa, inst, prim):
             if k >= 0:
                 return k, sa.el_f[r, fx.FRHO]
     return fx.MAT_PART, 0.0
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def surface_flags(sa, M, inst, prim):
+    """The lobes (`SURFACE_FLAGS`) of the surface a hit meets: an element feature's own, else the instance's kind's."""
+    own, _ = feature_surface(sa, inst, prim)
+    if own != fx.MAT_PART:
+        return FEATURE_FLAGS[own]
+    return SURFACE_FLAGS[M.kind[inst]]
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")

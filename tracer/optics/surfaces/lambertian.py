@@ -20,10 +20,11 @@ from tracer.jit import njit
 from tracer.optics.frames import sample_cosine
 from tracer.optics.polarization import depolarize
 from tracer.optics.spectra import scalar, varies
-from tracer.optics.surfaces.base import ABSORBED, CONTINUES, N_PAR, arrival_normal, bounds, param
+from tracer.optics.surfaces.base import ABSORBED, CONTINUES, DIFFUSE, N_PAR, arrival_normal, bounds, param
 from tracer.rng import uniform
 
 NAME = "lambertian"
+FLAGS = DIFFUSE
 
 
 @dataclass(frozen=True)

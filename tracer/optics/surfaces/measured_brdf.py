@@ -51,10 +51,19 @@ from tracer.optics.frames import onb
 from tracer.optics.polarization import depolarize
 from tracer.optics.spectra import GRID_N
 from tracer.optics.surfaces import zemax_bsdf
-from tracer.optics.surfaces.base import ABSORBED, CONTINUES, MaterialError, arrival_normal, optional, specular_normal
+from tracer.optics.surfaces.base import (
+    ABSORBED,
+    CONTINUES,
+    GLOSSY,
+    MaterialError,
+    arrival_normal,
+    optional,
+    specular_normal,
+)
 from tracer.rng import uniform
 
 NAME = "measured_brdf"
+FLAGS = GLOSSY
 MAX_VALUES = 500_000      # brdf values in one table
 ALBEDO_TOL = 1e-9
 

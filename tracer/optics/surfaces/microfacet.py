@@ -41,6 +41,7 @@ from tracer.optics.spectra import WHITE_NM, scalar, varies
 from tracer.optics.surfaces.base import (
     ABSORBED,
     CONTINUES,
+    GLOSSY,
     arrival_normal,
     bounds,
     optional,
@@ -52,6 +53,7 @@ from tracer.optics.thinfilm import stack_mueller, stack_reflectance
 from tracer.rng import uniform
 
 NAME = "microfacet"
+FLAGS = GLOSSY
 ALPHA_MIN = 1e-4
 
 

@@ -34,6 +34,7 @@ from tracer.optics.spectra import WHITE_NM, scalar, varies
 from tracer.optics.surfaces.base import (
     ABSORBED,
     CONTINUES,
+    SPECULAR,
     MaterialError,
     arrival_normal,
     bounds,
@@ -46,6 +47,7 @@ from tracer.optics.thinfilm import stack_mueller, stack_reflectance
 from tracer.rng import uniform
 
 NAME = "mirror"
+FLAGS = SPECULAR
 
 
 def parse_metal(v, name: str, where: str) -> tuple[float, float]:

@@ -19,10 +19,11 @@ import numpy as np
 from tracer.jit import njit
 from tracer.optics.frames import sample_cosine
 from tracer.optics.polarization import ON, depolarize, enter_plane, leave_plane
-from tracer.optics.surfaces.base import ABSORBED, CONTINUES, arrival_normal, bounds, reflect_specular
+from tracer.optics.surfaces.base import ABSORBED, CONTINUES, DIFFUSE, SPECULAR, arrival_normal, bounds, reflect_specular
 from tracer.rng import uniform
 
 NAME = "mix"
+FLAGS = DIFFUSE | SPECULAR
 
 
 @dataclass(frozen=True)

@@ -62,7 +62,9 @@ from tracer.optics.surfaces import dielectric
 from tracer.optics.surfaces.base import (
     ABSORBED,
     CONTINUES,
+    GLOSSY,
     STACK_FULL,
+    TRANSMITS,
     arrival_normal,
     bounds,
     optional,
@@ -75,6 +77,7 @@ from tracer.optics.thinfilm import stack_mueller
 from tracer.rng import uniform
 
 NAME = "rough_dielectric"
+FLAGS = GLOSSY | TRANSMITS
 
 
 @dataclass(frozen=True)
