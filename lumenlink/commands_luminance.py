@@ -5,29 +5,42 @@ rest."""
 from __future__ import annotations
 
 import json
-from typing import Any
+from typing import Annotated, Any
 
+import typer
 from rich.console import Console
 
 from lumenlink.client import Client, LumenLinkError
 from lumenlink.commands import DIRECTION, EXIT_OK, _pm, _run, vec3
+from lumenlink.options import DEFAULT_SERVER, JsonOut, SceneOpt, Seed, Server
 
 
-def uniformity(scene: str, server: str, direction: str, nine_points: tuple[str, str, str] | None = None,
-               points: list[str] | None = None, distance: float | None = None, aperture: float | None = None,
-               target: float | None = None, max_seconds: float | None = None, max_photons: int | None = None,
-               seed: int = 0, json_out: bool = False) -> int:
-    """Luminance meters at points (or the 9-point figure of a rectangle): each reading and the uniformity, with
-    error bars."""
+def uniformity(
+    scene: SceneOpt,
+    direction: Annotated[str, typer.Option(help="The way the meters look, X,Y,Z (e.g. 0,0,-1: down).")],
+    nine_points: Annotated[tuple[str, str, str] | None, typer.Option(
+        metavar="ORIGIN U V", help="The 9-point figure of the rectangle ORIGIN + s*U + t*V (each X,Y,Z, m).")] = None,
+    point: Annotated[list[str] | None, typer.Option(help="A point a meter looks at, X,Y,Z (m); repeat it.")] = None,
+    distance: Annotated[float | None, typer.Option(help="How far each meter stands back from its point, m "
+                                                        "(default 0.5).")] = None,
+    aperture: Annotated[float | None, typer.Option(help="Each meter's acceptance angle, degrees (default 1).")] = None,
+    target: Annotated[float | None, typer.Option(help="Stop at this relative error (0.01 = 1 %).")] = None,
+    max_seconds: Annotated[float | None, typer.Option(help="Time budget, s.")] = None,
+    max_photons: Annotated[int | None, typer.Option(help="Path budget (all meters).")] = None,
+    seed: Seed = 0,
+    server: Server = DEFAULT_SERVER,
+    json_out: JsonOut = False,
+) -> int:
+    """Luminance uniformity over a grid of meters: each reading (CSV on stdout) and min/max, min/mean ± error."""
     def work(console: Console) -> int:
-        if (nine_points is None) == (not points):
+        if (nine_points is None) == (not point):
             raise LumenLinkError("give --nine-points ORIGIN U V or one or more --point X,Y,Z", usage=True)
         d = vec3(direction, "--direction", DIRECTION)
         kwargs: dict[str, Any] = {}
         if nine_points is not None:
             kwargs["nine_points"] = [vec3(t, "--nine-points") for t in nine_points]
         else:
-            kwargs["points"] = [vec3(t, "--point") for t in points or []]
+            kwargs["points"] = [vec3(t, "--point") for t in point or []]
         with Client(server) as ll:
             info = ll.scene(scene)
             out = ll.uniformity(info, direction=d, distance=distance, aperture_deg=aperture, target=target,
@@ -47,13 +60,24 @@ def uniformity(scene: str, server: str, direction: str, nine_points: tuple[str, 
     return _run(work)
 
 
-def conoscope(scene: str, server: str, point: str, normal: str, theta_max: float | None = None,
-              rings: int | None = None, azimuths: int | None = None, distance: float | None = None,
-              aperture: float | None = None, target: float | None = None, max_seconds: float | None = None,
-              max_photons: int | None = None, seed: int = 0, png: str | None = None, json_out: bool = False) -> int:
-    """The luminance a point of a lit face shows against viewing angle (`Client.conoscope`): one CSV row per meter
-    (ring, azimuth, polar and azimuth angles, cd/m², its error) and the on-axis value and flatness; ``png``: also its
-    polar plot there."""
+def conoscope(
+    scene: SceneOpt,
+    point: Annotated[str, typer.Option(help="The point of the lit face, X,Y,Z (m).")],
+    normal: Annotated[str, typer.Option(help="The face's normal there, X,Y,Z (the viewing angles' axis).")],
+    theta_max: Annotated[float | None, typer.Option(help="Largest polar angle, degrees (<= 85; default 80).")] = None,
+    rings: Annotated[int | None, typer.Option(help="Polar angles from the normal to --theta-max.")] = None,
+    azimuths: Annotated[int | None, typer.Option(help="Meters per ring.")] = None,
+    distance: Annotated[float | None, typer.Option(help="How far each meter stands back, m.")] = None,
+    aperture: Annotated[float | None, typer.Option(help="Each meter's acceptance angle, degrees.")] = None,
+    target: Annotated[float | None, typer.Option(help="Stop at this relative error (0.01 = 1 %).")] = None,
+    max_seconds: Annotated[float | None, typer.Option(help="Time budget, s.")] = None,
+    max_photons: Annotated[int | None, typer.Option(help="Path budget (all meters).")] = None,
+    seed: Seed = 0,
+    png: Annotated[str | None, typer.Option(help="Also write the polar plot to this PNG file.")] = None,
+    server: Server = DEFAULT_SERVER,
+    json_out: JsonOut = False,
+) -> int:
+    """A conoscopic view: the luminance one point of a lit face shows against viewing angle (CSV on stdout)."""
     def work(console: Console) -> int:
         kwargs: dict[str, Any] = dict(theta_max_deg=theta_max, rings=rings, azimuths=azimuths, distance=distance,
                                       aperture_deg=aperture, target=target, max_seconds=max_seconds,
@@ -81,5 +105,38 @@ def conoscope(scene: str, server: str, point: str, normal: str, theta_max: float
         console.print(f"on axis {_pm(out['on_axis'], out['on_axis_stderr'])} cd/m²; min/max "
                       f"{_pm(f['min_max'], f['min_max_stderr'])}, min/mean {_pm(f['min_mean'], f['min_mean_stderr'])}; "
                       f"{out['photons']:,} paths in {out['seconds']:.2f} s" + (f"; plot: {png}" if png else ""))
+        return EXIT_OK
+    return _run(work)
+
+
+def ugr(
+    scene: SceneOpt,
+    sensor: Annotated[str, typer.Option(help="The camera (id or name): the observer at its position, looking along "
+                                             "its line of sight.")],
+    background: Annotated[float | None, typer.Option(help="Background luminance L_b, cd/m² (CIE 117: E_ind/π); "
+                                                          "default: the image's non-source pixels.")] = None,
+    threshold: Annotated[float | None, typer.Option(help="Pixels at least this bright (cd/m²) above the line of "
+                                                         "sight are luminaires; default 5 × the image's mean.")] = None,
+    simulate_first: Annotated[bool, typer.Option("--simulate/--latest", help="Simulate the camera first (default), "
+                                                 "or rate its latest image.")] = True,
+    max_seconds: Annotated[float | None, typer.Option(help="Time budget of the camera, s.")] = None,
+    max_photons: Annotated[int | None, typer.Option(help="Path budget of the camera.")] = None,
+    seed: Seed = 0,
+    server: Server = DEFAULT_SERVER,
+    json_out: JsonOut = False,
+) -> int:
+    """The unified glare rating (CIE 117) a camera's observer sees, with its error bar."""
+    def work(console: Console) -> int:
+        with Client(server) as ll:
+            info = ll.scene(scene)
+            if simulate_first:
+                ll.simulate(info, sensor, max_seconds=max_seconds, max_photons=max_photons, seed=seed)
+            out = ll.ugr(info, sensor, background=background, threshold=threshold)
+        if json_out:
+            print(json.dumps(out))
+            return EXIT_OK
+        bg = _pm(out["background"], out["background_stderr"])
+        print(f"UGR {out['ugr']:.2f} ± {out['stderr']:.2f}  (background {bg} cd/m², {out['source_pixels']} source "
+              f"pixels ≥ {out['threshold']:.4g} cd/m², revision {out['revision']})")
         return EXIT_OK
     return _run(work)

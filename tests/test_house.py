@@ -60,7 +60,7 @@ PACKAGES = ("tracer", "service", "cad_adapter", "lumenlink", "bench")
 MAX_FUNCTION_LINES = 80
 #: what exceeds the measures today (issue 55), with its size in lines: to be split, never to grow
 OVER = {
-    "module cad_adapter/matching.py": 756, "module lumenlink/commands.py": 662,
+    "module cad_adapter/matching.py": 756,
     "module lumenlink/demo.py": 619, "module bench/bench_gpu.py": 831, "module bench/bench_tracer.py": 626,
     "function tracer/elements/grating_body.py:check": 114, "function tracer/elements/pack.py:pack": 106,
     "function tracer/jit.py:kind_table": 87, "function tracer/optics/surfaces/zemax_bsdf.py:parse": 91,

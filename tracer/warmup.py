@@ -149,15 +149,21 @@ def kind_callees() -> list[tuple[Any, tuple]]:
     """``(kernel, signature)`` of each surface kind's ``scatter``, each light kind's ``sample`` (from their
     registrations, so a new kind is included) and an element table's scatter (a tabulated BSDF, a grating's orders):
     the kernels call them at their addresses (`tracer.jit.kind_table`), bound for the kinds a scene holds, so no
-    kernel waits for them and a first query waits only for the kinds its own scene holds."""
+    kernel waits for them and a first query waits only for the kinds its own scene holds. With them the Mie table's
+    amplitude sums, which a dielectric holding particles needs before its first photon (1.3 s)."""
+    from numba import types
+
+    from tracer.optics import mie
     from tracer.optics.lights import dispatch as lights
     from tracer.optics.surfaces import dispatch as surfaces
 
     t = kernel_types()
     scatter = scatter_types(t)
     sample = (t["lights"], t["i8"], *[t["f8"]] * 5)
+    complexes = types.complex128[::1]
     return ([(kind.scatter, scatter) for kind in surfaces.KINDS] + [(kind.sample, sample) for kind in lights.KINDS]
-            + [(surfaces.element_table_scatter, scatter)])
+            + [(surfaces.element_table_scatter, scatter),
+               (mie._amplitude_sums, (complexes, complexes, types.float64[::1]))])
 
 
 #: the stages whose compile `compiling` makes one process's at a time (the optics are shared kernel by kernel

@@ -158,7 +158,7 @@ def test_a_query_asking_for_the_tessellation_estimate_gets_it_beside_the_bound_w
 def test_the_client_and_the_cli_ask_for_the_estimate_and_show_it(client, dish_scene, monkeypatch, tmp_path):
     from typer.testing import CliRunner
 
-    import lumenlink.commands as commands
+    import lumenlink.commands_results as commands_results
     from lumenlink import Client
     from lumenlink.cli import app
 
@@ -172,7 +172,7 @@ def test_the_client_and_the_cli_ask_for_the_estimate_and_show_it(client, dish_sc
         _estimate_ok(a["error_budget"], (len(POINTS),))
         [res] = ll.simulate(sid, sensor, max_photons=20_000, tessellation_estimate=True).values()
         _estimate_ok(res["error_budget"], (2, 3))
-    monkeypatch.setattr(commands, "Client", on_app)
+    monkeypatch.setattr(commands_results, "Client", on_app)
     runner = CliRunner()
     r = runner.invoke(app, ["simulate", "--scene", sid, "--sensor", sensor, "--out", str(tmp_path / "a"),
                             "--max-photons", "20000", "--tessellation-estimate"])

@@ -213,7 +213,6 @@ def test_client_and_cli_uniformity_and_ugr(client: Any, floor: str, monkeypatch:
 
     from typer.testing import CliRunner
 
-    import lumenlink.commands as commands
     import lumenlink.commands_luminance as commands_luminance
     from lumenlink.cli import app
 
@@ -230,7 +229,6 @@ def test_client_and_cli_uniformity_and_ugr(client: Any, floor: str, monkeypatch:
         assert rated["source_pixels"] >= 1 and rated["stderr"] > 0 and rated["background"] > 0
         assert cam["id"]
 
-    monkeypatch.setattr(commands, "Client", lambda server: _client_on(client))
     monkeypatch.setattr(commands_luminance, "Client", lambda server: _client_on(client))
     runner = CliRunner()
     r = runner.invoke(app, ["uniformity", "--scene", floor, "--direction", "0,0,-1", "--nine-points", "-1,-0.6,0",

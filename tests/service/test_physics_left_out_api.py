@@ -168,7 +168,7 @@ def test_the_client_and_the_cli_pass_force_effects_off_and_show_the_reasons(worl
     answer's `effect_reasons` come back (client) and are printed (CLI); a name it cannot force off exits 2."""
     from typer.testing import CliRunner
 
-    import lumenlink.commands as commands
+    import lumenlink.commands_results as commands_results
     from lumenlink import Client
     from lumenlink.cli import app
 
@@ -186,7 +186,7 @@ def test_the_client_and_the_cli_pass_force_effects_off_and_show_the_reasons(worl
         assert res["effect_reasons"]["polarization"].startswith("off: forced off by the query")
         [res] = ll.simulate(glass, sensor, max_photons=2000).values()
         assert res["effect_reasons"]["polarization"].startswith("on: a path can meet")
-    monkeypatch.setattr(commands, "Client", on_app)
+    monkeypatch.setattr(commands_results, "Client", on_app)
     runner = CliRunner()
     r = runner.invoke(app, ["simulate", "--scene", glass, "--sensor", sensor, "--out", str(tmp_path / "a"),
                             "--max-photons", "2000", "--force-effects-off", "polarization"])
