@@ -163,7 +163,7 @@ def kind_callees() -> list[tuple[Any, tuple]]:
     complexes = types.complex128[::1]
     return ([(kind.scatter, scatter) for kind in surfaces.KINDS] + [(kind.sample, sample) for kind in lights.KINDS]
             + [(surfaces.element_table_scatter, scatter),
-               (mie._amplitude_sums, (complexes, complexes, types.float64[::1]))])
+               (mie.amplitude_sums, (complexes, complexes, types.float64[::1]))])
 
 
 #: the stages whose compile `compiling` makes one process's at a time (the optics are shared kernel by kernel

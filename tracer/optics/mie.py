@@ -183,7 +183,7 @@ def efficiencies(m_rel: complex, x: float) -> tuple[float, float, float]:
 
 
 @njit(cache=True)
-def _amplitude_sums(a, b, mu):
+def amplitude_sums(a, b, mu):
     """B&H 4.74: S1, S2 (each (len(mu),) complex128) at the cosines `mu`; π_n, τ_n by upward recurrence
     (B&H 4.47), the angle loop innermost so that it vectorizes."""
     m = mu.shape[0]
@@ -208,7 +208,7 @@ def _amplitude_sums(a, b, mu):
 def amplitudes(m_rel: complex, x: float, mu) -> tuple[np.ndarray, np.ndarray]:
     """B&H's amplitudes S1, S2 (complex128, shaped like `mu`) at cosines `mu`; m_rel = n − ik, k ≥ 0."""
     mu = np.ascontiguousarray(mu, dtype=np.float64)
-    s1, s2 = _amplitude_sums(*_coefficients(m_rel, x), mu.ravel())
+    s1, s2 = amplitude_sums(*_coefficients(m_rel, x), mu.ravel())
     return s1.reshape(mu.shape), s2.reshape(mu.shape)
 
 
@@ -232,7 +232,7 @@ def _angular(a: np.ndarray, b: np.ndarray, x: float) -> tuple[np.ndarray, ...]:
     frac = (np.arange(start[-1]) - start[owner]) / per[owner]
     mu = np.cos(np.append(THETA[owner] + frac * dth[owner], THETA[-1]))
     mu[start] = MU
-    s1, s2 = _amplitude_sums(a, b, mu)
+    s1, s2 = amplitude_sums(a, b, mu)
     s11, s12, s33, s34 = mueller_ratios(s1, s2)
     cum = np.concatenate([[0.0], np.cumsum(0.5 * (s11[1:] + s11[:-1]) * np.diff(mu))])
     total = cum[-1]

@@ -46,7 +46,7 @@ MODULES = [
 
 #: host-side helpers (they allocate arrays or run whole batches): not device functions, not swept
 HOST = {
-    "tracer.rng._uniforms", "tracer.optics.mie._amplitude_sums", "tracer.transport.forward.trace_photons",
+    "tracer.rng._uniforms", "tracer.optics.mie.amplitude_sums", "tracer.transport.forward.trace_photons",
     "tracer.transport.forward.forward_batches",
 }
 
