@@ -29,7 +29,7 @@ from enum import StrEnum
 from typing import Any
 
 from service.errors import ServiceError
-from tracer.transport.rounds import Budget
+from tracer.transport.query import Budget
 
 ProgressFn = Callable[[int, float, float], None]
 CancelFn = Callable[[], bool]

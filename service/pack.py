@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from service.errors import Invalid, NotFound
-from tracer.transport.rounds import Budget
+from tracer.transport.query import Budget
 
 PILOT_PHOTONS = 20_000   # the pilot that tells a face no light reaches
 

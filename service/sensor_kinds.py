@@ -19,7 +19,6 @@ store), so a new sensor kind needs a class only where it stores or renders somet
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -29,18 +28,7 @@ from service import kind_wire
 from service.errors import Invalid, TooLarge
 from service.payloads import finite_list, result_payload
 from service.view_kinds import Camera, Luminance
-from tracer.transport.rounds import Budget
-
-
-@dataclass(frozen=True)
-class Query:
-    """What a sensor query asks beyond its budget (the route's body, checked)."""
-
-    budget: Budget
-    estimator: str
-    observe: tuple[str, ...] = ()
-    reference: tuple | None = None
-    physics_left_out: tuple[str, ...] = ()
+from tracer.transport.query import Query
 
 
 def summary(payload: dict[str, Any], lux: np.ndarray, weights: np.ndarray | None = None) -> dict[str, Any]:

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import dataclasses
 import logging
 import threading
 import time
@@ -47,8 +48,10 @@ from service.jobs import JobRunner
 from service.live import DELETED, LiveRegistry, LiveScene
 from service.optics import to_spec
 from service.payloads import result_payload
+from tracer.errors import SimulationError
 from tracer.optics.fields import node_field
-from tracer.transport.rounds import DEFAULT_MAX_SECONDS, Budget
+from tracer.transport.query import DEFAULT_MAX_SECONDS, Budget, Query
+from tracer.transport.query import query as make_query
 
 log = logging.getLogger(__name__)
 #: Async jobs: worker threads and how many may wait.
@@ -141,6 +144,26 @@ def resolve_budget(limits: Limits, target_relative_error: float | None, max_seco
     seconds = max_seconds if max_seconds is not None else min(DEFAULT_MAX_SECONDS, limits.max_seconds)
     photons = max_photons if max_photons is not None else limits.max_photons
     return Budget(target=target_relative_error, max_seconds=seconds, max_photons=photons, scope=target_scope)
+
+
+#: the fields of a request body (`service.simulation_wire.QueryBudget`) the tracer's `Query` takes, beside the budget
+QUERY_FIELDS = ("seed", "estimator", "force_effects", "force_effects_off", "observe", "reference", "physics_left_out",
+                "tessellation_estimate")
+
+
+def request_query(limits: Limits, wire: Any, fields: tuple[str, ...] = QUERY_FIELDS) -> Query:
+    """The tracer's `Query` of a request, built once from its body (`wire`, a `QueryBudget`) and carried to the
+    kernel: the budget checked against the limits (`resolve_budget`), `fields` of the body checked by the tracer
+    (`tracer.transport.query.query`: 422 naming the field); what only the scene can tell is `check_query`'s."""
+    budget = resolve_budget(limits, wire.target_relative_error, wire.max_seconds, wire.max_photons, wire.target_scope)
+    options = {f: getattr(wire, f) for f in fields}
+    for f in ("force_effects", "force_effects_off", "observe", "physics_left_out"):
+        if f in options:
+            options[f] = list(options[f])
+    try:
+        return dataclasses.replace(make_query(**options), budget=budget)
+    except SimulationError as exc:
+        raise Invalid(str(exc)) from None
 
 
 def find_sensor(live: LiveScene, sensor_id: str) -> dict:
@@ -292,24 +315,20 @@ class SimulationHub:
             return Prepared(live, simulation, generation)
 
     @staticmethod
-    def check_query(prepared: Prepared, estimator: str, force_effects: tuple[str, ...],
-                    physics_left_out: tuple[str, ...] = (), force_effects_off: tuple[str, ...] = ()) -> None:
-        """Refuse (422) what the transport would refuse, before a job is queued: an async request gets
-        its error at once, not as a failed job."""
+    def check_query(prepared: Prepared, query: Query) -> None:
+        """Refuse (422) what the transport would refuse of this scene (an effect forced off that it requires, an
+        estimator it cannot take), before a job is queued: an async request gets its error at once, not as a failed
+        job. The names themselves were checked when the query was built (`request_query`)."""
+        from tracer.effects import EffectError, check_off, with_forced
+
+        extra = {"spectrum": "spectral", "stokes": "polarization"}
+        force_effects = query.force_effects + tuple(extra[o] for o in query.observe)
         try:
-            from tracer.effects import EFFECTS, EffectError, check_off, with_forced
-        except ImportError:  # an older transport: it checks for itself when the query runs
-            return
-        for field, names in (("force_effects", force_effects), ("physics_left_out", physics_left_out)):
-            unknown = sorted(set(names) - set(EFFECTS))
-            if unknown:
-                raise Invalid(f"unknown effect(s) {unknown} in {field}; known: {list(EFFECTS)}")
-        try:
-            off = check_off(list(force_effects_off), force_effects, prepared.simulation.effect_reasons)
+            off = check_off(list(query.force_effects_off), force_effects, prepared.simulation.effect_reasons)
         except EffectError as exc:
             raise Invalid(str(exc)) from None
         applies = getattr(prepared.simulation, "backward_applies", None)
-        if estimator == "backward" and applies is not None:
+        if query.estimator == "backward" and applies is not None:
             ok, why = applies(with_forced(prepared.simulation.effects, force_effects, off))
             if not ok:
                 raise Invalid(f"the backward estimator cannot answer here: {why}; use 'forward' or 'auto'")
@@ -321,47 +340,31 @@ class SimulationHub:
     # -- queries ------------------------------------------------------------------------------
 
     @staticmethod
-    def run_points(prepared: Prepared, points: np.ndarray, normals: np.ndarray, radius: float | None,
-                   budget: Budget, seed: int, estimator: str, force_effects: tuple[str, ...],
-                   progress: Callable | None = None, cancel: Callable | None = None,
-                   observe: tuple[str, ...] = (), reference: tuple | None = None,
-                   physics_left_out: tuple[str, ...] = (), force_effects_off: tuple[str, ...] = (),
-                   tessellation_estimate: bool = False) -> dict[str, Any]:
+    def run_points(prepared: Prepared, points: np.ndarray, normals: np.ndarray, radius: float | None, query: Query,
+                   progress: Callable | None = None, cancel: Callable | None = None) -> dict[str, Any]:
         """Illuminance at points; the JSON answer of ``POST /scenes/{id}/illuminance``."""
         with _refusals():
-            result = prepared.simulation.illuminance(
-                points, normals, radius=radius, target_relative_error=budget.target,
-                target_scope=budget.scope, max_seconds=budget.max_seconds, max_photons=budget.max_photons,
-                seed=seed, estimator=estimator,
-                force_effects=force_effects, progress=progress, cancel=cancel, observe=observe,
-                reference=reference, force_effects_off=force_effects_off,
-                **({"physics_left_out": physics_left_out} if physics_left_out else {}),
-                **({"tessellation_estimate": True} if tessellation_estimate else {}))
+            result = prepared.simulation.illuminance(points, normals, radius=radius, query=query, progress=progress,
+                                                     cancel=cancel)
         payload = result_payload(result, prepared.live.revision)
         if prepared.live.extras.get("elements"):   # the elements with an inside it traced, their model and its error
             payload["elements"] = prepared.live.extras["elements"]
         return payload
 
-    def run_grid(self, prepared: Prepared, sensor: dict, budget: Budget, seed: int, estimator: str,
-                 force_effects: tuple[str, ...], progress: Callable | None = None,
-                 cancel: Callable | None = None, observe: tuple[str, ...] = (),
-                 reference: tuple | None = None, physics_left_out: tuple[str, ...] = (),
-                 force_effects_off: tuple[str, ...] = (), tessellation_estimate: bool = False) -> dict[str, Any]:
+    def run_grid(self, prepared: Prepared, sensor: dict, query: Query, progress: Callable | None = None,
+                 cancel: Callable | None = None) -> dict[str, Any]:
         """Simulate one sensor of any kind (`service.sensor_kinds`); keeps its result where its kind says (a grid's
         for ``map.png`` while the scene is unchanged, a far field's for its export)."""
         scene_id = prepared.live.scene_id
         kind = sensor_kinds.kind_of(sensor)
-        kind.check(sensor, sensor_kinds.Query(budget, estimator, observe, reference, physics_left_out), self.limits,
-                   prepared.live)
+        kind.check(sensor, query, self.limits, prepared.live)
         run = getattr(kind, "run", None)   # a kind that splits its query (a camera's bands of rows)
+        body = kind.body(sensor, prepared.live)
         with _refusals():
-            result = (prepared.simulation.run if run is None else run(self.limits, prepared.simulation))(
-                kind.body(sensor, prepared.live), target_relative_error=budget.target,
-                target_scope=budget.scope, max_seconds=budget.max_seconds, max_photons=budget.max_photons,
-                seed=seed, estimator=estimator, force_effects=force_effects, progress=progress, cancel=cancel,
-                observe=observe, reference=reference, physics_left_out=physics_left_out,
-                force_effects_off=force_effects_off,
-                **({"tessellation_estimate": True} if tessellation_estimate else {}))
+            if run is None:
+                result = prepared.simulation.run(body, query=query, progress=progress, cancel=cancel)
+            else:
+                result = run(self.limits, prepared.simulation)(body, query, progress, cancel)
         payload = kind.payload(result, sensor, prepared.live)
         if prepared.live.extras.get("elements"):   # the elements with an inside it traced, and their model
             payload["elements"] = prepared.live.extras["elements"]

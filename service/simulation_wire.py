@@ -93,11 +93,6 @@ class QueryBudget(BaseModel):
             raise ValueError(f"{info.field_name} lists each name once, got {v}")
         return v
 
-    def observed_effects(self) -> tuple[str, ...]:
-        """The forced effects and those the observables call for."""
-        extra = {"spectrum": "spectral", "stokes": "polarization"}
-        return tuple(self.force_effects) + tuple(extra[o] for o in self.observe)
-
 
 class CostLine(BaseModel):
     relative_error: float = Field(description="The run's relative error (stderr / lux) at this point.")

@@ -129,10 +129,10 @@ class Camera:
         whole rows of at most ``max_points`` pixels each (`tracer.sensors.camera.run_in_bands`)."""
         from tracer.sensors.camera import run_in_bands
 
-        def run(body: dict, **options: Any) -> Any:
+        def run(body: dict, query: Any, progress: Any = None, cancel: Any = None) -> Any:
             if int(body["width"]) * int(body["height"]) <= limits.max_points:
-                return simulation.run(body, **options)
-            return run_in_bands(simulation, body, limits.max_points, **options)
+                return simulation.run(body, query=query, progress=progress, cancel=cancel)
+            return run_in_bands(simulation, body, limits.max_points, query, progress, cancel)
         return run
 
     @staticmethod

@@ -37,6 +37,7 @@ from the light can stop at 0 early; give it a photon budget.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 import time
@@ -48,7 +49,6 @@ import numpy as np
 from tracer.backends import IN_PROCESS, Shipment, is_backend
 from tracer.effects import (
     BASELINE,
-    EFFECTS,
     OPTIONAL,
     EffectError,
     check_off,
@@ -71,9 +71,10 @@ from tracer.sensors.placement import place_receivers, probe_distance, sensor_off
 from tracer.sensors.points import DEFAULT_RADIUS
 from tracer.sensors.surface import SurfaceResult
 from tracer.transport.estimate import cost_of
+from tracer.transport.query import DEFAULT_MAX_SECONDS, ESTIMATORS, OBSERVABLES, TARGET_SCOPES, Query
+from tracer.transport.query import query as make_query
 from tracer.transport.rounds import (
     BACKWARD_BATCH,
-    DEFAULT_MAX_SECONDS,
     FORWARD_BATCH,
     LIT_FRACTION,
     MAX_ROUND_BATCHES,
@@ -81,10 +82,8 @@ from tracer.transport.rounds import (
     MAX_SPECTRAL_TALLIES,
     MIN_BATCHES,
     ROUND_BATCHES,
-    TARGET_SCOPES,
     QueryBackend,
     backward,
-    budget,
     compile_seconds,
     forward,
     radiance,
@@ -109,8 +108,6 @@ __all__ = ["BACKWARD_BATCH", "DEFAULT_MAX_SECONDS", "DEFAULT_RADIUS", "ESTIMATOR
 
 log = logging.getLogger(__name__)
 
-ESTIMATORS = ("auto", "forward", "backward")
-OBSERVABLES = ("spectrum", "stokes")
 
 class Simulation:
     """Light transport over one committed scene (docs/CONTRACTS.md).
@@ -201,11 +198,12 @@ class Simulation:
 
     # ------------------------------------------------------------------------------------------ queries
 
-    def run(self, sensor: dict, target_relative_error=None, max_seconds=None, max_photons=None, seed=0,
-            estimator="auto", force_effects=(), progress=None, cancel=None, observe=(), reference=None,
-            physics_left_out=(), target_scope="worst", force_effects_off=(), tessellation_estimate=False) -> Any:
+    def run(self, sensor: dict, *, query: Query | None = None, progress=None, cancel=None, **options) -> Any:
         """Measure one sensor: a body ``{"type": kind, ...}`` of a registered kind (`tracer.sensors.dispatch.KINDS`);
         its answer (the kind's result: `IlluminanceResult`, `GridResult`, `SurfaceResult`, `FarFieldResult`).
+
+        The request is one `tracer.transport.query.Query`, given as `query` (as the service builds it) or as the
+        options below (checked once, by `tracer.transport.query.query`), not both:
 
         target_relative_error, max_seconds, max_photons : stop rules (see the module docstring).
         target_scope : which relative error the target holds: "worst" (every value's), "lit" (every value at
@@ -214,9 +212,6 @@ class Simulation:
         force_effects : effect names to compile in although the scene does not need them.
         force_effects_off : effects the scene takes by its physics estimate (`tracer.effects.OPTIONAL`:
             polarization) to leave out of this query; one that something in the scene requires is refused.
-        progress : callable(photons, worst_relative_error, seconds), called once before the first round (0
-            photons: `seconds` is what compiling or loading the kernel took) and between rounds.
-        cancel : callable() -> bool, polled between rounds.
         observe : ("spectrum",) to add the spectral irradiance and the chromaticity (`IlluminanceResult`);
             photons then carry a wavelength (effect `spectral`), and the forward estimator answers. "stokes" adds
             the Stokes vector and the degree of polarization (effect `polarization`).
@@ -231,12 +226,11 @@ class Simulation:
             ``tessellation_estimate_stderr`` (lx per value), an estimate of the tessellation's error, not a bound
             (`tracer.transport.tessellation_error.ESTIMATE_METHOD`), with what it cost:
             ``tessellation_estimate_seconds`` and ``tessellation_estimate_levels``.
+        progress : callable(photons, worst_relative_error, seconds), called once before the first round (0
+            photons: `seconds` is what compiling or loading the kernel took) and between rounds.
+        cancel : callable() -> bool, polled between rounds.
         """
-        return sensors.run(self, sensor, target=target_relative_error, max_seconds=max_seconds,
-                           max_photons=max_photons, seed=seed, estimator=estimator, force_effects=force_effects,
-                           progress=progress, cancel=cancel, observe=observe, reference=reference,
-                           physics_left_out=physics_left_out, target_scope=target_scope,
-                           force_effects_off=force_effects_off, tessellation_estimate=tessellation_estimate)
+        return sensors.run(self, sensor, _query_of(query, options), progress, cancel)
 
     def illuminance(self, points, normals, radius=None, **query) -> IlluminanceResult:
         """Illuminance (lx) on the front side of a disk receiver at each point ((k, 3) m; normals any non-zero
@@ -248,64 +242,47 @@ class Simulation:
         `tracer.sensors.grid`. Query options as for `run`."""
         return self.run({"type": "grid", "origin": origin, "u": u, "v": v, "nu": nu, "nv": nv}, **query)
 
-    def surface(self, instances, target_relative_error=None, max_seconds=None, max_photons=None, seed=0,
-                force_effects=(), progress=None, cancel=None) -> SurfaceResult:
+    def surface(self, instances, **query) -> SurfaceResult:
         """Per-triangle illuminance (lx) on the front side of each instance listed: `tracer.sensors.surface`.
-        Budget options as for `run`. Forward only."""
-        return self.run({"type": "surface", "instances": instances}, target_relative_error, max_seconds, max_photons,
-                        seed, "forward", force_effects, progress, cancel)
+        Query options as for `run`. Forward only."""
+        return self.run({"type": "surface", "instances": instances}, **query)
 
-    def far_field(self, nc, ngamma, direction=(0.0, 0.0, -1.0), c0=None, target_relative_error=None,
-                  max_seconds=None, max_photons=None, seed=0, force_effects=(), progress=None,
-                  cancel=None) -> FarFieldResult:
+    def far_field(self, nc, ngamma, direction=(0.0, 0.0, -1.0), c0=None, **query) -> FarFieldResult:
         """Luminous intensity (cd) of the whole scene seen from far away, on a type-C grid of `nc` C and `ngamma` γ
-        samples, γ from `direction`, C from `c0`: `tracer.sensors.far_field`. Budget options as for `run`."""
-        return self.run({"type": "far_field", "nc": nc, "ngamma": ngamma, "direction": direction, "c0": c0},
-                        target_relative_error, max_seconds, max_photons, seed, "forward", force_effects, progress,
-                        cancel)
+        samples, γ from `direction`, C from `c0`: `tracer.sensors.far_field`. Query options as for `run`."""
+        return self.run({"type": "far_field", "nc": nc, "ngamma": ngamma, "direction": direction, "c0": c0}, **query)
 
-    def measure(self, probe_of, body: dict, target=None, max_seconds=None, max_photons=None, seed=0,
-                estimator="auto", force_effects=(), progress=None, cancel=None, observe=(), reference=None,
-                physics_left_out=(), target_scope="worst", force_effects_off=(),
-                tessellation_estimate=False) -> tuple[Probe, IlluminanceResult]:
-        """A sensor's receivers (`probe_of(self, body)`) and the raw bins measured on them, with what each effect in
-        `physics_left_out` would change (`left_out`): what `tracer.sensors.dispatch.run` shapes into an answer."""
-        left_out_names = _left_out_names(physics_left_out)
-        if tessellation_estimate and self._curved and curved_triangles(self) * 4 ** MIN_LEVELS > MAX_TRIANGLES:
+    def measure(self, probe_of, body: dict, query: Query, progress=None,
+                cancel=None) -> tuple[Probe, IlluminanceResult]:
+        """A sensor's receivers (`probe_of(self, body)`) and the raw bins measured on them for `query`, with what each
+        effect in its `physics_left_out` would change (`left_out`): what `tracer.sensors.dispatch.run` shapes into an
+        answer."""
+        if query.tessellation_estimate and self._curved and \
+                curved_triangles(self) * 4 ** MIN_LEVELS > MAX_TRIANGLES:
             raise SimulationError(f"tessellation_estimate: the curved meshes have {curved_triangles(self):,} "
                                   f"triangles; {MIN_LEVELS} splits would make more than {MAX_TRIANGLES:,}")
         probe = probe_of(self, body)
-        res = self._run(probe, target, max_seconds, max_photons, seed, estimator, force_effects, progress, cancel,
-                        observe, reference, target_scope=target_scope, force_effects_off=force_effects_off)
-        if left_out_names:
-            off = tuple(force_effects_off or ())
-            res.physics_left_out = left_out(self, left_out_names, res, lambda force, s, est: self._run(
-                probe, target, max_seconds, max_photons, s, est, force, None, cancel, (), target_scope=target_scope,
-                force_effects_off=tuple(e for e in off if e not in force)),
-                force_effects, observe, seed, estimator, off)
-        if tessellation_estimate and res.error_budget and res.stop_reason != "cancelled":
-            res.error_budget.update(tessellation_levels(self, res, lambda sim: sim._run(
-                probe, target, max_seconds, max_photons, seed, estimator, force_effects, None, cancel, observe,
-                reference, target_scope=target_scope, force_effects_off=force_effects_off)))
+        res = self._run(probe, query, progress, cancel)
+        if query.physics_left_out:
+            res.physics_left_out = left_out(self, res, query, lambda pilot: self._run(probe, pilot, None, cancel))
+        if query.tessellation_estimate and res.error_budget and res.stop_reason != "cancelled":
+            res.error_budget.update(tessellation_levels(self, res, lambda sim: sim._run(probe, query, None, cancel)))
         return probe, res
 
     # ------------------------------------------------------------------------------------------ engine
 
-    def _run(self, probe: Probe, target, max_seconds, max_photons, seed, estimator, force_effects, progress, cancel,
-             observe, reference=None, target_scope="worst", force_effects_off=()) -> IlluminanceResult:
-        """One run over `probe`'s receivers: the raw bins (a surface tally's after the receivers', then a far
-        field's: cd, then the total flux leaving, lm)."""
-        stop = budget(target, max_seconds, max_photons, target_scope)
-        observe_spectrum, observe_stokes = _observe(observe)
+    def _run(self, probe: Probe, query: Query, progress, cancel) -> IlluminanceResult:
+        """One run of `query` over `probe`'s receivers: the raw bins (a surface tally's after the receivers', then a
+        far field's: cd, then the total flux leaving, lm)."""
+        stop = query.budget.stop_rules()
+        observe_spectrum, observe_stokes = query.observes
+        force_effects, force_effects_off, seed, estimator = (query.force_effects, query.force_effects_off,
+                                                             query.seed, query.estimator)
         if observe_spectrum:
-            force_effects = (*(force_effects or ()), "spectral")
+            force_effects = (*force_effects, "spectral")
         if observe_stokes:
-            force_effects = (*(force_effects or ()), "polarization")
-        refs = _references(reference, np.atleast_2d(probe.normals))
-        if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or not 0 <= seed < 2 ** 63:
-            raise SimulationError(f"seed must be an integer in [0, 2**63), got {seed!r}")
-        if force_effects is None:
-            force_effects = ()
+            force_effects = (*force_effects, "polarization")
+        refs = _references(query.reference, np.atleast_2d(probe.normals))
         try:
             effects = with_forced(self.effects, force_effects)
         except EffectError as exc:
@@ -363,35 +340,20 @@ class Simulation:
         return self._shipments[state]
 
 
-def _left_out_names(names) -> tuple[str, ...]:
-    """A query's `physics_left_out`, checked: a list of distinct `tracer.effects.EFFECTS`; `SimulationError` else."""
-    if names is None:
-        return ()
-    if isinstance(names, str) or not isinstance(names, list | tuple):
-        raise SimulationError(f"physics_left_out must be a list of effects {list(EFFECTS)}, got {names!r}")
-    unknown = [e for e in names if e not in EFFECTS]
-    if unknown:
-        raise SimulationError(f"physics_left_out: unknown effect(s) {unknown}; known: {list(EFFECTS)}")
-    if len(set(names)) != len(names):
-        raise SimulationError(f"physics_left_out lists each effect once, got {list(names)}")
-    return tuple(names)
+def _query_of(query: Query | None, options: dict) -> Query:
+    """The query `Simulation.run` was given, or the one its options make (checked once, `make_query`)."""
+    if query is None:
+        return make_query(**options)
+    if options:
+        raise SimulationError(f"give a query or its options ({sorted(options)}), not both")
+    if not isinstance(query, Query):
+        raise SimulationError(f"query must be a tracer.transport.query.Query, got {type(query).__name__}")
+    return query
 
 
 def _pilot_seed(seed: int, k: int) -> int:
     """The seed of the k-th pilot of a query with `seed`: a stream of its own (`tracer.rng` seeds by (seed, batch))."""
     return (int(seed) + (k + 1) * 0x9E3779B97F4A7C15) % 2 ** 63
-
-
-def _observe(observe) -> tuple[bool, bool]:
-    """Whether a query's `observe` list asks for the spectrum, and for Stokes; `SimulationError` for anything else."""
-    if observe is None:
-        return False, False
-    if isinstance(observe, str) or not isinstance(observe, list | tuple):
-        raise SimulationError(f"observe must be a list of observables {list(OBSERVABLES)}, got {observe!r}")
-    unknown = [o for o in observe if o not in OBSERVABLES]
-    if unknown:
-        raise SimulationError(f"observe: unknown observable(s) {unknown}; known: {list(OBSERVABLES)}")
-    return "spectrum" in observe, "stokes" in observe
 
 
 def _references(reference, normals: np.ndarray) -> np.ndarray:
@@ -422,13 +384,12 @@ def _is_sensor(scene, i: int) -> bool:
 
 
 # ------------------------------------------------------------------------------------------ physics left out
-def left_out(sim: Simulation, names: tuple[str, ...], res: IlluminanceResult, rerun, force_effects, observe,
-             seed: int, estimator: str, off: tuple[str, ...] = ()) -> dict:
-    """What each effect in `names` would change (docs/DESIGN.md, "Accuracy is a quantity"): per effect ``{"difference":
-    lux with it forced on − res.lux, "stderr": √(σ_run² + σ_pilot²), "photons", "seconds", "estimator" of the
-    pilot, "ran"}``.
+def left_out(sim: Simulation, res: IlluminanceResult, query: Query, rerun) -> dict:
+    """What each effect in the query's `physics_left_out` would change (docs/DESIGN.md, "Accuracy is a quantity"):
+    per effect ``{"difference": lux with it forced on − res.lux, "stderr": √(σ_run² + σ_pilot²), "photons",
+    "seconds", "estimator" of the pilot, "ran"}``.
 
-    The pilot (`rerun(force_effects, seed, estimator)`) is the same query with the effect forced on, under the
+    The pilot (`rerun(pilot query)`) is the same query with the effect forced on, under the
     query's own stop rules (its target error, photon and time budget: the difference's error is then about √2
     times the run's own, and the answer takes up to 1 + len(names) times as long) and an independent seed
     (`_pilot_seed`: the two estimates are independent, so their variances add). An effect that leaves the photon
@@ -441,18 +402,23 @@ def left_out(sim: Simulation, names: tuple[str, ...], res: IlluminanceResult, re
     """
     if res.stop_reason == "cancelled":
         return {}
-    spectrum, stokes = _observe(observe)
-    asked = (*(force_effects or ()), *(("spectral",) if spectrum else ()), *(("polarization",) if stokes else ()))
+    spectrum, stokes = query.observes
+    asked = (*query.force_effects, *(("spectral",) if spectrum else ()), *(("polarization",) if stokes else ()))
+    off = query.force_effects_off
     base = with_forced(sim.effects, asked, off)
-    pilot_estimator = "forward" if estimator == "forward" else "auto"
+    pilot_estimator = "forward" if query.estimator == "forward" else "auto"
     out = {}
-    for k, name in enumerate(names):
+    for k, name in enumerate(query.physics_left_out):
         if photon_state(with_forced(base, name)) == photon_state(base):
             zero = np.zeros_like(res.lux)
             out[name] = {"difference": zero, "stderr": zero.copy(), "photons": 0, "seconds": 0.0,
                          "estimator": None, "ran": False}
             continue
-        pilot = rerun((*asked, name), _pilot_seed(seed, k), pilot_estimator)
+        force = (*asked, name)
+        pilot = rerun(dataclasses.replace(query, seed=_pilot_seed(query.seed, k), estimator=pilot_estimator,
+                                          force_effects=force, observe=(), reference=None, physics_left_out=(),
+                                          tessellation_estimate=False,
+                                          force_effects_off=tuple(e for e in off if e not in force)))
         out[name] = {"difference": pilot.lux - res.lux, "stderr": np.hypot(pilot.stderr, res.stderr),
                      "photons": int(pilot.photons), "seconds": float(pilot.seconds),
                      "estimator": pilot.estimator, "ran": True}

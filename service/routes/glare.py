@@ -31,7 +31,7 @@ from service.errors import Invalid, TooLarge
 from service.routes.deps import ItemId, SceneId
 from service.routes.images import camera_result
 from service.routes.simulation import _answer, _targeted
-from service.simulation import _refusals, hub_for, resolve_budget
+from service.simulation import _refusals, hub_for, request_query
 from service.simulation_wire import FiniteFloat, Mode, QueryBudget, Vec3
 from tracer.errors import SimulationError
 from tracer.photometry.glare import nine_points, ugr_from_image, uniformity
@@ -205,6 +205,11 @@ async def luminance_uniformity(scene_id: SceneId, query: UniformityQuery, reques
     return await _answer(request, mode, _uniformity_query, scene_id, query, request)
 
 
+#: what luminance meters take of a request beside its budget (they carry no Stokes vector and measure no left-out
+#: physics; `tracer.sensors.luminance.meters`)
+METER_FIELDS = ("seed", "estimator", "force_effects")
+
+
 def _finite(d: dict[str, float]) -> dict[str, float | None]:
     """NaN (a ratio of nothing: every meter dark) as null."""
     return {k: (v if math.isfinite(v) else None) for k, v in d.items()}
@@ -212,8 +217,7 @@ def _finite(d: dict[str, float]) -> dict[str, float | None]:
 
 def _uniformity_query(scene_id: str, query: UniformityQuery, request: Request) -> tuple:
     hub = hub_for(request.app)
-    budget = resolve_budget(hub.limits, query.target_relative_error, query.max_seconds, query.max_photons,
-                            query.target_scope)
+    asked = request_query(hub.limits, query, METER_FIELDS)
     if query.nine_points is not None:
         n = query.nine_points
         pts, figure = nine_points(n.origin, n.u, n.v), "9-point"
@@ -223,17 +227,14 @@ def _uniformity_query(scene_id: str, query: UniformityQuery, request: Request) -
     d = d / np.linalg.norm(d)
     eyes = pts - query.distance * d[None, :]
     prepared = hub.prepare(scene_id)
-    hub.check_query(prepared, query.estimator, tuple(query.force_effects))
+    hub.check_query(prepared, asked)
 
     def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
         from tracer.sensors.luminance import meters
 
         with _refusals():
-            res = meters(prepared.simulation, eyes, np.tile(d, (len(pts), 1)), query.aperture_deg,
-                         target_relative_error=budget.target, target_scope=budget.scope,
-                         max_seconds=budget.max_seconds, max_photons=budget.max_photons, seed=query.seed,
-                         estimator=query.estimator, force_effects=tuple(query.force_effects), progress=progress,
-                         cancel=cancel)
+            res = meters(prepared.simulation, eyes, np.tile(d, (len(pts), 1)), query.aperture_deg, query=asked,
+                         progress=progress, cancel=cancel)
         lum, err = np.asarray(res.luminance, float), np.asarray(res.stderr, float)
         payload = {"figure": figure, "points": pts.tolist(), "positions": eyes.tolist(), "luminance": lum.tolist(),
                    "stderr": err.tolist(), "uniformity": _finite(uniformity(lum, err)),
@@ -242,7 +243,8 @@ def _uniformity_query(scene_id: str, query: UniformityQuery, request: Request) -
         payload["current"] = hub.is_current(scene_id, prepared.generation)
         return payload
 
-    return ("uniformity", scene_id, prepared, work, budget, {"generation": prepared.generation, "points": len(pts)})
+    return ("uniformity", scene_id, prepared, work, asked.budget, {"generation": prepared.generation,
+                                                                 "points": len(pts)})
 
 
 class ConoscopeQuery(QueryBudget):
@@ -325,20 +327,16 @@ def _conoscope_query(scene_id: str, query: ConoscopeQuery, request: Request) -> 
         raise TooLarge(f"{query.rings} rings of {query.azimuths} azimuths are {count} meters; this service answers "
                        f"at most {hub.limits.max_points} per query: ask fewer rings or azimuths",
                        limit=hub.limits.max_points)
-    budget = resolve_budget(hub.limits, query.target_relative_error, query.max_seconds, query.max_photons,
-                            query.target_scope)
+    asked = request_query(hub.limits, query, METER_FIELDS)
     prepared = hub.prepare(scene_id)
-    hub.check_query(prepared, query.estimator, tuple(query.force_effects))
+    hub.check_query(prepared, asked)
 
     def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
         from tracer.sensors.luminance import conoscope
 
         with _refusals():
             views, res = conoscope(prepared.simulation, query.point, query.normal, query.theta_max_deg, query.rings,
-                                   query.azimuths, query.distance, query.aperture_deg, query.phi_zero,
-                                   target_relative_error=budget.target, target_scope=budget.scope,
-                                   max_seconds=budget.max_seconds, max_photons=budget.max_photons, seed=query.seed,
-                                   estimator=query.estimator, force_effects=tuple(query.force_effects),
+                                   query.azimuths, query.distance, query.aperture_deg, query.phi_zero, query=asked,
                                    progress=progress, cancel=cancel)
         lum, err = np.asarray(res.luminance, float), np.asarray(res.stderr, float)
         payload = {"point": list(query.point), "normal": views["normal"].tolist(),
@@ -354,4 +352,4 @@ def _conoscope_query(scene_id: str, query: ConoscopeQuery, request: Request) -> 
         payload["current"] = hub.is_current(scene_id, prepared.generation)
         return payload
 
-    return ("conoscope", scene_id, prepared, work, budget, {"generation": prepared.generation, "points": count})
+    return ("conoscope", scene_id, prepared, work, asked.budget, {"generation": prepared.generation, "points": count})

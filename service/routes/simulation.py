@@ -31,7 +31,7 @@ from service.errors import Invalid, NotFound, TooLarge
 from service.jobs import JobNotFound, QueueFull
 from service.maps import colour_map_png, illuminance_map_png, luminance_map_png
 from service.routes.deps import ItemId, JobId, MapScale, MapVmin, SceneId, map_range
-from service.simulation import SimulationHub, Unavailable, find_sensor, hub_for, resolve_budget
+from service.simulation import SimulationHub, Unavailable, find_sensor, hub_for, request_query
 from service.simulation_wire import (  # noqa: F401 (the route's models, named here too)
     UNIT_TOLERANCE,
     Backend,
@@ -119,8 +119,7 @@ def _points_query(scene_id: str, query: IlluminanceQuery, request: Request) -> t
     if len(query.points) > hub.limits.max_points:
         raise TooLarge(f"{len(query.points)} points asked; this service answers at most {hub.limits.max_points} "
                        f"per query", limit=hub.limits.max_points)
-    budget = resolve_budget(hub.limits, query.target_relative_error, query.max_seconds, query.max_photons,
-                            query.target_scope)
+    asked = request_query(hub.limits, query)
     points = np.asarray(query.points, dtype=np.float64)
     normals = np.asarray(query.normals, dtype=np.float64)
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
@@ -128,16 +127,10 @@ def _points_query(scene_id: str, query: IlluminanceQuery, request: Request) -> t
     radius = query.radius if query.radius is not None else units.DEFAULT_RADIUS_M
     warnings = units.far_warnings(prepared.live, [(f"points[{k}]", p) for k, p in enumerate(query.points)]
                                   + units.light_positions(prepared.live))
-    effects = tuple(query.force_effects)
-    hub.check_query(prepared, query.estimator, query.observed_effects(), tuple(query.physics_left_out),
-                    tuple(query.force_effects_off))
+    hub.check_query(prepared, asked)
 
     def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
-        payload = hub.run_points(prepared, points, normals, query.radius, budget, query.seed, query.estimator,
-                                 effects, progress=progress, cancel=cancel, observe=tuple(query.observe),
-                                 reference=query.reference, physics_left_out=tuple(query.physics_left_out),
-                                 force_effects_off=tuple(query.force_effects_off),
-                                 tessellation_estimate=query.tessellation_estimate)
+        payload = hub.run_points(prepared, points, normals, query.radius, asked, progress, cancel)
         _targeted(payload, query.cost_targets)
         payload.update(radius=radius)
         if warnings:
@@ -145,7 +138,8 @@ def _points_query(scene_id: str, query: IlluminanceQuery, request: Request) -> t
         payload["current"] = hub.is_current(scene_id, prepared.generation)
         return payload
 
-    return ("illuminance", scene_id, prepared, work, budget, {"generation": prepared.generation, "points": len(points)})
+    return ("illuminance", scene_id, prepared, work, asked.budget, {"generation": prepared.generation,
+                                                                  "points": len(points)})
 
 
 @router.post("/scenes/{scene_id}/sensors/{sensor_id}/simulate", response_model=SensorPublic,
@@ -158,8 +152,7 @@ async def simulate_sensor(scene_id: SceneId, sensor_id: ItemId, request: Request
 
 def _sensor_query(scene_id: str, sensor_id: str, query: SensorSimulate, request: Request) -> tuple:
     hub = _hub(request)
-    budget = resolve_budget(hub.limits, query.target_relative_error, query.max_seconds, query.max_photons,
-                            query.target_scope)
+    asked = request_query(hub.limits, query)
 
     def sized(live: Any) -> None:   # refused before anything is built
         sensor = find_sensor(live, sensor_id)
@@ -173,19 +166,13 @@ def _sensor_query(scene_id: str, sensor_id: str, query: SensorSimulate, request:
     image_url = str(request.url_for("sensor_image_exr", scene_id=scene_id, sensor_id=sensor_id).path)
     warnings = units.far_warnings(prepared.live, units.sensor_positions(prepared.live, [sensor_id])
                                   + units.light_positions(prepared.live))
-    effects = tuple(query.force_effects)
-    hub.check_query(prepared, query.estimator, query.observed_effects(), tuple(query.physics_left_out),
-                    tuple(query.force_effects_off))
+    hub.check_query(prepared, asked)
 
     paths = ({n["uuid"]: n["path"] for n in request.app.state.manager.nodes(scene_id)}
              if sensor.get("type") == "surface" else {})
 
     def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
-        payload = hub.run_grid(prepared, sensor, budget, query.seed, query.estimator, effects,
-                               progress=progress, cancel=cancel, observe=tuple(query.observe),
-                               reference=query.reference, physics_left_out=tuple(query.physics_left_out),
-                               force_effects_off=tuple(query.force_effects_off),
-                               tessellation_estimate=query.tessellation_estimate)
+        payload = hub.run_grid(prepared, sensor, asked, progress, cancel)
         for part in payload.get("instances", ()):
             part["path"] = paths.get(part["node"])
         _targeted(payload, query.cost_targets)
@@ -197,7 +184,7 @@ def _sensor_query(scene_id: str, sensor_id: str, query: SensorSimulate, request:
             payload["warnings"] = warnings + payload.get("warnings", [])
         return payload
 
-    return "sensor", scene_id, prepared, work, budget, {"generation": prepared.generation, "sensor": sensor_id}
+    return "sensor", scene_id, prepared, work, asked.budget, {"generation": prepared.generation, "sensor": sensor_id}
 
 
 @router.get("/scenes/{scene_id}/sensors/{sensor_id}/map.png", name="sensor_map",

@@ -13,7 +13,7 @@ import time
 import pytest
 
 from service.jobs import JobNotFound, JobRunner, JobStatus, QueueFull, estimate_seconds_left
-from tracer.transport.rounds import Budget
+from tracer.transport.query import Budget
 
 
 def wait_for(runner: JobRunner, job_id: str, predicate, timeout: float = 10.0) -> dict:
@@ -225,7 +225,8 @@ def test_one_budget_and_one_default_from_the_route_to_the_rounds() -> None:
     runs under the same default in both (capped by the service's limit); a stated budget passes as stated."""
     from service import jobs
     from service.simulation import Limits, resolve_budget
-    from tracer.transport.rounds import DEFAULT_MAX_SECONDS, budget
+    from tracer.transport.query import DEFAULT_MAX_SECONDS
+    from tracer.transport.rounds import budget
 
     assert jobs.Budget is Budget
     limits = Limits(max_points=100, max_photons=10**9, max_seconds=600.0)

@@ -25,6 +25,7 @@ path's own lens point. Answered by paths from the eye (`tracer.transport.radianc
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 from typing import Any
@@ -160,16 +161,15 @@ def band_seed(seed: int, band: int) -> int:
 STOP_ORDER = ("cancelled", "max_seconds", "max_photons", "target_relative_error")   # the image's: its bands' first
 
 
-def run_in_bands(sim, body: dict, max_pixels: int, *, max_photons=None, max_seconds=None, target_relative_error=None,
-                 seed: int = 0, progress=None, cancel=None, **options: Any) -> LuminanceResult:
+def run_in_bands(sim, body: dict, max_pixels: int, query: Any, progress=None, cancel=None) -> LuminanceResult:
     """A camera of more than `max_pixels` pixels, traced a band of rows at a time (`band_rows`), each band a query
-    of its own (`tracer.simulate.Simulation.measure`), assembled into the image `Simulation.run` answers: the same
-    fields and shape.
+    of its own (`tracer.simulate.Simulation.measure`: `query`, a `tracer.transport.query.Query`, with the band's
+    budget and seed), assembled into the image `Simulation.run` answers: the same fields and shape.
 
     Each pixel's value and standard error are its band's (batch means over that band's own batches: as honest as
     one band's); each band draws from its own seed (`band_seed`). The budget is the image's: each band gets its
     share of `max_photons` by its pixels, and of the seconds left by its pixels among those left; a
-    `target_relative_error` holds in every band (with the "worst" scope: in every pixel of the image). `photons`,
+    target relative error holds in every band (with the "worst" scope: in every pixel of the image). `photons`,
     `batches`, `rejected`, the counters and `compile_seconds` add up; `seconds` is the wall time of all the bands;
     `stop_reason` the bands' first in `STOP_ORDER`; `cost` is the image's (`cost_of` over all its pixels).
     `progress(photons, worst_relative_error, seconds)` counts the bands already done in."""
@@ -177,12 +177,12 @@ def run_in_bands(sim, body: dict, max_pixels: int, *, max_photons=None, max_seco
 
     from tracer.sensors.views import luminance_result
     from tracer.transport.estimate import cost_of
-    from tracer.transport.rounds import DEFAULT_MAX_SECONDS, ViewBins
+    from tracer.transport.rounds import ViewBins
 
     _, _, _, _, _, w, h = check(body)
     bands = band_rows(w, h, int(max_pixels))
-    if target_relative_error is None and max_seconds is None and max_photons is None:
-        max_seconds = DEFAULT_MAX_SECONDS
+    rules = query.budget.stop_rules()   # the image's (`DEFAULT_MAX_SECONDS` where it states none)
+    max_seconds, max_photons = rules.max_seconds, rules.max_photons
     t0 = time.perf_counter()
     done_photons = 0
     parts: list[Any] = []
@@ -195,9 +195,9 @@ def run_in_bands(sim, body: dict, max_pixels: int, *, max_photons=None, max_seco
             if progress is not None:
                 progress(_done + p, rel, time.perf_counter() - t0 if p else sec)
 
-        _, res = sim.measure(lambda s, bd, r0=r0, r1=r1: band_probe(s, bd, r0, r1), body, target=target_relative_error,
-                             max_seconds=left, max_photons=photons, seed=band_seed(seed, b), progress=report,
-                             cancel=cancel, **options)
+        band = dataclasses.replace(query, budget=dataclasses.replace(rules, max_seconds=left, max_photons=photons),
+                                   seed=band_seed(query.seed, b))
+        _, res = sim.measure(lambda s, bd, r0=r0, r1=r1: band_probe(s, bd, r0, r1), body, band, report, cancel)
         parts.append(res)
         done_photons += int(res.photons)
     first = parts[0]

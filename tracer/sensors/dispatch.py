@@ -5,6 +5,7 @@ To register a new kind: import its module here and add it to `KINDS`.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 from tracer.errors import SimulationError
@@ -24,14 +25,13 @@ def kind_of(body: Any):
     return kind
 
 
-def run(sim, body: dict, estimator: str = "auto", observe=(), physics_left_out=(), **options) -> Any:
-    """Measure one sensor on `sim` (`tracer.simulate.Simulation`): its probe, the rounds, its answer. `options` are
-    the query's budget and controls (`Simulation.run`). A kind that is forward only answers "auto" forward; one that
-    does not observe refuses ``observe`` and ``physics_left_out``."""
+def run(sim, body: dict, query, progress=None, cancel=None) -> Any:
+    """Measure one sensor on `sim` (`tracer.simulate.Simulation`) for `query` (`tracer.transport.query.Query`): its
+    probe, the rounds, its answer. A kind that is forward only answers "auto" forward; one that does not observe
+    refuses ``observe`` and ``physics_left_out``."""
     kind = kind_of(body)
-    if not kind.OBSERVES and (observe or physics_left_out):
+    if not kind.OBSERVES and (query.observe or query.physics_left_out):
         raise SimulationError(f"a {kind.TYPE} sensor takes no observe or physics_left_out")
-    if kind.FORWARD_ONLY and estimator == "auto":
-        estimator = "forward"
-    return kind.answer(sim, *sim.measure(kind.probe, body, estimator=estimator, observe=observe,
-                                         physics_left_out=physics_left_out, **options))
+    if kind.FORWARD_ONLY and query.estimator == "auto":
+        query = dataclasses.replace(query, estimator="forward")
+    return kind.answer(sim, *sim.measure(kind.probe, body, query, progress, cancel))

@@ -27,6 +27,7 @@ from tracer.optics.fields import BodyField, fields
 from tracer.optics.frames import onb
 from tracer.sensors.base import IlluminanceResult, Probe, vec3
 from tracer.sensors.views import LuminanceResult, angle, check_fields, luminance_result, unit
+from tracer.transport.query import query as make_query
 from tracer.transport.radiance import CONE, ViewArrays, pinhole
 
 TYPE = "luminance"
@@ -87,16 +88,16 @@ def meters_probe(sim, body: dict) -> Probe:
     return Probe(pos, axes, view=view)
 
 
-def meters(sim, positions, directions, aperture_deg: float = DEFAULT_APERTURE_DEG, **query) -> LuminanceResult:
+def meters(sim, positions, directions, aperture_deg: float = DEFAULT_APERTURE_DEG, query=None, progress=None,
+           cancel=None, **options) -> LuminanceResult:
     """The luminance (cd/m²) each of k meters reads, measured together (one run, one stop rule over all of them):
-    `LuminanceResult` with ``luminance`` and ``stderr`` of shape (k,). `query`: the budget options of
-    `tracer.simulate.Simulation.run` (estimator "auto" or "backward")."""
-    if query.get("estimator", "auto") == "forward":
+    `LuminanceResult` with ``luminance`` and ``stderr`` of shape (k,). `query`: a `tracer.transport.query.Query`, or
+    `options` as `tracer.simulate.Simulation.run` takes them (estimator "auto" or "backward")."""
+    q = make_query(**options) if query is None else query
+    if q.estimator == "forward":
         raise SimulationError("luminance meters are answered by paths from the eye; the forward estimator cannot")
     body = {"positions": positions, "directions": directions, "aperture_deg": aperture_deg}
-    if "target_relative_error" in query:
-        query["target"] = query.pop("target_relative_error")
-    probe, res = sim.measure(meters_probe, body, **query)
+    probe, res = sim.measure(meters_probe, body, q, progress, cancel)
     return luminance_result(sim, res, (probe.view.kind.shape[0],))
 
 

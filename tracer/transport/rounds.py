@@ -29,12 +29,12 @@ from tracer.sensors.base import IlluminanceResult, Probe
 from tracer.transport.backward import QueryArrays, disk_queries
 from tracer.transport.estimate import Estimate, cost_of
 from tracer.transport.forward import COUNTERS, SensorArrays, tally_columns
+from tracer.transport.query import Budget, check_budget
 from tracer.transport.radiance import COUNTERS as RADIANCE_COUNTERS
 from tracer.transport.radiance import PIXEL, emitters, light_paths
 
 log = logging.getLogger(__name__)
 
-DEFAULT_MAX_SECONDS = 60.0     # s: budget of a query that states none, in the tracer and through the service
 ROUND_BATCHES = CPU_SHAPE.first_round        # batches started between two stop tests (the first rounds)
 MAX_ROUND_BATCHES = CPU_SHAPE.max_round      # the largest round, however long the query has run
 FORWARD_BATCH = CPU_SHAPE.forward_photons    # photons per forward batch (fewer when max_photons is small)
@@ -45,40 +45,12 @@ MAX_SPECTRAL_TALLIES = 4_000_000   # bins × spectral columns a query may record
 _COMPILE_SECONDS: dict[tuple, float] = {}   # first call of each compiled variant in this process
 
 
-@dataclass(frozen=True)
-class Budget:
-    """A query's stop rules: target relative error (a fraction), seconds, photons, and the target's scope
-    (`TARGET_SCOPES`); None: no such rule. The one budget of the project: the tracer's rounds stop by it (checked and
-    defaulted by `budget`), the service's jobs estimate the time left from it (`service.jobs`)."""
-
-    target: float | None = None
-    max_seconds: float | None = None
-    max_photons: int | None = None
-    scope: str = "worst"
-
-
-TARGET_SCOPES = ("worst", "lit", "mean")
 LIT_FRACTION = 0.01   # "lit" values: at least this fraction of the brightest one
 
 
 def budget(target_relative_error, max_seconds, max_photons, scope="worst") -> Budget:
-    if target_relative_error is not None:
-        if isinstance(target_relative_error, bool) or not (0 < float(target_relative_error) < 1):
-            raise SimulationError(f"target_relative_error must be in (0, 1), got {target_relative_error!r}")
-        target_relative_error = float(target_relative_error)
-    if max_seconds is not None:
-        if isinstance(max_seconds, bool) or not (0 < float(max_seconds) < math.inf):
-            raise SimulationError(f"max_seconds must be > 0 and finite, got {max_seconds!r}")
-        max_seconds = float(max_seconds)
-    if max_photons is not None:
-        if isinstance(max_photons, bool) or int(max_photons) != max_photons or int(max_photons) < 1:
-            raise SimulationError(f"max_photons must be a positive integer, got {max_photons!r}")
-        max_photons = int(max_photons)
-    if scope not in TARGET_SCOPES:
-        raise SimulationError(f"target_scope must be one of {list(TARGET_SCOPES)}, got {scope!r}")
-    if target_relative_error is None and max_seconds is None and max_photons is None:
-        max_seconds = DEFAULT_MAX_SECONDS
-    return Budget(target_relative_error, max_seconds, max_photons, scope)
+    """The stop rules checked (`tracer.transport.query.check_budget`), `DEFAULT_MAX_SECONDS` where none is stated."""
+    return check_budget(target_relative_error, max_seconds, max_photons, scope).stop_rules()
 
 
 def stop_error(est: Estimate, mean_est: Estimate, n_stop: int | None, scope: str) -> float:
