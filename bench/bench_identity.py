@@ -37,7 +37,7 @@ def synthetic(n_nodes: int, seed: int = 0):
 
     ``truth[i]`` is the old row of new row ``i``.
     """
-    from cad_adapter.matching import ShapeKey, Side
+    from cad_adapter.sides import ShapeKey, Side
 
     rng = np.random.default_rng(seed)
     n_groups = max(1, n_nodes // 11)

@@ -178,13 +178,12 @@ def demo_car(sizes: list[tuple[int, int, float]]) -> dict:
     import uvicorn
 
     from cad_adapter import Pusher, read_document, tessellate
-    from cad_adapter.glb import encode_glb
     from cad_adapter.samples import car_assembly
     from cad_adapter.step_uuid import write_step
     from lumenlink import demo as d
+    from lumenlink.demo_car import DOOR_OPEN_DEG, LENS_RADIUS_BEFORE_MM, SCENE_NAME, dress
     from service.app import create_app
     from service.config import Settings
-    from tracer.geometry_id import geometry_id
 
     out: dict = {"sizes": []}
     with tempfile.TemporaryDirectory() as tmp:
@@ -192,7 +191,7 @@ def demo_car(sizes: list[tuple[int, int, float]]) -> dict:
         step, sidecar = tmpd / "car.step", tmpd / "car.lumenlink.json"
 
         def export(door_deg: float):
-            built = read_document(car_assembly(door_deg, d.LENS_RADIUS_BEFORE_MM), sidecar=sidecar)
+            built = read_document(car_assembly(door_deg, LENS_RADIUS_BEFORE_MM), sidecar=sidecar)
             write_step(built, step)
             doc = read_document(step)
             return doc, tessellate(doc)
@@ -214,26 +213,10 @@ def demo_car(sizes: list[tuple[int, int, float]]) -> dict:
         try:
             with httpx.Client(base_url=base, timeout=600.0) as http:
                 with Pusher(base) as pusher:
-                    first = pusher.push(doc, tess, scene=d.SCENE_NAME)
+                    first = pusher.push(doc, tess, scene=SCENE_NAME)
                 sid = first.scene_id
                 uuid_of = {node.name: node.uuid for node in doc.nodes}
-                for name, material in (("car", d.PAINT), ("windscreen", d.GLASS), ("lens", d.GLASS),
-                                       ("housing", d.CHROME),
-                                       *((w, d.TYRE) for w in ("wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr"))):
-                    http.put(f"/scenes/{sid}/materials/{uuid_of[name]}", json=material).raise_for_status()
-                fv, ft = d._floor_mesh()
-                fgid = geometry_id(fv, ft)
-                http.put(f"/geometries/{fgid}", content=encode_glb(fv, ft),
-                         headers={"content-type": "model/gltf-binary"}).raise_for_status()
-                http.post(f"/scenes/{sid}/objects", json={"geometry": fgid, "mesh_unit": "m", "name": "floor",
-                                                          "material": d.CONCRETE}).raise_for_status()
-                ies = (Path(d.__file__).parent / "data" / "rab_dled6r8y_7.ies").read_text()
-                for body in ({"type": "spot", "name": "left low beam", "attached_to": uuid_of["headlamp"],
-                              "position": [-0.0025, 0.0, 0.0], "direction": [1.0, 0.0, -0.1], "cone_deg": 25.0,
-                              "falloff_deg": 8.0, "intensity_cd": 5000.0},
-                             {"type": "goniometric", "name": "ceiling downlight", "position": [3.5, 0.5, 3.0],
-                              "format": "ies", "data": ies}):
-                    http.post(f"/scenes/{sid}/lights", json=body).raise_for_status()
+                dress(http, sid, uuid_of)   # the demo's materials, floor and lights
                 out["effects"] = http.get(f"/scenes/{sid}").json().get("effects")
 
                 def render(cid: str, **budget) -> tuple[float, dict]:
@@ -260,13 +243,13 @@ def demo_car(sizes: list[tuple[int, int, float]]) -> dict:
                         "strategy": r["strategy"], "unreachable": r["unreachable"],
                         "mean_cd_m2": float(np.mean(lum))})
                 w, h = sizes[0][:2]
-                doc2, tess2 = export(d.DOOR_OPEN_DEG)
+                doc2, tess2 = export(DOOR_OPEN_DEG)
                 t0 = time.perf_counter()
                 with Pusher(base) as pusher:
-                    pusher.push(doc2, tess2, scene=d.SCENE_NAME)
+                    pusher.push(doc2, tess2, scene=SCENE_NAME)
                 push_s = time.perf_counter() - t0
                 img_s, img = render(cams[(w, h)], max_photons=4 * w * h, seed=3)
-                out["edit"] = {"width": w, "height": h, "edit": f"doors opened {d.DOOR_OPEN_DEG:g}°",
+                out["edit"] = {"width": w, "height": h, "edit": f"doors opened {DOOR_OPEN_DEG:g}°",
                                "push_s": push_s, "first_image_s": img_s, "total_s": push_s + img_s,
                                "paths": int(img["photons"])}
         finally:

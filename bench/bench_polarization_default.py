@@ -95,10 +95,9 @@ def demo_car(rounds: int, photons: int) -> dict:
 
     import cad_adapter
     from cad_adapter.client import Pusher
-    from cad_adapter.glb import encode_glb
     from cad_adapter.samples import car_assembly
     from lumenlink import demo
-    from tracer.geometry_id import geometry_id
+    from lumenlink.demo_car import GRID, dress
 
     with tempfile.TemporaryDirectory() as tmp:
         doc = cad_adapter.read_document(car_assembly(), sidecar=Path(tmp) / "ids.json")
@@ -107,21 +106,8 @@ def demo_car(rounds: int, photons: int) -> dict:
         with demo.running_service(Path(tmp) / "var") as base, httpx.Client(base_url=base, timeout=600.0) as http:
             with Pusher(base) as pusher:
                 sid = pusher.push(doc, tess, scene="car").scene_id
-            for name, m in (("car", demo.PAINT), ("windscreen", demo.GLASS), ("lens", demo.GLASS),
-                            ("housing", demo.CHROME), *((w, demo.TYRE) for w in ("wheel_fl", "wheel_fr", "wheel_rl",
-                                                                                  "wheel_rr"))):
-                http.put(f"/scenes/{sid}/materials/{uuid_of[name]}", json=m).raise_for_status()
-            fv, ft = demo._floor_mesh()
-            fgid = geometry_id(fv, ft)
-            http.put(f"/geometries/{fgid}", content=encode_glb(fv, ft),
-                     headers={"content-type": "model/gltf-binary"}).raise_for_status()
-            http.post(f"/scenes/{sid}/objects", json={"geometry": fgid, "mesh_unit": "m", "name": "floor",
-                                                      "material": demo.CONCRETE}).raise_for_status()
-            http.post(f"/scenes/{sid}/lights", json={
-                "type": "spot", "attached_to": uuid_of["headlamp"], "position": [-0.0025, 0.0, 0.0],
-                "direction": [1.0, 0.0, -0.1], "cone_deg": 25.0, "falloff_deg": 8.0,
-                "intensity_cd": 5000.0}).raise_for_status()
-            grid = http.post(f"/scenes/{sid}/sensors", json=demo.GRID)
+            dress(http, sid, uuid_of, ("headlamp",))   # the demo's materials, floor and headlamp
+            grid = http.post(f"/scenes/{sid}/sensors", json=GRID)
             grid.raise_for_status()
             url = f"/scenes/{sid}/sensors/{grid.json()['id']}/simulate"
             scene_effects = http.get(f"/scenes/{sid}").json()["effects"]

@@ -43,7 +43,8 @@ from OCP.TopExp import TopExp
 from OCP.TopTools import TopTools_IndexedMapOfShape
 
 from .errors import IdentityError
-from .matching import RULES, ShapeKey, Side, reconcile
+from .matching import RULES, reconcile
+from .sides import ShapeKey, Side
 from .tree import UNIT_METRES, Document
 
 SIDECAR_FORMAT = "lumenlink-sidecar-v3"

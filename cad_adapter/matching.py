@@ -31,130 +31,28 @@ the UUID the placement gives, and is reported with its candidates: never a silen
 
 from __future__ import annotations
 
-import re
 import uuid as uuidlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import sparse
-from scipy.optimize import linear_sum_assignment
-from scipy.sparse.csgraph import min_weight_full_bipartite_matching
 from scipy.spatial import cKDTree
 
+from cad_adapter.alignment import (
+    apply_rigid,
+    dense_assignment,
+    placement_score,
+    robust_alignment,
+    sparse_assignment,
+)
+from cad_adapter.sides import CLASS_RTOL, ShapeKey, Side, is_writer_id
+
 RULES = ("carried", "shape", "placement", "structure", "path", "restored", "new")
-#: relative tolerance of shape classes (frame-independent invariants of one part, scaled by its size)
-CLASS_RTOL = 1e-5
 #: a node moved less than this fraction of the model's diagonal (after alignment) sits where it was
 SAME_PLACE_RTOL = 1e-6
 #: two candidates tie when taking the other costs no more than this fraction of the diagonal (plus the
 #: same-place tolerance): only then is a match ambiguous
 TIE_RTOL = 1e-6
-#: names writers generate (blank instance names, renumbered ids): never evidence, never shown to people
-WRITER_ID = re.compile(r"^(?:|\d+|NAUO\d*|=>\[[0-9:]+\]|(?:SOLID|SHELL|COMPOUND|COMPONENT|PART|BODY)[_ ]?\d*|"
-                       r"OPEN_CASCADE_STEP_TRANSLATO-\d+|#\d+|I\d+)$", re.IGNORECASE)
-
-
-def is_writer_id(name: str | None) -> bool:
-    """Whether a name is one a STEP writer made up (blank, a number, ``NAUO61``), not a person."""
-    return name is None or WRITER_ID.match(name.strip()) is not None
-
-
-def display_name(instance: str | None, product: str | None) -> str:
-    """The name a person sees: the instance name, unless blank or a writer's id; then the product's."""
-    if instance and not is_writer_id(instance):
-        return instance
-    if product and not is_writer_id(product):
-        return product
-    return instance or product or "unnamed"
-
-
-@dataclass(frozen=True)
-class ShapeKey:
-    """Frame-independent invariants of a part: what stays when a writer moves the solid in its frame.
-
-    Attributes
-    ----------
-    volume, area : float
-        Document units³ and units².
-    moments : tuple of 3 float
-        Principal moments of inertia about the centroid (unit density), ascending, units⁵.
-    topology : tuple of 3 int
-        Faces, edges, vertices (0, 0, 0 where unknown).
-    """
-
-    volume: float
-    area: float
-    moments: tuple[float, float, float]
-    topology: tuple[int, int, int] = (0, 0, 0)
-
-    @property
-    def size(self) -> float:
-        """A length of the part: sqrt(area)."""
-        return float(np.sqrt(max(self.area, 0.0)))
-
-    def matches(self, other: ShapeKey, rtol: float = CLASS_RTOL) -> bool:
-        """Equal within ``rtol`` of the part's size (size³ for volumes, size² for areas, size⁵ for moments)."""
-        if self.topology != other.topology and 0 not in (sum(self.topology), sum(other.topology)):
-            return False
-        s = max(self.size, other.size)
-        if s == 0.0:
-            return self.volume == other.volume and self.area == other.area
-        close = (abs(self.volume - other.volume) <= rtol * (abs(self.volume) + s ** 3)
-                 and abs(self.area - other.area) <= rtol * (abs(self.area) + s ** 2))
-        return close and all(abs(a - b) <= rtol * (abs(a) + s ** 5)
-                             for a, b in zip(self.moments, other.moments, strict=True))
-
-
-@dataclass
-class Side:
-    """One tree as matching sees it (parents before children).
-
-    Attributes
-    ----------
-    parent : (n,) int64
-        Parent row, -1 for a root.
-    names, products : list of str
-        Instance names and product names (either may be blank).
-    world : (n, 4, 4) float64
-        ``root_from_node``, in the new document's unit.
-    local : (n, 4, 4) float64
-        ``parent_from_node``, same unit.
-    keys : list of ShapeKey or None
-        The part's invariants; None for an assembly (or a part without faces: see ``leaf``).
-    centroid : (n, 3) float64
-        A leaf's centre of volume in the part's frame (its origin where unknown).
-    leaf : (n,) bool
-        Shows a part (possibly without faces).
-    uuids : list of str or None
-        Known UUIDs (old side), or carried ones (new side), else None.
-    paths : list of str
-    axes : (n, 3, 3) float64 or None
-        A leaf's principal axes of inertia (rows) in the part's frame (zeros where unknown): one
-        unambiguous part then gives the model's rotation, even when the unambiguous parts lie on a line.
-    """
-
-    parent: np.ndarray
-    names: list[str]
-    products: list[str]
-    world: np.ndarray
-    local: np.ndarray
-    keys: list[ShapeKey | None]
-    centroid: np.ndarray
-    leaf: np.ndarray
-    uuids: list[str | None]
-    paths: list[str]
-    axes: np.ndarray | None = None
-
-    def __len__(self) -> int:
-        return len(self.names)
-
-    @classmethod
-    def empty(cls) -> Side:
-        return cls(np.zeros(0, np.int64), [], [], np.zeros((0, 4, 4)), np.zeros((0, 4, 4)), [], np.zeros((0, 3)),
-                   np.zeros(0, bool), [], [])
-
-
 @dataclass
 class Reconciliation:
     """Which old row each new row is (``old[i]``, -1 if none), the UUID it gets, and why.
@@ -259,71 +157,6 @@ def world_centroids(side: Side) -> np.ndarray:
 
 # ---------------------------------------------------------------- alignment
 
-def kabsch(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """The rigid 4×4 ``T`` minimising ``sum |T p - q|²`` over point pairs (k, 3); no reflection."""
-    cp, cq = p.mean(axis=0), q.mean(axis=0)
-    h = (p - cp).T @ (q - cq)
-    u, _, vt = np.linalg.svd(h)
-    d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
-    r = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
-    t = np.eye(4)
-    t[:3, :3] = r
-    t[:3, 3] = cq - r @ cp
-    return t
-
-
-def _apply(t: np.ndarray, p: np.ndarray) -> np.ndarray:
-    return p @ t[:3, :3].T + t[:3, 3]
-
-
-def robust_alignment(p: np.ndarray, q: np.ndarray, tol: float, seed: int = 0, rounds: int = 200,
-                     frames: list[np.ndarray] | None = None, score=None) -> tuple[np.ndarray, int]:
-    """``new_from_old`` of the model from unambiguous pairs ``p → q`` (k, 3), robust to parts moved alone.
-
-    Candidates: the identity, a pure translation by the median shift, RANSAC triples (Kabsch), and
-    ``frames`` (transforms proposed by single parts' principal axes). The candidate with most inliers
-    (within ``tol``) wins; ties (pairs on one line fix no rotation about it) go to ``score(t)`` (a count
-    of other parts it puts on an identical old part), then Kabsch refines on the inliers. Returns the
-    transform and its number of inliers.
-    """
-    k = len(p)
-    if k == 0:
-        return np.eye(4), 0
-
-    def inliers(t: np.ndarray) -> np.ndarray:
-        return np.linalg.norm(_apply(t, p) - q, axis=1) <= tol
-
-    def spread(a: np.ndarray) -> bool:  # points that fix a rotation: not all on one line
-        return len(a) >= 3 and np.linalg.svd(a - a.mean(axis=0), compute_uv=False)[1] > 10 * tol
-
-    shift = np.eye(4)
-    shift[:3, 3] = np.median(q - p, axis=0)
-    candidates = [np.eye(4), shift] + list(frames or [])
-    rng = np.random.default_rng(seed)
-    if k >= 3:
-        for _ in range(rounds if k > 3 else 1):
-            idx = rng.choice(k, 3, replace=False)
-            if spread(p[idx]):
-                candidates.append(kabsch(p[idx], q[idx]))
-    counts = [int(inliers(t).sum()) for t in candidates]
-    top = max(counts)
-    tied = [t for t, c in zip(candidates, counts, strict=True) if c == top]
-    best = tied[0]
-    if len(tied) > 1 and score is not None and not spread(p[inliers(best)]):
-        best = max(tied, key=score)  # first of the best: no rotation unless the parts say so
-    elif score is not None and top < k:
-        # the unique parts disagree (some moved alone): let the identical parts vote too, so that two parts
-        # of one sub-assembly moved away do not outvote a model that stayed where it was
-        support = [c + score(t) if 2 * c >= top else -1 for t, c in zip(candidates, counts, strict=True)]
-        if max(support) > top + score(best):
-            best = candidates[int(np.argmax(support))]
-    best_in = inliers(best)
-    if spread(p[best_in]):
-        refined = kabsch(p[best_in], q[best_in])
-        if inliers(refined).sum() >= best_in.sum():
-            best, best_in = refined, inliers(refined)
-    return best, int(best_in.sum())
-
 
 def frame_candidates(old: Side, new: Side, pairs: list[tuple[int, int]], c_old: np.ndarray,
                      c_new: np.ndarray, limit: int = 16) -> list[np.ndarray]:
@@ -353,79 +186,7 @@ def frame_candidates(old: Side, new: Side, pairs: list[tuple[int, int]], c_old: 
     return out
 
 
-def placement_score(cls_old: np.ndarray, cls_new: np.ndarray, c_old: np.ndarray, c_new: np.ndarray, tol: float,
-                    sample: int = 2000, seed: int = 0):
-    """``score(t)``: how many of (a sample of) the parts in classes with several members land, carried back
-    by ``t``, on an old part of their class. Trees are built once, on the old side."""
-    rng = np.random.default_rng(seed)
-    classes = {}
-    for c in np.unique(cls_new[cls_new >= 0]):
-        olds = np.flatnonzero(cls_old == c)
-        if len(olds) > 1:
-            classes[int(c)] = cKDTree(c_old[olds])
-    news = np.flatnonzero(np.isin(cls_new, list(classes)))
-    if len(news) > sample:
-        news = rng.choice(news, sample, replace=False)
-
-    def score(t: np.ndarray) -> int:
-        back = np.linalg.inv(t)
-        pts = _apply(back, c_new[news])
-        hits = 0
-        for c in np.unique(cls_new[news]):
-            m = cls_new[news] == c
-            d, _ = classes[int(c)].query(pts[m], k=1)
-            hits += int(np.sum(d <= tol))
-        return hits
-
-    return score
-
-
 # ---------------------------------------------------------------- assignment
-
-def sparse_assignment(rows: np.ndarray, cols: np.ndarray, cost: np.ndarray, n_rows: int, n_cols: int,
-                      unmatched: float) -> np.ndarray:
-    """Optimal partial assignment over candidate edges: ``match[r]`` = col or -1.
-
-    Minimises the sum of the chosen edges' costs plus ``unmatched`` for every row and every column left
-    out, over a sparse candidate graph (no all-pairs matrix): rows and columns each get a dummy partner
-    (cost ``unmatched``), and each candidate edge (r, c) a zero-cost dummy edge (c', r') so that any
-    partial matching extends to a perfect one. Costs are shifted by 1 (scipy drops explicit zeros).
-    """
-    match = np.full(n_rows, -1, np.int64)
-    if len(rows) == 0 or n_rows == 0 or n_cols == 0:
-        return match
-    rows = np.asarray(rows, np.int64)
-    cols = np.asarray(cols, np.int64)
-    # left: real rows 0..R-1, column dummies R..R+C-1; right: real cols 0..C-1, row dummies C..C+R-1
-    r_n, c_n = n_rows, n_cols
-    li = np.concatenate([rows, np.arange(r_n), r_n + np.arange(c_n), r_n + cols])
-    ri = np.concatenate([cols, c_n + np.arange(r_n), np.arange(c_n), c_n + rows])
-    w = np.concatenate([np.asarray(cost, float), np.full(r_n, unmatched), np.full(c_n, unmatched),
-                        np.zeros(len(rows))]) + 1.0
-    g = sparse.coo_matrix((w, (li, ri)), shape=(r_n + c_n, r_n + c_n)).tocsr()
-    g.sum_duplicates()
-    left, right = min_weight_full_bipartite_matching(g)
-    del left
-    pairs = right[:r_n]
-    ok = pairs < c_n
-    match[ok] = pairs[ok]
-    return match
-
-
-def _dense_assignment(cost: np.ndarray, unmatched: float) -> np.ndarray:
-    """``match[r]`` for a small dense cost matrix with a cost for leaving a row or column out."""
-    r, c = cost.shape
-    big = np.full((r + c, c + r), 0.0)
-    big[:r, :c] = cost
-    big[:r, c:] = np.where(np.eye(r, dtype=bool), unmatched, np.inf)
-    big[r:, :c] = np.where(np.eye(c, dtype=bool), unmatched, np.inf)
-    big[np.isinf(big)] = 1e18
-    ri, ci = linear_sum_assignment(big)
-    match = np.full(r, -1, np.int64)
-    for a, b in zip(ri, ci, strict=True):
-        if a < r and b < c:
-            match[a] = b
-    return match
 
 
 # ---------------------------------------------------------------- the reconciliation
@@ -513,7 +274,7 @@ def reconcile(old: Side, new: Side, *, diagonal: float | None = None, same_place
     align, n_in = robust_alignment(p, q, tol=tol_align, seed=seed,
                                    frames=frame_candidates(old, new, pairs, c_old, c_new),
                                    score=placement_score(cls_old, cls_new, c_old, c_new, tol_align, seed=seed))
-    c_old_aligned = _apply(align, c_old) if len(old) else c_old
+    c_old_aligned = apply_rigid(align, c_old) if len(old) else c_old
 
     # 3. identical parts and identical sub-assemblies: optimal assignment on aligned distance
     for c, news in g_new.items():
@@ -582,7 +343,7 @@ def _assign_by_place(st: _State, news: np.ndarray, olds: np.ndarray, c_new: np.n
     cost = dist.ravel() / diagonal
     if len(news) * len(olds) <= 250_000:  # small: an exact dense assignment over every pair
         full = np.linalg.norm(c_new[news][:, None, :] - c_old[olds][None, :, :], axis=2) / diagonal
-        match = _dense_assignment(full, unmatched=2.0)
+        match = dense_assignment(full, unmatched=2.0)
     else:
         match = sparse_assignment(rows, cols, cost, len(news), len(olds), unmatched=2.0)
     old_names: dict[str, int] = {}
@@ -679,7 +440,7 @@ def _reshaped_by_parent(st: _State, diagonal: float) -> None:
             for b, j in enumerate(olds):
                 d = float(np.linalg.norm(new.local[i, :3, 3] - old.local[j, :3, 3])) / diagonal
                 cost[a, b] = d + _name_penalty(new.products[i] or new.names[i], old.products[j] or old.names[j])
-        match = _dense_assignment(cost, unmatched=0.3)
+        match = dense_assignment(cost, unmatched=0.3)
         for a, b in enumerate(match):
             if b >= 0:
                 st.bind(news[a], olds[b], "structure")
@@ -706,7 +467,7 @@ def _restore(st: _State, removed: Side, c_new: np.ndarray, align: np.ndarray, to
     if not free.any():
         return out
     taken = np.zeros(len(removed), bool)
-    c_rem = _apply(align, world_centroids(removed))
+    c_rem = apply_rigid(align, world_centroids(removed))
     nr = len(removed)
     cls = shape_classes(list(removed.keys) + list(new.keys))
     labels: dict[tuple, list[list[int]]] = {}
@@ -721,7 +482,7 @@ def _restore(st: _State, removed: Side, c_new: np.ndarray, align: np.ndarray, to
         if not rems or not news:
             continue
         d = np.linalg.norm(c_new[news][:, None, :] - c_rem[rems][None, :, :], axis=2)
-        match = _dense_assignment(np.where(d <= tol, d, 1e9), unmatched=tol + 1.0)
+        match = dense_assignment(np.where(d <= tol, d, 1e9), unmatched=tol + 1.0)
         for a, b in enumerate(match):
             if b < 0 or d[a, b] > tol:
                 continue

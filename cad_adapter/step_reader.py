@@ -39,7 +39,7 @@ from OCP.XCAFDoc import (
 )
 
 from .errors import CadImportError, EmptyDocumentError
-from .matching import display_name
+from .sides import display_name
 from .tree import UNIT_METRES, Document, Node, Part, assign_paths
 from .xcaf import carried_uuids, label_entry, label_name
 

@@ -30,27 +30,23 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-#: Cells of the floor sensor (the e2e test and `--photons` keep these; photon counts scale the noise).
-GRID_NU, GRID_NV = 32, 24
-
-
-class MissingPart(RuntimeError):
-    """A part of LumenLink the demo needs is not there yet.
-
-    Parameters
-    ----------
-    part : str
-        What is missing (a module, a function, an endpoint).
-    issue : int
-        The issue that builds it.
-    detail : str
-        What went wrong when the demo tried to use it.
-    """
-
-    def __init__(self, part: str, issue: int, detail: str = "") -> None:
-        super().__init__(f"{part} is not built yet (issue {issue})" + (f": {detail}" if detail else ""))
-        self.part = part
-        self.issue = issue
+from lumenlink.demo_car import (
+    DOOR_OPEN_DEG,
+    GRID,
+    GRID_NU,
+    GRID_NV,
+    GRID_SECONDS,
+    LENS_RADIUS_AFTER_MM,
+    LENS_RADIUS_BEFORE_MM,
+    NAMED_POINTS,
+    POINT_RADIUS,
+    POINTS_SECONDS,
+    SCENE_NAME,
+    MissingPart,
+    add_sensors,
+    check,
+    dress,
+)
 
 
 def need(module: str, issue: int, *names: str) -> Any:
@@ -212,18 +208,6 @@ def running_service(data_dir: Path) -> Iterator[str]:
         thread.join(timeout=15.0)
 
 
-def _check(response: Any, what: str) -> Any:
-    """The JSON of a 2xx answer, or a RuntimeError quoting the service's problem detail."""
-    if response.status_code == 404 and "Not Found" in response.text and "detail" not in response.text:
-        raise MissingPart(f"the endpoint behind {what}", 5, response.text)
-    if response.status_code == 503:
-        detail = response.json().get("detail", response.text)
-        raise MissingPart(f"the part behind {what}", 6, detail)
-    if response.status_code // 100 != 2:
-        raise RuntimeError(f"{what} failed: HTTP {response.status_code}: {response.text[:500]}")
-    return response.json() if response.content else None
-
-
 def _fmt_lux(value: float, stderr: float) -> str:
     return f"{value:9.2f} ± {stderr:6.2f} lx"
 
@@ -262,45 +246,6 @@ def run_demo(out_dir: Path, photons: int = 2_000_000, *, narrator: Narrator | No
     return report
 
 
-# ---------------------------------------------------------------------------------------------- the scene
-
-LENS_RADIUS_BEFORE_MM = 120.0  # the sample's default lens
-LENS_RADIUS_AFTER_MM = 75.0  # a more strongly curved lens: a narrower, brighter low beam
-DOOR_OPEN_DEG = 65.0
-SCENE_NAME = "demo car"
-
-PAINT = {"type": "mix", "diffuse": 0.35, "specular": 0.05}
-GLASS = {"type": "dielectric", "ior": 1.5}
-TYRE = {"type": "black"}
-CHROME = {"type": "mirror", "reflectance": 0.9}
-CONCRETE = {"type": "lambertian", "reflectance": 0.25}
-
-# Where the demo asks for illuminance (world metres: x forward, y to the left, z up, origin on the
-# ground under the middle of the car); receivers are horizontal disks facing up.
-NAMED_POINTS = {
-    "road 3 m ahead of the left headlamp": (5.0, 0.54, 0.0),
-    "road 1.5 m ahead of the bumper": (3.5, 0.0, 0.0),
-    "ground outside the left door": (0.3, 1.6, 0.0),
-    "bonnet, above the engine": (1.6, 0.0, 1.0),
-}
-POINT_RADIUS = 0.2  # m: a receiver that forward photons actually hit
-# Time budgets (s) of the four queries, so that the demo stays under two minutes on a slow or busy
-# machine whatever --photons says; each answer names the rule that stopped it.
-GRID_SECONDS = 10.0
-POINTS_SECONDS = 5.0
-
-# The floor sensor: 8 m × 6 m of floor in front of the car, front side up (u × v = +z).
-GRID = {"type": "grid", "name": "floor in front of the car", "origin": [2.2, -2.5, 0.0], "u": [8.0, 0.0, 0.0],
-        "v": [0.0, 6.0, 0.0], "nu": GRID_NU, "nv": GRID_NV}
-
-
-def _floor_mesh(half: float = 15.0) -> tuple[Any, Any]:
-    import numpy as np
-
-    v = np.array([[-half, -half, 0.0], [half, -half, 0.0], [half, half, 0.0], [-half, half, 0.0]], np.float32)
-    return v, np.array([[0, 1, 2], [0, 2, 3]], np.uint32)
-
-
 def _push_facts(result: Any) -> PushFacts:
     a = result.answer
     return PushFacts(revision=int(a["revision"]), uploaded=int(result.uploaded), added=len(a["added"]),
@@ -313,10 +258,10 @@ def _push_facts(result: Any) -> PushFacts:
 def _assignments(http: Any, scene_id: str) -> dict[str, Any]:
     """Every assignment of the scene, keyed so that two snapshots compare field by field."""
     out: dict[str, Any] = {}
-    for m in _check(http.get(f"/scenes/{scene_id}/materials"), "listing materials"):
+    for m in check(http.get(f"/scenes/{scene_id}/materials"), "listing materials"):
         out[f"material:{m['node']}"] = (m["material"], m["orphaned"])
     for kind in ("lights", "sensors", "objects"):
-        for a in _check(http.get(f"/scenes/{scene_id}/{kind}"), f"listing {kind}"):
+        for a in check(http.get(f"/scenes/{scene_id}/{kind}"), f"listing {kind}"):
             out[f"{kind[:-1]}:{a['id']}"] = (a["body"], a["orphaned"])
     return out
 
@@ -362,49 +307,13 @@ def _run(report: DemoReport, n: Narrator, photons: int, keep_data: bool, clock: 
         # 2 ---------------------------------------------------------------------------- push
         n.step("2. Pushing the model through the adapter and the REST API")
         n.say(f"service at {base} (SQLite and BLAS cache in {data_dir})")
-        compiled = clock.seconds
-        with adapter.Pusher(base) as pusher:
-            first = pusher.push(doc, tess, scene=SCENE_NAME)
-        facts = report.pushes["initial"] = _push_facts(first)
-        scene_id = first.scene_id
-        n.say(f"pushed revision {facts.revision}: {facts.added} nodes added, {first.uploaded} of "
-              f"{first.geometries} distinct geometries uploaded (each once), {facts.blas_built} bottom levels "
-              f"built, top level {facts.tlas_ms:.1f} ms")
-        if clock.seconds - compiled > 0.5:
-            n.say(f"(this first push included {clock.seconds - compiled:.1f} s of numba compilation of the tracer's "
-                  "builders, once per installation)")
+        scene_id = _first_push(report, n, clock, adapter, base, doc, tess)
 
-        for name, material in (("car", PAINT), ("windscreen", GLASS), ("lens", GLASS), ("housing", CHROME),
-                               *((w, TYRE) for w in ("wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr"))):
-            _check(http.put(f"/scenes/{scene_id}/materials/{uuid_of[name]}", json=material), f"material of {name}")
+        dress(http, scene_id, uuid_of)
+        sensor, surface = add_sensors(http, scene_id, uuid_of)
         n.say("materials: paint on the car (inherited by body and doors), glass (n = 1.5) in the windscreen "
               "and the headlamp lens, a chrome reflector, black tyres")
-
-        glb = need("cad_adapter.glb", 4, "encode_glb")
-        tracer_id = need("tracer.geometry_id", 3, "geometry_id")
-        fv, ft = _floor_mesh()
-        fgid = tracer_id.geometry_id(fv, ft)
-        _check(http.put(f"/geometries/{fgid}", content=glb.encode_glb(fv, ft),
-                        headers={"content-type": "model/gltf-binary"}), "uploading the floor")
-        _check(http.post(f"/scenes/{scene_id}/objects", json={"geometry": fgid, "mesh_unit": "m", "name": "floor",
-                                                               "material": CONCRETE}), "adding the floor")
         n.say("a 30 m × 30 m concrete floor (ρ = 0.25), owned by the simulation: pushes never touch it")
-
-        ies = (Path(__file__).parent / "data" / "rab_dled6r8y_7.ies").read_text()
-        lights = {
-            "headlamp": {"type": "spot", "name": "left low beam", "attached_to": uuid_of["headlamp"],
-                         # inside the housing, just behind the lens, in the headlamp's frame (m)
-                         "position": [-0.0025, 0.0, 0.0], "direction": [1.0, 0.0, -0.1],
-                         "cone_deg": 25.0, "falloff_deg": 8.0, "intensity_cd": 5000.0},
-            "ceiling": {"type": "goniometric", "name": "ceiling downlight (RAB DLED6R8Y, IES)",
-                        "position": [3.5, 0.5, 3.0], "format": "ies", "data": ies},
-        }
-        for key, body in lights.items():
-            _check(http.post(f"/scenes/{scene_id}/lights", json=body), f"adding the {key} light")
-        sensor = _check(http.post(f"/scenes/{scene_id}/sensors", json=GRID), "adding the floor sensor")["id"]
-        surface = _check(http.post(f"/scenes/{scene_id}/sensors",
-                                   json={"type": "surface", "node": uuid_of["car"], "name": "the car in lux"}),
-                         "adding the car's surface sensor")["id"]
         n.say("lights: a 5000 cd spot inside the left headlamp, attached to its node, shining through the lens; "
               "a 532 lm downlight from a real IES file, 3 m up")
         n.say(f"sensors: {GRID_NU}×{GRID_NV} cells on the floor, {GRID['u'][0]:g} m × {GRID['v'][1]:g} m in front "
@@ -412,49 +321,10 @@ def _run(report: DemoReport, n: Narrator, photons: int, keep_data: bool, clock: 
         report.assignments_before = _assignments(http, scene_id)
 
         # 3 ---------------------------------------------------------------------------- first query
-        effects = _check(http.get(f"/scenes/{scene_id}"), "reading the scene")["effects"]
-        n.step(f"3a. Compiling the photon-tracing kernel for this scene's effect set {{{', '.join(effects)}}}")
-        compiled = clock.seconds
-        t = time.perf_counter()
-        _check(http.post(f"/scenes/{scene_id}/illuminance",
-                         json={"points": [[5.0, 0.0, 0.0]], "normals": [[0.0, 0.0, 1.0]], "max_photons": 1000}),
-               "the warm-up query")
-        n.say(f"ready in {time.perf_counter() - t:.1f} s, of which numba compilation here "
-              f"{clock.seconds - compiled:.1f} s (the kernels compile in two background processes from the start and "
-              "are cached on disk: the next run loads them)")
-        n.step(f"3b. Illuminance on the floor grid and at named points (up to {photons:,} photons, "
-               f"{GRID_SECONDS:g} s / {POINTS_SECONDS:g} s a query)")
-        report.grid_before = _simulate(http, scene_id, sensor, photons, n)
-        report.maps["before"] = _save_map(http, scene_id, sensor, out / "floor_before.png")
-        n.say(f"map: {report.maps['before']}")
-        report.points_before = _points(http, scene_id, photons, n)
+        _first_query(report, n, clock, http, scene_id, sensor, photons)
 
         # 4 ---------------------------------------------------------------------------- edits
-        n.step(f"4a. The designer opens both doors by {DOOR_OPEN_DEG:g}° (a transform change) and re-saves the STEP")
-        doc, tess = export(DOOR_OPEN_DEG, LENS_RADIUS_BEFORE_MM)
-        compiled = clock.seconds
-        with adapter.Pusher(base) as pusher:
-            door = pusher.push(doc, tess, scene=SCENE_NAME)
-        report.pushes["doors"] = _say_push(door, doc, n, clock.seconds - compiled)
-
-        n.step(f"4b. The designer changes the lens' radius of curvature {LENS_RADIUS_BEFORE_MM:g} → "
-               f"{LENS_RADIUS_AFTER_MM:g} mm (a geometry change) and re-saves")
-        doc, tess = export(DOOR_OPEN_DEG, LENS_RADIUS_AFTER_MM)
-        compiled = clock.seconds
-        with adapter.Pusher(base) as pusher:
-            lens = pusher.push(doc, tess, scene=SCENE_NAME)
-        report.pushes["lens"] = _say_push(lens, doc, n, clock.seconds - compiled)
-
-        report.assignments_after = _assignments(http, scene_id)
-        kept = [k for k, v in report.assignments_before.items() if report.assignments_after.get(k) == v]
-        lost = sorted(set(report.assignments_before) - set(kept))
-        counts = {kind: sum(1 for k in kept if k.startswith(kind)) for kind in ("material", "light", "sensor",
-                                                                                "object")}
-        n.say(f"assignments after both pushes: {counts['material']} materials, {counts['light']} lights, "
-              f"{counts['sensor']} sensors, {counts['object']} floor object — "
-              + ("all kept, none orphaned" if not lost else f"LOST: {lost}"))
-        if lost:
-            raise RuntimeError(f"assignments did not survive the pushes: {lost}")
+        _edits(report, n, clock, adapter, base, scene_id, export, http)
 
         # 5 ---------------------------------------------------------------------------- second query
         n.step("5. Illuminance again, with the doors open and the new lens")
@@ -476,6 +346,75 @@ def _run(report: DemoReport, n: Narrator, photons: int, keep_data: bool, clock: 
         _outputs(report, step, n, None)
 
 
+def _first_push(report: DemoReport, n: Narrator, clock: CompileClock, adapter: Any, base: str, doc: Any,
+                tess: Any) -> str:
+    """2. The first push, and what it cost; the scene's id."""
+    compiled = clock.seconds
+    with adapter.Pusher(base) as pusher:
+        first = pusher.push(doc, tess, scene=SCENE_NAME)
+    facts = report.pushes["initial"] = _push_facts(first)
+    scene_id = first.scene_id
+    n.say(f"pushed revision {facts.revision}: {facts.added} nodes added, {first.uploaded} of "
+          f"{first.geometries} distinct geometries uploaded (each once), {facts.blas_built} bottom levels "
+          f"built, top level {facts.tlas_ms:.1f} ms")
+    if clock.seconds - compiled > 0.5:
+        n.say(f"(this first push included {clock.seconds - compiled:.1f} s of numba compilation of the tracer's "
+              "builders, once per installation)")
+    return scene_id
+
+
+def _first_query(report: DemoReport, n: Narrator, clock: CompileClock, http: Any, scene_id: str, sensor: str,
+                 photons: int) -> None:
+    """3. The kernel of the scene's effect set, then the floor grid and the named points."""
+    out = report.out_dir
+    effects = check(http.get(f"/scenes/{scene_id}"), "reading the scene")["effects"]
+    n.step(f"3a. Compiling the photon-tracing kernel for this scene's effect set {{{', '.join(effects)}}}")
+    compiled = clock.seconds
+    t = time.perf_counter()
+    check(http.post(f"/scenes/{scene_id}/illuminance",
+                     json={"points": [[5.0, 0.0, 0.0]], "normals": [[0.0, 0.0, 1.0]], "max_photons": 1000}),
+           "the warm-up query")
+    n.say(f"ready in {time.perf_counter() - t:.1f} s, of which numba compilation here "
+          f"{clock.seconds - compiled:.1f} s (the kernels compile in two background processes from the start and "
+          "are cached on disk: the next run loads them)")
+    n.step(f"3b. Illuminance on the floor grid and at named points (up to {photons:,} photons, "
+           f"{GRID_SECONDS:g} s / {POINTS_SECONDS:g} s a query)")
+    report.grid_before = _simulate(http, scene_id, sensor, photons, n)
+    report.maps["before"] = _save_map(http, scene_id, sensor, out / "floor_before.png")
+    n.say(f"map: {report.maps['before']}")
+    report.points_before = _points(http, scene_id, photons, n)
+
+
+def _edits(report: DemoReport, n: Narrator, clock: CompileClock, adapter: Any, base: str, scene_id: str,
+           export: Callable[[float, float], tuple[Any, Any]], http: Any) -> None:
+    """4. The designer's two edits, each pushed; every assignment must survive both."""
+    n.step(f"4a. The designer opens both doors by {DOOR_OPEN_DEG:g}° (a transform change) and re-saves the STEP")
+    doc, tess = export(DOOR_OPEN_DEG, LENS_RADIUS_BEFORE_MM)
+    compiled = clock.seconds
+    with adapter.Pusher(base) as pusher:
+        door = pusher.push(doc, tess, scene=SCENE_NAME)
+    report.pushes["doors"] = _say_push(door, doc, n, clock.seconds - compiled)
+
+    n.step(f"4b. The designer changes the lens' radius of curvature {LENS_RADIUS_BEFORE_MM:g} → "
+           f"{LENS_RADIUS_AFTER_MM:g} mm (a geometry change) and re-saves")
+    doc, tess = export(DOOR_OPEN_DEG, LENS_RADIUS_AFTER_MM)
+    compiled = clock.seconds
+    with adapter.Pusher(base) as pusher:
+        lens = pusher.push(doc, tess, scene=SCENE_NAME)
+    report.pushes["lens"] = _say_push(lens, doc, n, clock.seconds - compiled)
+
+    report.assignments_after = _assignments(http, scene_id)
+    kept = [k for k, v in report.assignments_before.items() if report.assignments_after.get(k) == v]
+    lost = sorted(set(report.assignments_before) - set(kept))
+    counts = {kind: sum(1 for k in kept if k.startswith(kind)) for kind in ("material", "light", "sensor",
+                                                                            "object")}
+    n.say(f"assignments after both pushes: {counts['material']} materials, {counts['light']} lights, "
+          f"{counts['sensor']} sensors, {counts['object']} floor object — "
+          + ("all kept, none orphaned" if not lost else f"LOST: {lost}"))
+    if lost:
+        raise RuntimeError(f"assignments did not survive the pushes: {lost}")
+
+
 def _outputs(report: DemoReport, step: Path, n: Narrator, base: str | None) -> None:
     """6. Where the demo's files are (and, while it serves, its pages)."""
     n.step("6. Outputs")
@@ -488,7 +427,7 @@ def _outputs(report: DemoReport, step: Path, n: Narrator, base: str | None) -> N
 
 
 def _simulate(http: Any, scene_id: str, sensor: str, photons: int, n: Narrator) -> dict[str, Any]:
-    a = _check(http.post(f"/scenes/{scene_id}/sensors/{sensor}/simulate",
+    a = check(http.post(f"/scenes/{scene_id}/sensors/{sensor}/simulate",
                          json={"max_photons": photons, "max_seconds": GRID_SECONDS, "seed": 1}),
                "simulating the floor sensor")
     maps = need("service.maps", 6, "median_relative_error")
@@ -502,7 +441,7 @@ def _simulate(http: Any, scene_id: str, sensor: str, photons: int, n: Narrator) 
 
 def _simulate_surface(http: Any, scene_id: str, sensor: str, photons: int, n: Narrator) -> dict[str, Any]:
     """The car's own surfaces in lux (what its page colours the model by)."""
-    a = _check(http.post(f"/scenes/{scene_id}/sensors/{sensor}/simulate",
+    a = check(http.post(f"/scenes/{scene_id}/sensors/{sensor}/simulate",
                          json={"max_photons": photons, "max_seconds": POINTS_SECONDS, "seed": 1}),
                "simulating the car's surface sensor")
     triangles = sum(len(i["lux"]) for i in a["instances"])
@@ -518,7 +457,7 @@ def _points(http: Any, scene_id: str, photons: int, n: Narrator,
     names = list(NAMED_POINTS)
     body = {"points": [list(NAMED_POINTS[k]) for k in names], "normals": [[0.0, 0.0, 1.0]] * len(names),
             "radius": POINT_RADIUS, "max_photons": photons, "max_seconds": POINTS_SECONDS, "seed": 2}
-    a = _check(http.post(f"/scenes/{scene_id}/illuminance", json=body), "the illuminance query")
+    a = check(http.post(f"/scenes/{scene_id}/illuminance", json=body), "the illuminance query")
     n.say(f"named points ({a['photons']:,} photons, {a['seconds']:.1f} s, {a['estimator']}, stopped by "
           f"{a['stop_reason']}, disks of radius {POINT_RADIUS:g} m):")
     for k, name in enumerate(names):
@@ -535,7 +474,7 @@ def _points(http: Any, scene_id: str, photons: int, n: Narrator,
 def _save_map(http: Any, scene_id: str, sensor: str, path: Path) -> Path:
     r = http.get(f"/scenes/{scene_id}/sensors/{sensor}/map.png")
     if r.status_code != 200:
-        _check(r, "fetching the map")
+        check(r, "fetching the map")
     path.write_bytes(r.content)
     return path
 

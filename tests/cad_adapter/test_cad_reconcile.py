@@ -14,9 +14,10 @@ import numpy as np
 import pytest
 from cad_helpers import AS1, STAMP, needs_fixtures
 
+from cad_adapter.alignment import kabsch, robust_alignment, sparse_assignment
 from cad_adapter.assembly import read_assembly
 from cad_adapter.identity import identify, node_records, shape_signature
-from cad_adapter.matching import display_name, is_writer_id, kabsch, robust_alignment, sparse_assignment
+from cad_adapter.sides import display_name, is_writer_id
 from cad_adapter.step_reader import read_step
 
 BOARD = cq.Workplane().box(80, 50, 1.6)
