@@ -321,8 +321,7 @@ class SimulationHub:
         job. The names themselves were checked when the query was built (`request_query`)."""
         from tracer.effects import EffectError, check_off, with_forced
 
-        extra = {"spectrum": "spectral", "stokes": "polarization"}
-        force_effects = query.force_effects + tuple(extra[o] for o in query.observe)
+        force_effects = query.forced
         try:
             off = check_off(list(query.force_effects_off), force_effects, prepared.simulation.effect_reasons)
         except EffectError as exc:

@@ -276,12 +276,8 @@ class Simulation:
         far field's: cd, then the total flux leaving, lm)."""
         stop = query.budget.stop_rules()
         observe_spectrum, observe_stokes = query.observes
-        force_effects, force_effects_off, seed, estimator = (query.force_effects, query.force_effects_off,
-                                                             query.seed, query.estimator)
-        if observe_spectrum:
-            force_effects = (*force_effects, "spectral")
-        if observe_stokes:
-            force_effects = (*force_effects, "polarization")
+        force_effects, force_effects_off, seed, estimator = (query.forced, query.force_effects_off, query.seed,
+                                                             query.estimator)
         refs = _references(query.reference, np.atleast_2d(probe.normals))
         try:
             effects = with_forced(self.effects, force_effects)
@@ -391,7 +387,7 @@ def left_out(sim: Simulation, res: IlluminanceResult, query: Query, rerun) -> di
 
     The pilot (`rerun(pilot query)`) is the same query with the effect forced on, under the
     query's own stop rules (its target error, photon and time budget: the difference's error is then about √2
-    times the run's own, and the answer takes up to 1 + len(names) times as long) and an independent seed
+    times the run's own, and the answer takes up to 1 + (effects named) times as long) and an independent seed
     (`_pilot_seed`: the two estimates are independent, so their variances add). An effect that leaves the photon
     state the same (`tracer.effects.photon_state`) changes nothing that runs: it is already on, or a branch on data
     that acts wherever the scene's materials call for it (Fresnel wherever there is a dielectric); its difference
@@ -402,9 +398,7 @@ def left_out(sim: Simulation, res: IlluminanceResult, query: Query, rerun) -> di
     """
     if res.stop_reason == "cancelled":
         return {}
-    spectrum, stokes = query.observes
-    asked = (*query.force_effects, *(("spectral",) if spectrum else ()), *(("polarization",) if stokes else ()))
-    off = query.force_effects_off
+    asked, off = query.forced, query.force_effects_off
     base = with_forced(sim.effects, asked, off)
     pilot_estimator = "forward" if query.estimator == "forward" else "auto"
     out = {}

@@ -69,6 +69,13 @@ class Query:
         """Whether the query observes the spectrum, and whether the Stokes vector."""
         return "spectrum" in self.observe, "stokes" in self.observe
 
+    @property
+    def forced(self) -> tuple[str, ...]:
+        """The effects the query forces on: `force_effects`, then what its observables need (the spectrum: photons
+        that carry a wavelength, `spectral`; the Stokes vector: `polarization`)."""
+        spectrum, stokes = self.observes
+        return (*self.force_effects, *(("spectral",) if spectrum else ()), *(("polarization",) if stokes else ()))
+
 
 def query(target_relative_error=None, max_seconds=None, max_photons=None, seed=0, estimator="auto",
           force_effects=(), force_effects_off=(), observe=(), reference=None, physics_left_out=(),

@@ -42,6 +42,9 @@ def test_a_query_keeps_what_was_asked_and_defaults_the_seconds_only_where_no_rul
     assert (q.seed, q.observe, q.reference, q.physics_left_out) == (3, ("stokes",), (0.0, 1.0, 0.0),
                                                                   ("polarization",))
     assert q.observes == (False, True)
+    assert q.forced == ("polarization",)   # what the Stokes vector needs
+    assert query(force_effects=["coating"], observe=["stokes", "spectrum"]).forced == ("coating", "spectral",
+                                                                                       "polarization")
     assert query().budget.stop_rules() == Budget(None, DEFAULT_MAX_SECONDS, None, "worst")
     with pytest.raises(dataclasses.FrozenInstanceError):
         q.seed = 4   # type: ignore[misc]
