@@ -79,6 +79,13 @@ def _uniformity(result: dict[str, Any]) -> None:
           f"{_pm(u['min_mean'], u['min_mean_stderr'])}")
 
 
+def _out_dir(out: Path) -> Path:
+    """`--out` as a folder (made later, where it is missing); a usage error where it is a file."""
+    out_dir = Path(out)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise LumenLinkError(f"--out {out_dir} is a file, not a directory", usage=True)
+    return out_dir
+
 def simulate(
     scene: SceneOpt,
     out: Annotated[Path, typer.Option(help="Directory for <sensor>.csv and <sensor>.png.")],
@@ -99,9 +106,7 @@ def simulate(
     """Simulate sensors as jobs with a progress bar; write each one's CSV (cells, lux, stderr) and map; print why
     each effect the scene could call for is on or off, and the tessellation's error where there are curved optics."""
     def work(console: Console) -> int:
-        out_dir = Path(out)
-        if out_dir.exists() and not out_dir.is_dir():
-            raise LumenLinkError(f"--out {out_dir} is a file, not a directory", usage=True)
+        out_dir = _out_dir(out)
         with Client(server) as ll:
             info = ll.scene(scene)
             listed = {s["id"]: s for s in ll.sensors(info)}
@@ -206,9 +211,7 @@ def compare(
 ) -> int:
     """Compare two kept results of each sensor: the change per cell (CSV) and its map (PNG)."""
     def work(console: Console) -> int:
-        out_dir = Path(out)
-        if out_dir.exists() and not out_dir.is_dir():
-            raise LumenLinkError(f"--out {out_dir} is a file, not a directory", usage=True)
+        out_dir = _out_dir(out)
         with Client(server) as ll:
             info = ll.scene(scene)
             names = {s["id"]: s["body"].get("name") or s["id"] for s in ll.sensors(info)}

@@ -231,6 +231,12 @@ def test_bad_usage_says_what_to_do(service, cars, tmp_path) -> None:
     assert r.exit_code == 2 and "reflectance" in r.stderr, r.output
     r = cli(service, "simulate", "--scene", "cli-car", "--out", str(tmp_path / "m"), "--sensor", "flor")
     assert r.exit_code == 2 and "did you mean 'floor'" in r.stderr, r.output
+    # --out that is a file: exit 2 before anything runs, simulate and compare alike, the file left as it was
+    (tmp_path / "a-file").write_text("keep me")
+    for verb in ("simulate", "compare"):
+        r = cli(service, verb, "--scene", "cli-car", "--out", str(tmp_path / "a-file"))
+        assert r.exit_code == 2 and "is a file, not a directory" in r.stderr, r.output
+    assert (tmp_path / "a-file").read_text() == "keep me"
     # a light placed in millimetres (the car is drawn in mm, the world is metres): added, with a warning saying so
     r = cli(service, "light", "--scene", "cli-car", "--ies", str(IES), "--at", "6000,0,3000")
     assert r.exit_code == 0 and "warning: light" in r.stderr and "document unit is mm" in r.stderr, r.output
