@@ -259,17 +259,27 @@ def centres(result: dict[str, Any]) -> np.ndarray:
     return np.asarray(result.get("center") or [np.nan] * 3, float).reshape(1, 1, 3)
 
 
-def _shape(result: dict[str, Any]) -> tuple[int, int]:
+def _shape(result: dict[str, Any]) -> tuple[int, int] | None:
+    """(rows, columns) of a kept result's cells: a grid's, a camera's pixels, one for a meter; None for a flat list of
+    values (a disk's one value, a surface's one per triangle), taken as one row."""
     if result.get("type") == "camera":
         return int(result["height"]), int(result["width"])
     if result.get("type") == "luminance":
         return 1, 1
-    c = centres(result).shape
-    return int(c[0]), int(c[1])
+    if result.get("type") == "grid":
+        return int(result["nv"]), int(result["nu"])
+    return None
 
 
 def _cells(result: dict[str, Any], name: str) -> np.ndarray:
-    return np.asarray(result[name], float).reshape(_shape(result))
+    values = np.asarray(result[name], float)
+    return values.reshape(_shape(result) or (1, values.size))
+
+
+def _cell_centres(result: dict[str, Any], shape: tuple[int, ...]) -> np.ndarray:
+    """`centres` for each of the (rows, columns) cells: a grid's own, else the one centre (a disk's; unknown, NaN, for
+    a surface's triangles) repeated."""
+    return np.broadcast_to(centres(result), (*shape[:2], 3))
 
 
 def _luminance_csv(values: np.ndarray, columns: list[tuple[str, np.ndarray]]) -> str:
@@ -287,7 +297,8 @@ def result_csv(result: dict[str, Any]) -> str:
     if _is_luminance(result):
         lum = _cells(result, "luminance")
         return _luminance_csv(lum, [("cd_m2", lum), ("stderr_cd_m2", _cells(result, "stderr"))])
-    c, lux, err = centres(result), _cells(result, "lux"), _cells(result, "stderr")
+    lux, err = _cells(result, "lux"), _cells(result, "stderr")
+    c = _cell_centres(result, lux.shape)
     lines = ["i,j,x_m,y_m,z_m,lux,stderr_lux"]
     for j in range(lux.shape[0]):
         for i in range(lux.shape[1]):
@@ -301,11 +312,15 @@ def difference(before: dict[str, Any], after: dict[str, Any]) -> dict[str, Any]:
 
     Refuses (422) two results whose cells cannot be paired (another type or grid size)."""
     dims = ("type", "nu", "nv", "width", "height")
-    if tuple(before.get(k) for k in dims) != tuple(after.get(k) for k in dims):
+    name = "luminance" if _is_luminance(after) else "lux"
+    if tuple(before.get(k) for k in dims) != tuple(after.get(k) for k in dims) or \
+            np.size(before.get(name, [])) != np.size(after.get(name, [])):
         def size(r: dict[str, Any]) -> str:
             if r.get("type") == "camera":
                 return f"a {r['width']} x {r['height']} camera"
-            return f"a {r['nu']} x {r['nv']} grid" if r.get("type") == "grid" else f"a {r.get('type')} sensor"
+            if r.get("type") == "grid":
+                return f"a {r['nu']} x {r['nv']} grid"
+            return f"a {r.get('type')} sensor of {np.size(r.get(name, []))} values"
         raise Invalid(f"results {before['key']} and {after['key']} cannot be compared cell by cell: the sensor was "
                       f"{size(before)} at {before['key']} and {size(after)} at {after['key']}")
     if _is_luminance(after):
@@ -366,10 +381,9 @@ def difference_csv(diff: dict[str, Any]) -> str:
             ("cd_m2_from", "luminance_from"), ("cd_m2_to", "luminance_to"), ("difference_cd_m2", "difference"),
             ("stderr_cd_m2", "stderr"))]
         return _luminance_csv(cols[0][1], cols)
-    c = centres(diff)
-    nv, nu = int(c.shape[0]), int(c.shape[1])
-    d, se = (np.asarray(diff[k], float).reshape(nv, nu) for k in ("difference", "stderr"))
-    b, a = (np.asarray(diff[k], float).reshape(nv, nu) for k in ("lux_from", "lux_to"))
+    d, se, b, a = (_cells(diff, k) for k in ("difference", "stderr", "lux_from", "lux_to"))
+    nv, nu = d.shape
+    c = _cell_centres(diff, d.shape)
     lines = ["i,j,x_m,y_m,z_m,lux_from,lux_to,difference_lux,stderr_lux"]
     for j in range(nv):
         for i in range(nu):

@@ -128,3 +128,45 @@ def test_a_surface_s_maximum_comes_with_its_error_bar_and_a_robust_maximum(clien
     assert a["max_lux_stderr"] > 0 and a["max_lux_p99"] < 1000.0 < a["max_lux"], a
     assert f"{a['max_lux']:.1f} ± {a['max_lux_stderr']:.1f} lx" in line, line
     assert "a triangle of 4.5 mm²" in line and f"at or below {a['max_lux_p99']:.1f} lx" in line, line
+
+
+def test_kept_surface_results_export_and_compare_triangle_by_triangle(client: Any) -> None:
+    """A surface sensor's kept results (one value per triangle) as CSV and as a difference: one row per triangle,
+    after − before with the combined error; once the mesh changes, its triangles cannot be paired: 422 naming both
+    sizes, never a server error."""
+    sid, v, f = _scene(client)
+    s = client.post(f"/scenes/{sid}/sensors", json={"type": "surface", "node": "room"}).json()["id"]
+    base = f"/scenes/{sid}/sensors/{s}"
+    assert client.post(f"{base}/simulate", json={"max_photons": 20_000, "seed": 1}).status_code == 200
+    client.post(f"/scenes/{sid}/lights", json={"type": "point", "position": [0.5, 0.0, 1.0], "intensity_cd": 20.0})
+    assert client.post(f"{base}/simulate", json={"max_photons": 20_000, "seed": 2}).status_code == 200
+    after_key, before_key = (r["key"] for r in client.get(f"{base}/results").json()["results"][:2])
+    after, before = (client.get(f"{base}/results/{k}").json() for k in (after_key, before_key))
+    n = 2 * len(f)   # the floor's and the tile's triangles
+    assert len(after["lux"]) == n
+    rows = client.get(f"{base}/results/{after_key}?format=csv").text.strip().splitlines()
+    assert rows[0] == "i,j,x_m,y_m,z_m,lux,stderr_lux" and len(rows) == 1 + n
+    assert [float(r.split(",")[5]) for r in rows[1:]] == after["lux"]
+    d = client.get(f"{base}/difference", params={"from": before_key, "to": after_key})
+    assert d.status_code == 200, d.text
+    diff = d.json()
+    np.testing.assert_allclose(np.ravel(diff["difference"]), np.subtract(after["lux"], before["lux"]), rtol=1e-12)
+    np.testing.assert_allclose(np.ravel(diff["stderr"]), np.hypot(after["stderr"], before["stderr"]), rtol=1e-12)
+    assert diff["summary"]["cells"] == n and diff["summary"]["increased"] > 0   # a second light only adds light
+    assert len(client.get(f"{base}/difference", params={"from": before_key, "to": after_key,
+                                                         "format": "csv"}).text.strip().splitlines()) == 1 + n
+    # a finer floor: other triangles, which cannot be paired with the old ones
+    fine_v, fine_f = grid_mesh(n=4, size=2.0)
+    gid, data = glb(fine_v, fine_f)
+    client.put(f"/geometries/{gid}", content=data, headers={"content-type": "model/gltf-binary"})
+    doc = {"base_revision": 1, "length_unit": "m",
+           "nodes": [node(uid(0), None, "room"), node(uid(1), uid(0), "floor", translation(-1.0, -1.0, 0), gid),
+                     node(uid(2), uid(0), "tile", translation(1.0, -1.0, 0), glb(v, f)[0]),
+                     node(uid(3), uid(0), "empty")]}
+    assert client.put(f"/scenes/{sid}/document", json=doc).status_code == 200, "the finer floor is pushed"
+    assert client.post(f"{base}/simulate", json={"max_photons": 20_000, "seed": 3}).status_code == 200
+    newest = client.get(f"{base}/results").json()["results"][0]["key"]
+    r = client.get(f"{base}/difference", params={"from": after_key, "to": newest})
+    assert r.status_code == 422, r.text
+    assert f"of {n} values" in r.json()["detail"] and f"of {len(f) + len(fine_f)} values" in r.json()["detail"]
+
