@@ -169,4 +169,3 @@ def test_kept_surface_results_export_and_compare_triangle_by_triangle(client: An
     r = client.get(f"{base}/difference", params={"from": after_key, "to": newest})
     assert r.status_code == 422, r.text
     assert f"of {n} values" in r.json()["detail"] and f"of {len(f) + len(fine_f)} values" in r.json()["detail"]
-
