@@ -156,12 +156,8 @@ def request_query(limits: Limits, wire: Any, fields: tuple[str, ...] = QUERY_FIE
     kernel: the budget checked against the limits (`resolve_budget`), `fields` of the body checked by the tracer
     (`tracer.transport.query.query`: 422 naming the field); what only the scene can tell is `check_query`'s."""
     budget = resolve_budget(limits, wire.target_relative_error, wire.max_seconds, wire.max_photons, wire.target_scope)
-    options = {f: getattr(wire, f) for f in fields}
-    for f in ("force_effects", "force_effects_off", "observe", "physics_left_out"):
-        if f in options:
-            options[f] = list(options[f])
     try:
-        return dataclasses.replace(make_query(**options), budget=budget)
+        return dataclasses.replace(make_query(**{f: getattr(wire, f) for f in fields}), budget=budget)
     except SimulationError as exc:
         raise Invalid(str(exc)) from None
 

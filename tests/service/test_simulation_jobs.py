@@ -225,12 +225,11 @@ def test_one_budget_and_one_default_from_the_route_to_the_rounds() -> None:
     runs under the same default in both (capped by the service's limit); a stated budget passes as stated."""
     from service import jobs
     from service.simulation import Limits, resolve_budget
-    from tracer.transport.query import DEFAULT_MAX_SECONDS
-    from tracer.transport.rounds import budget
+    from tracer.transport.query import DEFAULT_MAX_SECONDS, check_budget
 
     assert jobs.Budget is Budget
     limits = Limits(max_points=100, max_photons=10**9, max_seconds=600.0)
     assert resolve_budget(limits, None, None, None) == Budget(None, DEFAULT_MAX_SECONDS, 10**9, "worst")
-    assert budget(None, None, None) == Budget(None, DEFAULT_MAX_SECONDS, None, "worst")
+    assert check_budget(None, None, None).stop_rules() == Budget(None, DEFAULT_MAX_SECONDS, None, "worst")
     assert resolve_budget(Limits(100, 10**9, 20.0), None, None, None).max_seconds == 20.0   # the limit caps it
     assert resolve_budget(limits, 0.02, 5.0, 1000, "lit") == Budget(0.02, 5.0, 1000, "lit")

@@ -29,7 +29,7 @@ from tracer.sensors.base import IlluminanceResult, Probe
 from tracer.transport.backward import QueryArrays, disk_queries
 from tracer.transport.estimate import Estimate, cost_of
 from tracer.transport.forward import COUNTERS, SensorArrays, tally_columns
-from tracer.transport.query import Budget, check_budget
+from tracer.transport.query import Budget
 from tracer.transport.radiance import COUNTERS as RADIANCE_COUNTERS
 from tracer.transport.radiance import PIXEL, emitters, light_paths
 
@@ -46,11 +46,6 @@ _COMPILE_SECONDS: dict[tuple, float] = {}   # first call of each compiled varian
 
 
 LIT_FRACTION = 0.01   # "lit" values: at least this fraction of the brightest one
-
-
-def budget(target_relative_error, max_seconds, max_photons, scope="worst") -> Budget:
-    """The stop rules checked (`tracer.transport.query.check_budget`), `DEFAULT_MAX_SECONDS` where none is stated."""
-    return check_budget(target_relative_error, max_seconds, max_photons, scope).stop_rules()
 
 
 def stop_error(est: Estimate, mean_est: Estimate, n_stop: int | None, scope: str) -> float:
