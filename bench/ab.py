@@ -65,7 +65,7 @@ def one_pass(scene: str, rays: str) -> Callable[[], object]:
     if query == "any":   # shadow segments as the bench's any-hit rows: lengths uniform up to the farthest hit
         import numpy as np
 
-        from bench.bench_tracer import shadow_t_max
+        from bench.tracer_scenes import shadow_t_max
 
         t = sc.intersect(o, d, threads=1).t
         tm = shadow_t_max(np.random.default_rng(2), len(o), 1.5 * float(np.max(t[np.isfinite(t)])))

@@ -188,7 +188,7 @@ class Case:
 def build_cases(sizes: Sizes) -> list[Case]:
     """Scene 3 (two levels) and the bumpy sphere, with the ray boxes and cameras of ``bench/instructions.py``."""
     import tracer
-    from bench.bench_tracer import bumpy_sphere, load_scene, synth_scene, world_triangles
+    from bench.tracer_scenes import bumpy_sphere, load_scene, synth_scene, world_triangles
 
     cases = []
     n_obj, n_tri = sizes.scene3
@@ -212,7 +212,7 @@ def build_cases(sizes: Sizes) -> list[Case]:
 
 def make_rays(case: Case, kind: str, n: int) -> tuple[np.ndarray, np.ndarray]:
     """The rays of ``bench/instructions.py`` (same seed, same boxes and cameras) at count ``n``."""
-    from bench.bench_tracer import camera_rays, incoherent_rays
+    from bench.tracer_scenes import camera_rays, incoherent_rays
 
     if kind == "incoherent":
         o, d = incoherent_rays(np.random.default_rng(1), n, case.lo, case.hi)

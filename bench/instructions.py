@@ -25,7 +25,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import tracer  # noqa: E402
-from bench.bench_tracer import (  # noqa: E402
+from bench.tracer_scenes import (  # noqa: E402
     bumpy_sphere,
     camera_rays,
     incoherent_rays,

@@ -22,8 +22,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import tracer  # noqa: E402
-from bench.bench_tracer import bumpy_sphere, load_scene, synth_scene, world_triangles  # noqa: E402
 from bench.instructions import scene_and_rays  # noqa: E402
+from bench.tracer_scenes import bumpy_sphere, load_scene, synth_scene, world_triangles  # noqa: E402
 
 
 def build_seconds(name: str) -> float:

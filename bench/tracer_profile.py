@@ -2,7 +2,7 @@
 
 For each scene of ``bench/bench_tracer.py`` (the 1M-triangle mesh, paper scene 3 with two levels, scene 3 as one
 flattened BVH), each kind of ray (incoherent, camera) and each query (closest hit; any hit on shadow segments,
-:func:`bench.bench_tracer.shadow_t_max`):
+:func:`bench.tracer_scenes.shadow_t_max`):
 
 * **time per ray**, one thread, ours (``Scene.intersect`` / ``Scene.occluded``) and Embree's (embreex ``run``,
   ``INTERSECT`` / ``OCCLUDED``), median of rounds;
@@ -28,7 +28,7 @@ Run (about 15 minutes on the shared 2-core machine; ``--rays`` shrinks it)::
         [--no-callgrind]
 
 Writes ``bench/results/tracer_profile.json``; ``bench/bench_tracer.py`` puts its table in the tracer section of
-``REPORT.md`` (and ``python -m bench.tracer_profile --report`` rewrites just that section from the json files).
+``REPORT.md`` (and ``python -m bench.bench_tracer --report`` rewrites just that section from the json files).
 """
 
 from __future__ import annotations
@@ -194,7 +194,7 @@ def scene_rays(name: str, n: int):
     """``(our scene, world triangles (m, 3, 3), {kind: (o, d)}, {kind: shadow t_max})`` as the tracer bench
     makes them (its generators; seeds of their own)."""
     import tracer
-    from bench import bench_tracer as bt
+    from bench import tracer_scenes as bt
 
     rng = np.random.default_rng(39)
     if name == "mesh":
@@ -251,7 +251,7 @@ def _toggle(what: str) -> None:
 
 
 def worker(name: str, n: int, rounds: int, under_callgrind: bool) -> dict:
-    from bench.bench_tracer import embree_scene
+    from bench.tracer_scenes import embree_scene
 
     s, tri, rays, shadow = scene_rays(name, n)
     es = embree_scene(tri)
@@ -468,15 +468,6 @@ def main(argv: list[str]) -> None:
             worker(name, 256, 1, False)
             return
         print(json.dumps(worker(name, n, rounds, "--callgrind" in argv), default=float))
-        return
-    if argv and argv[0] == "--report":   # the tracer section again, with this profile (no measurement)
-        from bench import bench_tracer, run
-
-        path = run.RESULTS / "tracer.json"
-        data = json.loads(path.read_text())
-        data["markdown"] = bench_tracer.markdown(data)
-        path.write_text(json.dumps(data, indent=2, default=float))
-        print(replace_section(run.RESULTS / "REPORT.md", "tracer", data))
         return
 
     def opt(flag: str, default: int) -> int:

@@ -31,8 +31,8 @@ from numba import njit
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bench.bench_tracer import bumpy_sphere, world_triangles  # noqa: E402
 from bench.instructions import scene_and_rays  # noqa: E402
+from bench.tracer_scenes import bumpy_sphere, world_triangles  # noqa: E402
 from tracer.accel import blas, rows4  # noqa: E402
 from tracer.accel.rows8 import ROW, descend8, pack8, ray8, slab8  # noqa: E402
 from tracer.accel.traverse import TOP8_BASE, TOP8_DIST, new_stacks  # noqa: E402
