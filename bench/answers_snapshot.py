@@ -8,7 +8,8 @@ The queries: points forward and backward, observe spectrum and Stokes, a "lit" t
 estimators, a surface, a far field, and physics_left_out on points and on a grid (a glass room, so that the
 polarization pilot runs), and luminance (paths from the eye, `tracer.transport.radiance`): a meter and a camera
 in a room lit by an area light with a mirror wall, a camera on a caustic of a point light in a mirror (light
-tracing) and on a floor under a collimated beam. Seconds, compile seconds and cost (which depend on the machine)
+tracing) and on a floor under a collimated beam; and each feature shape of an element in each layout it takes.
+Seconds, compile seconds and cost (which depend on the machine)
 are left out; every other field is compared with np.array_equal (NaN equal to NaN). Used for issue 35's moves
 (docs/guides/benchmarks.md).
 """
@@ -61,6 +62,7 @@ def record(path: str) -> None:
     out["grid_left_out"] = fields_of(glass.grid([-1.5, -1.5, 0.1], [3, 0, 0], [0, 3, 0], 2, 2, max_photons=20000,
                                                 seed=8, physics_left_out=["polarization"]))
     out.update(luminance_queries())
+    out.update(element_queries())
     with open(path, "wb") as f:
         pickle.dump(out, f)
     print(f"recorded {len(out)} queries to {path}")
@@ -88,6 +90,45 @@ def luminance_queries() -> dict:
             "lum_area_camera": fields_of(area.run(camera, max_photons=8000, seed=12)),
             "lum_point_camera": fields_of(point.run(camera, max_photons=8000, seed=13)),
             "lum_beam_camera": fields_of(beam.run(camera, max_photons=8000, seed=14))}
+
+
+def element_queries() -> dict:
+    """Each feature shape on a PMMA plate under a slanted beam, with each layout it takes: the grid below it."""
+    import math
+
+    from tests.tracer.transport_scenes import box
+    from tracer.elements import prepare
+    from tracer.scene import Scene
+    from tracer.simulate import Simulation
+
+    features = {"dome": {"shape": "dome", "radius_mm": 0.08, "height_mm": 0.04},
+                "pyramid": {"shape": "pyramid", "base_mm": 0.15, "height_mm": 0.05},
+                "prism": {"shape": "prism", "base_mm": 0.1, "apex_deg": 90},
+                "corner_cube": {"shape": "corner_cube", "side_mm": 0.15}}
+    layouts = {"grid": {"type": "grid", "pitch_mm": [0.2, 0.2]}, "hex": {"type": "hex", "pitch_mm": 0.2},
+               "density": {"type": "density", "origin_mm": [0, 0], "size_mm": [4, 4], "fill": [[0.2, 0.5], [0.8, 0.4]],
+                           "pitch_mm": 0.2},
+               "points": {"type": "points", "uv_mm": [[0.5 + 0.3 * i, 0.4 + 0.25 * j] for i in range(10)
+                                                      for j in range(12)]}}
+    takes = {"dome": layouts, "corner_cube": layouts, "pyramid": ("grid", "density", "points"), "prism": ("grid",)}
+    s30 = math.sin(math.radians(30))
+    beam = {"type": "collimated", "origin": [2e-3 - 2e-3 * s30, 2e-3, 3e-3], "radius": 1.5e-3,
+            "direction": [s30, 0, -math.cos(math.radians(30))], "illuminance_lx": 1000.0}
+    out = {}
+    for shape, feature in features.items():
+        for k, name in enumerate(takes[shape]):
+            scene = Scene()
+            v, t = box([0, 0, 0], [4e-3, 4e-3, 1e-3])
+            part = scene.add_instance(scene.add_geometry(v, t), np.eye(4))
+            for relief, facing in (("bump", [0, 0, -1]), ("pit", [0, 0, 1]))[k % 2:k % 2 + 1]:
+                element = prepare({"type": "microstructure", "feature": feature, "layout": layouts[name],
+                                   "relief": relief})
+                scene.set_element(part, element, facing=facing)
+            scene.commit()
+            sim = Simulation(scene, {part: {"type": "dielectric", "ior": 1.49}}, [beam])
+            out[f"element_{shape}_{name}"] = fields_of(sim.grid([-1e-3, -1e-3, -1e-3], [6e-3, 0, 0], [0, 6e-3, 0],
+                                                                 4, 4, max_photons=20000, seed=21, estimator="forward"))
+    return out
 
 
 def same(x, y) -> bool:

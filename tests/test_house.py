@@ -46,7 +46,8 @@ def test_tracer_root_holds_at_most_12_modules() -> None:
 
 @pytest.mark.parametrize("family, registry", [
     ("tracer.kinds", "REGISTRY"), ("tracer.sensors.dispatch", "KINDS"), ("tracer.optics.surfaces.dispatch", "KINDS"),
-    ("tracer.optics.lights.dispatch", "KINDS"), ("tracer.optics.media.dispatch", "KINDS")])
+    ("tracer.optics.lights.dispatch", "KINDS"), ("tracer.optics.media.dispatch", "KINDS"),
+    ("tracer.elements.shapes.dispatch", "KINDS")])
 def test_each_family_has_its_contract_and_registry(family: str, registry: str) -> None:
     """A family is a folder with its contract (``base.py``) and one dispatch: a new kind is a module there plus its
     registration."""

@@ -84,9 +84,10 @@ if not getattr(dispatcher.Dispatcher.get_call_template, "plain_arguments", False
 
 
 def kind_switch(name: str, params: str, tag: str, cases: dict[int, Any], default: str, *, doc: str = "",
-                **options: Any):
+                passes: str | None = None, **options: Any):
     """The one switch of a family on a kind tag, written out from its registry: ``name(params)`` returns
-    ``cases[k](params)`` for the ``k`` that the expression `tag` equals, else `default`, jitted with `options`.
+    ``cases[k](passes)`` (`passes` defaults to `params`) for the ``k`` that the expression `tag` equals, else
+    `default`, jitted with `options`.
 
     pbrt dispatches a TaggedPointer with a template; numba types neither a tuple of kernels nor a call through
     one, so the branch chain is generated here from the registered kinds, and a new kind is its module plus its
@@ -99,9 +100,11 @@ def kind_switch(name: str, params: str, tag: str, cases: dict[int, Any], default
 
     caller = sys._getframe(1).f_globals
     names = {k: f"_case_{int(k)}" for k in sorted(cases)}
-    lines = [f"    if _tag == {int(k)}:\n        return {n}({params})\n" for k, n in names.items()]
+    passes = params if passes is None else passes
+    lines = [f"    if _tag == {int(k)}:\n        return {n}({passes})\n" for k, n in names.items()]
     identity = ";".join(f"{k}={f.py_func.__module__}.{f.py_func.__qualname__}" for k, f in sorted(cases.items()))
-    digest = hashlib.sha256(f"{params}|{tag}|{default}|{identity}".encode()).hexdigest()[:12]
+    signature = params if passes == params else f"{params}->{passes}"
+    digest = hashlib.sha256(f"{signature}|{tag}|{default}|{identity}".encode()).hexdigest()[:12]
     source = f"def {name}({params}):\n    _tag = {tag}\n{''.join(lines)}    return {default}\n"
     scope = {n: cases[k] for k, n in names.items()}
     exec(compile(source, caller["__file__"], "exec"), scope)   # noqa: S102 - the source is built above, from names

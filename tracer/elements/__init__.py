@@ -7,6 +7,7 @@ kind :mod:`tracer.kinds.relief`, whose intersection traces the support and the f
 (:mod:`tracer.elements.features`) inside the element's box.
 """
 
-from tracer.elements.microstructure import ElementError, Microstructure, prepare
+from tracer.elements.checks import ElementError
+from tracer.elements.microstructure import Microstructure, prepare
 
 __all__ = ["ElementError", "Microstructure", "prepare"]

@@ -35,7 +35,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from tracer.elements import features as fx
-from tracer.elements.microstructure import ElementError, Microstructure
+from tracer.elements.checks import ElementError
+from tracer.elements.microstructure import Microstructure
 
 N_MU, N_PHI, RAYS = 6, 8, 4000
 MAX_BOUNCES = 64

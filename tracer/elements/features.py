@@ -3,16 +3,8 @@
 Everything here works in the element's frame, in millimetres: ``u``, ``v`` on the support plane (from the support's
 corner of smallest u and v), ``w`` along the support's outward normal. A feature's solid ``K`` sits on the plane at
 its centre ``(cu, cv)``, in ``w' = sign * w`` (``sign`` +1 for a bump, raised out of the part; -1 for a pit, cut into
-it), between ``w' = 0`` and its height ``h``:
-
-- dome: the cap of the sphere of radius ``rs = (a^2 + h^2) / 2h`` centred at ``w' = h - rs`` (base radius ``a``);
-- pyramid: ``|u - cu| + slope w' <= a`` and ``|v - cv| + slope w' <= a`` (``slope = a / h``, square base ``2a``);
-- prism: ``|u - cu| + slope w' <= a``, a ridge along v across the whole support;
-- corner cube: three mutually perpendicular faces meeting at the apex ``w' = h`` above the centre, its axis along
-  w: ``d_k . (q - c) + w' / sqrt(2) <= h / sqrt(2)`` for the three unit directions ``d_k`` of the plane at -90, 30
-  and 150 degrees from u (each face's normal is ``(sqrt(2/3) d_k, 1/sqrt(3))``, so the three are orthogonal); its
-  base an equilateral triangle of side ``s`` (a vertex towards +v), inradius ``ri = h / sqrt(2)``, circumradius
-  ``a = 2 ri``, ``h = s / sqrt(6)`` (the "triangular" corner cube of Eckhardt, Appl. Opt. 10, 1559 (1971)).
+it), between ``w' = 0`` and its height ``h``; each shape is a module of `tracer.elements.shapes` (dome, pyramid,
+prism, corner cube), called through its switches (`tracer.elements.shapes.dispatch`).
 
 The relief's surface is the support plane outside the features' bases plus each ``K``'s boundary above the plane;
 the base is no surface (the same material goes on across it for a bump, air for a pit). A ray meets a feature where
@@ -35,11 +27,10 @@ import math
 
 import numpy as np
 
+from tracer.elements.shapes.base import half_space
+from tracer.elements.shapes.dispatch import shape_covers, shape_interval, shape_surface
 from tracer.jit import njit
 
-DOME, PYRAMID, PRISM, CORNER = 0, 1, 2, 3
-S2 = math.sqrt(2.0)
-C30 = math.sqrt(3.0) / 2.0
 GRID, HEX, DENSITY, POINTS = 0, 1, 2, 3
 
 # el_f columns (float64): the frame in object space, the scale, the support, the feature, the layout
@@ -81,64 +72,12 @@ def _clip(o, d, lo_b, hi_b, lo, hi):
     return max(lo, t0), min(hi, t1)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _half(nu, nv, nw, c, ou, ov, ow, du, dv, dw, lo, hi):
-    """Bound ``(lo, hi)`` by the half-space ``n . p <= c`` along the ray; also whether each end moved."""
-    nd = nu * du + nv * dv + nw * dw
-    no = nu * ou + nv * ov + nw * ow
-    if nd == 0.0:
-        if no > c:
-            return 1.0, 0.0, False, False
-        return lo, hi, False, False
-    t = (c - no) / nd
-    if nd > 0.0:
-        if t < hi:
-            return lo, t, False, True
-        return lo, hi, False, False
-    if t > lo:
-        return t, hi, True, False
-    return lo, hi, False, False
-
-
 @njit(cache=True, error_model="numpy", _nrt=False)
 def cross_feature(shape, a, h, rs, slope, cu, cv, ou, ov, ow, du, dv, dw, t_lo, t_hi):
     """The first ``t`` in ``(t_lo, t_hi)`` where the ray (in ``w'``) crosses the boundary of the feature centred at
     ``(cu, cv)`` above its base; ``inf`` where it does not."""
-    lo = -math.inf
-    hi = math.inf
-    lo_base = False
-    hi_base = False
-    if shape == DOME:
-        pu = ou - cu
-        pv = ov - cv
-        pw = ow - (h - rs)
-        b = pu * du + pv * dv + pw * dw
-        dd = du * du + dv * dv + dw * dw
-        c = pu * pu + pv * pv + pw * pw - rs * rs
-        disc = b * b - dd * c
-        if disc < 0.0:
-            return math.inf
-        q = -b - math.copysign(math.sqrt(disc), b)   # the stable pair of roots
-        if q == 0.0:
-            return math.inf
-        r0 = q / dd
-        r1 = c / q
-        lo = min(r0, r1)
-        hi = max(r0, r1)
-    elif shape == CORNER:
-        c = h / S2   # rs holds the inradius h / sqrt(2)
-        lo, hi, a0, b0 = _half(0.0, -1.0, 1.0 / S2, -cv + c, ou, ov, ow, du, dv, dw, lo, hi)
-        lo, hi, a1, b1 = _half(C30, 0.5, 1.0 / S2, C30 * cu + 0.5 * cv + c, ou, ov, ow, du, dv, dw, lo, hi)
-        lo, hi, a2, b2 = _half(-C30, 0.5, 1.0 / S2, -C30 * cu + 0.5 * cv + c, ou, ov, ow, du, dv, dw, lo, hi)
-    else:
-        lo, hi, a0, b0 = _half(1.0, 0.0, slope, a + cu, ou, ov, ow, du, dv, dw, lo, hi)
-        lo, hi, a1, b1 = _half(-1.0, 0.0, slope, a - cu, ou, ov, ow, du, dv, dw, lo, hi)
-        if shape == PYRAMID:
-            lo, hi, a2, b2 = _half(0.0, 1.0, slope, a + cv, ou, ov, ow, du, dv, dw, lo, hi)
-            lo, hi, a3, b3 = _half(0.0, -1.0, slope, a - cv, ou, ov, ow, du, dv, dw, lo, hi)
-    lo2, hi2, moved_lo, moved_hi = _half(0.0, 0.0, -1.0, 0.0, ou, ov, ow, du, dv, dw, lo, hi)   # w' >= 0
-    lo_base = moved_lo
-    hi_base = moved_hi
+    lo, hi = shape_interval(shape, a, h, rs, slope, cu, cv, ou, ov, ow, du, dv, dw)
+    lo2, hi2, lo_base, hi_base = half_space(0.0, 0.0, -1.0, 0.0, ou, ov, ow, du, dv, dw, lo, hi)   # w' >= 0
     if not lo2 < hi2:
         return math.inf
     if not lo_base and t_lo < lo2 < t_hi:
@@ -146,21 +85,6 @@ def cross_feature(shape, a, h, rs, slope, cu, cv, ou, ov, ow, du, dv, dw, t_lo, 
     if not hi_base and t_lo < hi2 < t_hi:
         return hi2
     return math.inf
-
-
-@njit(cache=True, error_model="numpy", _nrt=False)
-def covers(shape, a, cu, cv, pu, pv):
-    """Whether the base of the feature centred at ``(cu, cv)`` covers the plane point ``(pu, pv)``."""
-    du = pu - cu
-    dv = pv - cv
-    if shape == DOME:
-        return du * du + dv * dv <= a * a
-    if shape == PYRAMID:
-        return abs(du) <= a and abs(dv) <= a
-    if shape == CORNER:
-        ri = 0.5 * a
-        return -dv <= ri and C30 * du + 0.5 * dv <= ri and -C30 * du + 0.5 * dv <= ri
-    return abs(du) <= a
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
@@ -223,7 +147,7 @@ def _cell(F, I, bits, uv, bins, items, i, j, ou, ov, ow, du, dv, dw, lo, best, b
                 if lay == HEX and not _inside(F, cu, cv):
                     continue
                 if probe:
-                    if covers(shape, F[A], cu, cv, pu, pv):
+                    if shape_covers(shape, F[A], pu - cu, pv - cv):
                         return best, f
                     continue
                 t = cross_feature(shape, F[A], F[H], F[RS], F[SLOPE], cu, cv, ou, ov, ow, du, dv, dw, lo, best)
@@ -299,37 +223,6 @@ def surface(F, I, uv, f, hu, hv):
     sign = F[SIGN]
     du = hu - cu
     dv = hv - cv
-    shape = I[SHAPE]
-    if shape == DOME:
-        rs = F[RS]
-        wk = (h - rs) + math.sqrt(max(rs * rs - du * du - dv * dv, 0.0))
-        ku = du / rs
-        kv = dv / rs
-        kw = (wk - (h - rs)) / rs
-    elif shape == CORNER:
-        p0 = -dv
-        p1 = C30 * du + 0.5 * dv
-        p2 = -C30 * du + 0.5 * dv
-        s23 = math.sqrt(2.0 / 3.0)
-        if p0 >= p1 and p0 >= p2:
-            top, ku, kv = p0, 0.0, -s23
-        elif p1 >= p2:
-            top, ku, kv = p1, s23 * C30, s23 * 0.5
-        else:
-            top, ku, kv = p2, -s23 * C30, s23 * 0.5
-        wk = h - S2 * top
-        kw = 1.0 / math.sqrt(3.0)
-    else:
-        slope = F[SLOPE]
-        norm = math.sqrt(1.0 + slope * slope)
-        if shape == PRISM or abs(du) >= abs(dv):
-            wk = (a - abs(du)) / slope
-            ku = math.copysign(1.0, du) / norm
-            kv = 0.0
-        else:
-            wk = (a - abs(dv)) / slope
-            ku = 0.0
-            kv = math.copysign(1.0, dv) / norm
-        kw = slope / norm
+    wk, ku, kv, kw = shape_surface(I[SHAPE], a, h, F[RS], F[SLOPE], du, dv)
     # K's outward normal in (u, v, w'); the part's outward normal is K's for a bump and the opposite for a pit
     return sign * max(wk, 0.0), sign * ku, sign * kv, kw

@@ -11,7 +11,7 @@ import json
 import math
 from typing import Any
 
-from tracer.elements.microstructure import ElementError, check_fields
+from tracer.elements.checks import ElementError, check_fields
 
 SOLVER = "inkstone 0.3.15 (RCWA / Fourier modal method)"
 SHAPES_1D = ("lamellar", "sawtooth", "sinusoidal")

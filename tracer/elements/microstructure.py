@@ -39,10 +39,11 @@ from typing import Any
 import numpy as np
 
 from tracer.elements import features as fx
+from tracer.elements.checks import ElementError, check_fields, number, pair
 from tracer.elements.placement import PLACEMENTS, diffuse
-from tracer.errors import TracerError
+from tracer.elements.shapes.dispatch import KINDS as SHAPE_KINDS
+from tracer.elements.shapes.dispatch import SHAPE_OF_NAME
 
-SHAPES = {"dome": fx.DOME, "pyramid": fx.PYRAMID, "prism": fx.PRISM, "corner_cube": fx.CORNER}
 FEATURE_MATERIALS = ("lambertian", "black")
 LAYOUTS = {"grid": fx.GRID, "hex": fx.HEX, "density": fx.DENSITY, "points": fx.POINTS}
 MAX_SITES = 4_000_000_000     # a density lattice's sites (one bit each: 500 MB)
@@ -62,10 +63,6 @@ MAX_PREPARE_BYTES = 256 << 20
 MAX_PREPARE_SECONDS = 15.0
 MAX_POINTS = 20_000_000       # listed features
 MAX_MAP_CELLS = 4_000_000     # cells of a density map
-
-
-class ElementError(TracerError):
-    """An element body that cannot be prepared; the message names the field and what to do."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -165,64 +162,18 @@ def _uv_array(x: Any) -> np.ndarray:
     return uv
 
 
-def _number(x: Any, where: str, *, lo: float = 0.0, lo_open: bool = True, hi: float = math.inf) -> float:
-    if isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x):
-        raise ElementError(f"{where} must be a finite number, got {x!r}"[:300])
-    if (x <= lo if lo_open else x < lo) or x > hi:
-        bound = f"> {lo:g}" if lo_open else f">= {lo:g}"
-        raise ElementError(f"{where} must be {bound}" + (f" and <= {hi:g}" if hi < math.inf else "") + f", got {x!r}")
-    return float(x)
-
-
-def _pair(x: Any, where: str, **bounds: Any) -> tuple[float, float]:
-    if not isinstance(x, list | tuple) or len(x) != 2:
-        raise ElementError(f"{where} must be two numbers [u, v] in mm, got {x!r}"[:300])
-    return _number(x[0], f"{where}[0]", **bounds), _number(x[1], f"{where}[1]", **bounds)
-
-
-def check_fields(body: dict, where: str, required: set[str], optional: set[str]) -> None:
-    """An element body's keys (this module's and `tracer.elements.grating_body`'s): a clear error for an unknown or
-    a missing one."""
-    unknown = sorted(set(body) - required - optional)
-    if unknown:
-        raise ElementError(f"{where}: unknown field(s) {unknown}; known: {sorted(required | optional)}")
-    missing = sorted(required - set(body))
-    if missing:
-        raise ElementError(f"{where}: missing field(s) {missing}")
-
-
 def _feature(f: Any) -> tuple[dict, int, float, float, float]:
-    """The checked feature: (canonical body, shape, a, h, rs) in mm."""
+    """The checked feature: (canonical body, shape id, a, h, rs) in mm (`tracer.elements.shapes`)."""
     if not isinstance(f, dict):
-        raise ElementError(f"feature must be an object with a 'shape' ({sorted(SHAPES)}), got {f!r}"[:300])
-    shape = f.get("shape")
-    if shape not in SHAPES:
-        raise ElementError(f"feature.shape {shape!r} is unknown; known: {sorted(SHAPES)}")
-    if shape == "dome":
-        check_fields(f, "feature", {"shape", "radius_mm", "height_mm"}, set())
-        a = _number(f["radius_mm"], "feature.radius_mm")
-        h = _number(f["height_mm"], "feature.height_mm")
-        if h > a:
-            raise ElementError(f"feature.height_mm ({h:g}) must not exceed feature.radius_mm ({a:g}): a dome is a "
-                               f"cap no taller than a hemisphere")
-        return {"shape": shape, "radius_mm": a, "height_mm": h}, fx.DOME, a, h, (a * a + h * h) / (2.0 * h)
-    if shape == "pyramid":
-        check_fields(f, "feature", {"shape", "base_mm", "height_mm"}, set())
-        b = _number(f["base_mm"], "feature.base_mm")
-        h = _number(f["height_mm"], "feature.height_mm")
-        return {"shape": shape, "base_mm": b, "height_mm": h}, fx.PYRAMID, b / 2.0, h, 0.0
-    if shape == "corner_cube":
-        check_fields(f, "feature", {"shape", "side_mm"}, set())
-        side = _number(f["side_mm"], "feature.side_mm")
-        return ({"shape": shape, "side_mm": side}, fx.CORNER, side / math.sqrt(3.0), side / math.sqrt(6.0),
-                side / (2.0 * math.sqrt(3.0)))
-    check_fields(f, "feature", {"shape", "base_mm", "apex_deg"}, set())
-    b = _number(f["base_mm"], "feature.base_mm")
-    apex = _number(f["apex_deg"], "feature.apex_deg", hi=179.0)
-    if apex < 1.0:
-        raise ElementError(f"feature.apex_deg must be in [1, 179], got {apex!r}")
-    return ({"shape": shape, "base_mm": b, "apex_deg": apex}, fx.PRISM, b / 2.0,
-            b / 2.0 / math.tan(math.radians(apex) / 2.0), 0.0)
+        raise ElementError(f"feature must be an object with a 'shape' ({sorted(SHAPE_OF_NAME)}), got {f!r}"[:300])
+    name = f.get("shape")
+    if name not in SHAPE_OF_NAME:
+        raise ElementError(f"feature.shape {name!r} is unknown; known: {sorted(SHAPE_OF_NAME)}"[:300])
+    shape = SHAPE_OF_NAME[name]
+    module = SHAPE_KINDS[shape]
+    check_fields(f, "feature", {"shape", *module.FIELDS}, set())
+    canon, a, h, rs = module.parse(f)
+    return canon, shape, a, h, rs
 
 
 def prepare(body: Any) -> Microstructure:
@@ -250,11 +201,13 @@ def prepare(body: Any) -> Microstructure:
         got = layout.get("type") if isinstance(layout, dict) else layout
         raise ElementError(f"layout.type {got!r} is unknown; known: {sorted(LAYOUTS)}"[:300])
     lay = LAYOUTS[layout["type"]]
-    if shape == fx.PRISM and lay != fx.GRID:
-        raise ElementError("layout: prisms are ridges across the support, laid out by a 'grid' (its pitch_mm[0] "
-                           "along u)")
-    if lay == fx.HEX and shape not in (fx.DOME, fx.CORNER):
-        raise ElementError("layout: a 'hex' layout takes domes and corner cubes; lay pyramids out on a 'grid'")
+    takes = SHAPE_KINDS[shape].LAYOUTS
+    if layout["type"] not in takes:
+        name = SHAPE_KINDS[shape].NAME
+        ridge = f" ({name}s are ridges across the support; a grid's pitch_mm[0] runs along u)" \
+            if SHAPE_KINDS[shape].RIDGE else ""
+        raise ElementError(f"layout: a {layout['type']!r} layout does not take the feature shape {name!r}; it takes "
+                           f"{list(takes)}{ridge}")
     common = {"type": "microstructure", "relief": relief, "material": material, "feature": feature}
     sign = 1.0 if relief == "bump" else -1.0
     args = (shape, a, h, rs, sign, mat, rho)
@@ -282,12 +235,12 @@ def _material(m: Any) -> tuple[dict | None, int, float]:
         check_fields(m, "material", {"type"}, set())
         return {"type": "black"}, fx.MAT_BLACK, 0.0
     check_fields(m, "material", {"type", "reflectance"}, set())
-    rho = _number(m["reflectance"], "material.reflectance", lo_open=False, hi=1.0)
+    rho = number(m["reflectance"], "material.reflectance", lo_open=False, hi=1.0)
     return {"type": "lambertian", "reflectance": rho}, fx.MAT_LAMBERTIAN, rho
 
 
 def _pitch(x: Any, where: str, a: float) -> float:
-    p = _number(x, where)
+    p = number(x, where)
     if p < 2.0 * a:
         raise ElementError(f"{where} ({p:g} mm) is smaller than the feature ({2 * a:g} mm across): features would "
                            f"overlap; give a pitch of at least {2 * a:g} mm")
@@ -304,21 +257,22 @@ def _model(canon: dict, args: tuple, layout: int, cell: tuple[float, float], t0:
 def _grid(layout: dict, common: dict, args: tuple, t0: float) -> Microstructure:
     check_fields(layout, "layout", {"type", "pitch_mm"}, set())
     shape, a = args[0], args[1]
+    ridge = SHAPE_KINDS[shape].RIDGE   # runs across the support along v: its pitch along v is free
     pitch = layout["pitch_mm"]
-    if shape == fx.PRISM and not isinstance(pitch, list | tuple):
+    if ridge and not isinstance(pitch, list | tuple):
         pitch = [pitch, pitch]
     if not isinstance(pitch, list | tuple) or len(pitch) != 2:
         raise ElementError(f"layout.pitch_mm must be [pu, pv] in mm, got {pitch!r}"[:300])
     pu = _pitch(pitch[0], "layout.pitch_mm[0]", a)
-    pv = _pitch(pitch[1], "layout.pitch_mm[1]", a) if shape != fx.PRISM else _number(pitch[1], "layout.pitch_mm[1]")
+    pv = number(pitch[1], "layout.pitch_mm[1]") if ridge else _pitch(pitch[1], "layout.pitch_mm[1]", a)
     return _model({**common, "layout": {"type": "grid", "pitch_mm": [pu, pv]}}, args, fx.GRID, (pu, pv), t0)
 
 
 def _density(layout: dict, common: dict, args: tuple, t0: float) -> Microstructure:
     check_fields(layout, "layout", {"type", "origin_mm", "size_mm", "fill"}, {"seed", "pitch_mm", "placement"})
     a = args[1]
-    u0, v0 = _pair(layout["origin_mm"], "layout.origin_mm", lo=-math.inf)
-    su, sv = _pair(layout["size_mm"], "layout.size_mm")
+    u0, v0 = pair(layout["origin_mm"], "layout.origin_mm", lo=-math.inf)
+    su, sv = pair(layout["size_mm"], "layout.size_mm")
     p = _pitch(layout.get("pitch_mm", 2.0 * a), "layout.pitch_mm", a)
     seed = layout.get("seed", 1)
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2 ** 63:
@@ -437,7 +391,7 @@ def _points(layout: dict, common: dict, args: tuple, t0: float) -> Microstructur
     from scipy.spatial import cKDTree
 
     tree = cKDTree(uv, balanced_tree=False, compact_nodes=False)   # the faster build; queries as fast here
-    pairs = tree.query_pairs(2.0 * a * (1.0 - 1e-9), p=2.0 if shape in (fx.DOME, fx.CORNER) else np.inf,
+    pairs = tree.query_pairs(2.0 * a * (1.0 - 1e-9), p=2.0 if SHAPE_KINDS[shape].ROUND else np.inf,
                              output_type="ndarray")
     if len(pairs):
         i, j = (int(x) for x in pairs[0])

@@ -39,7 +39,8 @@ from typing import Any
 import numpy as np
 
 from tracer.elements import features as fx
-from tracer.elements.microstructure import ElementError, Microstructure, prepare
+from tracer.elements.checks import ElementError
+from tracer.elements.microstructure import Microstructure, prepare
 
 FIGURES = ("min_max", "min_mean")
 NOISE_SIGMAS = 2.0     # a cell's deviation within this many standard errors is noise: no change

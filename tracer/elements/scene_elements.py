@@ -11,7 +11,8 @@ from typing import Any
 import numpy as np
 
 from tracer.accel.store import Geometry, GeometryStore
-from tracer.elements.microstructure import ElementError, Microstructure
+from tracer.elements.checks import ElementError
+from tracer.elements.microstructure import Microstructure
 from tracer.elements.table import Reliefs
 from tracer.kinds import mesh, relief
 

@@ -19,7 +19,9 @@ from typing import Any
 import numpy as np
 
 from tracer.elements import features as fx
-from tracer.elements.microstructure import ElementError, Microstructure
+from tracer.elements.checks import ElementError
+from tracer.elements.microstructure import Microstructure
+from tracer.elements.shapes.dispatch import KINDS as SHAPE_KINDS
 
 FACING_DEG = 1.0          # a triangle faces the asked direction within this angle
 PLANAR_REL = 1e-6         # support vertices within this fraction of its extent from its plane
@@ -156,7 +158,7 @@ def row_params(row: Row, support_index: int) -> tuple[np.ndarray, np.ndarray]:
     if e.layout in (fx.GRID, fx.HEX):
         nu = max(1, int(fr.lu // e.cell[0]) + (1 if e.layout == fx.HEX else 0))
         nv = max(1, int(fr.lv // e.cell[1]))
-        if e.shape == fx.PRISM:   # one row of ridges across the whole support
+        if SHAPE_KINDS[e.shape].RIDGE:   # one row of ridges across the whole support
             nv = 1
             f[fx.CV] = fr.lv
         i[fx.NU], i[fx.NV] = nu, nv

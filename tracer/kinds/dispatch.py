@@ -7,14 +7,16 @@ Rays arrive in object space; results are object-space. A solid kind answers the 
 
 from __future__ import annotations
 
+from typing import Any
+
 from tracer.jit import kind_switch
 from tracer.kinds import REGISTRY
 
 SOLIDS = {k: m for k, m in REGISTRY.items() if not m.SENSOR}
 SENSORS = {k: m for k, m in REGISTRY.items() if m.SENSOR}
 TAG = "sa.inst_kind[inst]"
-INLINE = {"cache": True, "error_model": "numpy", "inline": "always"}
-CALL = {"cache": True, "error_model": "numpy", "_nrt": False}
+INLINE: dict[str, Any] = {"cache": True, "error_model": "numpy", "inline": "always"}
+CALL: dict[str, Any] = {"cache": True, "error_model": "numpy", "_nrt": False}
 
 intersect_solid = kind_switch(
     "intersect_solid", "sa, inst, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack", TAG,

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from tracer.elements import grating as g
-from tracer.elements.microstructure import ElementError
+from tracer.elements.checks import ElementError
 from tracer.optics import thinfilm
 
 LOSSLESS_SUM = 1e-5
