@@ -33,10 +33,11 @@ import httpx
 from lumenlink.client_assignments import AssignmentCalls
 from lumenlink.client_elements import ElementCalls
 from lumenlink.client_images import ImageCalls
-from lumenlink.client_results import ResultCalls, sensor_csv
+from lumenlink.client_results import ResultCalls
 from lumenlink.client_values import triples
 from lumenlink.errors import LumenLinkError, ServiceUnreachable
 from lumenlink.http import DEFAULT_SERVER, check_server
+from lumenlink.sensor_outputs import sensor_csv
 
 __all__ = ["DEFAULT_SERVER", "Client", "LumenLinkError", "ServiceUnreachable", "check_server", "sensor_csv",
            "triples"]
@@ -191,7 +192,7 @@ class Client(AssignmentCalls, ElementCalls, ImageCalls, ResultCalls):
         `target` is the relative error to stop at (``target_relative_error``), `max_seconds` and `max_photons`
         the budgets. `progress(sensor, job)` is called at each poll with the sensor's record and the job
         (``job["progress"]``: photons, worst_relative_error, seconds, seconds_left). Answers ``{sensor id: the
-        sensor's result}`` (``SensorPublic``: lux, stderr, photons, seconds, stop_reason, grid geometry…,
+        sensor's result}`` (its kind's answer: lux, stderr, photons, seconds, stop_reason, grid geometry…,
         ``effect_reasons``: why each effect is on or off). `force_effects_off`: effects the physics turned on that the
         query leaves out (e.g. ``["polarization"]``). `tessellation_estimate`: where the scene has curved mirror or
         glass meshes, also estimate their tessellation's error (``error_budget.tessellation_estimate``, lx, beside

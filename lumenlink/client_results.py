@@ -1,16 +1,16 @@
-"""`lumenlink.Client`'s calls for kept results and their comparisons, and a result as CSV (`sensor_csv`).
-A mixin: the connection, the scene lookup and the errors are `Client`'s."""
+"""`lumenlink.Client`'s calls for kept results and their comparisons. A mixin: the connection, the scene lookup and
+the errors are `Client`'s."""
 
 from __future__ import annotations
 
 import re
-from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
 from lumenlink.client_base import ClientBase
 from lumenlink.errors import LumenLinkError
+from lumenlink.sensor_outputs import output_of
 
 
 class ResultCalls(ClientBase):
@@ -75,7 +75,7 @@ class ResultCalls(ClientBase):
                 files = [folder / f"{stem}.csv"]
                 files[0].write_bytes(self._bytes(f"{base}/difference", f"comparing sensor {label}",
                                                  {**params, "format": "csv"}))
-                if diff.get("type") == "grid":
+                if output_of(diff).DIFFERENCE_MAP:
                     files.append(folder / f"{stem}.png")
                     files[1].write_bytes(self._bytes(f"{base}/difference.png", f"drawing the change of {label}",
                                                      params))
@@ -85,54 +85,3 @@ class ResultCalls(ClientBase):
             raise LumenLinkError("no sensor has two kept results: simulate, edit the scene, simulate again, then "
                                  "compare", usage=True)
         return answers
-
-
-def sensor_csv(result: dict[str, Any]) -> str:
-    """A sensor result as CSV, one row per cell: its indices, its centre (world metres), lux and standard error.
-
-    Grid: ``i`` (along u, 0..nu-1), ``j`` (along v), the cell centre origin + (i+½)/nu·u + (j+½)/nv·v.
-    Disk: one row (i = j = 0) at the disk's centre where the result names it, else blank coordinates.
-    Far field: ``i,j,c_deg,gamma_deg,cd,stderr_cd``, one row per bin (i along C, j along γ).
-    Luminance meter, camera: ``row,col,cd_m2,stderr_cd_m2``, one row per pixel (row 0 the top; a meter: one row)."""
-    if result.get("type") in ("luminance", "camera"):
-        values = result["luminance"]
-        grid = values if values and isinstance(values[0], list) else [values]
-        errs = result["stderr"] if grid is values else [result["stderr"]]
-        rows = ["row,col,cd_m2,stderr_cd_m2"]
-        rows += [f"{j},{i},{_num(a)},{_num(b)}" for j, (line, line_err) in enumerate(zip(grid, errs, strict=True))
-                 for i, (a, b) in enumerate(zip(line, line_err, strict=True))]
-        return "\n".join(rows) + "\n"
-    if result.get("type") == "far_field":
-        rows = ["i,j,c_deg,gamma_deg,cd,stderr_cd"]
-        for j, g in enumerate(result["gamma_deg"]):
-            for i, c in enumerate(result["c_deg"]):
-                rows.append(f"{i},{j},{c:.9g},{g:.9g},{_num(result['candela'][j][i])},{_num(result['stderr'][j][i])}")
-        return "\n".join(rows) + "\n"
-    lines = ["i,j,x_m,y_m,z_m,lux,stderr_lux"]
-    lux, err = result["lux"], result["stderr"]
-    if result.get("type") == "grid" and result.get("origin") is not None:
-        o, u, v = result["origin"], result["u"], result["v"]
-        nu, nv = int(result["nu"]), int(result["nv"])
-        for j in range(nv):
-            for i in range(nu):
-                s, t = (i + 0.5) / nu, (j + 0.5) / nv
-                c = [o[k] + s * u[k] + t * v[k] for k in range(3)]
-                lines.append(f"{i},{j},{c[0]:.9g},{c[1]:.9g},{c[2]:.9g},{_num(lux[j][i])},{_num(err[j][i])}")
-    else:
-        flat_lux = list(_flatten(lux))
-        flat_err = list(_flatten(err))
-        for k, (a, b) in enumerate(zip(flat_lux, flat_err, strict=False)):
-            lines.append(f"{k},0,,,,{_num(a)},{_num(b)}")
-    return "\n".join(lines) + "\n"
-
-
-def _num(x: Any) -> str:
-    return "" if x is None else f"{float(x):.9g}"
-
-
-def _flatten(x: Any) -> Iterable[Any]:
-    if isinstance(x, list):
-        for y in x:
-            yield from _flatten(y)
-    else:
-        yield x

@@ -23,6 +23,7 @@ from rich.progress import Progress, TaskID
 
 from lumenlink.client import Client, LumenLinkError, ServiceUnreachable
 from lumenlink.options import DEFAULT_SERVER, Create, SceneOpt, Server
+from lumenlink.sensor_outputs import output_of
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_UNREACHABLE = 0, 1, 2, 3
 
@@ -274,7 +275,7 @@ def sensor(
             info = ll.scene(scene, create=create)
             answer = ll.add_sensor(info, parsed, attach=attach)
         b = answer["body"]
-        size = f" {b['nu']} x {b['nv']} cells" if b.get("type") == "grid" else ""
+        size = output_of(b).size(b)
         print(f"sensor {answer['id']}: {b.get('type')}{size}{' ' + repr(b['name']) if b.get('name') else ''}")
         _warn(console, answer)
         return EXIT_OK

@@ -12,7 +12,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-from lumenlink.client import Client, LumenLinkError, sensor_csv
+from lumenlink.client import Client, LumenLinkError
 from lumenlink.commands import (
     EXIT_OK,
     _pm,
@@ -22,6 +22,7 @@ from lumenlink.commands import (
     _warn,
 )
 from lumenlink.options import DEFAULT_SERVER, SceneOpt, Seed, Server
+from lumenlink.sensor_outputs import output_of
 
 
 def _file_stem(sensor: dict[str, Any], taken: set[str]) -> str:
@@ -64,7 +65,7 @@ def _uniformity(result: dict[str, Any]) -> None:
     """A grid's or points' uniformity: min/max and min/mean of its values ± their standard errors (delta method,
     `tracer.photometry.glare.uniformity`); nothing for one value, a surface (min over triangles of very different
     sizes: see its robust max) or a result without values."""
-    if result.get("type") not in ("grid", "points"):
+    if not output_of(result).UNIFORMITY:
         return
     lux = [float(x) for x in _flat(result.get("lux") or [])]
     if len(lux) < 2:
@@ -132,47 +133,20 @@ def simulate(
 
 def _write_result(ll: Client, info: dict[str, Any], s: dict[str, Any], stem: str, result: dict[str, Any],
                   out_dir: Path, console: Console) -> None:
-    """One sensor's answer from `simulate`: its CSV, its map or image files, its summary line, why each effect is
-    on or off, its uniformity and the tessellation's error where it has them."""
+    """One sensor's answer from `simulate`: its CSV and the files its kind writes beside it (a map, images, an IES
+    file: `lumenlink.sensor_outputs`), its summary line, why each effect is on or off, and for illuminance its
+    uniformity and the tessellation's error where it has them."""
+    kind = output_of(result)
     csv_path = out_dir / f"{stem}.csv"
-    csv_path.write_text(sensor_csv(result), encoding="utf-8")
-    written = [csv_path]
-    if result.get("type") == "grid":
-        try:
-            png = ll.map_png(info, s["id"])
-        except LumenLinkError as exc:
-            console.print(f"[yellow]warning:[/] no map for sensor {stem}: {escape(str(exc))}")
-        else:
-            (out_dir / f"{stem}.png").write_bytes(png)
-            written.append(out_dir / f"{stem}.png")
+    csv_path.write_text(kind.csv(result), encoding="utf-8")
+    written = [csv_path, *kind.files(ll, info, s["id"], stem, out_dir,
+                                     lambda text: console.print(f"[yellow]warning:[/] {escape(text)}"))]
     _warn(console, result)
     _reasons(result)
-    if result.get("type") in ("luminance", "camera"):
-        if result["type"] == "camera":
-            for name, fmt in ((f"{stem}.exr", "exr"), (f"{stem}.png", "png"), (f"{stem}_map.png", "map")):
-                (out_dir / name).write_bytes(ll.image(info, s["id"], fmt))
-                written.append(out_dir / name)
-        lum = [float(x) for x in _flat(result["luminance"])]
-        print(f"sensor {stem} ({s['id']}): luminance min {min(lum):.4g}, mean {sum(lum) / len(lum):.4g}, "
-              f"max {max(lum):.4g} cd/m2; {result['photons']:,} paths in {result['seconds']:.2f} s "
-              f"({result['stop_reason']}), revision {result['revision']} -> "
-              + ", ".join(str(p) for p in written))
-        return
-    if result.get("type") == "far_field":
-        ies = out_dir / f"{stem}.ies"
-        ll.export(info, s["id"], "ies", out=ies)
-        written.append(ies)
-        print(f"sensor {stem} ({s['id']}): far field, {result['flux_lm']:.6g} +- "
-              f"{result['flux_stderr']:.2g} lm leaving, max {result['max_cd']:.6g} cd; "
-              f"{result['photons']:,} photons in {result['seconds']:.2f} s ({result['stop_reason']}), "
-              f"revision {result['revision']} -> " + ", ".join(str(p) for p in written))
-        return
-    print(f"sensor {stem} ({s['id']}): lux min {result['min_lux']:.4g}, mean {result['mean_lux']:.4g}, "
-          f"max {result['max_lux']:.4g}; {result['photons']:,} photons in {result['seconds']:.2f} s "
-          f"({result['stop_reason']}), revision {result['revision']} -> "
-          + ", ".join(str(p) for p in written))
-    _uniformity(result)
-    _tessellation(result)
+    print(f"sensor {stem} ({s['id']}): {kind.summary(result)} -> " + ", ".join(str(p) for p in written))
+    if kind.LUX:
+        _uniformity(result)
+        _tessellation(result)
 
 
 def export(

@@ -42,6 +42,13 @@ def _type(schema: dict[str, Any]) -> str:
     return str(schema.get("type", "any"))
 
 
+def _answer(response: dict[str, Any]) -> str:
+    """`` (`Model`)`` naming what a success answers in JSON (its kinds, where it depends on one); '' for none."""
+    schema = response.get("content", {}).get("application/json", {}).get("schema", {})
+    named = _type(schema) if schema else ""
+    return f" ({_cell(named)})" if "`" in named else ""   # a model (or models), not a bare "object"
+
+
 def _cell(text: Any) -> str:
     """Text for one cell of a Markdown table: one line, pipes escaped."""
     return " ".join(str(text or "").split()).replace("|", "\\|")
@@ -86,7 +93,8 @@ def markdown(doc: dict[str, Any]) -> str:
                 kinds = ", ".join(f"`{ct}` {_type(c.get('schema', {}))}" for ct, c in body.get("content", {}).items())
                 out += [f"Body{' (required)' if body.get('required') else ''}: {kinds}", ""]
             codes = list(op.get("responses", {}))
-            ok = ", ".join(f"{c} {_cell(op['responses'][c].get('description'))}" for c in codes if c < "400")
+            ok = ", ".join(f"{c} {_cell(op['responses'][c].get('description'))}{_answer(op['responses'][c])}"
+                           for c in codes if c < "400")
             out += [f"Answers: {ok}; errors {', '.join(c for c in codes if c >= '400')}", ""]
     return "\n".join(out).rstrip() + "\n"
 

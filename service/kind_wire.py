@@ -175,3 +175,9 @@ def follow_node(family: str, body: dict, world: np.ndarray | None, instances: li
         a = lin @ np.asarray(pol["axis"], dtype=float)
         out["polarization"] = {**pol, "axis": (a / np.linalg.norm(a)).tolist()}
     return out
+
+
+if TYPE_CHECKING:   # made from the registry at import: to a type checker it is a string
+    SensorType = str
+else:
+    SensorType = Literal[tuple(FIELDS["sensor"])]   # the wire's sensor types, from the tracer's kinds

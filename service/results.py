@@ -41,7 +41,8 @@ from sqlalchemy.exc import SQLAlchemyError
 from service import db
 from service.errors import Invalid, NotFound
 from service.live import LiveScene
-from service.maps import SIGNIFICANCE_SIGMAS, cell_centres, summarize_change
+from service.maps import SIGNIFICANCE_SIGMAS
+from service.sensor_kinds import kind_of_type
 
 log = logging.getLogger("lumenlink.service")
 
@@ -51,10 +52,6 @@ _KEY = re.compile(KEY_PATTERN)
 #: what the JSON of a kept result carries besides the per-cell values
 _META = ("type", "nu", "nv", "origin", "u", "v", "center", "normal", "radius", "estimator", "stop_reason",
          "effects", "seed", "width", "height", "position", "look_at", "fov_deg", "strategy")
-#: the sensor kinds whose values are luminance (cd/m²), not illuminance
-LUMINANCE_TYPES = ("luminance", "camera")
-#: a luminance meter's body fields kept with its result
-_METER = ("position", "direction", "aperture_deg")
 
 
 def state_digest(live: LiveScene, sensor: dict[str, Any]) -> str:
@@ -116,14 +113,11 @@ class ResultStore:
         scene_id, sensor_id, revision = live.scene_id, str(sensor["id"]), int(payload["revision"])
         state = state_digest(live, sensor)
         meta = {k: payload[k] for k in _META if payload.get(k) is not None}
-        if sensor.get("type") == "disk":
-            meta.update(center=list(map(float, sensor["center"])), normal=list(map(float, sensor["normal"])),
-                        radius=float(sensor["radius"]))
-        if sensor.get("type") in LUMINANCE_TYPES:
+        kind = kind_of_type(sensor.get("type"))
+        meta.update(kind.kept(sensor))
+        if kind.QUANTITY == "luminance":
             values = np.asarray(payload["luminance"], float)
             meta["quantity"] = "luminance"
-            if sensor.get("type") == "luminance":
-                meta.update({k: sensor[k] for k in _METER if sensor.get(k) is not None})
             low, mean, high = float(values.min()), float(values.mean()), float(values.max())
         else:
             values = np.asarray(payload["lux"], float)
@@ -228,18 +222,15 @@ def _with_cells(row: Any) -> dict[str, Any]:
     values = np.frombuffer(row.lux, dtype="<f8")
     err = np.frombuffer(row.stderr, dtype="<f8")
     meta = row.meta
-    if meta.get("type") == "grid":
-        shape = (int(meta["nv"]), int(meta["nu"]))
-        values, err = values.reshape(shape), err.reshape(shape)
-    elif meta.get("type") == "camera":
-        shape = (int(meta["height"]), int(meta["width"]))
+    shape = kind_of_type(meta.get("type")).layout(meta)
+    if shape is not None:
         values, err = values.reshape(shape), err.reshape(shape)
     out.update({"luminance" if _is_luminance(meta) else "lux": values.tolist(), "stderr": err.tolist()})
     return out
 
 
 def _is_luminance(r: Any) -> bool:
-    return r.get("quantity") == "luminance" or r.get("type") in LUMINANCE_TYPES
+    return r.get("quantity") == "luminance" or kind_of_type(r.get("type")).QUANTITY == "luminance"
 
 
 def _summary(r: Any) -> dict[str, Any]:
@@ -252,23 +243,10 @@ def _summary(r: Any) -> dict[str, Any]:
             **meta}
 
 
-def centres(result: dict[str, Any]) -> np.ndarray:
-    """Cell centres (world metres) of a kept result: (nv, nu, 3) for a grid, (1, 1, 3) for a disk."""
-    if result.get("type") == "grid":
-        return cell_centres(result["origin"], result["u"], result["v"], int(result["nu"]), int(result["nv"]))
-    return np.asarray(result.get("center") or [np.nan] * 3, float).reshape(1, 1, 3)
-
-
 def _shape(result: dict[str, Any]) -> tuple[int, int] | None:
-    """(rows, columns) of a kept result's cells: a grid's, a camera's pixels, one for a meter; None for a flat list of
-    values (a disk's one value, a surface's one per triangle), taken as one row."""
-    if result.get("type") == "camera":
-        return int(result["height"]), int(result["width"])
-    if result.get("type") == "luminance":
-        return 1, 1
-    if result.get("type") == "grid":
-        return int(result["nv"]), int(result["nu"])
-    return None
+    """(rows, columns) of a kept result's cells (its kind's `layout`); None for a flat list of values (a disk's one
+    value, a surface's one per triangle), taken as one row."""
+    return kind_of_type(result.get("type")).layout(result)
 
 
 def _cells(result: dict[str, Any], name: str) -> np.ndarray:
@@ -277,9 +255,9 @@ def _cells(result: dict[str, Any], name: str) -> np.ndarray:
 
 
 def _cell_centres(result: dict[str, Any], shape: tuple[int, ...]) -> np.ndarray:
-    """`centres` for each of the (rows, columns) cells: a grid's own, else the one centre (a disk's; unknown, NaN, for
-    a surface's triangles) repeated."""
-    return np.broadcast_to(centres(result), (*shape[:2], 3))
+    """World centre (m) of each of the (rows, columns) cells, as its kind places them: a grid's own, a disk's one
+    centre repeated, NaN (unknown) for a surface's triangles."""
+    return kind_of_type(result.get("type")).centres(result, (int(shape[0]), int(shape[1])))
 
 
 def _luminance_csv(values: np.ndarray, columns: list[tuple[str, np.ndarray]]) -> str:
@@ -316,11 +294,7 @@ def difference(before: dict[str, Any], after: dict[str, Any]) -> dict[str, Any]:
     if tuple(before.get(k) for k in dims) != tuple(after.get(k) for k in dims) or \
             np.size(before.get(name, [])) != np.size(after.get(name, [])):
         def size(r: dict[str, Any]) -> str:
-            if r.get("type") == "camera":
-                return f"a {r['width']} x {r['height']} camera"
-            if r.get("type") == "grid":
-                return f"a {r['nu']} x {r['nv']} grid"
-            return f"a {r.get('type')} sensor of {np.size(r.get(name, []))} values"
+            return kind_of_type(r.get("type")).size(r, int(np.size(r.get(name, []))))
         raise Invalid(f"results {before['key']} and {after['key']} cannot be compared cell by cell: the sensor was "
                       f"{size(before)} at {before['key']} and {size(after)} at {after['key']}")
     if _is_luminance(after):
@@ -339,11 +313,9 @@ def difference(before: dict[str, Any], after: dict[str, Any]) -> dict[str, Any]:
         "significance_sigmas": SIGNIFICANCE_SIGMAS, "warnings": warnings,
         **{k: after[k] for k in ("nu", "nv", "origin", "u", "v", "center", "normal", "radius") if k in after},
     }
-    if after.get("type") == "grid":
-        s = summarize_change(lux_b, lux_a, after["origin"], after["u"], after["v"], stderr_before=se_b,
-                             stderr_after=se_a)
-        out["summary"] = {**s.__dict__, "max_increase_at": list(s.max_increase_at),
-                          "max_decrease_at": list(s.max_decrease_at)}
+    own = kind_of_type(after.get("type")).change(lux_b, lux_a, se_b, se_a, after)
+    if own is not None:
+        out["summary"] = own
     else:
         significant = np.abs(delta) > SIGNIFICANCE_SIGMAS * sigma
         out["summary"] = {"cells": int(delta.size), "significant": int(significant.sum()),
@@ -376,7 +348,7 @@ def difference_csv(diff: dict[str, Any]) -> str:
     """One row per cell: ``i,j,x_m,y_m,z_m,lux_from,lux_to,difference_lux,stderr_lux``; luminance:
     ``row,col,cd_m2_from,cd_m2_to,difference_cd_m2,stderr_cd_m2``."""
     if diff.get("quantity") == "luminance":
-        shape = _shape(diff)
+        shape = _shape(diff) or (1, -1)
         cols = [(name, np.asarray(diff[key], float).reshape(shape)) for name, key in (
             ("cd_m2_from", "luminance_from"), ("cd_m2_to", "luminance_to"), ("difference_cd_m2", "difference"),
             ("stderr_cd_m2", "stderr"))]

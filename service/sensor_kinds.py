@@ -11,22 +11,30 @@ store), so a new sensor kind needs a class only where it stores or renders somet
   `service.view_kinds`), ``"store"`` (the result store only), ``"far"`` (the far-field store: its
   export outlives a restart and an edit);
 - ``check(sensor, query, limits, live)``: refuse (422 `Invalid`, 413 `TooLarge`) what it cannot answer, before anything
-  runs;
+  runs (``sized(sensor, limits)``: what its body alone makes too large, before the scene is even read);
 - ``body(sensor, live)``: the tracer sensor body of a stored sensor (world metres);
 - ``payload(result, sensor, live)``: the answer's JSON, ``lux`` (or ``candela``) and the kind's own fields, with
-  ``min_lux``/``mean_lux``/``max_lux`` where it answers lux.
+  ``min_lux``/``mean_lux``/``max_lux`` where it answers lux;
+- what its kept results are (`service.results`), where it differs from `service.sensor_base.SensorKind`'s
+  defaults: ``QUANTITY``, ``kept(sensor)``, ``layout(meta)``, ``centres(meta, shape)``, ``size(meta, values)``,
+  ``change(...)``;
+- ``ANSWER``: the model of that answer (on `service.sensor_base`' bases, ``type`` its own literal): the wire's
+  answer, `SensorPublic`, is the union of every kind's, told apart by ``type``.
 """
 
 from __future__ import annotations
 
 from types import SimpleNamespace
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal, Union
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, create_model
 
 from service import kind_wire
 from service.errors import Invalid, TooLarge
+from service.maps import cell_centres, summarize_change
 from service.payloads import finite_list, result_payload
+from service.sensor_base import LuxAnswer, SensorAnswer, SensorKind, count_refusal
 from service.view_kinds import Camera, Luminance
 from tracer.transport.query import Query
 
@@ -82,18 +90,64 @@ def _flat(result: Any, lux: Any, stderr: Any) -> SimpleNamespace:
     return flat
 
 
-class Grid:
+class GridAnswer(LuxAnswer):
+    """A grid's answer: ``lux``/``stderr`` are nv rows of nu cells, lx."""
+
+    type: Literal["grid"] = Field(description="The sensor's kind.")
+    nu: int = Field(description="Cells along u.")
+    nv: int = Field(description="Cells along v.")
+    origin: list[float] = Field(description="Corner of the rectangle, world metres.")
+    u: list[float] = Field(description="Edge along which the nu cells lie, world metres.")
+    v: list[float] = Field(description="Edge along which the nv cells lie, world metres.")
+    map_url: str | None = Field(None, description="The false-colour PNG of this result.")
+
+
+class Grid(SensorKind):
     """A rectangle of nu × nv cells, each answering its mean illuminance (lx)."""
 
     TYPE = "grid"
     KEEP = "map"
+    ANSWER = GridAnswer
+    DIFFERENCE_MAP = True
 
     @staticmethod
-    def check(sensor: dict, query: Query, limits: Any, live: Any) -> None:
+    def layout(meta: dict) -> tuple[int, int]:
+        return int(meta["nv"]), int(meta["nu"])
+
+    @staticmethod
+    def centres(meta: dict, shape: tuple[int, int]) -> np.ndarray:
+        return cell_centres(meta["origin"], meta["u"], meta["v"], int(meta["nu"]), int(meta["nv"]))
+
+    @staticmethod
+    def size(meta: dict, values: int) -> str:
+        return f"a {meta['nu']} x {meta['nv']} grid"
+
+    @staticmethod
+    def change(before: np.ndarray, after: np.ndarray, se_before: np.ndarray, se_after: np.ndarray,
+               meta: dict) -> dict[str, Any]:
+        s = summarize_change(before, after, meta["origin"], meta["u"], meta["v"], stderr_before=se_before,
+                             stderr_after=se_after)
+        return {**s.__dict__, "max_increase_at": list(s.max_increase_at), "max_decrease_at": list(s.max_decrease_at)}
+
+    @staticmethod
+    def refusal(sensor: dict, limits: Any) -> tuple[str, int] | None:
+        return count_refusal(sensor, "nu", "nv", "cells", limits)
+
+    @staticmethod
+    def centre(sensor: dict) -> np.ndarray:
+        return np.asarray(sensor["origin"], float) + 0.5 * (np.asarray(sensor["u"], float) +
+                                                            np.asarray(sensor["v"], float))
+
+    @staticmethod
+    def sized(sensor: dict, limits: Any) -> None:
         nu, nv = int(sensor["nu"]), int(sensor["nv"])
         if nu * nv > limits.max_points:
             raise TooLarge(f"sensor {sensor['id']!r} has {nu * nv} cells; this service answers "
                            f"at most {limits.max_points} points per query", limit=limits.max_points)
+
+    @staticmethod
+    def check(sensor: dict, query: Query, limits: Any, live: Any) -> None:
+        Grid.sized(sensor, limits)
 
     @staticmethod
     def body(sensor: dict, live: Any) -> dict:
@@ -109,13 +163,38 @@ class Grid:
         return summary(payload, np.asarray(payload["lux"], float))
 
 
-class Measured:
+class Measured(SensorKind):
     """Any sensor kind the service has no class of its own for (the disk among them): its tracer body made from its
     declared fields (`tracer.optics.fields`), its answer the tracer's lux with ``min_lux``/``mean_lux``/``max_lux``,
     kept in the result store."""
 
     TYPE = ""   # every wire sensor kind not in `KINDS`
     KEEP = "store"
+    ANSWER = LuxAnswer   # what each of them answers, less its own ``type`` (`answer`)
+
+    @staticmethod
+    def kept(sensor: dict) -> dict[str, Any]:
+        """Its placed fields (a disk's centre, normal and radius), so a kept result says where it measured."""
+        out: dict[str, Any] = {}
+        for f in kind_wire.fields_of("sensor", sensor).values():
+            v = sensor.get(f.name)
+            if v is None or f.value not in ("point", "vector", "direction", "number"):
+                continue
+            out[f.name] = float(v) if f.value == "number" else list(map(float, v))
+        return out
+
+    @staticmethod
+    def centres(meta: dict, shape: tuple[int, int]) -> np.ndarray:
+        centre = meta.get("center") or [np.nan] * 3
+        return np.broadcast_to(np.asarray(centre, float), (*shape, 3))
+
+    @staticmethod
+    def answer(kind: str) -> type[BaseModel]:
+        """The answer model of wire sensor kind `kind`: illuminance, one value per point it measures."""
+        name = "".join(part.title() for part in kind.split("_")) + "Answer"
+        literal: Any = Literal[kind]   # a literal of a name known at run time
+        return create_model(name, __base__=LuxAnswer, __doc__=f"A {kind} sensor's answer: ``lux``/``stderr``, lx.",
+                            type=(literal, Field(description="The sensor's kind.")))
 
     @staticmethod
     def check(sensor: dict, query: Query, limits: Any, live: Any) -> None:
@@ -148,7 +227,39 @@ class Measured:
         return summary(payload, np.asarray(payload["lux"], float))
 
 
-class Surface:
+class SurfaceInstance(BaseModel):
+    """One instance of a surface sensor's node subtree and the illuminance on each of its triangles."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    instance: int = Field(description="The tracer's instance id.")
+    node: str | None = Field(description="The node (UUID) the instance belongs to; a simulation-owned object's id.")
+    path: str | None = Field(None, description="The node's path; null for a simulation-owned object.")
+    geometry: str = Field(description="The geometry (id) whose triangles are listed, in its order.")
+    lux: list[float] = Field(description="Illuminance on each triangle's front side, lx (area average).")
+    stderr: list[float] = Field(description="Standard error of each value, lx.")
+    area: list[float] = Field(description="World area of each triangle, m² (lux × area: the flux it receives, lm).")
+
+
+class SurfaceAnswer(LuxAnswer):
+    """A surface sensor's answer: ``lux``/``stderr`` every triangle's, instance after instance as in ``instances``;
+    ``min_lux``/``max_lux`` over all triangles, ``mean_lux`` area-weighted (the total flux over the total area)."""
+
+    type: Literal["surface"] = Field(description="The sensor's kind.")
+    node: str | None = Field(None, description="The sensor's node (UUID).")
+    instances: list[SurfaceInstance] = Field(description=(
+        "Each instance of the node's subtree, its triangles' illuminance on their front side (the outside of a CAD "
+        "solid)."))
+    max_lux_stderr: float = Field(description=(
+        "The standard error of `max_lux` (its triangle's), lx: a small triangle by a lamp gets few photons and a "
+        "wide error bar."))
+    max_lux_area: float = Field(description="The area of the triangle `max_lux` is on, m².")
+    max_lux_p99: float = Field(description=(
+        "A robust maximum: the illuminance 99 % of the surfaces' area is at or below (area-weighted 99th percentile "
+        "over the triangles), lx."))
+
+
+class Surface(SensorKind):
     """A node's surfaces: the illuminance on each triangle of its instances (`tracer.sensors.surface`). ``lux`` and
     ``stderr`` are every triangle's, instance after instance in ``instances`` order (each instance's triangles in its
     geometry's order); ``instances`` gives each one's node, path, instance id, geometry and its own ``lux``/``stderr``.
@@ -156,6 +267,7 @@ class Surface:
 
     TYPE = "surface"
     KEEP = "map"
+    ANSWER = SurfaceAnswer
 
     @staticmethod
     def check(sensor: dict, query: Query, limits: Any, live: Any) -> None:
@@ -190,13 +302,37 @@ class Surface:
         return summary(payload, lux, area)
 
 
-class FarField:
+class FarFieldAnswer(SensorAnswer):
+    """A far field's answer: ``candela``/``stderr`` as nγ rows of nc values, cd (no lux)."""
+
+    type: Literal["far_field"] = Field(description="The sensor's kind.")
+    candela: list[list[float]] = Field(description=(
+        "Luminous intensity, cd, nγ rows (γ_j, `gamma_deg`) of nc values (C_i, `c_deg`): the flux leaving the scene "
+        "in each bin's directions over the bin's solid angle; `stderr` holds its standard errors."))
+    c_deg: list[float] = Field(description="The C angles C_i = i·360°/nc, degrees.")
+    gamma_deg: list[float] = Field(description="The γ angles γ_j = j·180°/(nγ−1), degrees.")
+    flux_lm: float = Field(description="The total luminous flux leaving the scene, lm.")
+    flux_stderr: float = Field(description="Standard error of `flux_lm`, lm.")
+    max_cd: float = Field(description="The largest intensity, cd.")
+    nc: int = Field(description="C samples.")
+    ngamma: int = Field(description="γ samples.")
+    direction: list[float] = Field(description="The γ = 0 axis (unit, world).")
+    c0: list[float] = Field(description="The C = 0 axis (unit, world, across `direction`).")
+
+
+class FarField(SensorKind):
     """The scene as a lamp (`tracer.sensors.far_field`): ``candela`` and ``stderr`` (cd) as nγ rows of nc values,
     ``c_deg``, ``gamma_deg``, ``flux_lm`` ± ``flux_stderr`` leaving the scene, and the frame. Forward only, without
     observe, reference or physics_left_out; not kept past an edit as lux results are."""
 
     TYPE = "far_field"
     KEEP = "far"
+    ANSWER = FarFieldAnswer
+    QUANTITY = "candela"
+
+    @staticmethod
+    def refusal(sensor: dict, limits: Any) -> tuple[str, int] | None:
+        return count_refusal(sensor, "nc", "ngamma", "bins", limits)
 
     @staticmethod
     def check(sensor: dict, query: Query, limits: Any, live: Any) -> None:
@@ -237,7 +373,20 @@ def kind_of(sensor: dict) -> Any:
         raise Invalid(f"sensor {sensor.get('id')!r} has type {sensor.get('type')!r}, which cannot be simulated")
     return kind
 
-if TYPE_CHECKING:   # made from the registry at import: to a type checker it is a string
-    SensorType = str
+
+def kind_of_type(kind: Any) -> Any:
+    """The class of a kept result's ``type`` (`Measured` for a kind with no class of its own)."""
+    return KINDS.get(str(kind), Measured)
+
+
+def answer_of(kind: str) -> type[BaseModel]:
+    """The answer model of wire sensor kind `kind`: its class's own, else `Measured`'s."""
+    return KINDS[kind].ANSWER if kind in KINDS else Measured.answer(kind)
+
+
+if TYPE_CHECKING:   # made from the registry at import: to a type checker it is a model
+    SensorPublic = SensorAnswer
 else:
-    SensorType = Literal[tuple(kind_wire.FIELDS["sensor"])]   # the wire's sensor types, from the tracer's kinds
+    #: the answer of a sensor simulation: one model per wire sensor kind (from the tracer's kinds), told apart by type
+    SensorPublic = Annotated[Union[tuple(answer_of(t) for t in kind_wire.FIELDS["sensor"])],  # noqa: UP007
+                             Field(discriminator="type")]

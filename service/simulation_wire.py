@@ -11,8 +11,6 @@ from typing import Annotated, Any, Literal
 from fastapi import Query
 from pydantic import BaseModel, ConfigDict, Field, Strict, field_validator, model_validator
 
-from service.sensor_kinds import SensorType
-
 #: A normal may deviate this much from unit length (clients round); it is renormalised before use.
 UNIT_TOLERANCE = 1e-3
 
@@ -251,129 +249,6 @@ class IlluminancePublic(BaseModel):
         None, description="With observe stokes: degree of polarization √(S1²+S2²+S3²)/S0; null where none arrived.")
 
 
-class SurfaceInstance(BaseModel):
-    """One instance of a surface sensor's node subtree and the illuminance on each of its triangles."""
-
-    model_config = ConfigDict(extra="forbid")
-
-    instance: int = Field(description="The tracer's instance id.")
-    node: str | None = Field(description="The node (UUID) the instance belongs to; a simulation-owned object's id.")
-    path: str | None = Field(None, description="The node's path; null for a simulation-owned object.")
-    geometry: str = Field(description="The geometry (id) whose triangles are listed, in its order.")
-    lux: list[float] = Field(description="Illuminance on each triangle's front side, lx (area average).")
-    stderr: list[float] = Field(description="Standard error of each value, lx.")
-    area: list[float] = Field(description="World area of each triangle, m² (lux × area: the flux it receives, lm).")
-
-
-class SensorPublic(BaseModel):
-    """Answer of a sensor simulation: for a grid, ``lux``/``stderr`` are nv rows of nu cells; for a far field
-    ``candela``/``stderr`` are nγ rows of nc values (no lux); for a luminance meter or a camera ``luminance``/``stderr``
-    are cd/m² (one value, or height rows of width pixels, top row first)."""
-
-    model_config = ConfigDict(extra="forbid")
-
-    sensor: str = Field(description="The sensor's id.")
-    type: SensorType = Field(description="The sensor's kind.")
-    lux: list[Any] | None = Field(None, description=(
-        "Illuminance, lx: nv rows of nu cells for a grid, one value for a disk, every triangle for a surface "
-        "(instance after instance, as in `instances`); absent for a far field (see `candela`)."))
-    stderr: list[Any] = Field(description="Standard error of each value, lx (cd for a far field, cd/m² for a "
-                                          "luminance meter or a camera).")
-    photons: int = Field(description="Photons (forward) or paths (backward) traced.")
-    seconds: float = Field(description="Wall time of the simulation, s.")
-    effects: list[str] = Field(description="The effect set of the scene (and of any forced effects).")
-    effect_reasons: dict[str, str] | None = Field(
-        None, description="For every effect, why it was on or off in this run (`on: ...` / `off: ...`): what in the "
-                          "scene calls for it, or, for polarization, the bound on what leaving it out could move.")
-    revision: int = Field(description="Scene revision the answer describes.")
-    estimator: str = Field(description="The estimator that ran: `forward` or `backward`.")
-    stop_reason: str = Field(description="Which rule stopped the run (target reached, photons, seconds, cancel).")
-    compile_seconds: float = Field(0.0, description="Seconds of `seconds` spent compiling a kernel first used, s.")
-    nm: list[float] | None = Field(None, description="With observe spectrum: centres of the 5 nm bands, nm.")
-    spectral_irradiance: list[Any] | None = Field(None, description="With observe spectrum: W/m²/nm per band, "
-                                                                    "per cell.")
-    spectral_stderr: list[Any] | None = Field(None, description="Standard error of each band, W/m²/nm.")
-    cie_xy: list[Any] | None = Field(None, description="With observe spectrum: CIE 1931 (x, y) per cell "
-                                                       "(dimensionless); null where no light arrived.")
-    cost: Cost | None = Field(None, description="What tighter errors would cost (seconds and photons per target).")
-    elements: list[dict[str, Any]] | None = Field(None, description=(
-        "The optical elements with an inside the scene carries (assignment `id`, `element`, `node`, `model`: "
-        "`bsdf`, its tabulated BSDF, with `model_error`: per side (`air`, `solid`) the worst probe beam's "
-        "`deviation` of the transmitted share from the exact model's, table − exact, a share of the flux meeting "
-        "the element, with its `stderr`, where (`theta_deg`, `phi_deg`) and what was measured; or "
-        "`exact`, its micro-geometry traced); absent where it carries none."))
-    backend: Backend | None = Field(None, description="Where the photon batches ran.")
-    device: str | None = Field(None, description="The processor the photon batches ran on: `cuda:0 <card>`, "
-                                                 "`cpu:<threads> threads` (… `on <n> dask workers`); where CUDA was "
-                                                 "chosen but the scene did not fit, the CPU, and `backend.fallback` "
-                                                 "says why.")
-    error_budget: ErrorBudget | None = Field(None, description="The tessellation's share of the error, lx.")
-    physics_left_out: dict[str, PhysicsLeftOut] | None = Field(
-        None, description="Where the query asked: per effect, what turning it on would change, lx.")
-    stokes: list[Any] | None = Field(None, description="With observe stokes: [S0, S1, S2, S3] per cell, lx.")
-    stokes_stderr: list[Any] | None = Field(None, description="Standard error of each Stokes component, lx.")
-    dop: list[Any] | None = Field(None, description="With observe stokes: degree of polarization per cell, "
-                                                    "a fraction; null where none arrived.")
-    min_lux: float | None = Field(None, description="The smallest value, lx (absent for a far field).")
-    mean_lux: float | None = Field(None, description="The mean value, lx (absent for a far field).")
-    max_lux: float | None = Field(None, description="The largest value, lx (absent for a far field).")
-    max_lux_stderr: float | None = Field(None, description=(
-        "Surface: the standard error of `max_lux` (its triangle's), lx: a small triangle by a lamp gets few photons "
-        "and a wide error bar."))
-    max_lux_area: float | None = Field(None, description="Surface: the area of the triangle `max_lux` is on, m².")
-    max_lux_p99: float | None = Field(None, description=(
-        "Surface: a robust maximum: the illuminance 99 % of the surfaces' area is at or below (area-weighted "
-        "99th percentile over the triangles), lx."))
-    nu: int | None = Field(None, description="Grid: cells along u.")
-    nv: int | None = Field(None, description="Grid: cells along v.")
-    origin: list[float] | None = Field(None, description="Grid: corner of the rectangle, world metres.")
-    u: list[float] | None = Field(None, description="Grid: edge along which the nu cells lie, world metres.")
-    v: list[float] | None = Field(None, description="Grid: edge along which the nv cells lie, world metres.")
-    map_url: str | None = Field(None, description="Grid, camera: the false-colour PNG of this result.")
-    warnings: list[str] | None = Field(None, description="The sensor or lights far outside the model (world metres); "
-                                       "photons that met a grating where its table of orders ran out.")
-    node: str | None = Field(None, description="Surface: the sensor's node (UUID).")
-    instances: list[SurfaceInstance] | None = Field(None, description=(
-        "Surface: each instance of the node's subtree, its triangles' illuminance on their front side (the outside "
-        "of a CAD solid). `min_lux`/`max_lux` are over all triangles, `mean_lux` is area-weighted (the sensor's "
-        "total flux over its total area)."))
-    candela: list[list[float]] | None = Field(None, description=(
-        "Far field: luminous intensity, cd, nγ rows (γ_j, `gamma_deg`) of nc values (C_i, `c_deg`): the flux leaving "
-        "the scene in each bin's directions over the bin's solid angle; `stderr` holds its standard errors."))
-    c_deg: list[float] | None = Field(None, description="Far field: the C angles C_i = i·360°/nc, degrees.")
-    gamma_deg: list[float] | None = Field(None, description="Far field: the γ angles γ_j = j·180°/(nγ−1), degrees.")
-    flux_lm: float | None = Field(None, description="Far field: the total luminous flux leaving the scene, lm.")
-    flux_stderr: float | None = Field(None, description="Far field: standard error of `flux_lm`, lm.")
-    max_cd: float | None = Field(None, description="Far field: the largest intensity, cd.")
-    nc: int | None = Field(None, description="Far field: C samples.")
-    ngamma: int | None = Field(None, description="Far field: γ samples.")
-    direction: list[float] | None = Field(None, description="Far field: the γ = 0 axis (unit, world).")
-    c0: list[float] | None = Field(None, description="Far field: the C = 0 axis (unit, world, across `direction`).")
-    luminance: list[Any] | None = Field(None, description=(
-        "Luminance meter: [the mean luminance over its cone], cd/m²; camera: height rows of width pixels, top row "
-        "first, each the mean luminance over the pixel, cd/m²; `stderr` holds the standard errors."))
-    strategy: str | None = Field(None, description="Luminance meter, camera: the estimator that ran, in words (paths "
-                                                   "from the eye, next-event estimation, MIS, specular chains).")
-    unreachable: dict[str, Any] | None = Field(None, description=(
-        "Luminance meter, camera: the lights paths from the eye cannot find in this scene (`lights`: their indices, "
-        "`why`, `through_specular`, `caustic_paths`): the value lacks their light; null where nothing is missing."))
-    through_specular: list[Any] | None = Field(None, description=(
-        "Luminance meter, camera: per value, the share of its paths whose view ray went on through a mirror or "
-        "glass before any diffuse surface (a fraction)."))
-    bands: int | None = Field(None, description=(
-        "Camera: the bands of whole rows it was traced in, each of at most `max_points` pixels with its own rounds, "
-        "seed and stop rule, then assembled (1: one query); each pixel's `stderr` is its band's."))
-    width: int | None = Field(None, description="Camera: pixels across.")
-    height: int | None = Field(None, description="Camera: pixels down.")
-    position: list[float] | None = Field(None, description="Camera: the eye, world metres.")
-    look_at: list[float] | None = Field(None, description="Camera: the point the view's centre passes through, "
-                                                          "world metres.")
-    fov_deg: float | None = Field(None, description="Camera: the vertical field of view, degrees.")
-    image_url: str | None = Field(None, description="Camera: the HDR image of this result (OpenEXR, cd/m², its "
-                                                    "standard error as a second layer); `image.png` beside it is "
-                                                    "the tone-mapped view.")
-
-
 class JobAccepted(BaseModel):
     """Answer 202 to an async request: where to follow the job."""
 
@@ -431,8 +306,8 @@ class JobPublic(BaseModel):
     finished_at: float | None = Field(description="When it ended, Unix time, s; null until then.")
     progress: JobProgress = Field(description="How far it got.")
     result: dict[str, Any] | None = Field(
-        description="The answer of the sync call (IlluminancePublic or SensorPublic; a prepare job's: the "
-                    "element's summary); a cancelled job keeps its partial answer.")
+        description="The answer of the sync call (IlluminancePublic, or the sensor kind's answer; a prepare job's: "
+                    "the element's summary); a cancelled job keeps its partial answer.")
     error: str | None = Field(description="Why it failed; null otherwise.")
     url: str = Field(description="This job's URL.")
     points: int | None = Field(None, description="Illuminance jobs: how many points; prepare jobs: table points "

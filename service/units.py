@@ -16,6 +16,7 @@ import numpy as np
 
 from service.live import LiveScene
 from service.schemas import LENGTH_UNITS
+from service.sensor_kinds import kind_of_type
 
 #: A position this many bounding-box diagonals outside the model's box is warned about.
 FAR_FACTOR = 100.0
@@ -96,11 +97,8 @@ def sensor_positions(live: LiveScene, ids: Iterable[str] | None = None) -> list[
     for s in live.sensors:
         if wanted is not None and str(s.get("id")) not in wanted:
             continue
-        if s.get("type") == "grid":
-            centre = np.asarray(s["origin"], float) + 0.5 * (np.asarray(s["u"], float) + np.asarray(s["v"], float))
-        elif s.get("center") is not None:
-            centre = np.asarray(s["center"], float)
-        else:
+        centre = kind_of_type(s.get("type")).centre(s)
+        if centre is None:
             continue
         out.append((f"sensor {s.get('id')}", centre))
     return out

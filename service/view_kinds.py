@@ -15,12 +15,14 @@ keeps the differences between revisions and serves the images after a restart.
 from __future__ import annotations
 
 from types import SimpleNamespace
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
+from pydantic import Field
 
 from service.errors import Invalid, TooLarge
 from service.payloads import finite_list, result_payload
+from service.sensor_base import SensorAnswer, SensorKind
 
 _COMMON = ("photons", "seconds", "effects", "estimator", "stop_reason", "compile_seconds", "backend", "cost",
            "effect_reasons")
@@ -51,11 +53,53 @@ def _payload(result: Any, sensor: dict, live: Any) -> dict[str, Any]:
     return payload
 
 
-class Luminance:
+class LuminanceAnswer(SensorAnswer):
+    """A luminance meter's answer: ``luminance``/``stderr`` [one value], cd/m²."""
+
+    type: Literal["luminance"] = Field(description="The sensor's kind.")
+    luminance: list[Any] = Field(description="[The mean luminance over its cone], cd/m²; `stderr` holds its "
+                                             "standard error.")
+    strategy: str = Field(description="The estimator that ran, in words (paths from the eye, next-event estimation, "
+                                      "MIS, specular chains).")
+    unreachable: dict[str, Any] | None = Field(None, description=(
+        "The lights paths from the eye cannot find in this scene (`lights`: their indices, `why`, "
+        "`through_specular`, `caustic_paths`): the value lacks their light; null where nothing is missing."))
+    through_specular: list[Any] | None = Field(None, description=(
+        "Per value, the share of its paths whose view ray went on through a mirror or glass before any diffuse "
+        "surface (a fraction)."))
+
+
+class CameraAnswer(LuminanceAnswer):
+    """A camera's answer: ``luminance``/``stderr`` as ``height`` rows of ``width`` pixels, cd/m², top row first."""
+
+    type: Literal["camera"] = Field(description="The sensor's kind.")  # type: ignore[assignment]
+    luminance: list[Any] = Field(description="Height rows of width pixels, top row first, each the mean luminance "
+                                             "over the pixel, cd/m²; `stderr` holds the standard errors.")
+    bands: int = Field(description=(
+        "The bands of whole rows it was traced in, each of at most `max_points` pixels with its own rounds, seed and "
+        "stop rule, then assembled (1: one query); each pixel's `stderr` is its band's."))
+    width: int = Field(description="Pixels across.")
+    height: int = Field(description="Pixels down.")
+    position: list[float] = Field(description="The eye, world metres.")
+    look_at: list[float] = Field(description="The point the view's centre passes through, world metres.")
+    fov_deg: float = Field(description="The vertical field of view, degrees.")
+    map_url: str | None = Field(None, description="The false-colour PNG of this result.")
+    image_url: str | None = Field(None, description="The HDR image of this result (OpenEXR, cd/m², its standard "
+                                                    "error as a second layer); `image.png` beside it is the "
+                                                    "tone-mapped view.")
+
+
+class Luminance(SensorKind):
     """A luminance meter: ``luminance`` and ``stderr`` [one value], cd/m²."""
 
     TYPE = "luminance"
     KEEP = "image"
+    ANSWER = LuminanceAnswer
+    QUANTITY = "luminance"
+
+    @staticmethod
+    def kept(sensor: dict) -> dict[str, Any]:
+        return {k: sensor[k] for k in ("position", "direction", "aperture_deg") if sensor.get(k) is not None}
 
     @staticmethod
     def check(sensor: dict, query: Any, limits: Any, live: Any) -> None:
@@ -109,12 +153,27 @@ def camera_refusal(sensor: dict, limits: Any) -> str | None:
             f"this aspect ratio")
 
 
-class Camera:
+class Camera(SensorKind):
     """A pinhole camera: ``luminance`` and ``stderr`` as ``height`` rows of ``width`` pixels, cd/m², top row
     first."""
 
     TYPE = "camera"
     KEEP = "image"
+    ANSWER = CameraAnswer
+    QUANTITY = "luminance"
+
+    @staticmethod
+    def layout(meta: dict) -> tuple[int, int]:
+        return int(meta["height"]), int(meta["width"])
+
+    @staticmethod
+    def refusal(sensor: dict, limits: Any) -> tuple[str, int] | None:
+        why = camera_refusal(sensor, limits)
+        return None if why is None else (why, limits.max_camera_pixels)
+
+    @staticmethod
+    def size(meta: dict, values: int) -> str:
+        return f"a {meta['width']} x {meta['height']} camera"
 
     @staticmethod
     def check(sensor: dict, query: Any, limits: Any, live: Any) -> None:

@@ -145,3 +145,45 @@ def test_lumenlinks_library_takes_the_adapters_library_never_its_command_line() 
             if any(m == "cad_adapter.cli" for m in names):
                 offenders.append(str(path.relative_to(ROOT)))
     assert not offenders, offenders
+
+
+#: the modules that tell sensor kinds apart by name: the kinds' own (service side, client side); and what is not yet
+#: one of theirs, with why
+SENSOR_KIND_MODULES = {"service/sensor_kinds.py", "service/view_kinds.py", "lumenlink/sensor_outputs.py"}
+SENSOR_KIND_TESTS_LEFT = {"service/pack.py": "packing measures a grid's cells: its sensor must be a grid"}
+
+
+def _is_type_field(node: ast.expr) -> bool:
+    """``x.get("type")``, ``x["type"]`` or a name ``type``/``kind``: where a body's kind is read."""
+    if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "get":
+        return bool(node.args) and isinstance(node.args[0], ast.Constant) and node.args[0].value == "type"
+    if isinstance(node, ast.Subscript):
+        return isinstance(node.slice, ast.Constant) and node.slice.value == "type"
+    return isinstance(node, ast.Name) and node.id in ("type", "kind", "t")
+
+
+def _sensor_type_tests(path: Path, names: set[str]) -> list[str]:
+    """Comparisons of something's ``type`` with a sensor kind's name (``x.get("type") == "grid"``, ``t in ("grid",
+    "camera")``) in one file."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+        if not isinstance(node, ast.Compare):
+            continue
+        sides = [node.left, *node.comparators]
+        consts = {c.value for side in sides for c in ast.walk(side)
+                  if isinstance(c, ast.Constant) and isinstance(c.value, str)}
+        if consts & names and any(_is_type_field(s) for s in sides):
+            found.append(f"{path.relative_to(ROOT)}:{node.lineno} {ast.unparse(node)}")
+    return found
+
+
+def test_sensor_kinds_are_told_apart_only_in_their_own_modules() -> None:
+    """Issue 55: a sensor kind's output is its own (its answer model, its kept results, its files and CSV), so no
+    other module of the service or the client tests a sensor's type by name."""
+    from tracer.sensors.dispatch import KINDS
+
+    names = set(KINDS)
+    offenders = [f for package in ("service", "lumenlink") for path in sorted((ROOT / package).rglob("*.py"))
+                 if str(path.relative_to(ROOT)) not in SENSOR_KIND_MODULES | set(SENSOR_KIND_TESTS_LEFT)
+                 for f in _sensor_type_tests(path, names)]
+    assert not offenders, f"sensor kinds told apart by name outside their modules: {offenders}"

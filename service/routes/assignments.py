@@ -90,23 +90,13 @@ def _answerable(sensor: dict, request: Request) -> None:
     bands of rows: `service.view_kinds.camera_refusal`), a grid of more cells or a far field of more bins than one
     query may ask (``max_points``). (One stored before a limit was lowered is still refused by its simulate, 413.)"""
     from service.errors import Invalid
+    from service.sensor_kinds import kind_of
     from service.simulation import hub_for
-    from service.view_kinds import camera_refusal
 
-    limits = hub_for(request.app).limits
-    kind = sensor.get("type")
-    if kind == "camera":
-        why = camera_refusal(sensor, limits)
-        if why is not None:
-            raise Invalid(why, limit=limits.max_camera_pixels)
-    counts = {"grid": ("nu", "nv", "cells"), "far_field": ("nc", "ngamma", "bins")}.get(str(kind))
-    if counts is not None:
-        a, b, what = counts
-        n = int(sensor[a]) * int(sensor[b])
-        if n > limits.max_points:
-            raise Invalid(f"a {kind} sensor of {a} × {b} = {sensor[a]} × {sensor[b]} = {n} {what}: this service "
-                          f"answers at most {limits.max_points} points per query (its max_points setting, "
-                          f"LUMENLINK_MAX_POINTS); ask for at most {limits.max_points} {what}", limit=limits.max_points)
+    found = kind_of(sensor).refusal(sensor, hub_for(request.app).limits)
+    if found is not None:
+        why, limit = found
+        raise Invalid(why, limit=limit)
 
 
 def _routes(kind: str, plural: str, schema: Any) -> None:

@@ -20,6 +20,8 @@ from fastapi import APIRouter, Request, Response
 from service.errors import Invalid, NotFound
 from service.images import tone_mapped_png, write_exr
 from service.routes.deps import ItemId, SceneId
+from service.sensor_kinds import KINDS as SENSOR_KINDS
+from service.sensor_kinds import kind_of
 from service.simulation import find_sensor, hub_for
 
 router = APIRouter(tags=["simulation"])
@@ -32,8 +34,9 @@ def camera_result(request: Request, scene_id: str, sensor_id: str) -> dict[str, 
     hub = hub_for(request.app)
     live = hub.live.get(scene_id)
     sensor = find_sensor(live, sensor_id)
-    if sensor.get("type") != "camera":
-        raise Invalid(f"sensor {sensor_id!r} is a {sensor.get('type')} sensor; images exist for camera sensors")
+    if "image_url" not in kind_of(sensor).ANSWER.model_fields:
+        imaged = sorted(t for t, k in SENSOR_KINDS.items() if "image_url" in k.ANSWER.model_fields)
+        raise Invalid(f"sensor {sensor_id!r} is a {sensor.get('type')} sensor; images exist for {imaged} sensors")
     result = hub.view_result(scene_id, sensor)
     if result is None:
         raise NotFound(f"sensor {sensor_id!r} has no image of the scene as it is now (revision {live.revision}); "

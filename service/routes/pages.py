@@ -38,6 +38,7 @@ from service.errors import Unavailable
 from service.events import EventHub, PageEventsMiddleware
 from service.middleware import SESSION_COOKIE, session_value
 from service.routes.deps import SceneId
+from service.sensor_kinds import kind_of
 
 WEB_DIR = Path(__file__).resolve().parents[1] / "web"
 SRC_DIR = WEB_DIR / "src"
@@ -208,9 +209,10 @@ def view_state(scene_id: SceneId, request: Request) -> dict[str, Any]:
         sensors = []
         for sensor in live.sensors:
             sid = str(sensor.get("id"))
-            result = hub.grid_result(scene_id, sid) if sensor.get("type") in ("grid", "surface") else None
+            kind = kind_of(sensor)
+            result = hub.grid_result(scene_id, sid) if kind.KEEP == "map" and kind.QUANTITY == "lux" else None
             # a surface's result: per instance (`instances`: node, path, geometry, lux and stderr per triangle)
-            keys = ("lux", "stderr") if sensor.get("type") == "grid" else ("instances",)
+            keys = ("instances",) if "instances" in kind.ANSWER.model_fields else ("lux", "stderr")
             sensors.append({**sensor, "name": names["sensor"].get(sid), "result": None if result is None else {
                 k: result.get(k) for k in (*keys, "revision", "photons", "seconds", "estimator",
                                            "stop_reason", "min_lux", "mean_lux", "max_lux")}})

@@ -21,10 +21,12 @@ from fastapi import APIRouter, Path, Query, Request, Response
 from pydantic import BaseModel, Field
 
 from service.errors import NotFound
+from service.kind_wire import SensorType
 from service.maps import difference_map_png, illuminance_map_png, luminance_map_png
 from service.results import KEY_PATTERN, ResultStore, difference, difference_csv, result_csv
 from service.routes.deps import ItemId, MapScale, MapVmin, SceneId, map_range
-from service.sensor_kinds import SensorType
+from service.sensor_kinds import KINDS as SENSOR_KINDS
+from service.sensor_kinds import kind_of_type
 from service.simulation import SimulationHub, Unavailable, hub_for
 
 router = APIRouter(tags=["results"])
@@ -186,14 +188,16 @@ def result_map(scene_id: SceneId, sensor_id: ItemId, key: Key, request: Request,
     """False-colour PNG of a kept grid result."""
     map_range(vmin, vmax)
     result = _get(request, scene_id, sensor_id, key)
-    if result.get("type") == "camera":
+    kind = kind_of_type(result.get("type"))
+    if "map_url" not in kind.ANSWER.model_fields:
+        mapped = sorted(t for t, k in SENSOR_KINDS.items() if "map_url" in k.ANSWER.model_fields)
+        raise NotFound(f"result {result['key']} of sensor {sensor_id} is of a {result.get('type')} sensor; maps exist "
+                       f"for {mapped} sensors")
+    if kind.QUANTITY == "luminance":
         png = luminance_map_png(result["luminance"], stderr=result["stderr"], vmax=vmax,
                                 title=f"{_title(request, scene_id, sensor_id)} — result {result['key']}, "
                                       f"{result['photons']:,} paths")
         return Response(png, media_type="image/png", headers={"X-Scene-Revision": str(result["revision"])})
-    if result.get("type") != "grid":
-        raise NotFound(f"result {result['key']} of sensor {sensor_id} is of a {result.get('type')} sensor; maps exist "
-                       "for grid and camera sensors")
     png = illuminance_map_png(result["lux"], result["origin"], result["u"], result["v"], stderr=result["stderr"],
                               title=f"{_title(request, scene_id, sensor_id)} — result {result['key']}, "
                                     f"{result['photons']:,} photons", vmax=vmax, vmin=vmin, scale=scale)
@@ -230,8 +234,9 @@ def result_difference(scene_id: SceneId, sensor_id: ItemId, request: Request, fr
 def difference_map(scene_id: SceneId, sensor_id: ItemId, request: Request, frm: From, to: KeyQuery) -> Response:
     """The change between two kept grid results on a diverging scale; cells within noise (2σ) dotted."""
     out, before, after = _difference(request, scene_id, sensor_id, frm, to)
-    if out.get("type") != "grid":
-        raise NotFound(f"sensor {sensor_id} is a {out.get('type')} sensor; difference maps exist for grid sensors")
+    if not kind_of_type(out.get("type")).DIFFERENCE_MAP:
+        drawn = sorted(t for t, k in SENSOR_KINDS.items() if k.DIFFERENCE_MAP)
+        raise NotFound(f"sensor {sensor_id} is a {out.get('type')} sensor; difference maps exist for {drawn} sensors")
     png = difference_map_png(out["lux_from"], out["lux_to"], out["origin"], out["u"], out["v"],
                              stderr_before=before["stderr"], stderr_after=after["stderr"],
                              title=f"{_title(request, scene_id, sensor_id)} — change from {out['from']} to "

@@ -31,6 +31,8 @@ from service.errors import Invalid, NotFound, TooLarge
 from service.jobs import JobNotFound, QueueFull
 from service.maps import colour_map_png, illuminance_map_png, luminance_map_png
 from service.routes.deps import ItemId, JobId, MapScale, MapVmin, SceneId, map_range
+from service.sensor_kinds import KINDS as SENSOR_KINDS
+from service.sensor_kinds import SensorPublic, kind_of
 from service.simulation import SimulationHub, Unavailable, find_sensor, hub_for, request_query
 from service.simulation_wire import (  # noqa: F401 (the route's models, named here too)
     UNIT_TOLERANCE,
@@ -44,9 +46,7 @@ from service.simulation_wire import (  # noqa: F401 (the route's models, named h
     JobPublic,
     Mode,
     PhysicsLeftOut,
-    SensorPublic,
     SensorSimulate,
-    SurfaceInstance,
 )
 from tracer.transport.estimate import cost_of
 
@@ -156,9 +156,7 @@ def _sensor_query(scene_id: str, sensor_id: str, query: SensorSimulate, request:
 
     def sized(live: Any) -> None:   # refused before anything is built
         sensor = find_sensor(live, sensor_id)
-        if sensor.get("type") == "grid" and int(sensor["nu"]) * int(sensor["nv"]) > hub.limits.max_points:
-            raise TooLarge(f"sensor {sensor_id!r} has {int(sensor['nu']) * int(sensor['nv'])} cells; this service "
-                           f"answers at most {hub.limits.max_points} points per query", limit=hub.limits.max_points)
+        kind_of(sensor).sized(sensor, hub.limits)
 
     prepared = hub.prepare(scene_id, sized)   # the one read of the scene's state
     sensor = find_sensor(prepared.live, sensor_id)  # the sensor in the snapshot the query runs on
@@ -168,17 +166,18 @@ def _sensor_query(scene_id: str, sensor_id: str, query: SensorSimulate, request:
                                   + units.light_positions(prepared.live))
     hub.check_query(prepared, asked)
 
+    answers = kind_of(sensor).ANSWER.model_fields   # what this kind's answer holds
     paths = ({n["uuid"]: n["path"] for n in request.app.state.manager.nodes(scene_id)}
-             if sensor.get("type") == "surface" else {})
+             if "instances" in answers else {})
 
     def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
         payload = hub.run_grid(prepared, sensor, asked, progress, cancel)
         for part in payload.get("instances", ()):
             part["path"] = paths.get(part["node"])
         _targeted(payload, query.cost_targets)
-        if payload["type"] in ("grid", "camera"):
+        if "map_url" in answers:
             payload["map_url"] = map_url
-        if payload["type"] == "camera":
+        if "image_url" in answers:
             payload["image_url"] = image_url
         if warnings:
             payload["warnings"] = warnings + payload.get("warnings", [])
@@ -204,11 +203,12 @@ def sensor_map(scene_id: SceneId, sensor_id: ItemId, request: Request,
     hub = _hub(request)
     live = hub.live.get(scene_id)
     sensor = find_sensor(live, sensor_id)
-    if sensor.get("type") == "camera":
+    kind = kind_of(sensor)
+    if "map_url" not in kind.ANSWER.model_fields:
+        mapped = sorted(t for t, k in SENSOR_KINDS.items() if "map_url" in k.ANSWER.model_fields)
+        raise NotFound(f"sensor {sensor_id!r} is a {sensor.get('type')} sensor; maps exist for {mapped} sensors")
+    if kind.QUANTITY == "luminance":
         return _camera_map(request, scene_id, sensor_id, vmax)
-    if sensor.get("type") != "grid":
-        raise NotFound(f"sensor {sensor_id!r} is a {sensor.get('type')} sensor; maps exist for grid and camera "
-                       f"sensors")
     result = hub.grid_result(scene_id, sensor_id)
     if result is None:
         raise NotFound(f"sensor {sensor_id!r} has no result for the scene as it is now (revision {live.revision}); "
@@ -254,9 +254,10 @@ def sensor_export(scene_id: SceneId, sensor_id: ItemId, request: Request,
     hub = _hub(request)
     live = hub.live.get(scene_id)
     sensor = find_sensor(live, sensor_id)
-    if sensor.get("type") != "far_field":
-        raise Invalid(f"sensor {sensor_id!r} is a {sensor.get('type')} sensor; only a far_field sensor exports as "
-                      f"IES or EULUMDAT")
+    if kind_of(sensor).QUANTITY != "candela":
+        lamps = sorted(t for t, k in SENSOR_KINDS.items() if k.QUANTITY == "candela")
+        raise Invalid(f"sensor {sensor_id!r} is a {sensor.get('type')} sensor; only {lamps} sensors export as IES "
+                      f"or EULUMDAT")
     result = hub.far_result(scene_id, sensor_id)
     if result is None:
         raise NotFound(f"sensor {sensor_id!r} has no result yet: POST /scenes/{scene_id}/sensors/{sensor_id}/simulate "

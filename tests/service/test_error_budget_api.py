@@ -1,7 +1,8 @@
 """The tessellation error budget through the REST API (issue 24): a curved mirror pushed as a GLB *with vertex
 normals* makes every answer carry ``error_budget.tessellation``, one finite lx value ≥ 0 per point (per cell for a
 grid sensor); a scene of flat meshes has none. The answer models forbid unknown fields, so a budget the model did
-not declare would be a 500: these tests guard that path (issue 24's budget in `IlluminancePublic`/`SensorPublic`).
+not declare would be a 500: these tests guard that path (issue 24's budget in `IlluminancePublic` and the sensor
+kinds' answers).
 
 The mirror: the paraboloid z = ρ²/4f (f = 0.25 m, rim 0.5 m) as a polar mesh with its exact normals
 (−x/2f, −y/2f, 1)/|…| at the vertices, under a collimated beam of 1000 lx, radius 0.45 m, straight down. Every

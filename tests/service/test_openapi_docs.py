@@ -163,7 +163,8 @@ def test_every_field_has_a_description() -> None:
     ("Lambertian", "reflectance", "fraction"), ("Dielectric", "absorption_per_m", "1/m"),
     ("Dielectric", "ior", "dimensionless"), ("Retarder", "retardance_deg", "degrees"),
     ("IlluminanceQuery", "points", "metres"), ("IlluminanceQuery", "max_seconds", "s"),
-    ("IlluminancePublic", "lux", "lx"), ("SensorPublic", "mean_lux", "lx"), ("JobProgress", "seconds", "s"),
+    ("IlluminancePublic", "lux", "lx"), ("GridAnswer", "mean_lux", "lx"), ("FarFieldAnswer", "flux_lm", "lm"),
+    ("CameraAnswer", "luminance", "cd/m²"), ("JobProgress", "seconds", "s"),
 ])
 def test_descriptions_carry_units(served, model: str, field: str, unit: str) -> None:
     _, spec, _ = served
