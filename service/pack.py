@@ -24,6 +24,8 @@ from typing import Any
 import numpy as np
 
 from service.errors import Invalid, NotFound
+from service.sensor_kinds import KINDS as SENSOR_KINDS
+from service.sensor_kinds import kind_of, kind_of_type
 from tracer.transport.query import Budget
 
 PILOT_PHOTONS = 20_000   # the pilot that tells a face no light reaches
@@ -60,9 +62,10 @@ def start(manager: Any, hub: Any, element_id: str, req: dict[str, Any]) -> tuple
                       f"pack the element the face carries")
     if sensor_body is None:
         raise Invalid(f"sensor: scene {scene_id} has no sensor {req['sensor']}")
-    if sensor_body.get("type") != "grid":
-        raise Invalid(f"sensor: a pack measures a grid of cells over the lit face; sensor {req['sensor']} is a "
-                      f"{sensor_body.get('type')!r} sensor")
+    if not kind_of_type(sensor_body.get("type")).PACKS:
+        packs = sorted(t for t, k in SENSOR_KINDS.items() if k.PACKS)
+        raise Invalid(f"sensor: a pack measures a grid of cells over the lit face ({packs} sensors); sensor "
+                      f"{req['sensor']} is a {sensor_body.get('type')!r} sensor")
     t0 = time.perf_counter()
     own = manager.scenes.rebuilt(scene_id)      # the pack's own scene: a full rebuild, timed
     live = manager.scenes.live_locked(own)
@@ -73,7 +76,6 @@ def start(manager: Any, hub: Any, element_id: str, req: dict[str, Any]) -> tuple
     simulation = _simulation_factory(hub, live)
     sim = simulation(own.tracer)
     rebuild_seconds = time.perf_counter() - t0
-    from service.sensor_kinds import kind_of
     from service.simulation import find_sensor
 
     sensor = kind_of(find_sensor(live, req["sensor"])).body(find_sensor(live, req["sensor"]), live)

@@ -80,6 +80,8 @@ class SensorKind:
     QUANTITY = "lux"
     #: two of its kept results are drawn as a change (``difference.png``: a grid's cells in place)
     DIFFERENCE_MAP = False
+    #: a pack (`service.pack`) can be driven by its figure: a grid of cells over the lit face
+    PACKS = False
 
     @staticmethod
     def sized(sensor: dict, limits: Any) -> None:

@@ -109,6 +109,7 @@ class Grid(SensorKind):
     KEEP = "map"
     ANSWER = GridAnswer
     DIFFERENCE_MAP = True
+    PACKS = True
 
     @staticmethod
     def layout(meta: dict) -> tuple[int, int]:

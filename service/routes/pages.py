@@ -210,10 +210,12 @@ def view_state(scene_id: SceneId, request: Request) -> dict[str, Any]:
         for sensor in live.sensors:
             sid = str(sensor.get("id"))
             kind = kind_of(sensor)
-            result = hub.grid_result(scene_id, sid) if kind.KEEP == "map" and kind.QUANTITY == "lux" else None
+            shown = kind.KEEP == "map" and kind.QUANTITY == "lux"   # the page simulates it and shows its lux
+            result = hub.grid_result(scene_id, sid) if shown else None
             # a surface's result: per instance (`instances`: node, path, geometry, lux and stderr per triangle)
             keys = ("instances",) if "instances" in kind.ANSWER.model_fields else ("lux", "stderr")
-            sensors.append({**sensor, "name": names["sensor"].get(sid), "result": None if result is None else {
+            sensors.append({**sensor, "name": names["sensor"].get(sid), "simulate": shown, "packs": kind.PACKS,
+                            "result": None if result is None else {
                 k: result.get(k) for k in (*keys, "revision", "photons", "seconds", "estimator",
                                            "stop_reason", "min_lux", "mean_lux", "max_lux")}})
         scene = {"id": scene_id, "name": manager.summary(scene_id)["name"], "revision": live.revision,

@@ -119,7 +119,7 @@ function listElements(elements, nodes) {
       li.append(" ", plot);
       return li;
     }
-    const grid = (ll.state?.sensors ?? []).find((s) => s.type === "grid");
+    const grid = (ll.state?.sensors ?? []).find((s) => s.packs);   // a sensor a pack can be driven by
     if (e.applied && grid && type) li.append(" ", ...packControls(e, grid));
     return li;
   }));
@@ -219,7 +219,7 @@ function drawSensors() {
     li.textContent = s.result
       ? `${name}: ${formatLux(s.result.min_lux)} – ${formatLux(s.result.max_lux)} (${s.result.photons.toLocaleString()} photons)`
       : `${name}: not simulated at this revision `;
-    if (s.type === "grid" || s.type === "surface") {
+    if (s.simulate) {   // the service says which sensors the page simulates and shows
       const button = document.createElement("button");
       button.textContent = "simulate";
       button.title = "trace photons for this sensor (a job of at most 10 s)";

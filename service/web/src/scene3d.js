@@ -162,8 +162,8 @@ export class Viewer {
       child.material.dispose();
     }
     for (const s of sensors) {
-      if (s.type === "grid") this.sensorGroup.add(gridPlane(s, scale));
-      else if (s.type === "disk") this.sensorGroup.add(diskMarker(s));
+      const draw = SENSOR_SHAPES[s.type];   // kinds without a shape of their own are not drawn
+      if (draw) this.sensorGroup.add(draw(s, scale));
     }
     this.render();
   }
@@ -250,7 +250,7 @@ export class Viewer {
       out.surface = { rec: surface.object.userData.rec, point: surface.point.toArray(), normal: normal.toArray(),
         triangle: surface.faceIndex, tally: surface.object.userData.tally ?? null };
     }
-    if (sensor && sensor.object.userData.sensor.type === "grid") {
+    if (sensor && sensor.object.userData.cells) {
       const s = sensor.object.userData.sensor;
       const i = Math.min(s.nu - 1, Math.floor(sensor.uv.x * s.nu));
       const j = Math.min(s.nv - 1, Math.floor(sensor.uv.y * s.nv));
@@ -340,9 +340,12 @@ function gridPlane(s, scale) {
     m.opacity = 0.45;
   }
   const mesh = new THREE.Mesh(g, m);
-  mesh.userData = { kind: "sensor", sensor: s, coloured: Boolean(s.result) };
+  mesh.userData = { kind: "sensor", sensor: s, coloured: Boolean(s.result), cells: true };   // hover names a cell
   return mesh;
 }
+
+/** The sensor kinds the view draws, by type: the only place in the page that tells sensor kinds apart. */
+const SENSOR_SHAPES = { grid: gridPlane, disk: diskMarker };
 
 /** A disk sensor: a thin ring where it measures. */
 function diskMarker(s) {
