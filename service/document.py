@@ -301,23 +301,48 @@ def decode_incremental(body: bytes, previous: NodeBytes, tree, known_geometries:
         header = DocumentPush.model_validate_json(body[:at] + b'"nodes": []}')
     except ValueError:
         return None
-    sep, L = previous.sep, len(previous.sep)
+    sep = previous.sep
     n1, len1, len2 = len(previous.starts), previous.size, end - begin
-    a = _bytes_view(previous.body, previous.core, len1)
-    b = _bytes_view(body, begin, len2)
-    p = _common(a, b)
-    q = _common_suffix(a[min(p, len1):], b[min(p, len2):])
+    k0, k1 = _unchanged_chunks(previous, _bytes_view(body, begin, len2))
     starts1, ends1 = previous.starts, previous.ends
-    k0 = int(np.searchsorted(ends1, p, side="right")) if n1 else 0  # chunks 0..k0-1 lie in the prefix
-    k1 = int(np.searchsorted(starts1, len1 - q, side="left")) if n1 else 0  # chunks k1.. lie in the suffix
-    k1 = max(k1, k0)
     delta = len2 - len1
     g0 = int(ends1[k0 - 1]) if k0 > 0 else 0  # the new body's prefix part ends here …
     g1 = int(starts1[k1]) + delta if k1 < n1 else len2  # … and its suffix part starts here
     if g1 < g0:
         return None
-    gap = body[begin + g0:begin + g1]
-    has_prefix, has_suffix = k0 > 0, k1 < n1
+    fresh = _fresh_bytes(body[begin + g0:begin + g1], sep, g0, has_prefix=k0 > 0, has_suffix=k1 < n1)
+    if fresh is None:
+        return None
+    inner, lo = fresh
+    middle: list[bytes] = inner.split(sep) if inner else []
+    if len(middle) > MAX_FRESH:
+        return None
+    cols = _fresh_columns(middle, sep, tree.index, known_geometries)
+    if cols is None:
+        return None
+    uuids, parents, names, transforms, geometries, colors = _merged_columns(tree, cols, k0, k1, n1)
+    starts, ends = _merged_offsets(previous, middle, k0, k1, lo, delta)
+    decoded = Decoded(header, uuids, parents, names, np.ascontiguousarray(transforms, dtype=np.float64), geometries,
+                      colors, fast=True)
+    return decoded, NodeBytes(sep, body, begin, len2, starts, ends)
+
+
+def _unchanged_chunks(previous: NodeBytes, b: np.ndarray) -> tuple[int, int]:
+    """(k0, k1): the previous chunks 0..k0-1 lie in the common byte prefix of the node regions, and the chunks
+    k1.. in their common suffix (k0 <= k1); only the chunks in between can have changed."""
+    n1, len1, len2 = len(previous.starts), previous.size, len(b)
+    a = _bytes_view(previous.body, previous.core, len1)
+    p = _common(a, b)
+    q = _common_suffix(a[min(p, len1):], b[min(p, len2):])
+    k0 = int(np.searchsorted(previous.ends, p, side="right")) if n1 else 0  # chunks 0..k0-1 lie in the prefix
+    k1 = int(np.searchsorted(previous.starts, len1 - q, side="left")) if n1 else 0  # chunks k1.. lie in the suffix
+    return k0, max(k1, k0)
+
+
+def _fresh_bytes(gap: bytes, sep: bytes, g0: int, has_prefix: bool, has_suffix: bool) -> tuple[bytes, int] | None:
+    """(the changed chunks joined by `sep`, their offset in the node region) from the bytes `gap` between the
+    reused prefix (ending at `g0`) and suffix; None when the separators around them are not where they must be."""
+    L = len(sep)
     lo = g0
     if not gap:
         if has_prefix and has_suffix:
@@ -340,9 +365,13 @@ def decode_incremental(body: bytes, previous: NodeBytes, tree, known_geometries:
         inner = gap[:-L]
     else:
         inner = gap
-    middle: list[bytes] = inner.split(sep) if inner else []
-    if len(middle) > MAX_FRESH:
-        return None
+    return inner, lo
+
+
+def _fresh_columns(middle: list[bytes], sep: bytes, known_uuids: Container[str],
+                   known_geometries: Container[str]) -> Columns | None:
+    """Columns of the changed chunks, each parsed on its own and checked like the fast path; None if any is
+    doubtful, or if a name holds `sep` (the next push's split would be wrong)."""
     parsed = []
     for chunk in middle:
         if b"true" in chunk or b"false" in chunk:
@@ -351,42 +380,48 @@ def decode_incremental(body: bytes, previous: NodeBytes, tree, known_geometries:
             parsed.append(from_json(b"{" + chunk + b"}", allow_inf_nan=False))
         except ValueError:
             return None
-    cols = _columns(parsed, tree.index, known_geometries)
+    cols = _columns(parsed, known_uuids, known_geometries)
     if cols is None or any(sep.decode() in x for x in cols[2]):
         return None
-    rows = np.concatenate([np.arange(k0), np.full(len(middle), -1), np.arange(k1, n1)]).astype(np.int64)
+    return cols
+
+
+def _merged_columns(tree, cols: Columns, k0: int, k1: int, n1: int) -> Columns:
+    """The new tree's columns: rows 0..k0-1 and k1..n1-1 of `tree`, with the changed rows `cols` in between."""
+    fresh = len(cols[0])
+    rows = np.concatenate([np.arange(k0), np.full(fresh, -1), np.arange(k1, n1)]).astype(np.int64)
     n = len(rows)
-    if n == n1 == len(tree) and len(middle) == k1 - k0:  # nodes edited in place: copy the columns, patch
+    if n == n1 == len(tree) and fresh == k1 - k0:  # nodes edited in place: copy the columns, patch
         uuids, parents, names = list(tree.uuids), list(tree.parents), list(tree.names)
         geometries, colors = list(tree.geometries), list(tree.colors)
-        transforms = tree.local.reshape(-1, 16).copy() if middle else tree.local.reshape(-1, 16)
-        for j in range(len(middle)):
-            k = k0 + j
-            uuids[k], parents[k], names[k], geometries[k], colors[k] = (cols[0][j], cols[1][j], cols[2][j],
-                                                                        cols[4][j], cols[5][j])
-            transforms[k] = cols[3][j]
+        transforms = tree.local.reshape(-1, 16).copy() if fresh else tree.local.reshape(-1, 16)
     else:
         safe = np.where(rows >= 0, rows, 0).tolist() if len(tree) else [0] * n
         pick = (lambda col: [col[r] for r in safe]) if len(tree) else (lambda col: [None] * n)
         uuids, parents, names = pick(tree.uuids), pick(tree.parents), pick(tree.names)
         geometries, colors = pick(tree.geometries), pick(tree.colors)
         transforms = tree.local.reshape(-1, 16)[safe] if len(tree) else np.empty((n, 16))
-        for j in range(len(middle)):
-            k = k0 + j
-            uuids[k], parents[k], names[k], geometries[k], colors[k] = (cols[0][j], cols[1][j], cols[2][j],
-                                                                        cols[4][j], cols[5][j])
-            transforms[k] = cols[3][j]
-    # where each chunk of the new body sits (relative to its node region)
+    for j in range(fresh):
+        k = k0 + j
+        uuids[k], parents[k], names[k], geometries[k], colors[k] = (cols[0][j], cols[1][j], cols[2][j],
+                                                                    cols[4][j], cols[5][j])
+        transforms[k] = cols[3][j]
+    return uuids, parents, names, transforms, geometries, colors
+
+
+def _merged_offsets(previous: NodeBytes, middle: list[bytes], k0: int, k1: int, lo: int,
+                    delta: int) -> tuple[np.ndarray, np.ndarray]:
+    """(starts, ends) of each chunk of the new body, relative to its node region: the reused chunks where they
+    were (those after the change shifted by `delta`), the changed ones laid out from `lo`."""
     mid_starts, mid_ends, pos = [], [], lo
     for chunk in middle:
         mid_starts.append(pos)
         mid_ends.append(pos + len(chunk))
-        pos += len(chunk) + L
+        pos += len(chunk) + len(previous.sep)
+    starts1, ends1 = previous.starts, previous.ends
     starts = np.concatenate([starts1[:k0], np.asarray(mid_starts, np.int64), starts1[k1:] + delta]).astype(np.int64)
     ends = np.concatenate([ends1[:k0], np.asarray(mid_ends, np.int64), ends1[k1:] + delta]).astype(np.int64)
-    decoded = Decoded(header, uuids, parents, names, np.ascontiguousarray(transforms, dtype=np.float64), geometries,
-                      colors, fast=True)
-    return decoded, NodeBytes(sep, body, begin, len2, starts, ends)
+    return starts, ends
 
 
 def same_nodes(body: bytes, previous: NodeBytes) -> DocumentPush | None:

@@ -215,16 +215,7 @@ def illuminance_map_figure(
     se = None if stderr is None else _check_grid("stderr", stderr, e.shape)
     o, uu, vv = _check_frame(origin, u, v)
     lu, lv = float(np.linalg.norm(uu)), float(np.linalg.norm(vv))
-    top = float(e.max()) if vmax is None else float(vmax)
-    if not np.isfinite(top) or top < 0:
-        raise MapError(f"vmax must be a non-negative finite number, got {vmax!r}")
-    if scale not in ("zero", "data"):
-        raise MapError(f"scale must be 'zero' or 'data', got {scale!r}")
-    bottom = float(vmin) if vmin is not None else (float(e.min()) if scale == "data" else 0.0)
-    if not np.isfinite(bottom) or bottom < 0:
-        raise MapError(f"vmin must be a non-negative finite number, got {vmin!r}")
-    if top <= bottom:   # a flat map (or a stated range the caller checked): a scale of some width about it
-        top = bottom + (0.01 * bottom if bottom > 0 else 1.0)
+    bottom, top = _lux_range(e, vmax, vmin, scale)
 
     fig, ax = _figure(lv / lu)
     extent, xlabel, ylabel = _axes_frame(o, uu, vv)
@@ -235,27 +226,48 @@ def illuminance_map_figure(
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     nv, nu = e.shape
-    caption = subtitle
-    if caption is None:   # two short lines, so that a narrow map does not cut them off
-        caption = f"min {e.min():.4g} lx · mean {e.mean():.4g} lx · max {e.max():.4g} lx"
-        second = []
-        if e.mean() > 0:
-            from tracer.photometry.glare import uniformity
-
-            u = uniformity(e, se)
-            second.append(f"uniformity min/mean {u['min_mean']:.3f}"
-                          + (f" ± {u['min_mean_stderr']:.3f}" if se is not None else ""))
-        if se is not None:
-            rel = median_relative_error(e, se)
-            if np.isfinite(rel):
-                second.append(f"median std. error {100 * rel:.2g} % (lit cells)")
-        if second:
-            caption += "\n" + " · ".join(second)
+    caption = subtitle if subtitle is not None else _lux_caption(e, se)
     heading = title or "Illuminance"
     ax.set_title(f"{heading}\n{caption}", fontsize=9)
     fig.text(0.01, 0.005, f"grid {nu}×{nv} cells, origin ({o[0]:.3g}, {o[1]:.3g}, {o[2]:.3g}) m",
              fontsize=7, color="0.35")
     return fig
+
+
+def _lux_range(e: np.ndarray, vmax: float | None, vmin: float | None, scale: str) -> tuple[float, float]:
+    """(bottom, top) of a lux map's colour scale, lx: the stated ends, else 0 (``scale`` "zero") or the smallest
+    cell ("data") up to the largest; a flat map gets a scale of some width about its value."""
+    top = float(e.max()) if vmax is None else float(vmax)
+    if not np.isfinite(top) or top < 0:
+        raise MapError(f"vmax must be a non-negative finite number, got {vmax!r}")
+    if scale not in ("zero", "data"):
+        raise MapError(f"scale must be 'zero' or 'data', got {scale!r}")
+    bottom = float(vmin) if vmin is not None else (float(e.min()) if scale == "data" else 0.0)
+    if not np.isfinite(bottom) or bottom < 0:
+        raise MapError(f"vmin must be a non-negative finite number, got {vmin!r}")
+    if top <= bottom:   # a flat map (or a stated range the caller checked): a scale of some width about it
+        top = bottom + (0.01 * bottom if bottom > 0 else 1.0)
+    return bottom, top
+
+
+def _lux_caption(e: np.ndarray, se: np.ndarray | None) -> str:
+    """min / mean / max, then the uniformity min/mean (± its standard error) and the noise figure: two short lines,
+    so that a narrow map does not cut them off."""
+    caption = f"min {e.min():.4g} lx · mean {e.mean():.4g} lx · max {e.max():.4g} lx"
+    second = []
+    if e.mean() > 0:
+        from tracer.photometry.glare import uniformity
+
+        u = uniformity(e, se)
+        second.append(f"uniformity min/mean {u['min_mean']:.3f}"
+                      + (f" ± {u['min_mean_stderr']:.3f}" if se is not None else ""))
+    if se is not None:
+        rel = median_relative_error(e, se)
+        if np.isfinite(rel):
+            second.append(f"median std. error {100 * rel:.2g} % (lit cells)")
+    if second:
+        caption += "\n" + " · ".join(second)
+    return caption
 
 
 #: CIE XYZ → linear sRGB (IEC 61966-2-1, D65 white)

@@ -47,25 +47,7 @@ def start(manager: Any, hub: Any, element_id: str, req: dict[str, Any]) -> tuple
     except ElementError as exc:
         raise Invalid(str(exc)) from None
     scene_id = req["scene"]
-    try:
-        state = manager.scenes.state(scene_id)
-    except NotFound:
-        raise Invalid(f"scene: no scene {scene_id}") from None
-    with state.lock:
-        assignment = state.elements.get(req["assignment"])
-        sensor_body = state.sensors.get(req["sensor"])
-    if assignment is None:
-        raise Invalid(f"assignment: scene {scene_id} has no element assignment {req['assignment']} (POST /scenes/"
-                      f"{scene_id}/elements puts the element onto the guide's face first)")
-    if assignment["element"] != element_id:
-        raise Invalid(f"assignment {req['assignment']} carries element {assignment['element']}, not {element_id}: "
-                      f"pack the element the face carries")
-    if sensor_body is None:
-        raise Invalid(f"sensor: scene {scene_id} has no sensor {req['sensor']}")
-    if not kind_of_type(sensor_body.get("type")).PACKS:
-        packs = sorted(t for t, k in SENSOR_KINDS.items() if k.PACKS)
-        raise Invalid(f"sensor: a pack measures a grid of cells over the lit face ({packs} sensors); sensor "
-                      f"{req['sensor']} is a {sensor_body.get('type')!r} sensor")
+    assignment = _assignment_and_sensor(manager, scene_id, element_id, req)
     t0 = time.perf_counter()
     own = manager.scenes.rebuilt(scene_id)      # the pack's own scene: a full rebuild, timed
     live = manager.scenes.live_locked(own)
@@ -112,6 +94,31 @@ def start(manager: Any, hub: Any, element_id: str, req: dict[str, Any]) -> tuple
     budget = Budget(max_seconds=float(req["max_seconds"]))
     meta = {"generation": hub.generation(scene_id), "sensor": req["sensor"], "element": element_id}
     return scene_id, int(own.revision), work, budget, meta
+
+
+def _assignment_and_sensor(manager: Any, scene_id: str, element_id: str, req: dict[str, Any]) -> dict[str, Any]:
+    """The element assignment a pack changes, checked with its sensor (422 for a scene, assignment or sensor that
+    cannot be packed: one that does not exist, another element, a sensor no pack can be driven by)."""
+    try:
+        state = manager.scenes.state(scene_id)
+    except NotFound:
+        raise Invalid(f"scene: no scene {scene_id}") from None
+    with state.lock:
+        assignment = state.elements.get(req["assignment"])
+        sensor_body = state.sensors.get(req["sensor"])
+    if assignment is None:
+        raise Invalid(f"assignment: scene {scene_id} has no element assignment {req['assignment']} (POST /scenes/"
+                      f"{scene_id}/elements puts the element onto the guide's face first)")
+    if assignment["element"] != element_id:
+        raise Invalid(f"assignment {req['assignment']} carries element {assignment['element']}, not {element_id}: "
+                      f"pack the element the face carries")
+    if sensor_body is None:
+        raise Invalid(f"sensor: scene {scene_id} has no sensor {req['sensor']}")
+    if not kind_of_type(sensor_body.get("type")).PACKS:
+        packs = sorted(t for t, k in SENSOR_KINDS.items() if k.PACKS)
+        raise Invalid(f"sensor: a pack measures a grid of cells over the lit face ({packs} sensors); sensor "
+                      f"{req['sensor']} is a {sensor_body.get('type')!r} sensor")
+    return assignment
 
 
 def _simulation_factory(hub: Any, live: Any) -> Any:

@@ -40,7 +40,7 @@ from service.errors import Conflict, Invalid, TooLarge
 from service.scenes import Scenes, SceneState
 from service.schemas import DocumentPush, IdentityIn
 from service.store import IdentityChanges, Raced, RemovedChanges, color_of
-from service.tree import Tree, TreeDiff, TreeError, apply_to_scene, diff_trees
+from service.tree import ApplyStats, Tree, TreeDiff, TreeError, apply_to_scene, diff_trees
 
 log = logging.getLogger("lumenlink.service")
 
@@ -161,79 +161,24 @@ class Pushes:
 
     def _push_locked(self, state: SceneState, doc: DocumentPush, new: Tree, identity: dict[str, IdentityIn], t0: float,
                      t_decode: float) -> dict[str, Any]:
+        """Apply and store a validated push; every check comes before the first change to the scene or database."""
         t_validate = time.perf_counter()
         diff = self._diff(state, doc, new)
         t_diff = time.perf_counter()
         changes = _identity_changes(state.identity, identity)
+        seconds = {"decode": t_decode - t0, "validate": t_validate - t_decode, "diff": t_diff - t_validate}
         if diff.is_empty():
-            reordered = new.uuids != state.tree.uuids
-            old_index = state.tree.index
-            state.tree = new  # the same tree; its rows now follow this body's order
-            t_store = time.perf_counter()
-            if changes is not None or reordered:  # identity records or the order changed: stored, no new revision
-                try:
-                    if reordered:  # the [k] ranks of same-named siblings follow the order: a restart must see it
-                        self.store.store_order(state.id, state.version, new.uuids, old_index, changes)
-                    else:
-                        self.store.store_identity(state.id, state.version, changes)  # type: ignore[arg-type]
-                except Raced as exc:
-                    self.scenes.forget(state.id)
-                    now = self.store.version(state.id)
-                    current = now[0] if now is not None else None
-                    raise Conflict(f"the scene changed under this push through another service process (now at "
-                                   f"revision {current})", current_revision=current) from exc
-                except Exception:
-                    self.scenes.forget(state.id)
-                    raise
-                state.identity = identity
-                state.assign_revision += 1
-                if reordered:
-                    state.live = None
-            seconds = {"decode": t_decode - t0, "validate": t_validate - t_decode, "diff": t_diff - t_validate,
-                       "blas": 0.0, "tlas": 0.0, "commit": 0.0, "store": time.perf_counter() - t_store}
-            seconds["total"] = time.perf_counter() - t0
-            return _answer(state, doc, diff, {}, seconds, [], [], blas_reused=0)
+            return self._push_unchanged_locked(state, doc, new, identity, diff, changes, seconds, t0)
 
         old_tree = state.tree
         removed = set(diff.removed)
         added = set(diff.added)
         restored_nodes = [u for u in diff.added if u in state.removed]
         memory = self._removed_changes(state, old_tree, diff)
-        try:
-            t_apply = time.perf_counter()
-            load_seconds = [0.0]
-
-            def ensure(gid: str) -> bool:
-                tl = time.perf_counter()
-                try:
-                    return self.scenes.ensure_geometry(state, gid)
-                finally:
-                    load_seconds[0] += time.perf_counter() - tl
-
-            apply_stats = apply_to_scene(state.tracer, state.instances, new, diff, ensure)
-            state.tree = new
-            moved = set(diff.moved)
-            for oid, body in state.objects.items():
-                node = body.get("attached_to")
-                if node is not None and (node in moved or node in removed or node in added):
-                    self.scenes.place_object(state, oid, body)
-            if state.elements:
-                if diff.length_unit_changed:   # the parts' millimetres per object unit changed: put them on anew
-                    state.element_instances.clear()
-                element_sync(state, self.scenes.elements)
-            t_applied = time.perf_counter()
-            commit = self.scenes.commit(state)
-            t_commit = time.perf_counter()
-        except Exception:
-            log.exception("applying a push to scene %s failed; reloading it from the database", state.id)
-            self.scenes.forget(state.id)
-            raise
+        apply_stats, commit, applied, t_commit = _apply_and_commit(self.scenes, state, new, diff, removed, added)
         orphaned = state.orphans(only_nodes=removed) if removed else []
         restored = state.orphans(only_nodes=added) if added else []
-        seconds = {"decode": t_decode - t0, "validate": t_validate - t_decode, "diff": t_diff - t_validate,
-                   "blas": commit["blas_seconds"] + load_seconds[0],
-                   "tlas": commit["tlas_seconds"] + (t_applied - t_apply - load_seconds[0]),
-                   "commit": t_commit - t_applied}
+        seconds.update(applied)
         for rec in memory[0].values():
             rec["assignments"] = [{"kind": o["kind"], "id": o["id"]} for o in orphaned if o["node"] == rec["uuid"]]
         try:
@@ -257,6 +202,38 @@ class Pushes:
                       blas_reused=len(apply_stats.reused_geometries))
         out["restored_nodes"] = restored_nodes
         return out
+
+    def _push_unchanged_locked(self, state: SceneState, doc: DocumentPush, new: Tree, identity: dict[str, IdentityIn],
+                               diff: TreeDiff, changes: IdentityChanges | None, seconds: dict[str, float],
+                               t0: float) -> dict[str, Any]:
+        """A push that leaves the tree as it is: no new revision, but its row order and identity records are
+        taken (and stored when they changed), so the next push compares against exactly this body."""
+        reordered = new.uuids != state.tree.uuids
+        old_index = state.tree.index
+        state.tree = new  # the same tree; its rows now follow this body's order
+        t_store = time.perf_counter()
+        if changes is not None or reordered:  # identity records or the order changed: stored, no new revision
+            try:
+                if reordered:  # the [k] ranks of same-named siblings follow the order: a restart must see it
+                    self.store.store_order(state.id, state.version, new.uuids, old_index, changes)
+                else:
+                    self.store.store_identity(state.id, state.version, changes)  # type: ignore[arg-type]
+            except Raced as exc:
+                self.scenes.forget(state.id)
+                now = self.store.version(state.id)
+                current = now[0] if now is not None else None
+                raise Conflict(f"the scene changed under this push through another service process (now at "
+                               f"revision {current})", current_revision=current) from exc
+            except Exception:
+                self.scenes.forget(state.id)
+                raise
+            state.identity = identity
+            state.assign_revision += 1
+            if reordered:
+                state.live = None
+        seconds.update(blas=0.0, tlas=0.0, commit=0.0, store=time.perf_counter() - t_store)
+        seconds["total"] = time.perf_counter() - t0
+        return _answer(state, doc, diff, {}, seconds, [], [], blas_reused=0)
 
     def _removed_changes(self, state: SceneState, old: Tree, diff: TreeDiff) -> RemovedChanges:
         """What this push does to the scene's memory of removed nodes: a record for each node it removes (what
@@ -299,6 +276,46 @@ class Pushes:
         self.store.store_push(state.id, state.revision, doc.length_unit,
                               doc.source.model_dump() if doc.source else None, old, new, diff, summary,
                               identity_changes, removed_changes)
+
+
+def _apply_and_commit(scenes: Scenes, state: SceneState, new: Tree, diff: TreeDiff, removed: set[str],
+                      added: set[str]) -> tuple[ApplyStats, dict[str, Any], dict[str, float], float]:
+    """Apply the diff to the tracer scene, its objects and parts, and commit it: (what `apply_to_scene` did,
+    the commit's report, the seconds of blas, tlas and commit, when the commit ended). If any step fails the
+    scene is dropped, to be reloaded from the database: memory never runs ahead of what was stored."""
+    try:
+        t_apply = time.perf_counter()
+        load_seconds = [0.0]
+
+        def ensure(gid: str) -> bool:
+            tl = time.perf_counter()
+            try:
+                return scenes.ensure_geometry(state, gid)
+            finally:
+                load_seconds[0] += time.perf_counter() - tl
+
+        apply_stats = apply_to_scene(state.tracer, state.instances, new, diff, ensure)
+        state.tree = new
+        moved = set(diff.moved)
+        for oid, body in state.objects.items():
+            node = body.get("attached_to")
+            if node is not None and (node in moved or node in removed or node in added):
+                scenes.place_object(state, oid, body)
+        if state.elements:
+            if diff.length_unit_changed:   # the parts' millimetres per object unit changed: put them on anew
+                state.element_instances.clear()
+            element_sync(state, scenes.elements)
+        t_applied = time.perf_counter()
+        commit = scenes.commit(state)
+        t_commit = time.perf_counter()
+    except Exception:
+        log.exception("applying a push to scene %s failed; reloading it from the database", state.id)
+        scenes.forget(state.id)
+        raise
+    seconds = {"blas": commit["blas_seconds"] + load_seconds[0],
+               "tlas": commit["tlas_seconds"] + (t_applied - t_apply - load_seconds[0]),
+               "commit": t_commit - t_applied}
+    return apply_stats, commit, seconds, t_commit
 
 
 def _answer(state: SceneState, doc: DocumentPush, diff: TreeDiff, commit: dict, seconds: dict,

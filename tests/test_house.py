@@ -64,11 +64,8 @@ MAX_FUNCTION_LINES = 80
 OVER = {
     "module bench/bench_gpu.py": 831,
     "function tracer/elements/grating_body.py:check": 114, "function tracer/elements/pack.py:pack": 106,
-    "function tracer/jit.py:kind_table": 87, "function tracer/optics/surfaces/zemax_bsdf.py:parse": 91,
-    "function tracer/photometry/files.py:parse_ies": 127, "function tracer/photometry/files.py:parse_ldt": 96,
-    "function tracer/transport/rounds.py:forward": 94, "function service/document.py:decode_incremental": 107,
-    "function service/maps.py:illuminance_map_figure": 86, "function service/pack.py:start": 81,
-    "function service/push.py:_push_locked": 98, "function cad_adapter/matching.py:reconcile": 107,
+    "function tracer/optics/surfaces/zemax_bsdf.py:parse": 91,
+    "function cad_adapter/matching.py:reconcile": 107,
     "function cad_adapter/step_uuid.py:write_step": 105,
     "function bench/bench_accuracy.py:plots": 85, "function bench/bench_accuracy.py:markdown": 100,
     "function bench/bench_gpu.py:markdown": 96, "function bench/bench_luminance.py:demo_car": 91,

@@ -115,6 +115,42 @@ def kind_switch(name: str, params: str, tag: str, cases: dict[int, Any], default
     return njit(**options)(fn)
 
 
+def _case_chain(name: str, cases: dict[int, Any], filename: str):
+    """``name(table, k, args)``: the branch chain that returns ``cases[k](*args)`` (the last case for any other k),
+    as plain Python a device compiles into its kernel; its source attributed to `filename` (the family's module)."""
+    ordered = sorted(int(k) for k in cases)
+    names = {k: f"_case_{k}" for k in ordered}
+    lines = [f"    if k == {k}:\n        return {names[k]}(*args)\n" for k in ordered[:-1]]
+    source = f"def {name}(table, k, args):\n{''.join(lines)}    return {names[ordered[-1]]}(*args)\n"
+    scope = {names[k]: cases[k] for k in ordered}
+    exec(compile(source, filename, "exec"), scope)   # noqa: S102 - the source is built above, from names
+    return scope[name]
+
+
+def _binder(name: str, cases: dict[int, Any], signature, returns, layout: str):
+    """`kind_table`'s ``bind(table, head, kinds)``: write into `table` ((max kind + 1,) int64) the address of each of
+    `kinds` that has a case, compiled (or loaded) for the argument types ``signature(head)``, refusing a kind whose
+    result is not laid out as `returns` (`layout`); the other entries are left as they are."""
+    from numba.core.registry import cpu_target
+
+    def bind(table, head: tuple, kinds) -> None:
+        want = tuple(signature(tuple(head)))
+        for k in sorted(set(int(k) for k in kinds) & set(int(c) for c in cases)):
+            if table[k]:
+                continue
+            kernel = cases[k]
+            kernel.compile(want)
+            cres = kernel.overloads[want]
+            returned = str(cpu_target.target_context.get_value_type(cres.signature.return_type))
+            if returned != layout:   # the caller reads the result as `returns`
+                raise TypeError(f"{name}: {kernel.py_func.__qualname__} returns {cres.signature.return_type}, "
+                                f"laid out as {returned}; the family's kinds return {returns} ({layout})")
+            table[k] = cres.library.get_pointer_to_function(cres.fndesc.llvm_func_name)
+
+    bind.__doc__ = _binder.__doc__
+    return bind
+
+
 def kind_table(name: str, cases: dict[int, Any], signature, returns, *, doc: str = ""):
     """The call of a family's kinds through a table of addresses: ``name(table, k, args)`` returns ``cases[k](*args)``,
     where `table` (int64 array) holds, at index k, the address of ``cases[k]`` compiled for the argument types
@@ -137,14 +173,8 @@ def kind_table(name: str, cases: dict[int, Any], signature, returns, *, doc: str
     from numba.core.registry import cpu_target
     from numba.extending import intrinsic
 
-    caller = sys._getframe(1).f_globals
     ordered = sorted(int(k) for k in cases)
-    names = {k: f"_case_{k}" for k in ordered}
-    lines = [f"    if k == {k}:\n        return {names[k]}(*args)\n" for k in ordered[:-1]]
-    source = f"def {name}(table, k, args):\n{''.join(lines)}    return {names[ordered[-1]]}(*args)\n"
-    scope = {names[k]: cases[k] for k in ordered}
-    exec(compile(source, caller["__file__"], "exec"), scope)   # noqa: S102 - the source is built above, from names
-    chain = scope[name]
+    chain = _case_chain(name, cases, sys._getframe(1).f_globals["__file__"])
     layout = str(cpu_target.target_context.get_value_type(returns))
 
     def entry(table, k):
@@ -182,23 +212,7 @@ def kind_table(name: str, cases: dict[int, Any], signature, returns, *, doc: str
 
         return returns(table, k, args), codegen
 
-    def bind(table, head: tuple, kinds) -> None:
-        """Write into `table` ((max kind + 1,) int64) the address of each of `kinds` that has a case, compiled (or
-        loaded) for the argument types ``signature(head)``; the other entries are left as they are."""
-        want = tuple(signature(tuple(head)))
-        for k in sorted(set(int(k) for k in kinds) & set(ordered)):
-            if table[k]:
-                continue
-            kernel = cases[k]
-            kernel.compile(want)
-            cres = kernel.overloads[want]
-            returned = str(cpu_target.target_context.get_value_type(cres.signature.return_type))
-            if returned != layout:   # the caller reads the result as `returns`
-                raise TypeError(f"{name}: {kernel.py_func.__qualname__} returns {cres.signature.return_type}, "
-                                f"laid out as {returned}; the family's kinds return {returns} ({layout})")
-            table[k] = cres.library.get_pointer_to_function(cres.fndesc.llvm_func_name)
-
-    call.bind = bind
+    call.bind = _binder(name, cases, signature, returns, layout)
     call.size = ordered[-1] + 1
     call.__doc__ = doc
     return call

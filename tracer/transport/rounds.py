@@ -141,10 +141,11 @@ def loop(run_round, n_bins, per_batch, budget, progress, cancel, t0, shape, n_st
             return est, batches, "max_seconds", counters
 
 
-def forward(sim, probe: Probe, budget: Budget, seed: int, effects: list[str], progress, cancel, t0: float,
-            observe_spectrum: bool, refs, backend: QueryBackend) -> IlluminanceResult:
-    """Photons from the sources into the probe's receivers (and its surface and far-field tallies), round by round
-    (`loop`): the raw bins, lx (cd and lm for a far field), with their standard errors."""
+def _receivers(probe: Probe, refs, observe_spectrum: bool):
+    """The probe's receivers as a scene of their own and the tallies a forward query fills: ``(receiver arrays,
+    SensorArrays, bins, area of each bin (m², sr for a far field's, 1 for its total), bins the error stop watches)``.
+    Bins are the receivers (grid cells or disks), then a surface's triangles, then a far field's directions and the
+    total flux leaving."""
     is_grid, centers, normals, radius = probe.is_grid, probe.centers, probe.normals, probe.radius
     grid: Any = probe.grid
     surface: Any = probe.surface
@@ -191,6 +192,34 @@ def forward(sim, probe: Probe, budget: Budget, seed: int, effects: list[str], pr
         n_stop = n_stop or n_bins - 1
     sens = SensorArrays(bin0, snu, snv, np.array([int(observe_spectrum), int(observe_stokes)], np.int64), ref,
                         surf, far_row)
+    return ra, sens, n_bins, area, n_stop
+
+
+def _observed(res: IlluminanceResult, mean: np.ndarray, err: np.ndarray, observe_spectrum: bool,
+              observe_stokes: bool) -> None:
+    """What the query observed beside lux, from the tallies' rows (``mean``, ``err``: (columns, bins)): the spectrum
+    (W/m²/nm per band, the CIE 1931 xy chromaticity) and the Stokes vector with the degree of polarization."""
+    if observe_spectrum:
+        res.nm = spectra.bin_centres()
+        res.spectral_irradiance = mean[3:].T / spectra.BIN_NM
+        res.spectral_stderr = err[3:].T / spectra.BIN_NM
+        x, y, z = mean[1], mean[0] / spectra.KM, mean[2]
+        total = x + y + z
+        with np.errstate(divide="ignore", invalid="ignore"):
+            res.cie_xy = np.where(total[:, None] > 0, np.stack([x, y], axis=1) / total[:, None], np.nan)
+    if observe_stokes:
+        res.stokes = np.concatenate([mean[:1], mean[-3:]]).T
+        res.stokes_stderr = np.concatenate([err[:1], err[-3:]]).T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            res.dop = np.where(mean[0] > 0, np.sqrt((mean[-3:] ** 2).sum(axis=0)) / mean[0], np.nan)
+
+
+def forward(sim, probe: Probe, budget: Budget, seed: int, effects: list[str], progress, cancel, t0: float,
+            observe_spectrum: bool, refs, backend: QueryBackend) -> IlluminanceResult:
+    """Photons from the sources into the probe's receivers (and its surface and far-field tallies), round by round
+    (`loop`): the raw bins, lx (cd and lm for a far field), with their standard errors."""
+    observe_stokes = refs is not None
+    ra, sens, n_bins, area, n_stop = _receivers(probe, refs, observe_spectrum)
     n_cols = tally_columns(observe_spectrum, observe_stokes)
     if n_bins * n_cols > MAX_SPECTRAL_TALLIES:
         what = " and ".join(o for o, on in (("the spectrum", observe_spectrum), ("Stokes", observe_stokes)) if on)
@@ -221,19 +250,7 @@ def forward(sim, probe: Probe, budget: Budget, seed: int, effects: list[str], pr
     res = IlluminanceResult(mean[0], err[0], photons=batches * per_batch, seconds=time.perf_counter() - t0,
                             effects=effects, estimator="forward", stop_reason=stop, batches=batches,
                             rejected=cdict["rejected"], counters=cdict, compile_seconds=compile_s)
-    if observe_spectrum:
-        res.nm = spectra.bin_centres()
-        res.spectral_irradiance = mean[3:].T / spectra.BIN_NM
-        res.spectral_stderr = err[3:].T / spectra.BIN_NM
-        x, y, z = mean[1], mean[0] / spectra.KM, mean[2]
-        total = x + y + z
-        with np.errstate(divide="ignore", invalid="ignore"):
-            res.cie_xy = np.where(total[:, None] > 0, np.stack([x, y], axis=1) / total[:, None], np.nan)
-    if observe_stokes:
-        res.stokes = np.concatenate([mean[:1], mean[-3:]]).T
-        res.stokes_stderr = np.concatenate([err[:1], err[-3:]]).T
-        with np.errstate(divide="ignore", invalid="ignore"):
-            res.dop = np.where(mean[0] > 0, np.sqrt((mean[-3:] ** 2).sum(axis=0)) / mean[0], np.nan)
+    _observed(res, mean, err, observe_spectrum, observe_stokes)
     return res
 
 
