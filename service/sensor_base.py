@@ -12,40 +12,23 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
-from service.simulation_wire import Backend, Cost, ErrorBudget, PhysicsLeftOut
+from service.simulation_wire import ErrorBudget, PhysicsLeftOut, RunAnswer
 
 
-class SensorAnswer(BaseModel):
-    """The fields of every sensor's answer; a kind's model adds its ``type`` and its values."""
-
-    model_config = ConfigDict(extra="forbid")
+class SensorAnswer(RunAnswer):
+    """The fields of every sensor's answer (its run's, `RunAnswer`, and these); a kind's model adds its ``type`` and
+    its values."""
 
     sensor: str = Field(description="The sensor's id.")
     stderr: list[Any] = Field(description="Standard error of each value, in the unit of the kind's values.")
-    photons: int = Field(description="Photons (forward) or paths (backward) traced.")
-    seconds: float = Field(description="Wall time of the simulation, s.")
-    effects: list[str] = Field(description="The effect set of the scene (and of any forced effects).")
-    effect_reasons: dict[str, str] | None = Field(
-        None, description="For every effect, why it was on or off in this run (`on: ...` / `off: ...`): what in the "
-                          "scene calls for it, or, for polarization, the bound on what leaving it out could move.")
-    revision: int = Field(description="Scene revision the answer describes.")
-    estimator: str = Field(description="The estimator that ran: `forward` or `backward`.")
-    stop_reason: str = Field(description="Which rule stopped the run (target reached, photons, seconds, cancel).")
-    compile_seconds: float = Field(0.0, description="Seconds of `seconds` spent compiling a kernel first used, s.")
-    cost: Cost | None = Field(None, description="What tighter errors would cost (seconds and photons per target).")
     elements: list[dict[str, Any]] | None = Field(None, description=(
         "The optical elements with an inside the scene carries (assignment `id`, `element`, `node`, `model`: "
         "`bsdf`, its tabulated BSDF, with `model_error`: per side (`air`, `solid`) the worst probe beam's "
         "`deviation` of the transmitted share from the exact model's, table − exact, a share of the flux meeting "
         "the element, with its `stderr`, where (`theta_deg`, `phi_deg`) and what was measured; or "
         "`exact`, its micro-geometry traced); absent where it carries none."))
-    backend: Backend | None = Field(None, description="Where the photon batches ran.")
-    device: str | None = Field(None, description="The processor the photon batches ran on: `cuda:0 <card>`, "
-                                                 "`cpu:<threads> threads` (… `on <n> dask workers`); where CUDA was "
-                                                 "chosen but the scene did not fit, the CPU, and `backend.fallback` "
-                                                 "says why.")
     warnings: list[str] | None = Field(None, description="The sensor or lights far outside the model (world metres); "
                                        "photons that met a grating where its table of orders ran out.")
 

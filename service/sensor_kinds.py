@@ -15,9 +15,10 @@ store), so a new sensor kind needs a class only where it stores or renders somet
 - ``body(sensor, live)``: the tracer sensor body of a stored sensor (world metres);
 - ``payload(result, sensor, live)``: the answer's JSON, ``lux`` (or ``candela``) and the kind's own fields, with
   ``min_lux``/``mean_lux``/``max_lux`` where it answers lux;
-- what its kept results are (`service.results`), where it differs from `service.sensor_base.SensorKind`'s
-  defaults: ``QUANTITY``, ``kept(sensor)``, ``layout(meta)``, ``centres(meta, shape)``, ``size(meta, values)``,
-  ``change(...)``;
+- where it differs from `service.sensor_base.SensorKind`'s defaults: what its kept results are (`service.results`:
+  ``QUANTITY``, ``kept(sensor)``, ``layout(meta)``, ``centres(meta, shape)``, ``size(meta, values)``,
+  ``change(...)``), why a body of it cannot be made here (``refusal(sensor, limits)``), its centre for the distance
+  warnings (``centre(sensor)``), and what may be drawn or driven from it (``DIFFERENCE_MAP``, ``PACKS``);
 - ``ANSWER``: the model of that answer (on `service.sensor_base`' bases, ``type`` its own literal): the wire's
   answer, `SensorPublic`, is the union of every kind's, told apart by ``type``.
 """

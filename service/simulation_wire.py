@@ -199,18 +199,14 @@ class SensorSimulate(QueryBudget):
         {"max_photons": 5_000_000, "estimator": "forward", "cost_targets": [0.02, 0.01]}]})
 
 
-class IlluminancePublic(BaseModel):
-    """Answer of an illuminance query (lux ± stderr, one value per point)."""
+class RunAnswer(BaseModel):
+    """What every answer of a simulation says of its run: photons, time, stop rule, effects, where it ran, what
+    tighter errors would cost (`IlluminancePublic`, and every sensor kind's answer: `service.sensor_base`)."""
 
     model_config = ConfigDict(extra="forbid")
 
-    lux: list[float] = Field(description="Illuminance on each receiver's front side, lx.")
-    stderr: list[float] = Field(description="Standard error of each value, lx.")
-    elements: list[dict[str, Any]] | None = Field(None, description=(
-        "The optical elements with an inside the scene carries, as a sensor's answer names them (with a tabulated "
-        "BSDF's `model_error`); absent where it carries none."))
     photons: int = Field(description="Photons (forward) or paths (backward) traced.")
-    seconds: float = Field(description="Wall time of the query, s.")
+    seconds: float = Field(description="Wall time of the run, s.")
     effects: list[str] = Field(description="The effect set of the scene (and of any forced effects).")
     effect_reasons: dict[str, str] | None = Field(
         None, description="For every effect, why it was on or off in this run (`on: ...` / `off: ...`): what in the "
@@ -220,18 +216,30 @@ class IlluminancePublic(BaseModel):
     stop_reason: str = Field(description="Which rule stopped the run (target reached, photons, seconds, cancel).")
     compile_seconds: float = Field(0.0, description="Seconds of `seconds` this answer spent compiling (or loading "
                                               "from numba's cache) a kernel first used in this process, s.")
-    nm: list[float] | None = Field(None, description="With observe spectrum: centres of the 5 nm bands, nm.")
-    spectral_irradiance: list[Any] | None = Field(
-        None, description="With observe spectrum: W/m²/nm in each band, one row per point (per cell for a grid).")
-    spectral_stderr: list[Any] | None = Field(None, description="Standard error of each band, W/m²/nm.")
-    cie_xy: list[Any] | None = Field(
-        None, description="With observe spectrum: CIE 1931 (x, y) of the light arriving; null where none arrived.")
     cost: Cost | None = Field(None, description="What tighter errors would cost (seconds and photons per target).")
     backend: Backend | None = Field(None, description="Where the photon batches ran.")
     device: str | None = Field(None, description="The processor the photon batches ran on: `cuda:0 <card>`, "
                                                  "`cpu:<threads> threads` (… `on <n> dask workers`); where CUDA was "
                                                  "chosen but the scene did not fit, the CPU, and `backend.fallback` "
                                                  "says why.")
+
+
+class IlluminancePublic(RunAnswer):
+    """Answer of an illuminance query (lux ± stderr, one value per point)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    lux: list[float] = Field(description="Illuminance on each receiver's front side, lx.")
+    stderr: list[float] = Field(description="Standard error of each value, lx.")
+    elements: list[dict[str, Any]] | None = Field(None, description=(
+        "The optical elements with an inside the scene carries, as a sensor's answer names them (with a tabulated "
+        "BSDF's `model_error`); absent where it carries none."))
+    nm: list[float] | None = Field(None, description="With observe spectrum: centres of the 5 nm bands, nm.")
+    spectral_irradiance: list[Any] | None = Field(
+        None, description="With observe spectrum: W/m²/nm in each band, one row per point (per cell for a grid).")
+    spectral_stderr: list[Any] | None = Field(None, description="Standard error of each band, W/m²/nm.")
+    cie_xy: list[Any] | None = Field(
+        None, description="With observe spectrum: CIE 1931 (x, y) of the light arriving; null where none arrived.")
     radius: float | None = Field(None, description="Radius of the disk receivers the values are means over, m "
                                                    "(the query's, else the default 0.05 m).")
     warnings: list[str] | None = Field(None, description="Points or lights far outside the model (more than 100 "
