@@ -15,6 +15,7 @@ from typing import Annotated, Any
 import typer
 
 from lumenlink import commands, commands_elements, commands_luminance, commands_results
+from lumenlink.options import DEFAULT_SERVER, Angular, Linear, Relative, Server
 
 app = typer.Typer(
     help="LumenLink: keep a light simulation in step with a CAD model.",
@@ -66,12 +67,10 @@ def serve(
 def push(
     file: Annotated[Path, typer.Argument(help="STEP file, or FreeCAD document (.FCStd), to read.", exists=False)],
     scene: Annotated[str, typer.Option(help="Scene name; created if no scene has it.")],
-    server: Annotated[str, typer.Option(envvar="LUMENLINK_SERVER", help="Service URL.")] = "http://127.0.0.1:8000",
-    linear: Annotated[float | None, typer.Option(
-        help="Linear deflection in document units (default 0.1 mm); with --relative a fraction of each part's "
-             "size (default 0.002).")] = None,
-    angular: Annotated[float | None, typer.Option(help="Angular deflection, radians (default 0.5).")] = None,
-    relative: Annotated[bool, typer.Option(help="Linear deflection relative to each part's size.")] = False,
+    server: Server = DEFAULT_SERVER,
+    linear: Linear = None,
+    angular: Angular = None,
+    relative: Relative = False,
     json_out: Annotated[bool, typer.Option("--json", help="Print the service's answer as JSON.")] = False,
     dry_run: Annotated[bool, typer.Option(
         "--dry-run", help="Print how each node was recognised and the diff the push would make; change nothing "
@@ -89,12 +88,10 @@ def push(
 def watch(
     file: Annotated[Path, typer.Argument(help="STEP file, or FreeCAD document (.FCStd), to watch.")],
     scene: Annotated[str, typer.Option(help="Scene name; created if no scene has it.")],
-    server: Annotated[str, typer.Option(envvar="LUMENLINK_SERVER", help="Service URL.")] = "http://127.0.0.1:8000",
-    linear: Annotated[float | None, typer.Option(
-        help="Linear deflection in document units (default 0.1 mm); with --relative a fraction of each part's "
-             "size (default 0.002).")] = None,
-    angular: Annotated[float | None, typer.Option(help="Angular deflection, radians (default 0.5).")] = None,
-    relative: Annotated[bool, typer.Option(help="Linear deflection relative to each part's size.")] = False,
+    server: Server = DEFAULT_SERVER,
+    linear: Linear = None,
+    angular: Angular = None,
+    relative: Relative = False,
     debounce: Annotated[float, typer.Option(help="Seconds the file must stay unchanged.")] = 0.5,
 ) -> None:
     """Push the document again whenever the file changes (a live link)."""

@@ -1,7 +1,7 @@
 """The options every command shares, declared once for the command line (typer): which service, which scene,
 whether to create it, an element assignment, JSON output, a seed. Each command declares its own options in its
 signature (`lumenlink.commands`, `commands_elements`, `commands_results`, `commands_luminance`); `lumenlink.cli`
-registers the functions as they are."""
+registers the functions as they are. The tessellation options are push's and watch's."""
 
 from __future__ import annotations
 
@@ -19,3 +19,8 @@ Assignment = Annotated[str, typer.Argument(help="The element assignment: its id,
                                                 "carries it.")]
 JsonOut = Annotated[bool, typer.Option("--json", help="Print the answer as JSON.")]
 Seed = Annotated[int, typer.Option(help="Same seed and revision: the same numbers.")]
+Linear = Annotated[float | None, typer.Option(
+    help="Linear deflection in document units (default 0.1 mm); with --relative a fraction of each part's size "
+         "(default 0.002).")]
+Angular = Annotated[float | None, typer.Option(help="Angular deflection, radians (default 0.5).")]
+Relative = Annotated[bool, typer.Option(help="Linear deflection relative to each part's size.")]
