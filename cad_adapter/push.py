@@ -1,6 +1,7 @@
 """Push a STEP file to a scene: read it, recognise its nodes in what the scene holds, tessellate what changed and
-upload it. The library under ``lumenlink push`` and ``watch`` (`cad_adapter.cli`, which prints) and
-`lumenlink.Client.push`: `lumenlink` imports this module, never the adapter's command line."""
+upload it. The library under ``lumenlink push`` and ``watch`` (`cad_adapter.commands`, added to the command line as
+plugins, and `cad_adapter.cli`, which prints) and `lumenlink.Client.push`: `lumenlink` imports this module, never the
+adapter's command line."""
 
 from __future__ import annotations
 

@@ -15,7 +15,6 @@ from typing import Annotated, Any
 import typer
 
 from lumenlink import commands, commands_elements, commands_luminance, commands_results
-from lumenlink.options import DEFAULT_SERVER, Angular, Linear, Relative, Server
 
 app = typer.Typer(
     help="LumenLink: keep a light simulation in step with a CAD model.",
@@ -61,63 +60,6 @@ def serve(
     """Start the REST service (uvicorn)."""
     _call("service.server", "run", 5, host=host, port=port, data_dir=data_dir, warm=warm, token=token, dask=dask,
           device=device)
-
-
-@app.command()
-def push(
-    file: Annotated[Path, typer.Argument(help="STEP file, or FreeCAD document (.FCStd), to read.", exists=False)],
-    scene: Annotated[str, typer.Option(help="Scene name; created if no scene has it.")],
-    server: Server = DEFAULT_SERVER,
-    linear: Linear = None,
-    angular: Angular = None,
-    relative: Relative = False,
-    json_out: Annotated[bool, typer.Option("--json", help="Print the service's answer as JSON.")] = False,
-    dry_run: Annotated[bool, typer.Option(
-        "--dry-run", help="Print how each node was recognised and the diff the push would make; change nothing "
-                          "(no upload, no sidecar, no scene).")] = False,
-) -> None:
-    """Read a CAD document, recognise its nodes in the scene, upload missing meshes and push its tree."""
-    code = _call(
-        "cad_adapter.cli", "push", 4, file=file, scene=scene, server=server, linear=linear,
-        angular=angular, relative=relative, json_out=json_out, dry_run=dry_run,
-    )
-    raise typer.Exit(code or 0)
-
-
-@app.command()
-def watch(
-    file: Annotated[Path, typer.Argument(help="STEP file, or FreeCAD document (.FCStd), to watch.")],
-    scene: Annotated[str, typer.Option(help="Scene name; created if no scene has it.")],
-    server: Server = DEFAULT_SERVER,
-    linear: Linear = None,
-    angular: Angular = None,
-    relative: Relative = False,
-    debounce: Annotated[float, typer.Option(help="Seconds the file must stay unchanged.")] = 0.5,
-) -> None:
-    """Push the document again whenever the file changes (a live link)."""
-    code = _call(
-        "cad_adapter.cli", "watch", 4, file=file, scene=scene, server=server, linear=linear,
-        angular=angular, relative=relative, debounce=debounce,
-    )
-    raise typer.Exit(code or 0)
-
-
-@app.command("freecad-addon")
-def freecad_addon(
-    target: Annotated[Path | None, typer.Option(help="A FreeCAD Mod folder (default: FreeCAD's own, asked of "
-                                                     "freecadcmd).")] = None,
-) -> None:
-    """Install the FreeCAD add-on (a LumenLink workbench: push, push on recompute or save, show light)."""
-    from cad_adapter.errors import CadImportError
-    from cad_adapter.freecad import install_addon
-
-    try:
-        where, version = install_addon(target)
-    except (CadImportError, OSError) as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(2) from exc
-    typer.echo(f"installed {where} (FreeCAD {version}); restart FreeCAD and choose the LumenLink workbench, or "
-               f"push from a script: from lumenlink_freecad import link; link.push_now(App.ActiveDocument)")
 
 
 # ---------------------------------------------------------------- the engineer's loop (issue 22)
@@ -185,6 +127,29 @@ def bench(
     code = _call("bench.run", "main", 2, only=only or [], quick=quick)
     raise typer.Exit(code or 0)
 
+
+def _unloadable(where: str, exc: Exception) -> Callable[[], None]:
+    def command() -> None:
+        typer.echo(f"lumenlink: {where} cannot be loaded: {exc}", err=True)
+        raise typer.Exit(2)
+    return command
+
+
+def add_installed_commands() -> None:
+    """The commands installed packages add to `lumenlink` (entry points of group ``lumenlink.commands``: the CAD
+    adapter's push, watch and freecad-addon, `cad_adapter.commands`), so that this command line names no package
+    built on it. One that cannot be loaded is still listed and says why when run (exit 2)."""
+    from importlib.metadata import entry_points
+
+    for ep in sorted(entry_points(group="lumenlink.commands"), key=lambda e: e.name):
+        try:
+            command = ep.load()
+        except Exception as exc:   # noqa: BLE001 - a broken plugin must not take the other commands down
+            command = _unloadable(ep.value, exc)
+        app.command(ep.name)(command)
+
+
+add_installed_commands()
 
 if __name__ == "__main__":
     app()

@@ -108,12 +108,14 @@ def lumenlink_modules_used(path: Path) -> set[str]:
 
 
 #: lumenlink's modules that the adapter and the service share, and the only modules of ours each may import
-SHARED = {"lumenlink.http": {"lumenlink.errors"}, "lumenlink.errors": set(), "lumenlink.glb": {"tracer.geometry_id"}}
+SHARED = {"lumenlink.http": {"lumenlink.errors"}, "lumenlink.errors": set(), "lumenlink.glb": {"tracer.geometry_id"},
+          "lumenlink.options": set()}
 
 
 def test_the_shared_modules_stand_alone() -> None:
     """The adapter and `lumenlink.Client` share one HTTP client (`lumenlink.http`) and one error hierarchy
-    (`lumenlink.errors`), the adapter and the service one GLB decoder (`lumenlink.glb`). Those import nothing of
+    (`lumenlink.errors`), the adapter and the service one GLB decoder (`lumenlink.glb`), the adapter's commands and
+    lumenlink's the shared options (`lumenlink.options`). Those import nothing of
     ours but what `SHARED` lists, so neither side takes in the command line, the CAD stack or the service through
     them, and neither side uses anything else of lumenlink."""
     ours = {"tracer", "service", "cad_adapter", "lumenlink", "bench"}
@@ -123,28 +125,32 @@ def test_the_shared_modules_stand_alone() -> None:
         modules = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module}
         modules |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
         assert {m for m in modules if m.split(".")[0] in ours} <= allowed, (module, modules)
-    for package, expected in (("cad_adapter", {"lumenlink.http", "lumenlink.errors", "lumenlink.glb"}),
+    for package, expected in (("cad_adapter", {"lumenlink.http", "lumenlink.errors", "lumenlink.glb",
+                                               "lumenlink.options"}),
                               ("service", {"lumenlink.glb"})):
         used = set().union(*(lumenlink_modules_used(p) for p in (ROOT / package).rglob("*.py")))
         assert used == expected, (package, used)
 
 
-def test_lumenlinks_library_takes_the_adapters_library_never_its_command_line() -> None:
-    """Issue 55: `lumenlink.Client.push` reads, tessellates and pushes through `cad_adapter.push` (the library the
-    adapter's own command line prints around), so the import runs one way: only lumenlink's command line
-    (`lumenlink/cli.py`) may import `cad_adapter.cli`, to offer its push and watch commands."""
+def test_lumenlinks_command_line_takes_the_adapters_commands_as_plugins_never_by_name() -> None:
+    """Issue 55: the import runs one way. The adapter's commands (push, watch, freecad-addon: `cad_adapter.commands`)
+    join `lumenlink` as installed plugins (entry points of group ``lumenlink.commands``), so no lumenlink module
+    imports the adapter's command line or names it; `lumenlink.Client.push` takes the adapter's library
+    (`cad_adapter.push`) only."""
     offenders = []
     for path in sorted((ROOT / "lumenlink").rglob("*.py")):
-        if path.name == "cli.py":
-            continue
         tree = ast.parse(path.read_text(), filename=str(path))
         for n in ast.walk(tree):
             names = ([n.module] if isinstance(n, ast.ImportFrom) and n.module else []) + (
                 [a.name for a in n.names] if isinstance(n, ast.Import) else [])
             names += [f"{n.module}.{a.name}" for a in n.names] if isinstance(n, ast.ImportFrom) and n.module else []
-            if any(m == "cad_adapter.cli" for m in names):
-                offenders.append(str(path.relative_to(ROOT)))
+            strings = [n.value] if isinstance(n, ast.Constant) and isinstance(n.value, str) else []
+            if any(m.startswith(("cad_adapter.cli", "cad_adapter.commands")) for m in names + strings):
+                offenders.append(f"{path.relative_to(ROOT)}:{n.lineno}")
     assert not offenders, offenders
+    out = subprocess.run([sys.executable, "-m", "lumenlink.cli", "--help"], capture_output=True, text=True,
+                         check=True).stdout
+    assert all(c in out for c in ("push", "watch", "freecad-addon")), "the adapter's commands are not installed"
 
 
 #: the modules that tell sensor kinds apart by name: the kinds' own (service side, client side); and what is not yet
