@@ -242,50 +242,21 @@ def reconcile(old: Side, new: Side, *, diagonal: float | None = None, same_place
     st = _State(old, new)
     c_old, c_new = world_centroids(old), world_centroids(new)
     if diagonal is None:
-        pts = np.concatenate([c_old, c_new]) if len(old) + len(new) else np.zeros((1, 3))
-        diagonal = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))) or 1.0
+        diagonal = _default_diagonal(c_old, c_new)
     tol_same = same_place_rtol * diagonal
-    old_index = {u: j for j, u in enumerate(old.uuids) if u}
 
     # 1. carried UUIDs (a UUID carried twice is trusted once: the first, in document order)
-    seen: set[str] = set()
-    for i, u in enumerate(new.uuids):
-        if u and u not in seen:
-            seen.add(u)
-            j = old_index.get(u, -1)
-            st.rule[i] = "carried"
-            if j >= 0 and not st.taken[j]:
-                st.match[i] = j
-                st.taken[j] = True
-    carried = np.array([r == "carried" for r in st.rule], bool)
+    carried = _bind_carried(st)
 
     # 2. classes; 1:1 classes are unambiguous pairs and give the alignment
     cls_old, cls_new = content_classes(old, new)
-    g_old = _groups(cls_old, ~st.taken)
-    g_new = _groups(cls_new, ~carried)
-    anchors = [(int(g_new[c][0]), int(g_old[c][0])) for c in g_new if c in g_old
-               and len(g_new[c]) == 1 and len(g_old[c]) == 1]
-    for i, j in anchors:
-        st.bind(i, j, "shape")
-    pairs = [(i, j) for i, j in enumerate(st.match) if j >= 0]
-    p = np.array([c_old[j] for _, j in pairs]).reshape(-1, 3)
-    q = np.array([c_new[i] for i, _ in pairs]).reshape(-1, 3)
+    g_old, g_new = _bind_unique_classes(st, cls_old, cls_new, carried)
     tol_align = max(1e-4 * diagonal, 10 * tol_same)
-    align, n_in = robust_alignment(p, q, tol=tol_align, seed=seed,
-                                   frames=frame_candidates(old, new, pairs, c_old, c_new),
-                                   score=placement_score(cls_old, cls_new, c_old, c_new, tol_align, seed=seed))
+    align, n_in = _align_model(st, cls_old, cls_new, c_old, c_new, tol_align, seed)
     c_old_aligned = apply_rigid(align, c_old) if len(old) else c_old
 
     # 3. identical parts and identical sub-assemblies: optimal assignment on aligned distance
-    for c, news in g_new.items():
-        olds = g_old.get(c)
-        if olds is None or (len(news) == 1 and len(olds) == 1):
-            continue
-        news = news[st.match[news] < 0]
-        olds = olds[~st.taken[olds]]
-        if len(news) == 0 or len(olds) == 0:
-            continue
-        _assign_by_place(st, news, olds, c_new, c_old_aligned, diagonal, tol_same, neighbours)
+    _assign_identical(st, g_old, g_new, c_new, c_old_aligned, diagonal, tol_same, neighbours)
 
     # 4. structure: assemblies by their children's old parents; reshaped parts by parent and placement
     for _ in range(2):
@@ -297,6 +268,83 @@ def reconcile(old: Side, new: Side, *, diagonal: float | None = None, same_place
     if removed is not None and len(removed):
         restored = _restore(st, removed, c_new, align, max(tol_align, tol_same), diagonal)
     # 6. occurrence path, then lone roots
+    _bind_by_path(st)
+    _bind_lone_roots(st)
+
+    uuids = _final_uuids(st, restored, removed)
+    ambiguous = []
+    for i, a in sorted(st.ambiguous.items()):
+        if st.match[i] >= 0 or restored[i] >= 0:
+            ambiguous.append({"row": i, "path": new.paths[i], "uuid": uuids[i], **a})
+    return Reconciliation(st.match, uuids, st.rule, ambiguous, align, n_in, restored)
+
+
+def _default_diagonal(c_old: np.ndarray, c_new: np.ndarray) -> float:
+    """The diagonal of both sides' centroids' box: the model's size that every tolerance scales with (1 if none)."""
+    pts = np.concatenate([c_old, c_new]) if len(c_old) + len(c_new) else np.zeros((1, 3))
+    return float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))) or 1.0
+
+
+def _bind_carried(st: _State) -> np.ndarray:
+    """Rule ``carried``: the document's own UUID wins over any evidence (the first carrier only, since a copy may
+    carry it too); the mask of rows that carry one, matched in ``old`` or not."""
+    old_index = {u: j for j, u in enumerate(st.old.uuids) if u}
+    seen: set[str] = set()
+    for i, u in enumerate(st.new.uuids):
+        if u and u not in seen:
+            seen.add(u)
+            j = old_index.get(u, -1)
+            st.rule[i] = "carried"
+            if j >= 0 and not st.taken[j]:
+                st.match[i] = j
+                st.taken[j] = True
+    return np.array([r == "carried" for r in st.rule], bool)
+
+
+def _bind_unique_classes(st: _State, cls_old: np.ndarray, cls_new: np.ndarray,
+                         carried: np.ndarray) -> tuple[dict[int, np.ndarray], dict[int, np.ndarray]]:
+    """Rule ``shape``: a class with one old and one new member is a pair no placement can dispute; answers the
+    classes' (old, new) groups, taken before these pairs so the identical parts' step sees the same groups."""
+    g_old = _groups(cls_old, ~st.taken)
+    g_new = _groups(cls_new, ~carried)
+    anchors = [(int(g_new[c][0]), int(g_old[c][0])) for c in g_new if c in g_old
+               and len(g_new[c]) == 1 and len(g_old[c]) == 1]
+    for i, j in anchors:
+        st.bind(i, j, "shape")
+    return g_old, g_new
+
+
+def _align_model(st: _State, cls_old: np.ndarray, cls_new: np.ndarray, c_old: np.ndarray, c_new: np.ndarray,
+                 tol_align: float, seed: int) -> tuple[np.ndarray, int]:
+    """The model's rigid motion (``new_from_old``, inliers) from the pairs bound so far, so a model turned as a
+    whole keeps its identical parts' UUIDs."""
+    old, new = st.old, st.new
+    pairs = [(i, j) for i, j in enumerate(st.match) if j >= 0]
+    p = np.array([c_old[j] for _, j in pairs]).reshape(-1, 3)
+    q = np.array([c_new[i] for i, _ in pairs]).reshape(-1, 3)
+    return robust_alignment(p, q, tol=tol_align, seed=seed,
+                            frames=frame_candidates(old, new, pairs, c_old, c_new),
+                            score=placement_score(cls_old, cls_new, c_old, c_new, tol_align, seed=seed))
+
+
+def _assign_identical(st: _State, g_old: dict[int, np.ndarray], g_new: dict[int, np.ndarray], c_new: np.ndarray,
+                      c_old_aligned: np.ndarray, diagonal: float, tol_same: float, neighbours: int) -> None:
+    """Rule ``placement``: per class of several members, the still free rows assigned on aligned distance."""
+    for c, news in g_new.items():
+        olds = g_old.get(c)
+        if olds is None or (len(news) == 1 and len(olds) == 1):
+            continue
+        news = news[st.match[news] < 0]
+        olds = olds[~st.taken[olds]]
+        if len(news) == 0 or len(olds) == 0:
+            continue
+        _assign_by_place(st, news, olds, c_new, c_old_aligned, diagonal, tol_same, neighbours)
+
+
+def _bind_by_path(st: _State) -> None:
+    """Rule ``path``: a node no evidence placed keeps the UUID of the free old node at its occurrence path (the
+    first such in document order), if both are leaves or both assemblies."""
+    old, new = st.old, st.new
     free_old_paths: dict[str, int] = {}
     for j in np.flatnonzero(~st.taken):
         free_old_paths.setdefault(old.paths[j], int(j))
@@ -306,12 +354,21 @@ def reconcile(old: Side, new: Side, *, diagonal: float | None = None, same_place
         j = free_old_paths.get(new.paths[i], -1)
         if j >= 0 and not st.taken[j] and bool(old.leaf[j]) == bool(new.leaf[i]):
             st.bind(int(i), j, "path")
+
+
+def _bind_lone_roots(st: _State) -> None:
+    """Rule ``structure`` for the roots: one free assembly root on each side is the same document's root."""
+    old, new = st.old, st.new
     roots_new = [i for i in np.flatnonzero(new.parent < 0) if st.match[i] < 0 and st.rule[i] not in ("carried",
                                                                                                   "restored")]
     roots_old = [j for j in np.flatnonzero(old.parent < 0) if not st.taken[j]]
     if len(roots_new) == 1 and len(roots_old) == 1 and not new.leaf[roots_new[0]] and not old.leaf[roots_old[0]]:
         st.bind(int(roots_new[0]), int(roots_old[0]), "structure")
 
+
+def _final_uuids(st: _State, restored: np.ndarray, removed: Side | None) -> list[str]:
+    """The UUID of each new row: its carried one, its match's, its restored node's, else a fresh one."""
+    old, new = st.old, st.new
     uuids = []
     for i in range(len(new)):
         if st.rule[i] == "carried":
@@ -323,11 +380,7 @@ def reconcile(old: Side, new: Side, *, diagonal: float | None = None, same_place
             uuids.append(str(removed.uuids[restored[i]]))
         else:
             uuids.append(str(uuidlib.uuid4()))
-    ambiguous = []
-    for i, a in sorted(st.ambiguous.items()):
-        if st.match[i] >= 0 or restored[i] >= 0:
-            ambiguous.append({"row": i, "path": new.paths[i], "uuid": uuids[i], **a})
-    return Reconciliation(st.match, uuids, st.rule, ambiguous, align, n_in, restored)
+    return uuids
 
 
 def _assign_by_place(st: _State, news: np.ndarray, olds: np.ndarray, c_new: np.ndarray, c_old: np.ndarray,

@@ -93,87 +93,23 @@ def check(body: Any) -> dict:
         raise ElementError(f"profile.shape {got!r} is unknown; known: {list(SHAPES_1D + SHAPES_2D)}"[:300])
     shape = prof["shape"]
     two_d = shape in SHAPES_2D
-    p = body["period_um"]
-    if two_d:
-        pair = p if isinstance(p, list | tuple) else [p, p]
-        if len(pair) != 2:
-            raise ElementError(f"period_um of a 2-D lattice is p (square) or [px, py] in um, got {p!r}"[:300])
-        period = [_number(pair[0], "period_um[0]", 0.0, 1000.0, lo_open=True),
-                  _number(pair[1], "period_um[1]", 0.0, 1000.0, lo_open=True)]
-    else:
-        if isinstance(p, list | tuple):
-            raise ElementError(f"period_um of a 1-D profile ({shape}) is one number in um (the grating vector's "
-                               f"period), got {p!r}; [px, py] is for pillars, holes, moth_eye"[:300])
-        period = [_number(p, "period_um", 0.0, 1000.0, lo_open=True)]
-    canon_prof: dict[str, Any] = {"shape": shape}
-    if shape in ("lamellar", "pillars", "holes", "moth_eye"):
-        check_fields(prof, "profile", {"shape"}, {"fill"})
-        canon_prof["fill"] = _number(prof.get("fill", 0.5 if shape != "moth_eye" else 1.0), "profile.fill", 0.0,
-                                     1.0, lo_open=True)
-        if shape == "lamellar" and canon_prof["fill"] == 1.0:
-            raise ElementError("profile.fill 1 leaves no groove: a lamellar grating's fill is in (0, 1); a flat "
-                               "face needs no grating")
-    elif shape == "sawtooth":
-        check_fields(prof, "profile", {"shape"}, {"blaze_deg"})
-    else:
-        check_fields(prof, "profile", {"shape"}, set())
+    period = _period(body["period_um"], shape, two_d)
+    canon_prof = _profile_fields(prof, shape)
     depth = body.get("depth_um")
     if shape == "sawtooth":
-        blaze = prof.get("blaze_deg")
-        if blaze is None and depth is None:
-            raise ElementError("a sawtooth needs profile.blaze_deg or depth_um (depth = period tan(blaze))")
-        if blaze is not None:
-            b = _number(blaze, "profile.blaze_deg", 0.0, 80.0, lo_open=True)
-            from_blaze = period[0] * math.tan(math.radians(b))
-            if depth is not None:
-                d = _number(depth, "depth_um", 0.0, 100.0, lo_open=True)
-                if abs(d - from_blaze) > 1e-6 * from_blaze:
-                    raise ElementError(f"depth_um {d:g} disagrees with profile.blaze_deg {b:g}: a sawtooth of period "
-                                       f"{period[0]:g} um and that blaze is {from_blaze:.6g} um deep; give one of "
-                                       f"the two")
-            depth = from_blaze
-        canon_prof["blaze_deg"] = (float(prof["blaze_deg"]) if blaze is not None
-                                   else math.degrees(math.atan(_number(depth, "depth_um", 0.0, 100.0,
-                                                                       lo_open=True) / period[0])))
+        canon_prof["blaze_deg"], depth = _sawtooth_blaze(prof.get("blaze_deg"), depth, period[0])
     if depth is None:
         raise ElementError("element: missing field(s) ['depth_um'] (the relief's depth in um)")
     depth = _number(depth, "depth_um", 0.0, 100.0, lo_open=True)
-    ridge = body.get("ridge")
-    canon_ridge: dict | None = None
-    if ridge is not None:
-        if not isinstance(ridge, dict):
-            raise ElementError(f"ridge must be null (the substrate's material) or {{'ior': n | [n, k]}}, got "
-                               f"{ridge!r}"[:300])
-        check_fields(ridge, "ridge", {"ior"}, set())
-        n, k = _ior(ridge["ior"], "ridge.ior")
-        canon_ridge = {"ior": [n, k]}
+    canon_ridge = _ridge(body.get("ridge"))
     sub = _ior(body.get("substrate_ior", 1.5), "substrate_ior", lossless=True)[0]
     amb = _ior(body.get("ambient_ior", 1.0), "ambient_ior", lossless=True)[0]
     grooves = body.get("grooves_along", "v")
     if grooves not in ("u", "v"):
         raise ElementError(f"grooves_along must be 'u' or 'v' (the ridges' direction on the face), got {grooves!r}"
                            [:300])
-    wl = body["wavelengths_nm"]
-    if not isinstance(wl, list | tuple) or len(wl) != 2:
-        raise ElementError(f"wavelengths_nm must be [lo, hi] in nm, got {wl!r}"[:300])
-    lo, hi = _number(wl[0], "wavelengths_nm[0]", 200.0, 5000.0), _number(wl[1], "wavelengths_nm[1]", 200.0, 5000.0)
-    if hi < lo:
-        raise ElementError(f"wavelengths_nm [{lo:g}, {hi:g}] must be ascending: [lo, hi]")
-    count = _count(body.get("wavelength_count", 1 if lo == hi else 9), "wavelength_count", 1, MAX_WAVELENGTHS)
-    if lo == hi and count != 1:
-        raise ElementError(f"wavelength_count {count} over one wavelength ({lo:g} nm): give 1 or widen "
-                           f"wavelengths_nm")
-    if lo < hi and count < 2:
-        raise ElementError(f"wavelength_count 1 over [{lo:g}, {hi:g}] nm: give at least 2, or one wavelength "
-                           f"[{lo:g}, {lo:g}]")
-    angles = body.get("angles", {})
-    if not isinstance(angles, dict):
-        raise ElementError(f"angles must be {{'polar_deg': [...], 'azimuth_deg': [...]}}, got {angles!r}"[:300])
-    check_fields(angles, "angles", set(), {"polar_deg", "azimuth_deg"})
-    polar = _angles(angles.get("polar_deg", [10.0 * i for i in range(9)]), "angles.polar_deg", 0.0, 89.0,
-                    MAX_ANGLES)
-    azimuth = _angles(angles.get("azimuth_deg", [0.0, 45.0] if two_d else [0.0, 180.0]), "angles.azimuth_deg",
-                      0.0, 360.0, MAX_AZIMUTHS)
+    lo, hi, count = _wavelength_grid(body)
+    polar, azimuth = _angle_grid(body.get("angles", {}), two_d)
     orders = _orders(body, two_d, period, lo, max(polar), sub, amb)
     layers = _count(body.get("layers", 16), "layers", 1, MAX_LAYERS)
     if shape in ("lamellar", "pillars", "holes"):
@@ -188,6 +124,101 @@ def check(body: Any) -> dict:
         raise ElementError(f"grooves_along is for 1-D profiles; a 2-D lattice ({shape}) has its periods along u "
                            f"and v")
     return canon
+
+
+def _period(p: Any, shape: str, two_d: bool) -> list[float]:
+    """The lattice's periods in um: [p] along the grating vector of a 1-D profile, [px, py] of a 2-D lattice (a
+    single p there is square)."""
+    if two_d:
+        pair = p if isinstance(p, list | tuple) else [p, p]
+        if len(pair) != 2:
+            raise ElementError(f"period_um of a 2-D lattice is p (square) or [px, py] in um, got {p!r}"[:300])
+        return [_number(pair[0], "period_um[0]", 0.0, 1000.0, lo_open=True),
+                _number(pair[1], "period_um[1]", 0.0, 1000.0, lo_open=True)]
+    if isinstance(p, list | tuple):
+        raise ElementError(f"period_um of a 1-D profile ({shape}) is one number in um (the grating vector's "
+                           f"period), got {p!r}; [px, py] is for pillars, holes, moth_eye"[:300])
+    return [_number(p, "period_um", 0.0, 1000.0, lo_open=True)]
+
+
+def _profile_fields(prof: dict, shape: str) -> dict[str, Any]:
+    """The canonical profile's shape and fill (the ridge's fraction of the period, where the shape has one), its
+    keys checked for the shape; a sawtooth's blaze is added by `_sawtooth_blaze`, which needs the depth."""
+    canon_prof: dict[str, Any] = {"shape": shape}
+    if shape in ("lamellar", "pillars", "holes", "moth_eye"):
+        check_fields(prof, "profile", {"shape"}, {"fill"})
+        canon_prof["fill"] = _number(prof.get("fill", 0.5 if shape != "moth_eye" else 1.0), "profile.fill", 0.0,
+                                     1.0, lo_open=True)
+        if shape == "lamellar" and canon_prof["fill"] == 1.0:
+            raise ElementError("profile.fill 1 leaves no groove: a lamellar grating's fill is in (0, 1); a flat "
+                               "face needs no grating")
+    elif shape == "sawtooth":
+        check_fields(prof, "profile", {"shape"}, {"blaze_deg"})
+    else:
+        check_fields(prof, "profile", {"shape"}, set())
+    return canon_prof
+
+
+def _sawtooth_blaze(blaze: Any, depth: Any, period_um: float) -> tuple[float, Any]:
+    """A sawtooth's (blaze in degrees, depth): either one implies the other (depth = period tan(blaze), um); both
+    given must agree. The depth comes back as given where only it was, for `check` to check."""
+    if blaze is None and depth is None:
+        raise ElementError("a sawtooth needs profile.blaze_deg or depth_um (depth = period tan(blaze))")
+    if blaze is not None:
+        b = _number(blaze, "profile.blaze_deg", 0.0, 80.0, lo_open=True)
+        from_blaze = period_um * math.tan(math.radians(b))
+        if depth is not None:
+            d = _number(depth, "depth_um", 0.0, 100.0, lo_open=True)
+            if abs(d - from_blaze) > 1e-6 * from_blaze:
+                raise ElementError(f"depth_um {d:g} disagrees with profile.blaze_deg {b:g}: a sawtooth of period "
+                                   f"{period_um:g} um and that blaze is {from_blaze:.6g} um deep; give one of "
+                                   f"the two")
+        return float(blaze), from_blaze
+    return math.degrees(math.atan(_number(depth, "depth_um", 0.0, 100.0, lo_open=True) / period_um)), depth
+
+
+def _ridge(ridge: Any) -> dict | None:
+    """The ridge's canonical material: None where it is the substrate's, else {'ior': [n, k]}."""
+    if ridge is None:
+        return None
+    if not isinstance(ridge, dict):
+        raise ElementError(f"ridge must be null (the substrate's material) or {{'ior': n | [n, k]}}, got "
+                           f"{ridge!r}"[:300])
+    check_fields(ridge, "ridge", {"ior"}, set())
+    n, k = _ior(ridge["ior"], "ridge.ior")
+    return {"ior": [n, k]}
+
+
+def _wavelength_grid(body: dict) -> tuple[float, float, int]:
+    """(lo, hi, count) of the table's wavelengths in nm: one wavelength takes a count of 1, a range at least 2
+    (default 9)."""
+    wl = body["wavelengths_nm"]
+    if not isinstance(wl, list | tuple) or len(wl) != 2:
+        raise ElementError(f"wavelengths_nm must be [lo, hi] in nm, got {wl!r}"[:300])
+    lo, hi = _number(wl[0], "wavelengths_nm[0]", 200.0, 5000.0), _number(wl[1], "wavelengths_nm[1]", 200.0, 5000.0)
+    if hi < lo:
+        raise ElementError(f"wavelengths_nm [{lo:g}, {hi:g}] must be ascending: [lo, hi]")
+    count = _count(body.get("wavelength_count", 1 if lo == hi else 9), "wavelength_count", 1, MAX_WAVELENGTHS)
+    if lo == hi and count != 1:
+        raise ElementError(f"wavelength_count {count} over one wavelength ({lo:g} nm): give 1 or widen "
+                           f"wavelengths_nm")
+    if lo < hi and count < 2:
+        raise ElementError(f"wavelength_count 1 over [{lo:g}, {hi:g}] nm: give at least 2, or one wavelength "
+                           f"[{lo:g}, {lo:g}]")
+    return lo, hi, count
+
+
+def _angle_grid(angles: Any, two_d: bool) -> tuple[list[float], list[float]]:
+    """The table's (polar, azimuth) angles in degrees; the default azimuths are the lattice's symmetric ones (0 and
+    45 in 2-D, 0 and 180 in 1-D)."""
+    if not isinstance(angles, dict):
+        raise ElementError(f"angles must be {{'polar_deg': [...], 'azimuth_deg': [...]}}, got {angles!r}"[:300])
+    check_fields(angles, "angles", set(), {"polar_deg", "azimuth_deg"})
+    polar = _angles(angles.get("polar_deg", [10.0 * i for i in range(9)]), "angles.polar_deg", 0.0, 89.0,
+                    MAX_ANGLES)
+    azimuth = _angles(angles.get("azimuth_deg", [0.0, 45.0] if two_d else [0.0, 180.0]), "angles.azimuth_deg",
+                      0.0, 360.0, MAX_AZIMUTHS)
+    return polar, azimuth
 
 
 def _orders(body: dict, two_d: bool, period: list[float], lo_nm: float, polar_deg: float, n_s: float,

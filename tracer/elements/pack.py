@@ -211,6 +211,105 @@ def update(fill: np.ndarray, d: np.ndarray, damping: float, max_fill: float) -> 
     return np.clip(new, 0.0, max_fill)
 
 
+@dataclass
+class _Run:
+    """The state a pack carries from one iteration to the next (so its steps can be helpers)."""
+
+    photons: int                # the next measurement's photons
+    total: int = 0              # photons traced so far, confirmations included
+    stopped: str = "iterations"
+    history: list[PackIteration] = field(default_factory=list)
+    models: list[Microstructure] = field(default_factory=list)
+
+
+def _check_run(start: Microstructure, sensor: dict, target: float, figure: str, damping: float, max_fill: float,
+               pitch_mm: float | None, photons: int, max_photons: int, max_iterations: int) -> None:
+    """Refuse a pack before it changes the scene: `check`'s fields, then the sensor, then the budgets."""
+    check(start, target, figure, damping, max_fill, pitch_mm)
+    if sensor.get("type") != "grid":
+        raise PackError(f"sensor: a pack measures a grid of cells over the lit face, got a {sensor.get('type')!r} "
+                        f"sensor")
+    for name, x, lo in (("photons", photons, 1000), ("max_photons", max_photons, photons),
+                        ("max_iterations", max_iterations, 1)):
+        if isinstance(x, bool) or not isinstance(x, int) or x < lo:
+            raise PackError(f"{name} must be an integer >= {lo}, got {x!r}")
+
+
+def _place(scene: Any, instance: int, start: Microstructure, fill: np.ndarray, pitch_mm: float | None, it: int,
+           simulation: Callable[[Any], Any], assign: dict[str, Any]) -> tuple[Microstructure, Any, Any]:
+    """Put iteration `it`'s model onto the part and commit, so only that element changes: (model, simulation,
+    placement); the first iteration reuses `start` unless a pitch must be applied."""
+    model = prepare(density_body(start.body, fill, pitch_mm)) if (it or pitch_mm is not None) else start
+    scene.set_element(instance, model, **assign)
+    scene.commit()
+    sim = simulation(scene)
+    placed = scene.element_of(instance)
+    if placed is None:   # pragma: no cover - set_element raised otherwise
+        raise PackError("the element did not go onto the part")
+    return model, sim, placed
+
+
+def _reporter(progress: Callable[[dict[str, Any]], None] | None, history: list[PackIteration], it: int, done: int,
+              t_start: float) -> Callable[[int, float, float], None]:
+    """The photon-round callback of iteration `it` (`done` photons traced before it): it reads the last measured
+    iteration from `history` when called, so a confirmation reports the iteration it confirms."""
+    def report(p: int, worst: float, seconds: float) -> None:
+        if progress is not None:
+            last = history[-1] if history else None
+            progress({"iteration": it, "photons": done + int(p), "measured": last and last.iteration,
+                      "uniformity": last and last.uniformity, "stderr": last and last.stderr,
+                      "seconds": time.perf_counter() - t_start})
+
+    return report
+
+
+def _target_reached(run: _Run, sim: Any, sensor: dict, it: int, seed: int, figure: str, target: float,
+                    max_photons: int, report: Callable, cancel: Callable[[], bool] | None
+                    ) -> tuple[np.ndarray, np.ndarray] | None:
+    """Confirm a reading at the target with a fresh seed (issue 53): None where the pack stops (`run.stopped` says
+    why), else the two readings pooled to correct the map with, and four times the photons next (near the target
+    the noise decides: halve it)."""
+    pooled = confirm(sim, sensor, run.history[-1], run.photons, confirmation_seed(seed, it), figure, target, report,
+                     cancel)
+    again = run.history[-1].confirmation
+    if pooled is None or again is None:
+        run.stopped = "cancelled"
+        return None
+    run.total += int(again["photons"])
+    if again["confirmed"]:
+        run.stopped = "target"
+        return None
+    run.photons = min(4 * run.photons, int(max_photons))
+    return pooled
+
+
+def _next_correction(run: _Run, lux: np.ndarray, err: np.ndarray, max_photons: int, t_start: float,
+                     max_seconds: float, last: bool) -> np.ndarray | None:
+    """The correction to apply to the map, or None where the pack stops (converged, out of seconds, or the `last`
+    iteration); raises the photons where the deviations are within the noise, so the map never chases it."""
+    d, worst, typical = correction(lux, err)
+    if not np.any(d) and run.photons >= max_photons:
+        run.stopped = "converged"
+        return None
+    if worst < RAISE_SIGMAS * typical or not np.any(d):
+        run.photons = min(4 * run.photons, int(max_photons))
+    if time.perf_counter() - t_start >= max_seconds:
+        run.stopped = "seconds"
+        return None
+    if last:
+        return None
+    return d
+
+
+def _best(run: _Run) -> int:
+    """The chosen iteration: the confirmed one, else the best figure less one standard error (pooled readings)."""
+    history = run.history
+    best = max(range(len(history)), key=lambda k: history[k].pooled()[0] - history[k].pooled()[1])
+    if run.stopped == "target":
+        best = len(history) - 1
+    return best
+
+
 def pack(scene: Any, instance: int, start: Microstructure, sensor: dict, simulation: Callable[[Any], Any], *,
          assign: dict[str, Any], target: float = 0.8, figure: str = "min_max", photons: int = 100_000,
          max_photons: int = 1_600_000, max_iterations: int = 10, max_seconds: float = 600.0, damping: float = 0.7,
@@ -230,90 +329,50 @@ def pack(scene: Any, instance: int, start: Microstructure, sensor: dict, simulat
     PackError
         See `check`; a sensor that is not a grid; no light on the grid in the first measurement.
     """
-    check(start, target, figure, damping, max_fill, pitch_mm)
-    if sensor.get("type") != "grid":
-        raise PackError(f"sensor: a pack measures a grid of cells over the lit face, got a {sensor.get('type')!r} "
-                        f"sensor")
-    for name, x, lo in (("photons", photons, 1000), ("max_photons", max_photons, photons),
-                        ("max_iterations", max_iterations, 1)):
-        if isinstance(x, bool) or not isinstance(x, int) or x < lo:
-            raise PackError(f"{name} must be an integer >= {lo}, got {x!r}")
+    _check_run(start, sensor, target, figure, damping, max_fill, pitch_mm, photons, max_photons, max_iterations)
     t_start = time.perf_counter()
     fill = np.asarray(start.body["layout"]["fill"], float)
     layout = start.body["layout"]
-    history: list[PackIteration] = []
-    n = int(photons)
-    total = 0
-    stopped = "iterations"
-    models: list[Microstructure] = []
+    run = _Run(photons=int(photons))
+    history = run.history
     for it in range(max_iterations):
         t0 = time.perf_counter()
-        model = prepare(density_body(start.body, fill, pitch_mm)) if (it or pitch_mm is not None) else start
-        scene.set_element(instance, model, **assign)
-        scene.commit()
-        sim = simulation(scene)
-        placed = scene.element_of(instance)
-        if placed is None:   # pragma: no cover - set_element raised otherwise
-            raise PackError("the element did not go onto the part")
+        model, sim, placed = _place(scene, instance, start, fill, pitch_mm, it, simulation, assign)
         t1 = time.perf_counter()
-        done = total
-
-        def report(p: int, worst: float, seconds: float, it: int = it, done: int = done) -> None:
-            if progress is not None:
-                last = history[-1] if history else None
-                progress({"iteration": it, "photons": done + int(p), "measured": last and last.iteration,
-                          "uniformity": last and last.uniformity, "stderr": last and last.stderr,
-                          "seconds": time.perf_counter() - t_start})
-
-        res = sim.run(sensor, max_photons=n, seed=int(seed) * 1009 + it, estimator="forward", progress=report,
-                      cancel=cancel)
+        report = _reporter(progress, history, it, run.total, t_start)
+        res = sim.run(sensor, max_photons=run.photons, seed=int(seed) * 1009 + it, estimator="forward",
+                      progress=report, cancel=cancel)
         t2 = time.perf_counter()
         lux, err = np.asarray(res.lux, float), np.asarray(res.stderr, float)
-        total += int(res.photons)
+        run.total += int(res.photons)
         if cancel is not None and cancel() and history:
-            stopped = "cancelled"    # a partial measurement is not taken
+            run.stopped = "cancelled"    # a partial measurement is not taken
             break
         if not lux.max() > 0:
             raise PackError("sensor: no light reaches the grid over the face with the starting pattern (every cell "
                             "read 0 lx): check the lights and that the grid faces the lit face")
         u, s, u0 = figure_of(lux, err, figure)
-        models.append(model)
+        run.models.append(model)
         history.append(PackIteration(it, fill.tolist(), int(model.features or 0), int(res.photons), u, s, u0,
                                      lux.tolist(), err.tolist(), t1 - t0, t2 - t1, time.perf_counter() - t0))
         if progress is not None:
-            progress({"iteration": it, "photons": total, "measured": it, "uniformity": u, "stderr": s,
+            progress({"iteration": it, "photons": run.total, "measured": it, "uniformity": u, "stderr": s,
                       "seconds": time.perf_counter() - t_start})
         if cancel is not None and cancel():
-            stopped = "cancelled"
+            run.stopped = "cancelled"
             break
         if u >= target:   # confirmed by a fresh seed, or the two readings pooled correct the map
-            pooled = confirm(sim, sensor, history[-1], n, confirmation_seed(seed, it), figure, target, report, cancel)
-            again = history[-1].confirmation
-            if pooled is None or again is None:
-                stopped = "cancelled"
-                break
-            total += int(again["photons"])
-            if again["confirmed"]:
-                stopped = "target"
+            pooled = _target_reached(run, sim, sensor, it, seed, figure, target, max_photons, report, cancel)
+            if pooled is None:
                 break
             lux, err = pooled
-            n = min(4 * n, int(max_photons))   # near the target the noise decides: halve it
-        d, worst, typical = correction(lux, err)
-        if not np.any(d) and n >= max_photons:
-            stopped = "converged"
-            break
-        if worst < RAISE_SIGMAS * typical or not np.any(d):
-            n = min(4 * n, int(max_photons))
-        if time.perf_counter() - t_start >= max_seconds:
-            stopped = "seconds"
-            break
-        if it + 1 == max_iterations:
+        d = _next_correction(run, lux, err, max_photons, t_start, max_seconds, it + 1 == max_iterations)
+        if d is None:
             break
         _, o, du, dv = placed
         fill = update(fill, on_support(d, sensor, fill.shape, layout, o, du, dv), damping, max_fill)
     if not history:
         raise PackError("the pack was cancelled before its first measurement")
-    best = max(range(len(history)), key=lambda k: history[k].pooled()[0] - history[k].pooled()[1])
-    if stopped == "target":
-        best = len(history) - 1
-    return PackResult(models[best], best, stopped, history, figure, float(target), time.perf_counter() - t_start)
+    best = _best(run)
+    return PackResult(run.models[best], best, run.stopped, history, figure, float(target),
+                      time.perf_counter() - t_start)

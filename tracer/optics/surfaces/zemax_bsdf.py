@@ -67,33 +67,38 @@ def is_zemax(text: str) -> bool:
     return False
 
 
-def parse(text: str, where: str = "table") -> dict:
-    """The `measured_brdf` inline table (theta_i_deg, theta_o_deg, dphi_deg, brdf) of a BSDF Data Interchange file;
-    `MaterialError` naming the line where it is not one this reader takes (module docstring)."""
-    lines = [(k, line.split("#", 1)[0].split()) for k, line in enumerate(text.splitlines(), 1)]
-    lines = [(k, w) for k, w in lines if w]
-    pos = 0
+class _Lines:
+    """A file's non-blank lines (line number, words; comments dropped), read in order: each read names the line
+    where the file does not hold what the format puts there."""
 
-    def take(label: str) -> list[str]:
-        nonlocal pos
+    def __init__(self, text: str, where: str) -> None:
+        lines = [(k, line.split("#", 1)[0].split()) for k, line in enumerate(text.splitlines(), 1)]
+        self.lines = [(k, w) for k, w in lines if w]
+        self.pos = 0
+        self.where = where
+
+    def take(self, label: str) -> list[str]:
+        """The words after `label` on the next line, which must open with it."""
+        lines, pos, where = self.lines, self.pos, self.where
         if pos >= len(lines) or lines[pos][1][0] != label:
             seen = " ".join(lines[pos][1])[:60] if pos < len(lines) else "the end of the file"
             raise MaterialError(f"{where}: expected a {label!r} line (line {lines[pos][0] if pos < len(lines) else '-'}"
                                 f"), got {seen!r}: is this a Zemax BSDF Data Interchange file?")
-        pos += 1
-        return lines[pos - 1][1][1:]
+        self.pos += 1
+        return lines[pos][1][1:]
 
-    def numbers(n: int, what: str) -> np.ndarray:
-        nonlocal pos
+    def numbers(self, n: int, what: str) -> np.ndarray:
+        """The next `n` numbers, over as many lines as they take; all finite."""
+        where = self.where
         out: list[float] = []
-        while len(out) < n and pos < len(lines):
-            k, words = lines[pos]
+        while len(out) < n and self.pos < len(self.lines):
+            k, words = self.lines[self.pos]
             try:
                 out += [float(w) for w in words]
             except ValueError:
                 raise MaterialError(f"{where}: {what}: expected {n} numbers, got {len(out)} before line {k} "
                                     f"({' '.join(words)[:60]!r}): check the counts in the header") from None
-            pos += 1
+            self.pos += 1
         if len(out) != n:
             raise MaterialError(f"{where}: {what}: expected {n} numbers, got {len(out)}")
         a = np.array(out)
@@ -101,39 +106,67 @@ def parse(text: str, where: str = "table") -> dict:
             raise MaterialError(f"{where}: {what} must be finite")
         return a
 
-    def count(label: str) -> int:
-        words = take(label)
+    def count(self, label: str) -> int:
+        """The count ≥ 1 on the next line, which must open with `label`."""
+        words = self.take(label)
         if len(words) != 1 or not words[0].isdigit() or int(words[0]) < 1:
-            raise MaterialError(f"{where}: {label!r} must give a count ≥ 1, got {' '.join(words)!r}")
+            raise MaterialError(f"{self.where}: {label!r} must give a count ≥ 1, got {' '.join(words)!r}")
         return int(words[0])
 
-    def word(label: str, allowed: tuple[str, ...], why: str) -> None:
-        words = take(label)
+    def word(self, label: str, allowed: tuple[str, ...], why: str) -> None:
+        """A header line `label` whose value must be one of `allowed`; `why` says why the others are not read."""
+        words = self.take(label)
         if not words or words[0] not in allowed:
-            raise MaterialError(f"{where}: {label} {' '.join(words)!r} is not read: {why}")
+            raise MaterialError(f"{self.where}: {label} {' '.join(words)!r} is not read: {why}")
 
-    word("Source", ("Measured",), "the spec knows only 'Measured'")
-    word("Symmetry", ("PlaneSymmetrical",), "measured_brdf is isotropic and symmetric about the plane of incidence; "
-         "export the sample's PlaneSymmetrical data")
-    word("SpectralContent", ("Monochrome",), "export Monochrome (photopic) data; tristimulus files are not read")
-    word("ScatterType", ("BRDF",), "measured_brdf reflects; transmission (BTDF) tables are not read")
-    if count("SampleRotation") != 1:
+
+def parse(text: str, where: str = "table") -> dict:
+    """The `measured_brdf` inline table (theta_i_deg, theta_o_deg, dphi_deg, brdf) of a BSDF Data Interchange file;
+    `MaterialError` naming the line where it is not one this reader takes (module docstring)."""
+    doc = _Lines(text, where)
+    aoi, az, radial = _read_header(doc)
+    doc.take("Monochrome")
+    doc.take("DataBegin")
+    blocks, tis = _read_blocks(doc, aoi, az, radial)
+    doc.take("DataEnd")
+    brdf = np.stack([_resample(float(ti), az, radial, b) for ti, b in zip(aoi, blocks, strict=True)])
+    _scale_to_tis(brdf, tis, aoi, where)
+    return {"theta_i_deg": aoi.tolist(), "theta_o_deg": THETA_O_EDGES.tolist(), "dphi_deg": DPHI_EDGES.tolist(),
+            "brdf": brdf.tolist()}
+
+
+def _read_header(doc: _Lines) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The header's (angles of incidence, scatter azimuths, scatter radial angles) in degrees, once its kind lines
+    say a table `measured_brdf` takes (measured, plane-symmetrical, monochrome reflection, one sample rotation)."""
+    where = doc.where
+    doc.word("Source", ("Measured",), "the spec knows only 'Measured'")
+    doc.word("Symmetry", ("PlaneSymmetrical",), "measured_brdf is isotropic and symmetric about the plane of "
+             "incidence; export the sample's PlaneSymmetrical data")
+    doc.word("SpectralContent", ("Monochrome",), "export Monochrome (photopic) data; tristimulus files are not read")
+    doc.word("ScatterType", ("BRDF",), "measured_brdf reflects; transmission (BTDF) tables are not read")
+    if doc.count("SampleRotation") != 1:
         raise MaterialError(f"{where}: more than one SampleRotation is an anisotropic sample, which measured_brdf "
                             f"(isotropic) does not take; export one rotation")
-    numbers(1, "the sample rotation")
-    aoi = numbers(count("AngleOfIncidence"), "AngleOfIncidence")
-    az = numbers(count("ScatterAzimuth"), "ScatterAzimuth")
-    radial = numbers(count("ScatterRadial"), "ScatterRadial")
+    doc.numbers(1, "the sample rotation")
+    aoi = doc.numbers(doc.count("AngleOfIncidence"), "AngleOfIncidence")
+    az = doc.numbers(doc.count("ScatterAzimuth"), "ScatterAzimuth")
+    radial = doc.numbers(doc.count("ScatterRadial"), "ScatterRadial")
     for name, a, lo, hi in (("AngleOfIncidence", aoi, 0.0, 90.0), ("ScatterAzimuth", az, 0.0, 180.0),
                             ("ScatterRadial", radial, 0.0, 180.0)):
         if np.any(np.diff(a) <= 0) or a[0] < lo or a[-1] > hi or (name == "AngleOfIncidence" and a[-1] >= 90.0):
             raise MaterialError(f"{where}: {name} must be strictly increasing within [{lo:g}, {hi:g}"
                                 f"{')' if name == 'AngleOfIncidence' else ']'} degrees, got {a.tolist()}")
-    take("Monochrome")
-    take("DataBegin")
+    return aoi, az, radial
+
+
+def _read_blocks(doc: _Lines, aoi: np.ndarray, az: np.ndarray,
+                 radial: np.ndarray) -> tuple[list[np.ndarray], list[float]]:
+    """Each angle of incidence's (n_az, n_radial) block of relative values (≥ 0) and its TIS (the fraction
+    reflected, in [0, 1])."""
+    where = doc.where
     blocks, tis = [], []
     for theta_i in aoi:
-        words = take("TIS")
+        words = doc.take("TIS")
         try:
             t = float(words[0]) if len(words) == 1 else math.nan
         except ValueError:
@@ -141,14 +174,18 @@ def parse(text: str, where: str = "table") -> dict:
         if not 0.0 <= t <= 1.0:
             raise MaterialError(f"{where}: the TIS of angle of incidence {theta_i:g}° must be a number in [0, 1] "
                                 f"(the fraction reflected), got {' '.join(words)!r}")
-        b = numbers(len(az) * len(radial), f"the data of angle of incidence {theta_i:g}° ({len(az)} azimuths × "
-                    f"{len(radial)} radial angles)").reshape(len(az), len(radial))
+        b = doc.numbers(len(az) * len(radial), f"the data of angle of incidence {theta_i:g}° ({len(az)} azimuths × "
+                        f"{len(radial)} radial angles)").reshape(len(az), len(radial))
         if np.any(b < 0.0):
             raise MaterialError(f"{where}: the data of angle of incidence {theta_i:g}° must be ≥ 0")
         blocks.append(b)
         tis.append(t)
-    take("DataEnd")
-    brdf = np.stack([_resample(float(ti), az, radial, b) for ti, b in zip(aoi, blocks, strict=True)])
+    return blocks, tis
+
+
+def _scale_to_tis(brdf: np.ndarray, tis: list[float], aoi: np.ndarray, where: str) -> None:
+    """Scales each row of `brdf` (sr⁻¹, in place; the format's values are relative) so that its directional albedo
+    is its block's TIS."""
     w = _cell_weights()
     for i, (row, level) in enumerate(zip(brdf, tis, strict=True)):
         albedo = float((row * w).sum())
@@ -156,8 +193,6 @@ def parse(text: str, where: str = "table") -> dict:
             raise MaterialError(f"{where}: the data of angle of incidence {aoi[i]:g}° are 0 over the hemisphere "
                                 f"but its TIS is {level:g}")
         brdf[i] = row * (level / albedo) if albedo > 0.0 else row
-    return {"theta_i_deg": aoi.tolist(), "theta_o_deg": THETA_O_EDGES.tolist(), "dphi_deg": DPHI_EDGES.tolist(),
-            "brdf": brdf.tolist()}
 
 
 def _cell_weights() -> np.ndarray:
