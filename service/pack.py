@@ -24,8 +24,7 @@ from typing import Any
 import numpy as np
 
 from service.errors import Invalid, NotFound
-from service.sensor_kinds import KINDS as SENSOR_KINDS
-from service.sensor_kinds import kind_of, kind_of_type
+from service.sensor_kinds import kind_of, kind_of_type, types_where
 from tracer.transport.query import Budget
 
 PILOT_PHOTONS = 20_000   # the pilot that tells a face no light reaches
@@ -115,7 +114,7 @@ def _assignment_and_sensor(manager: Any, scene_id: str, element_id: str, req: di
     if sensor_body is None:
         raise Invalid(f"sensor: scene {scene_id} has no sensor {req['sensor']}")
     if not kind_of_type(sensor_body.get("type")).PACKS:
-        packs = sorted(t for t, k in SENSOR_KINDS.items() if k.PACKS)
+        packs = types_where(lambda k: k.PACKS)
         raise Invalid(f"sensor: a pack measures a grid of cells over the lit face ({packs} sensors); sensor "
                       f"{req['sensor']} is a {sensor_body.get('type')!r} sensor")
     return assignment

@@ -25,6 +25,7 @@ store), so a new sensor kind needs a class only where it stores or renders somet
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from types import SimpleNamespace
 from typing import TYPE_CHECKING, Annotated, Any, Literal, Union
 
@@ -374,6 +375,11 @@ def kind_of(sensor: dict) -> Any:
     if kind is None:
         raise Invalid(f"sensor {sensor.get('id')!r} has type {sensor.get('type')!r}, which cannot be simulated")
     return kind
+
+
+def types_where(test: Callable[[Any], bool]) -> list[str]:
+    """The wire types of the kinds with a class of their own that pass `test`, sorted: what a refusal names."""
+    return sorted(t for t, k in KINDS.items() if test(k))
 
 
 def kind_of_type(kind: Any) -> Any:

@@ -20,8 +20,7 @@ from fastapi import APIRouter, Request, Response
 from service.errors import Invalid, NotFound
 from service.images import tone_mapped_png, write_exr
 from service.routes.deps import ItemId, SceneId
-from service.sensor_kinds import KINDS as SENSOR_KINDS
-from service.sensor_kinds import kind_of
+from service.sensor_kinds import kind_of, types_where
 from service.simulation import find_sensor, hub_for
 
 router = APIRouter(tags=["simulation"])
@@ -35,7 +34,7 @@ def camera_result(request: Request, scene_id: str, sensor_id: str) -> dict[str, 
     live = hub.live.get(scene_id)
     sensor = find_sensor(live, sensor_id)
     if "image_url" not in kind_of(sensor).ANSWER.model_fields:
-        imaged = sorted(t for t, k in SENSOR_KINDS.items() if "image_url" in k.ANSWER.model_fields)
+        imaged = types_where(lambda k: "image_url" in k.ANSWER.model_fields)
         raise Invalid(f"sensor {sensor_id!r} is a {sensor.get('type')} sensor; images exist for {imaged} sensors")
     result = hub.view_result(scene_id, sensor)
     if result is None:

@@ -25,8 +25,7 @@ from service.kind_wire import SensorType
 from service.maps import difference_map_png, illuminance_map_png, luminance_map_png
 from service.results import KEY_PATTERN, ResultStore, difference, difference_csv, result_csv
 from service.routes.deps import ItemId, MapScale, MapVmin, SceneId, map_range
-from service.sensor_kinds import KINDS as SENSOR_KINDS
-from service.sensor_kinds import kind_of_type
+from service.sensor_kinds import kind_of_type, types_where
 from service.simulation import SimulationHub, Unavailable, hub_for
 
 router = APIRouter(tags=["results"])
@@ -190,7 +189,7 @@ def result_map(scene_id: SceneId, sensor_id: ItemId, key: Key, request: Request,
     result = _get(request, scene_id, sensor_id, key)
     kind = kind_of_type(result.get("type"))
     if "map_url" not in kind.ANSWER.model_fields:
-        mapped = sorted(t for t, k in SENSOR_KINDS.items() if "map_url" in k.ANSWER.model_fields)
+        mapped = types_where(lambda k: "map_url" in k.ANSWER.model_fields)
         raise NotFound(f"result {result['key']} of sensor {sensor_id} is of a {result.get('type')} sensor; maps exist "
                        f"for {mapped} sensors")
     if kind.QUANTITY == "luminance":
@@ -235,7 +234,7 @@ def difference_map(scene_id: SceneId, sensor_id: ItemId, request: Request, frm: 
     """The change between two kept grid results on a diverging scale; cells within noise (2σ) dotted."""
     out, before, after = _difference(request, scene_id, sensor_id, frm, to)
     if not kind_of_type(out.get("type")).DIFFERENCE_MAP:
-        drawn = sorted(t for t, k in SENSOR_KINDS.items() if k.DIFFERENCE_MAP)
+        drawn = types_where(lambda k: k.DIFFERENCE_MAP)
         raise NotFound(f"sensor {sensor_id} is a {out.get('type')} sensor; difference maps exist for {drawn} sensors")
     png = difference_map_png(out["lux_from"], out["lux_to"], out["origin"], out["u"], out["v"],
                              stderr_before=before["stderr"], stderr_after=after["stderr"],

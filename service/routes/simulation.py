@@ -31,8 +31,7 @@ from service.errors import Invalid, NotFound, TooLarge
 from service.jobs import JobNotFound, QueueFull
 from service.maps import colour_map_png, illuminance_map_png, luminance_map_png
 from service.routes.deps import ItemId, JobId, MapScale, MapVmin, SceneId, map_range
-from service.sensor_kinds import KINDS as SENSOR_KINDS
-from service.sensor_kinds import SensorPublic, kind_of
+from service.sensor_kinds import SensorPublic, kind_of, types_where
 from service.simulation import SimulationHub, Unavailable, find_sensor, hub_for, request_query
 from service.simulation_wire import (  # noqa: F401 (the route's models, named here too)
     UNIT_TOLERANCE,
@@ -205,7 +204,7 @@ def sensor_map(scene_id: SceneId, sensor_id: ItemId, request: Request,
     sensor = find_sensor(live, sensor_id)
     kind = kind_of(sensor)
     if "map_url" not in kind.ANSWER.model_fields:
-        mapped = sorted(t for t, k in SENSOR_KINDS.items() if "map_url" in k.ANSWER.model_fields)
+        mapped = types_where(lambda k: "map_url" in k.ANSWER.model_fields)
         raise NotFound(f"sensor {sensor_id!r} is a {sensor.get('type')} sensor; maps exist for {mapped} sensors")
     if kind.QUANTITY == "luminance":
         return _camera_map(request, scene_id, sensor_id, vmax)
@@ -255,7 +254,7 @@ def sensor_export(scene_id: SceneId, sensor_id: ItemId, request: Request,
     live = hub.live.get(scene_id)
     sensor = find_sensor(live, sensor_id)
     if kind_of(sensor).QUANTITY != "candela":
-        lamps = sorted(t for t, k in SENSOR_KINDS.items() if k.QUANTITY == "candela")
+        lamps = types_where(lambda k: k.QUANTITY == "candela")
         raise Invalid(f"sensor {sensor_id!r} is a {sensor.get('type')} sensor; only {lamps} sensors export as IES "
                       f"or EULUMDAT")
     result = hub.far_result(scene_id, sensor_id)
