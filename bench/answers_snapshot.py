@@ -8,8 +8,9 @@ The queries: points forward and backward, observe spectrum and Stokes, a "lit" t
 estimators, a surface, a far field, and physics_left_out on points and on a grid (a glass room, so that the
 polarization pilot runs), and luminance (paths from the eye, `tracer.transport.radiance`): a meter and a camera
 in a room lit by an area light with a mirror wall, a camera on a caustic of a point light in a mirror (light
-tracing) and on a floor under a collimated beam; and each feature shape of an element in each layout it takes.
-Seconds, compile seconds and cost (which depend on the machine)
+tracing) and on a floor under a collimated beam; each feature shape of an element in each layout it takes; and a glass
+block with each inside and surface a dielectric takes (in the forms both older and newer trees read: the medium's
+fields on the dielectric, the kind `rough_dielectric`). Seconds, compile seconds and cost (which depend on the machine)
 are left out; every other field is compared with np.array_equal (NaN equal to NaN). Used for issue 35's moves
 (docs/guides/benchmarks.md).
 """
@@ -63,6 +64,7 @@ def record(path: str) -> None:
                                                 seed=8, physics_left_out=["polarization"]))
     out.update(luminance_queries())
     out.update(element_queries())
+    out.update(medium_queries())
     with open(path, "wb") as f:
         pickle.dump(out, f)
     print(f"recorded {len(out)} queries to {path}")
@@ -128,6 +130,32 @@ def element_queries() -> dict:
             sim = Simulation(scene, {part: {"type": "dielectric", "ior": 1.49}}, [beam])
             out[f"element_{shape}_{name}"] = fields_of(sim.grid([-1e-3, -1e-3, -1e-3], [6e-3, 0, 0], [0, 6e-3, 0],
                                                                  4, 4, max_photons=20000, seed=21, estimator="forward"))
+    return out
+
+
+def medium_queries() -> dict:
+    """A glass block in a room, with each inside and surface a dielectric takes: absorbing and scattering
+    (Henyey–Greenstein), Mie particles, fluorescent, rough, rough and brushed, coated; points under the block."""
+    from tests.tracer.transport_scenes import box, scene_of
+    from tracer.simulate import Simulation
+
+    s, (room, block) = scene_of(box([-2, -2, 0], [2, 2, 2.5]), box([-0.5, -0.5, 0.5], [0.5, 0.5, 1.0]))
+    light = {"type": "point", "position": [0.1, 0.05, 2.0], "intensity_cd": 1000.0}
+    white = {"type": "lambertian", "reflectance": 0.5}
+    insides = {"hg": {"absorption_per_m": 0.8, "scattering_per_m": 3.0, "g": 0.6},
+               "mie": {"particles": {"radius_um": 0.5, "ior": [1.59, 0.0], "number_per_m3": 1e15}},
+               "fluorescent": {"fluorescence": {"absorption_per_m": 50.0, "quantum_yield": 0.8,
+                                                "emission": {"type": "monochromatic", "nm": 600.0}}},
+               "rough": {"alpha": 0.2}, "brushed": {"alpha": 0.05, "alpha_y": 0.3, "axis": [1.0, 0.0, 0.0]},
+               "coated": {"coating": {"layers": [{"ior": 1.38, "thickness_nm": 99.6}]}}}
+    p = np.array([[0.0, 0.0, 0.0], [0.3, 0.2, 0.0], [1.2, -0.4, 0.0]])
+    n = np.tile([0.0, 0.0, 1.0], (3, 1))
+    out = {}
+    for k, (name, inside) in enumerate(insides.items()):
+        glass = {"type": "rough_dielectric" if "alpha" in inside else "dielectric", "ior": 1.5, **inside}
+        sim = Simulation(s, {room: white, block: glass}, [light])
+        out[f"medium_{name}"] = fields_of(sim.illuminance(p, n, radius=0.3, max_photons=20000, seed=31 + k,
+                                                          estimator="forward"))
     return out
 
 

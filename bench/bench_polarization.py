@@ -77,12 +77,14 @@ def mie_against_hg(rounds: int) -> dict:
     s.commit()
     t = mie_table(Particles(PARTICLES["radius_um"], *PARTICLES["ior"], PARTICLES["number_per_m3"]), np.ones(471))
     i550 = 550 - 360
-    hg = {"type": "dielectric", "ior": 1.0, "scattering_per_m": float(t.sigma_sca[i550]), "g": float(t.g[i550]),
-          "absorption_per_m": float(t.sigma_ext[i550] - t.sigma_sca[i550])}
+    hg = {"type": "dielectric", "ior": 1.0, "medium": {
+        "type": "homogeneous", "scattering_per_m": float(t.sigma_sca[i550]), "g": float(t.g[i550]),
+        "absorption_per_m": float(t.sigma_ext[i550] - t.sigma_sca[i550])}}
     light = [{"type": "collimated", "origin": [0, 0, 1], "direction": [0, 0, -1], "radius": 0.01,
               "illuminance_lx": 100.0, "spectrum": {"type": "monochromatic", "nm": 550}}]
     sims = {"Henyey–Greenstein (same σ, g), spectral": Simulation(s, {slab: hg}, light),
-            "Mie": Simulation(s, {slab: {"type": "dielectric", "ior": 1.0, "particles": PARTICLES}}, light)}
+            "Mie": Simulation(s, {slab: {"type": "dielectric", "ior": 1.0,
+                                              "medium": {"type": "homogeneous", "particles": PARTICLES}}}, light)}
     pts, nrm = np.array([[0.0, 0.0, -0.11]]), np.array([[0.0, 0.0, 1.0]])
     q = dict(max_photons=300_000, estimator="forward", radius=0.5)
     forced = {"Henyey–Greenstein (same σ, g), spectral": ["spectral"]}

@@ -5,11 +5,12 @@ kind's `scatter`. Writes bench/results/rough_surfaces.json.
    and `lambertian`, all of reflectance 0.8, under a 1000 cd point light: photons/s of the forward kernel on one
    thread, interleaved rounds, ratios to `mirror`.
 2. Glass: 25 cubes (n = 1.5, 10 cm) over a Lambertian floor (bench_polarization_default's glass-heavy scene) of
-   `dielectric` and of `rough_dielectric` (α = 0.2, and brushed 0.05/0.3): photons/s, ratios to `dielectric`, with
+   a smooth `dielectric` and a rough one (α = 0.2, and brushed 0.05/0.3; the kind `rough_dielectric` until
+   2026-12-07): photons/s, ratios to the smooth one, with
    polarization left out (`force_effects_off`) and by default (polarized: both kinds call for it).
 3. Compile: in a fresh process with an empty numba cache, the scatter contract's driver (`scatter_contract._run`)
    compiled with each kind's own `scatter` in turn (mirror first, so the shared helpers are compiled before the
-   others are timed): seconds per kind.
+   others are timed): seconds per kind (the dielectric's, smooth and rough, is one `scatter`).
 
 Run: ``flock /tmp/ll-cpu.lock .venv/bin/python -m bench.bench_rough_surfaces [--quick]``.
 """
@@ -57,8 +58,8 @@ def glass(rounds: int, photons: int) -> dict:
     from bench.bench_polarization_default import GLASS_POINTS, glass_cubes
 
     kinds = {"dielectric": {"type": "dielectric", "ior": 1.5},
-             "rough_dielectric": {"type": "rough_dielectric", "ior": 1.5, "alpha": 0.2},
-             "rough_dielectric brushed": {"type": "rough_dielectric", "ior": 1.5, "alpha": 0.05, "alpha_y": 0.3,
+             "rough dielectric": {"type": "dielectric", "ior": 1.5, "alpha": 0.2},
+             "rough dielectric brushed": {"type": "dielectric", "ior": 1.5, "alpha": 0.05, "alpha_y": 0.3,
                                           "axis": [1, 0, 0]}}
     pts = GLASS_POINTS
     nrm = [[0.0, 0.0, 1.0]] * len(pts)
@@ -85,9 +86,9 @@ import json, sys, time
 sys.path.insert(0, "tests/tracer/optics")
 import numpy as np
 from scatter_contract import Case, specs_of
-from tracer.optics.surfaces import dielectric, measured_brdf, microfacet, mirror, rough_dielectric
+from tracer.optics.surfaces import dielectric, measured_brdf, microfacet, mirror
 out = {}
-for m in (mirror, dielectric, microfacet, rough_dielectric, measured_brdf):
+for m in (mirror, dielectric, microfacet, measured_brdf):
     case = Case(m, specs_of(m)[0], "front", 0.0, np.array([0.0, 0.0, -1.0]), ("white", 0.0, 0.0, 0.0, 0.0))
     t0 = time.perf_counter()
     case.run(m.scatter, n=1)

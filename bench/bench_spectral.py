@@ -80,7 +80,8 @@ def effect_costs(rounds: int) -> dict:
     light = [{"type": "collimated", "origin": [0, 0, 0.2], "direction": [0, 0, -1], "radius": 0.03,
               "illuminance_lx": 1000.0, "spectrum": {"type": "blackbody", "kelvin": 5000}}]
     variants = {"clear glass, white": {}, "clear glass, spectral": {}, "dispersion": {"ior": BK7},
-                "coating": {"coating": MGF2}, "fluorescence": {"fluorescence": FLUOR}}
+                "coating": {"coating": MGF2},
+                "fluorescence": {"medium": {"type": "homogeneous", "fluorescence": FLUOR}}}
     sims = {n: Simulation(s, {block: {"type": "dielectric", "ior": 1.5, **extra}}, light)
             for n, extra in variants.items()}
     pts, nrm = np.array([[0.0, 0.0, -0.1]]), np.array([[0.0, 0.0, 1.0]])

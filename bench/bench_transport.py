@@ -93,8 +93,9 @@ def throughput(quick: bool) -> list[dict]:
     from tracer.scene import Scene
 
     for mat in ({"type": "dielectric", "ior": 1.5},
-                {"type": "dielectric", "ior": 1.5, "absorption_per_m": 2.0},
-                {"type": "dielectric", "ior": 1.5, "absorption_per_m": 2.0, "scattering_per_m": 5.0, "g": 0.5}):
+                {"type": "dielectric", "ior": 1.5, "medium": {"type": "homogeneous", "absorption_per_m": 2.0}},
+                {"type": "dielectric", "ior": 1.5, "medium": {"type": "homogeneous", "absorption_per_m": 2.0,
+                                                              "scattering_per_m": 5.0, "g": 0.5}}):
         s2 = Scene()
         x, y, z = ROOM
         v = np.array([[0, 0, 0], [x, 0, 0], [x, y, 0], [0, y, 0], [0, 0, z], [x, 0, z], [x, y, z], [0, y, z]], float)

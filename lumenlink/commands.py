@@ -96,7 +96,7 @@ def _json_arg(text: str | None, file: Path | None, what: str) -> dict[str, Any]:
 
 
 def _material_text(body: dict[str, Any]) -> str:
-    keys = ("reflectance", "ior", "transmittance", "absorption_per_m", "axis", "retardance_deg")
+    keys = ("reflectance", "ior", "alpha", "transmittance", "axis", "retardance_deg")
     extra = " ".join(f"{k}={json.dumps(body[k])}" for k in keys if k in body and not isinstance(body[k], dict))
     return f"{body.get('type', '?')} {extra}".strip()
 

@@ -5,9 +5,12 @@ once, in its `Spec` dataclass (name, default, range in ``bounds(...)`` metadata,
 wire models are built here from those specs, so the OpenAPI schema, the 422s and the kernels' packing
 read the same table, and a new kind appears in the API with no change to the service. A field's wire
 type follows its metadata's value rule: a number, a number or a table over λ (``value="spectral"``), an
-index (``"ior"``: number, Sellmeier or table), or an object (``parse``: coating, fluorescence, metal). Each
-model's validator then runs the tracer's own validation (`material_spec`: cross-field rules, increasing
-wavelengths, Sellmeier poles), so both sides refuse alike. `to_spec` turns a validated body into the spec.
+index (``"ior"``: number, Sellmeier or table), or an object (``parse``: coating, fluorescence, metal, and a
+dielectric's ``medium``, whose models are made the same way from the medium kinds' specs,
+`tracer.optics.media.dispatch.KINDS`). Each model's validator then runs the tracer's own validation
+(`material_spec`: cross-field rules, increasing wavelengths, Sellmeier poles), so both sides refuse alike. An older
+body (a kind since folded into another, fields since moved) is read in today's form first (`upgrade_body`). `to_spec`
+turns a validated body into the spec.
 """
 
 from __future__ import annotations
@@ -16,11 +19,12 @@ import dataclasses
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Annotated, Any, Literal, Optional, Union
 
-from pydantic import BaseModel, ConfigDict, Field, Strict, create_model, model_validator
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, Strict, create_model, model_validator
 
 from tracer.optics import spectra
+from tracer.optics.media import dispatch as media
 from tracer.optics.surfaces.base import MaterialError
-from tracer.optics.surfaces.dispatch import KINDS, material_spec
+from tracer.optics.surfaces.dispatch import KINDS, material_spec, upgrade_body
 
 #: examples shown by /docs, per kind (tests/service/test_openapi_docs.py assigns each to a node): BK7 is Schott's
 #: Sellmeier fit, aluminium's [n, k] at 550 nm
@@ -32,26 +36,39 @@ MATERIAL_EXAMPLES: dict[str, list[dict[str, Any]]] = {
     "mix": [{"type": "mix", "diffuse": 0.6, "specular": 0.3}],
     "dielectric": [{"type": "dielectric", "ior": {"sellmeier": {"b": [1.03961212, 0.231792344, 1.01046945],
                                                                 "c_um2": [0.00600069867, 0.0200179144, 103.560653]}},
-                    "absorption_per_m": 0.1},
-                   {"type": "dielectric", "ior": 1.49, "coating": {"layers": [{"ior": 1.38, "thickness_nm": 99.6}]}}],
+                    "medium": {"type": "homogeneous", "absorption_per_m": 0.1}},
+                   {"type": "dielectric", "ior": 1.5, "absorption_per_m": 0.0, "scattering_per_m": 0.0, "g": 0.0},
+                   {"type": "dielectric", "ior": 1.49, "coating": {"layers": [{"ior": 1.38, "thickness_nm": 99.6}]}},
+                   {"type": "dielectric", "ior": 1.49, "alpha": 0.2},
+                   {"type": "dielectric", "ior": 1.5, "alpha": 0.05, "alpha_y": 0.3, "axis": [1.0, 0.0, 0.0]},
+                   {"type": "dielectric", "ior": 1.49, "medium": {"type": "homogeneous", "scattering_per_m": 40.0,
+                                                                  "g": 0.8}}],
     "diffuser": [{"type": "diffuser", "transmittance": 0.6, "reflectance": 0.3}],
     "polarizer": [{"type": "polarizer", "axis": [1.0, 0.0, 0.0], "transmittance": 0.85, "extinction_ratio": 1000.0}],
     "retarder": [{"type": "retarder", "fast_axis": [1.0, 0.0, 0.0], "retardance_deg": 90.0}],
-    "rough_dielectric": [{"type": "rough_dielectric", "ior": 1.49, "alpha": 0.2},
-                         {"type": "rough_dielectric", "ior": 1.5, "alpha": 0.05, "alpha_y": 0.3,
-                          "axis": [1.0, 0.0, 0.0]}],
+}
+#: examples of each medium kind (a dielectric's ``medium``)
+MEDIUM_EXAMPLES: dict[str, list[dict[str, Any]]] = {
+    "homogeneous": [{"type": "homogeneous", "absorption_per_m": 0.5, "scattering_per_m": 20.0, "g": 0.7},
+                    {"type": "homogeneous", "particles": {"radius_um": 0.5, "ior": [1.59, 0.0],
+                                                          "number_per_m3": 1e15}}],
 }
 
 
 def _examples(schema: dict[str, Any], cls: type) -> None:
     """A material kind's examples in its JSON schema (``json_schema_extra``); other wire models have none."""
     kind = cls.model_fields["type"].annotation.__args__[0] if "type" in cls.model_fields else None  # type: ignore
-    if kind in MATERIAL_EXAMPLES:
-        schema["examples"] = MATERIAL_EXAMPLES[kind]
+    examples = MEDIUM_EXAMPLES if issubclass(cls, _MediumWire) else MATERIAL_EXAMPLES
+    if kind in examples:
+        schema["examples"] = examples[kind]
 
 
 class _MaterialWire(BaseModel):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False, json_schema_extra=_examples)
+
+
+class _MediumWire(_MaterialWire):
+    """The base of the medium kinds' wire models (a dielectric's ``medium``)."""
 
 
 # ------------------------------------------------------------------------ values that may vary with λ
@@ -185,9 +202,10 @@ def _field_type(name: str, meta: Mapping, required: bool) -> Any:
     return _number(meta)
 
 
-def _model(kind) -> type[BaseModel]:
-    """The pydantic model of one kind's wire body, from its spec's fields."""
-    fields: dict[str, Any] = {"type": (Literal[kind.NAME], Field(description=f"the material kind: `{kind.NAME}`"))}
+def _model(kind, family: str = "material") -> type[BaseModel]:
+    """The pydantic model of one kind's wire body, from its spec's fields (`family`: ``"material"`` or
+    ``"medium"``)."""
+    fields: dict[str, Any] = {"type": (Literal[kind.NAME], Field(description=f"the {family} kind: `{kind.NAME}`"))}
     for f in dataclasses.fields(kind.Spec):
         default = ... if f.default is dataclasses.MISSING else f.default
         # the spec's meaning (with its unit) on the field itself, where /docs shows it, not only inside a union
@@ -197,22 +215,44 @@ def _model(kind) -> type[BaseModel]:
     def _check(self):
         # the tracer's own validation: cross-field rules (`Spec.check`), increasing wavelengths, Sellmeier poles
         try:
-            material_spec(self.model_dump(exclude_none=True))
+            if family == "medium":
+                media.medium_spec(self.model_dump(exclude_none=True))
+            else:
+                material_spec(self.model_dump(exclude_none=True))
         except MaterialError as exc:
             raise ValueError(str(exc).removeprefix("material: ")) from None
         return self
 
     doc = (kind.__doc__ or kind.NAME).strip().split("\n\n")[0]
     validators: dict[str, Any] = {"_check": model_validator(mode="after")(_check)}
-    return create_model(kind.NAME.title().replace("_", ""), __base__=_MaterialWire, __doc__=doc,
+    name = kind.NAME.title().replace("_", "") + ("Medium" if family == "medium" else "")
+    return create_model(name, __base__=_MediumWire if family == "medium" else _MaterialWire, __doc__=doc,
                         __validators__=validators, **fields)
 
 
+def _todays_form(body: Any) -> Any:
+    """An older material body read in today's form (`upgrade_body`); what is wrong with it, a 422."""
+    try:
+        return upgrade_body(body)
+    except MaterialError as exc:
+        raise ValueError(str(exc).removeprefix("material: ")) from None
+
+
+MEDIUM_MODELS = tuple(_model(kind, "medium") for kind in media.KINDS)
+if TYPE_CHECKING:
+    MediumWire = _MediumWire
+else:
+    MediumWire = Annotated[Union[MEDIUM_MODELS], Field(discriminator="type", description=(  # noqa: UP007
+        "what fills the solid, a medium kind (`tracer/optics/media/`)"))]
+_OBJECTS["medium"] = MediumWire
 MATERIAL_MODELS = tuple(_model(kind) for kind in KINDS)
 if TYPE_CHECKING:  # the models are made at import: to a type checker a material is a wire model
     Material = _MaterialWire
 else:
-    Material = Annotated[Union[MATERIAL_MODELS], Field(discriminator="type")]  # noqa: UP007 (a runtime tuple)
+    # `Discriminator`, not `Field(discriminator=)`: FastAPI takes a `Field` off a body parameter's type, and the
+    # older body must be read in today's form before the union picks its kind
+    Material = Annotated[Union[MATERIAL_MODELS], Discriminator("type"),  # noqa: UP007 (a runtime tuple)
+                         BeforeValidator(_todays_form)]
 
 
 def to_spec(body: dict) -> Any:

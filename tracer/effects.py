@@ -4,24 +4,24 @@
 | --- | --- |
 | `lambertian` | always (diffuse reflection is the baseline; a `diffuser` needs nothing more) |
 | `specular` | a `mirror` material, or a `mix` with specular > 0 |
-| `fresnel` | a `dielectric` or `rough_dielectric` (Fresnel interfaces, refraction, total internal reflection) |
-| `absorption` | a `dielectric` with absorption_per_m > 0 |
-| `scattering` | a `dielectric` with scattering_per_m > 0 |
+| `fresnel` | a `dielectric`, smooth or rough (Fresnel interfaces, refraction, total internal reflection) |
+| `absorption` | a `dielectric` whose medium has absorption_per_m > 0 |
+| `scattering` | a `dielectric` whose medium has scattering_per_m > 0 |
 | `spectral` | any value that depends on the wavelength (below), or a query that observes the spectrum |
 | `dispersion` | a `dielectric` whose `ior` is a Sellmeier formula or a table |
 | `coating` | a `dielectric` with thin films |
-| `fluorescence` | a `dielectric` that fluoresces |
-| `mie` | a `dielectric` holding `particles` (Mie scattering, `tracer.optics.mie`) |
+| `fluorescence` | a `dielectric` whose medium fluoresces |
+| `mie` | a `dielectric` whose medium holds `particles` (Mie scattering, `tracer.optics.mie`) |
 | `diffraction` | a grating on a part's face (`tracer.elements.diffraction`: its orders vary with the wavelength) |
 | `polarization` | a `polarizer`, `retarder`, polarized light or a query observing Stokes (required); and by physics |
 |  | wherever a path can meet two polarizing interactions that could move the answer beyond its error bar |
 |  | (`polarization_call` below; a query may then force it off) |
 
-Each kind declares its effects (`effects(spec)` in its module, `tracer/optics/`); this module gathers
-them. The effects above change no compiled code: they are branches on data (a photon meets a mirror
-only where there is one), which the transport benchmark measured to cost nothing where unused. What a
-photon *carries* does change the kernel (Mitsuba's variants): `photon_state(effects)` names it, and
-`tracer.transport.forward.forward_kernel(state)` is the one factory of kernels. Every effect listed today
+Each kind declares its effects (`effects(spec)` in its module, `tracer/optics/`; a dielectric adds its medium's,
+`tracer/optics/media/`); this module gathers them. The effects above change no compiled code: they are branches on
+data (a photon meets a mirror only where there is one), which the transport benchmark measured to cost nothing
+where unused. What a photon *carries* does change the kernel (Mitsuba's variants): `photon_state(effects)` names it,
+and `tracer.transport.forward.forward_kernel(state)` is the one factory of kernels. Every effect listed today
 up to `scattering` needs only a weight, the state ``"white"``; `spectral` (implied by `dispersion`, `coating`
 `fluorescence`, `mie` and `diffraction`) needs a wavelength, the state ``"spectral"``; `polarization` needs a
 Stokes vector and its frame (`tracer.optics.polarization`), the state ``"polarized"`` (``"polarized-spectral"``
@@ -37,7 +37,7 @@ diattenuations D₁ = (Ts − Tp)/(Ts + Tp) (or the same for reflection) and D�
 times 1 + D₁ D₂ cos 2φ (φ the angle between their planes of incidence): the relative error of leaving polarization
 out is at most D₁ D₂. Each kind declares, from its spec, how many polarizing interactions a path can meet at one of
 its surfaces and their largest diattenuation over all angles (`polarizing(spec)` in its module): a dielectric solid
-(smooth or rough, `rough_dielectric`: each facet is a Fresnel interface) 2 (entered and left), diattenuation 1
+(smooth or rough: each facet is a Fresnel interface) 2 (entered and left), diattenuation 1
 (its reflection at Brewster's angle is pure s); a metal mirror 1, its own
 maximum from the Fresnel formulas of n − ik (aluminium [0.96, 6.69]: 0.139 at 81.7°); a coated mirror 1, bounded
 by 1; particles in a medium 2 (Mie scattering polarizes, bounded by 1). Lambertian, perfect mirrors and

@@ -23,7 +23,51 @@ def test_migration_matches_the_declared_schema(tmp_path) -> None:
         assert diff == [], diff
         assert conn.execute(sa.text("PRAGMA journal_mode")).scalar() == "wal"
         assert conn.execute(sa.text("PRAGMA foreign_keys")).scalar() == 1
-        assert conn.execute(sa.text("SELECT version_num FROM alembic_version")).scalar() == "0011"
+        assert conn.execute(sa.text("SELECT version_num FROM alembic_version")).scalar() == "0012"
+
+
+def _alembic(engine, step: str, revision: str) -> None:
+    from alembic import command
+    from alembic.config import Config
+
+    cfg = Config(str(db.MIGRATIONS / "alembic.ini"))
+    cfg.set_main_option("script_location", str(db.MIGRATIONS))
+    with engine.begin() as connection:
+        cfg.attributes["connection"] = connection
+        getattr(command, step)(cfg, revision)
+
+
+OLDER_BODIES = {   # node -> (a body stored before migration 0012, what it holds after)
+    "glass": ({"type": "dielectric", "ior": 1.5}, {"type": "dielectric", "ior": 1.5}),
+    "milky": ({"type": "dielectric", "ior": 1.49, "absorption_per_m": 0.2, "scattering_per_m": 3.0, "g": 0.7},
+              {"type": "dielectric", "ior": 1.49, "absorption_per_m": 0.2, "scattering_per_m": 3.0, "g": 0.7}),
+    "frosted": ({"type": "rough_dielectric", "ior": 1.5, "alpha": 0.2, "absorption_per_m": 1.0},
+                {"type": "dielectric", "ior": 1.5, "alpha": 0.2, "absorption_per_m": 1.0}),
+    "wall": ({"type": "lambertian", "reflectance": 0.5}, {"type": "lambertian", "reflectance": 0.5}),
+}
+
+
+def test_migration_0012_stores_rough_dielectrics_as_dielectrics(tmp_path) -> None:
+    """Bodies stored under 0011 come out of 0012 as the tracer reads them today (the same spec as the older body
+    read through `upgrade_body`), the others untouched; downgrading gives the stored bodies back."""
+    from tracer.optics.surfaces.dispatch import material_spec
+
+    engine = db.open_engine(f"sqlite:///{tmp_path / 'x.sqlite3'}", migrate=False)
+    _alembic(engine, "upgrade", "0011")
+    with engine.begin() as conn:
+        conn.execute(sa.insert(db.scenes).values(id="s", name="s", revision=0))
+        for node, (old, _) in OLDER_BODIES.items():
+            conn.execute(sa.insert(db.materials).values(scene_id="s", node=node, body=old))
+    _alembic(engine, "upgrade", "head")
+    with engine.connect() as conn:
+        stored = dict(conn.execute(sa.select(db.materials.c.node, db.materials.c.body)).all())
+    assert stored == {node: new for node, (_, new) in OLDER_BODIES.items()}
+    for node, (old, new) in OLDER_BODIES.items():
+        assert material_spec(new) == material_spec(old), node
+    _alembic(engine, "downgrade", "0011")
+    with engine.connect() as conn:
+        assert dict(conn.execute(sa.select(db.materials.c.node, db.materials.c.body)).all()) == \
+            {node: old for node, (old, _) in OLDER_BODIES.items()}
 
 
 def test_migrating_twice_is_harmless(tmp_path) -> None:

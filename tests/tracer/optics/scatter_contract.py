@@ -92,7 +92,7 @@ def specs_of(module) -> list:
 
 def is_solid(module) -> bool:
     """A kind with an inside (a `medium`): its geometric normal is outward, a photon arriving from behind is in it."""
-    return hasattr(module, "medium")
+    return hasattr(module, "inside")
 
 
 def directions():
@@ -213,7 +213,7 @@ def _mirror(spec, case):
 
 
 def _dielectric(spec, case):
-    if spec.coating is not None or not _s1_blind(case):
+    if spec.coating is not None or spec.alpha or not _s1_blind(case):   # rough: test_rough_dielectric
         return None
     n = float(spec.ior)
     n1, n2 = (n, 1.0) if case.inside else (1.0, n)
@@ -368,8 +368,8 @@ def check_flags(case: Case, d_out: np.ndarray, alive: np.ndarray, far: np.ndarra
     lobes, none goes through one without `TRANSMITS`; one without a spread lobe (`DIFFUSE`, `GLOSSY`) sends its
     photons along a handful of exact directions (a delta lobe: mirrored, refracted, straight on, back), and one without
     `SPECULAR` never sends two photons along the same direction (within `DIR_TOL`: a spread lobe's draws differ)."""
-    flags = case.module.FLAGS
-    assert flags == dispatch.SURFACE_FLAGS[dispatch.KIND_OF[case.module.NAME]]
+    flags = dispatch.flags_of(case.spec)
+    assert flags == case.M.flags[case.inst], f"{case}: the packed flags are not the kind's"
     assert not (flags == 0 and alive.any()), f"{case}: FLAGS 0 (absorbs everything), but photons continue"
     assert flags & TRANSMITS or not far.any(), f"{case}: photons go through, FLAGS lack TRANSMITS"
     if not alive.any():

@@ -1,5 +1,5 @@
 """χ² tests of the sampled directions against the evaluated densities, as Mitsuba 3's
-`src/python/python/chi2.py` (``ChiSquareTest``) does, for `microfacet` (isotropic and brushed), `rough_dielectric`
+`src/python/python/chi2.py` (``ChiSquareTest``) does, for `microfacet` (isotropic and brushed), a rough `dielectric`
 and `measured_brdf`.
 
 The kinds only sample (`scatter`); the density they promise is written here from each one's documented formula,
@@ -31,7 +31,7 @@ from ggx_reference import density
 from scatter_contract import Case
 from scipy import stats
 
-from tracer.optics.surfaces import measured_brdf, microfacet, rough_dielectric
+from tracer.optics.surfaces import dielectric, measured_brdf, microfacet
 from tracer.optics.surfaces.base import CONTINUES, spec_from_body
 
 WHITE = ("white", 0.0, 0.0, 0.0, 0.0)
@@ -74,15 +74,15 @@ CASES = [
      {"alpha": 0.15, "alpha_y": 0.5, "axis": [1, 0, 0], "reflectance": 1.0}, 0.0, 0.0, "front", (0, 1), (24, 24)),
     ("microfacet brushed 0.15/0.5 at 45°", microfacet,
      {"alpha": 0.15, "alpha_y": 0.5, "axis": [1, 0, 0], "reflectance": 1.0}, 45.0, 0.7, "front", (0, 1), (24, 24)),
-    ("rough_dielectric α=0.3 at 30° into glass", rough_dielectric, {"ior": 1.5, "alpha": 0.3}, 30.0, 0.0, "front",
+    ("rough dielectric α=0.3 at 30° into glass", dielectric, {"ior": 1.5, "alpha": 0.3}, 30.0, 0.0, "front",
      (-1, 1), (40, 24)),
-    ("rough_dielectric α=0.5 at 60° into glass", rough_dielectric, {"ior": 1.5, "alpha": 0.5}, 60.0, 0.3, "front",
+    ("rough dielectric α=0.5 at 60° into glass", dielectric, {"ior": 1.5, "alpha": 0.5}, 60.0, 0.3, "front",
      (-1, 1), (40, 24)),
-    ("rough_dielectric α=0.3 at 20° out of glass", rough_dielectric, {"ior": 1.5, "alpha": 0.3}, 20.0, 0.0, "back",
+    ("rough dielectric α=0.3 at 20° out of glass", dielectric, {"ior": 1.5, "alpha": 0.3}, 20.0, 0.0, "back",
      (-1, 1), (40, 24)),
-    ("rough_dielectric α=0.4 at 50° out of glass (TIR)", rough_dielectric, {"ior": 1.5, "alpha": 0.4}, 50.0, 0.0,
+    ("rough dielectric α=0.4 at 50° out of glass (TIR)", dielectric, {"ior": 1.5, "alpha": 0.4}, 50.0, 0.0,
      "back", (-1, 1), (40, 24)),
-    ("rough_dielectric brushed 0.1/0.4 at 45°", rough_dielectric,
+    ("rough dielectric brushed 0.1/0.4 at 45°", dielectric,
      {"ior": 1.5, "alpha": 0.1, "alpha_y": 0.4, "axis": [1, 0, 0]}, 45.0, 1.1, "front", (-1, 1), (40, 24)),
     ("measured_brdf at 25°", measured_brdf, {"table": _table()}, 25.0, 0.0, "front", None, None),
     ("measured_brdf at 62°", measured_brdf, {"table": _table()}, 62.0, 0.9, "front", None, None),

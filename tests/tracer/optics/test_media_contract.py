@@ -1,7 +1,7 @@
 """The medium family's contract (`tracer.optics.media.base`), run for every medium kind registered in
-`tracer.optics.media.dispatch.KINDS`. A medium kind has no wire body of its own today (its fields live on the
-dielectric that holds it), so each kind is reached through the dielectric bodies below whose packed medium is that
-kind (a registered kind that none of them reaches fails `test_every_registered_medium_kind_is_reached`).
+`tracer.optics.media.dispatch.KINDS`. Each kind is reached through the medium bodies below (each filling a
+dielectric, the ``medium`` of ``{"type": "dielectric", ...}``) whose packed medium is that kind (a registered kind
+that none of them reaches fails `test_every_registered_medium_kind_is_reached`).
 
 One interaction is simulated as the transport kernel does it (`tracer.transport.trace_photons`): the coefficients
 from `medium_coefficients`, a free flight t from `sample_free_flight(σs + σf)`, the weight times `transmittance(σa,
@@ -44,23 +44,23 @@ from tracer.rng import path_key, uniform
 
 N = 40_000
 FLUOR = {"absorption_per_m": 4.0, "quantum_yield": 0.8, "emission": {"type": "monochromatic", "nm": 550}}
-BODIES = {   # dielectric bodies that fill a medium (σa, σs, g; fluorescence; Mie particles)
-    "absorbing, forward": {"type": "dielectric", "ior": 1.5, "absorption_per_m": 2.0, "scattering_per_m": 3.0,
-                           "g": 0.6},
-    "clear, backward": {"type": "dielectric", "ior": 1.5, "scattering_per_m": 5.0, "g": -0.4},
-    "isotropic": {"type": "dielectric", "ior": 1.3, "absorption_per_m": 1.0, "scattering_per_m": 0.5},
-    "absorbing only": {"type": "dielectric", "ior": 1.5, "absorption_per_m": 3.0},
-    "fluorescent": {"type": "dielectric", "ior": 1.5, "absorption_per_m": 1.0, "scattering_per_m": 2.0, "g": 0.3,
-                    "fluorescence": FLUOR},
-    "particles": {"type": "dielectric", "ior": 1.33,
-                  "particles": {"radius_um": 0.5, "ior": [1.59, 0.0], "number_per_m3": 1e15}},
+BODIES = {   # medium bodies (σa, σs, g; fluorescence; Mie particles) and the index of the dielectric they fill
+    "absorbing, forward": ({"type": "homogeneous", "absorption_per_m": 2.0, "scattering_per_m": 3.0, "g": 0.6}, 1.5),
+    "clear, backward": ({"type": "homogeneous", "scattering_per_m": 5.0, "g": -0.4}, 1.5),
+    "isotropic": ({"type": "homogeneous", "absorption_per_m": 1.0, "scattering_per_m": 0.5}, 1.3),
+    "absorbing only": ({"type": "homogeneous", "absorption_per_m": 3.0}, 1.5),
+    "fluorescent": ({"type": "homogeneous", "absorption_per_m": 1.0, "scattering_per_m": 2.0, "g": 0.3,
+                     "fluorescence": FLUOR}, 1.5),
+    "particles": ({"type": "homogeneous", "particles": {"radius_um": 0.5, "ior": [1.59, 0.0],
+                                                        "number_per_m3": 1e15}}, 1.33),
 }
 D = np.array([0.36, -0.48, 0.8])   # the photon's direction before the event
 
 
 def packed(name):
     """(MaterialArrays, instance id 0) of one body."""
-    return pack_materials({0: material_spec(BODIES[name])}, None, [0], set()), 0
+    body, ior = BODIES[name]
+    return pack_materials({0: material_spec({"type": "dielectric", "ior": ior, "medium": body})}, None, [0], set()), 0
 
 
 def cases():
@@ -114,7 +114,7 @@ def test_every_registered_medium_kind_is_reached():
 @pytest.mark.parametrize("lam", [0.0, 450.0], ids=["white", "450nm"])
 @pytest.mark.parametrize("module, name", cases(), ids=lambda x: getattr(x, "__name__", x))
 def test_an_interaction_keeps_the_medium_contract(module, name, lam):
-    body = BODIES[name]
+    body, ior = BODIES[name]
     M, mi, out = run(name, lam)
     sig_a, sig_s, sig_f, t, w, alive, d2, lam2, f = (out[:, 0], out[:, 1], out[:, 2], out[:, 3], out[:, 4],
                                                      out[:, 5] > 0, out[:, 6:9], out[:, 9], out[:, 10])
@@ -146,7 +146,7 @@ def test_an_interaction_keeps_the_medium_contract(module, name, lam):
     scattered = alive & ~fluorescent
     mu = d2[scattered] @ D
     if "particles" in body:
-        g = float(spectra.grid_value(material_spec(body).mie().g, lam if lam > 0 else spectra.WHITE_NM))
+        g = float(spectra.grid_value(module.mie(media.medium_spec(body), ior).g, lam if lam > 0 else spectra.WHITE_NM))
     else:
         g = body.get("g", 0.0)
         binned_uniform(np.clip(hg_cdf(g, mu), 0.0, 1.0 - 1e-16), 10, f"{name}: scattered cosines vs HG's CDF")
@@ -163,3 +163,28 @@ def test_an_interaction_keeps_the_medium_contract(module, name, lam):
     within(q, math.sqrt(qy * (1 - qy) / chosen.sum()), qy, f"{name}: photons surviving fluorescence (QY)")
     assert np.all(lam2[fluorescent] == fl["emission"]["nm"]) and np.all(f[fluorescent] == lam / lam2[fluorescent])
     within(*mean_and_error(d2[fluorescent] @ D), 0.0, f"{name}: mean cosine of re-emission")
+
+
+@pytest.mark.parametrize("name", BODIES)
+def test_the_designs_form_packs_as_the_medium_body(name):
+    """docs/DESIGN.md writes a homogeneous medium's fields on the dielectric itself; that body and the same fields as
+    a ``medium`` object fill the solid with the same medium: every packed array equal."""
+    body, ior = BODIES[name]
+    flat = {"type": "dielectric", "ior": ior, **{k: v for k, v in body.items() if k != "type"}}
+    a = pack_materials({0: material_spec(flat)}, None, [0], set())
+    b, _ = packed(name)
+    for field in a._fields:
+        np.testing.assert_array_equal(getattr(a, field), getattr(b, field), err_msg=field)
+    assert a.medium[0] == media.KIND_OF[body["type"]]
+
+
+def test_a_body_gives_the_medium_in_one_form():
+    from tracer.optics.surfaces.base import MaterialError
+
+    with pytest.raises(MaterialError, match=r"give the medium once: \['absorption_per_m'\] or 'medium', not both"):
+        material_spec({"type": "dielectric", "ior": 1.5, "absorption_per_m": 1.0,
+                       "medium": {"type": "homogeneous", "scattering_per_m": 1.0}})
+    with pytest.raises(MaterialError, match=r"unknown medium type 'fog'; known: \['homogeneous'\]"):
+        material_spec({"type": "dielectric", "ior": 1.5, "medium": {"type": "fog"}})
+    with pytest.raises(MaterialError, match=r"unknown field\(s\) \['colour'\] for a 'homogeneous' medium"):
+        material_spec({"type": "dielectric", "ior": 1.5, "medium": {"type": "homogeneous", "colour": 1}})

@@ -1,7 +1,7 @@
-"""The `rough_dielectric` kind (GGX dielectric, Walter et al. EGSR 2007; issue 38) against closed forms, through the
-switch the transport kernel inlines (`scatter_contract.Case`: a flat quad, front side +z, the solid below it, node
-frame = world, N photons each on its own stream). The sampled density itself is checked by a χ² test in
-test_chi2_sampling.py.
+"""A rough `dielectric` (α > 0: GGX facets, Walter et al. EGSR 2007; issue 38's `rough_dielectric`, a kind of its
+own until 2026-12-07) against closed forms, through the switch the transport kernel inlines (`scatter_contract.Case`:
+a flat quad, front side +z, the solid below it, node frame = world, N photons each on its own stream). The sampled
+density itself is checked by a χ² test in test_chi2_sampling.py.
 
 - White furnace: the reflected and transmitted fractions R and T each equal Walter's BSDF integrated over its
   hemisphere (`ggx_reference.albedo`, midpoint rule in (θ, φ), 1000 × 1000 cells; 2000 × 2000 moves them by
@@ -26,8 +26,8 @@ from scatter_contract import Case, mean_and_error
 
 from tracer.effects import explain_effects
 from tracer.optics.polarization import S1, E
-from tracer.optics.surfaces import dielectric, rough_dielectric
-from tracer.optics.surfaces.base import CONTINUES, MaterialError, spec_from_body
+from tracer.optics.surfaces import dielectric
+from tracer.optics.surfaces.base import CONTINUES, GLOSSY, SPECULAR, TRANSMITS, MaterialError, spec_from_body
 
 WHITE = ("white", 0.0, 0.0, 0.0, 0.0)
 K = 4.0
@@ -36,7 +36,7 @@ QUAD = 1e-3   # the midpoint rule's error bound (the transmitted lobe ends abrup
 
 
 def spec(**body):
-    return spec_from_body(rough_dielectric.Spec, "rough_dielectric", {"type": "rough_dielectric", **body}, "test")
+    return spec_from_body(dielectric.Spec, "dielectric", {"type": "dielectric", **body}, "test")
 
 
 def arriving(theta_deg: float, side: str = "front") -> np.ndarray:
@@ -64,7 +64,7 @@ def test_white_furnace_keeps_walters_reflected_and_transmitted_fractions(alpha, 
     wi = np.array([math.sin(math.radians(theta)), 0.0, math.cos(math.radians(theta))])   # arrival side's frame
     r_ref, t_ref = albedo(wi, alpha, alpha, n1=n1, n2=n2)
     assert (r_ref, t_ref) == pytest.approx(expected, abs=1e-6)
-    out, _ = Case(rough_dielectric, spec(ior=1.5, alpha=alpha), side, theta, arriving(theta, side), WHITE).run(
+    out, _ = Case(dielectric, spec(ior=1.5, alpha=alpha), side, theta, arriving(theta, side), WHITE).run(
         n=N, seed=3)
     r, er, t, et = shares(out)
     if side == "back":
@@ -77,7 +77,7 @@ def test_white_furnace_keeps_walters_reflected_and_transmitted_fractions(alpha, 
                                              (60.0, "back")])
 def test_the_smooth_limit_is_the_dielectric(theta, side):
     d = arriving(theta, side)
-    rough, _ = Case(rough_dielectric, spec(ior=1.5, alpha=1e-4), side, theta, d, WHITE).run(n=N, seed=4)
+    rough, _ = Case(dielectric, spec(ior=1.5, alpha=1e-4), side, theta, d, WHITE).run(n=N, seed=4)
     smooth, _ = Case(dielectric, spec_from_body(dielectric.Spec, "dielectric", {"type": "dielectric", "ior": 1.5},
                                                 "test"), side, theta, d, WHITE).run(n=N, seed=5)
     a, b = shares(rough), shares(smooth)
@@ -104,7 +104,7 @@ def test_at_brewsters_angle_only_s_is_reflected():
     for e, state, rs in ((p_dir, ("linear", 1.0, 1.0, 0.0, 0.0), 0.0), (s_dir, ("linear", 1.0, 1.0, 0.0, 0.0),
                                                                         0.147929),
                          (s_dir, ("unpolarized", 1.0, 0.0, 0.0, 0.0), 0.147929 / 2)):
-        case = Case(rough_dielectric, spec(ior=1.5, alpha=1e-4), "front", theta, d, state)
+        case = Case(dielectric, spec(ior=1.5, alpha=1e-4), "front", theta, d, state)
         case.pol0[E:E + 3] = e
         assert case.pol0[S1] == state[2]
         r, er, _, _ = shares(case.run(n=N, seed=6)[0])
@@ -115,25 +115,43 @@ def test_a_rough_glass_calls_for_polarization_as_the_dielectric_does():
     rough = spec(ior=1.5, alpha=0.3)
     on, why = explain_effects([rough])
     assert "polarization" in on and "fresnel" in on and why["polarization"].startswith("on: ")
-    assert "'rough_dielectric'" in why["polarization"]
-    assert rough_dielectric.polarizing(rough) == (2, 1.0)
+    assert "'dielectric'" in why["polarization"]
+    assert dielectric.polarizing(rough) == (2, 1.0)
     assert explain_effects([spec(ior=1.0, alpha=0.3)])[0] == ["lambertian", "fresnel"]
 
 
 def test_the_row_keeps_the_index_where_a_nested_solid_reads_it():
     """A solid inside this one reads its index from column 0 of the row (`dielectric.scatter`), as for a dielectric;
     roughness sits where `microfacet` keeps it."""
-    row = rough_dielectric.row(spec(ior=1.7, alpha=0.1, alpha_y=0.3, axis=[1, 0, 0]))
+    row = dielectric.row(spec(ior=1.7, alpha=0.1, alpha_y=0.3, axis=[1, 0, 0]))
     assert row[0] == 1.7 and tuple(row[4:]) == (0.1, 0.3, 1.0, 0.0, 0.0, 1.0)
 
 
 @pytest.mark.parametrize(("body", "field"), [
-    ({"alpha": 0.0, "ior": 1.5}, "'alpha'"), ({"alpha": 1.5, "ior": 1.5}, "'alpha'"),
+    ({"alpha": 5e-5, "ior": 1.5}, "'alpha'"), ({"alpha": 1.5, "ior": 1.5}, "'alpha'"),
     ({"alpha": 0.1, "alpha_y": -1, "ior": 1.5}, "'alpha_y'"),
     ({"alpha": 0.1, "axis": [0, 0, 0], "ior": 1.5}, "'axis'"), ({"alpha": 0.1, "ior": 0}, "'ior'"),
-    ({"alpha": 0.1}, "'ior'"), ({"ior": 1.5}, "'alpha'"),
-    ({"alpha": 0.1, "ior": 1.5, "g": 1.0}, "'g'"), ({"alpha": 0.1, "ior": 1.5, "roughness": 2}, "'roughness'")])
+    ({"alpha": 0.1}, "'ior'"), ({"ior": 1.5, "alpha_y": 0.2}, "'alpha'"),
+    ({"alpha": 0.1, "ior": 1.5, "medium": {"type": "homogeneous", "g": 1.0}}, "'g'"),
+    ({"alpha": 0.1, "ior": 1.5, "roughness": 2}, "'roughness'")])
 def test_bad_bodies_name_their_field(body, field):
     with pytest.raises(MaterialError) as info:
         spec(**body)
     assert field in str(info.value)
+
+
+def test_the_former_kind_reads_as_a_rough_dielectric():
+    """``rough_dielectric`` was a kind of its own until 2026-12-07: its bodies read as a dielectric with their alpha
+    (the same spec, so the same packed rows), it still requires alpha > 0, and the rough surface's lobes are glossy."""
+    from tracer.optics.surfaces.dispatch import flags_of, material_spec
+
+    old = {"type": "rough_dielectric", "ior": 1.5, "alpha": 0.05, "alpha_y": 0.3, "axis": [1, 0, 0],
+           "absorption_per_m": 0.5}
+    assert material_spec(old) == material_spec({**old, "type": "dielectric"})
+    assert flags_of(material_spec(old)) == GLOSSY | TRANSMITS
+    assert flags_of(spec(ior=1.5)) == SPECULAR | TRANSMITS
+    for body, message in (({"type": "rough_dielectric", "ior": 1.5}, "missing field(s) ['alpha']"),
+                          ({"type": "rough_dielectric", "ior": 1.5, "alpha": 0}, "must be at least 0.0001")):
+        with pytest.raises(MaterialError) as info:
+            material_spec(body)
+        assert message in str(info.value)

@@ -1,31 +1,147 @@
-"""``homogeneous``: Beer–Lambert absorption and Henyey–Greenstein scattering, the same everywhere inside.
+"""``homogeneous``: Beer–Lambert absorption, Henyey–Greenstein or Mie scattering and fluorescence, the same
+everywhere inside a solid.
 
-| field (on the dielectric) | type | unit | range | default |
+Body (a dielectric's ``medium``: ``{"type": "homogeneous", ...}``):
+
+| field | type | unit | range | default |
 | --- | --- | --- | --- | --- |
-| absorption_per_m | float | 1/m | [0, 1e9] | 0 |
+| absorption_per_m | float or table over λ | 1/m | [0, 1e9] | 0 |
 | scattering_per_m | float | 1/m | [0, 1e9] | 0 |
 | g | float | — | (−1, 1) | 0 |
+| fluorescence | absorption and re-emission (`tracer.optics.media.fluorescence`) | — | — | none |
+| particles | spheres (`tracer.optics.mie`): Mie scattering instead of Henyey–Greenstein | — | — | none |
 
-Parameter row: (σa, σs, g, σf, quantum yield, emission line; `fluorescence`), σa may vary with λ
-(``mtab[0]``). The single-scattering albedo is σs/(σa+σs). The Henyey–Greenstein
+Parameter row: (σa, σs, g, σf, quantum yield, emission line; `fluorescence`; the first row of the Mie table,
+`MIE_ROW`), σa may vary with λ (``mtab[0]``). The single-scattering albedo is σs/(σa+σs). The Henyey–Greenstein
 sampler inverts the CDF in a form that stays finite for g → ±1 and for |g| → 0 (switching to the
 isotropic case below |g| < 1e-4), and the phase function value is computed without cancellation at
-cosθ → ±1. Effects: `absorption` where σa > 0, `scattering` where σs > 0.
+cosθ → ±1. The particles' Mie table depends on the index of the solid holding them (the host's, passed to
+`mie`, `row`, `tables` and `phase`). Effects: `absorption` where σa > 0, `scattering` where σs > 0,
+`fluorescence`, `mie` with particles, and `spectral` with either of these or an absorption table.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
 
 from tracer.jit import njit
 from tracer.optics.frames import onb
-from tracer.optics.media.fluorescence import SIGMA_F, reemit
-from tracer.optics.mie import mie_ratios, mie_sample_mu
+from tracer.optics.media.fluorescence import EMISSION_NM, QY, SIGMA_F, Fluorescence, parse_fluorescence, reemit
+from tracer.optics.mie import MieTable, Particles, mie_ratios, mie_sample_mu, mie_table, packed, parse_particles
 from tracer.optics.polarization import ON, S1, S2, E, across, apply_interface, depolarize, rotate_into, set_frame
-from tracer.optics.surfaces.base import MIE_ROW, mparam
+from tracer.optics.spectra import GRID_N, grid_or_value, scalar, varies
+from tracer.optics.surfaces.base import MIE_ROW, N_MPAR, MaterialError, bounds, mparam, optional
 from tracer.rng import uniform
 
+NAME = "homogeneous"
 _G_ISOTROPIC = 1e-4
+
+
+@dataclass(frozen=True)
+class Spec:
+    """Absorption, scattering (Henyey–Greenstein, or Mie by particles), fluorescence: the same everywhere inside."""
+
+    absorption_per_m: Any = field(default=0.0, metadata=bounds(0.0, 1e9, value="spectral", mcolumn=0,
+                                                               doc="absorption coefficient σa, 1/m (or a table)"))
+    scattering_per_m: float = field(default=0.0, metadata=bounds(0.0, 1e9, doc="scattering coefficient σs, 1/m"))
+    g: float = field(default=0.0, metadata=bounds(-1.0, 1.0, lo_open=True, hi_open=True,
+                                                  doc="Henyey–Greenstein asymmetry g, dimensionless "
+                                                      "(−1 backward, 0 isotropic, 1 forward)"))
+    fluorescence: Fluorescence | None = field(default=None, metadata=optional(
+        parse_fluorescence, "absorption and isotropic re-emission inside"))
+    particles: Particles | None = field(default=None, metadata=optional(
+        parse_particles, "spheres suspended inside: Mie scattering and absorption at each wavelength"))
+
+    def check(self) -> str | None:
+        if self.particles is not None and self.scattering_per_m > 0:
+            return ("give either 'scattering_per_m' (Henyey–Greenstein) or 'particles' (Mie), not both: the "
+                    "particles scatter with their own phase function")
+        return None
+
+
+def host_check(spec: Spec, host_ior) -> str | None:
+    """What is wrong with this medium inside a solid of index `host_ior`: its particles' Mie table, built (or found
+    in the cache) now, so that its limits are the body's and the query then finds it ready."""
+    if spec.particles is None:
+        return None
+    try:
+        mie(spec, host_ior)
+    except MaterialError as exc:
+        return str(exc)
+    return None
+
+
+def mie(spec: Spec, host_ior) -> MieTable:
+    """The Mie table of the particles in a host of index `host_ior` (`tracer.optics.mie`, cached by content)."""
+    if spec.particles is None:
+        raise MaterialError("a medium without particles has no Mie table")
+    return mie_table(spec.particles, np.broadcast_to(grid_or_value(host_ior), (GRID_N,)), "particles")
+
+
+def clear(spec: Spec) -> bool:
+    """Whether nothing inside absorbs, scatters or fluoresces (the kernels then skip the medium)."""
+    return (not varies(spec.absorption_per_m) and scalar(spec.absorption_per_m) == 0 and spec.scattering_per_m == 0
+            and spec.fluorescence is None and spec.particles is None)
+
+
+def row(spec: Spec, host_ior) -> np.ndarray:
+    """(N_MPAR,) the medium row at a white photon: σa, σs, g, σf, quantum yield, emission line (`MIE_ROW` left to
+    the packer)."""
+    m = np.zeros(N_MPAR)
+    m[:3] = scalar(spec.absorption_per_m), spec.scattering_per_m, spec.g
+    fl = spec.fluorescence
+    if fl is not None:
+        m[SIGMA_F], m[QY], m[EMISSION_NM] = scalar(fl.absorption_per_m), fl.quantum_yield, fl.emission.mono_nm
+    if spec.particles is not None:
+        t = mie(spec, host_ior)
+        m[0] += float(np.mean(t.sigma_ext - t.sigma_sca))
+        m[1] = float(np.mean(t.sigma_sca))
+    return m
+
+
+def tables(spec: Spec, host_ior) -> dict[int, np.ndarray]:
+    """The tables only this kind knows how to build, by medium row column: the particles' σa (with the medium's
+    own) and σs over λ; the fluorescence's σf over λ and its emission spectrum's cdf."""
+    fl = spec.fluorescence
+    out = {}
+    if spec.particles is not None:
+        t = mie(spec, host_ior)
+        out[0] = grid_or_value(spec.absorption_per_m) + (t.sigma_ext - t.sigma_sca) + np.zeros(GRID_N)
+        out[1] = np.array(t.sigma_sca)
+    if fl is not None and varies(fl.absorption_per_m):
+        out[SIGMA_F] = fl.absorption_per_m.grid()
+    if fl is not None and fl.emission.mono_nm == 0:
+        out[EMISSION_NM] = fl.emission_cdf()
+    return out
+
+
+def phase(spec: Spec, host_ior) -> np.ndarray | None:
+    """The particles' packed Mie table (`tracer.optics.mie.packed`), None without particles."""
+    return None if spec.particles is None else packed(mie(spec, host_ior))
+
+
+def polarizing(spec: Spec) -> tuple[int, float]:
+    """Particles scatter with a Mie Mueller matrix (`tracer.effects`): two interactions of diattenuation up to 1."""
+    return (2, 1.0) if spec.particles is not None else (0, 0.0)
+
+
+def effects(spec: Spec) -> tuple[str, ...]:
+    out = []
+    if varies(spec.absorption_per_m) or spec.absorption_per_m > 0:
+        out.append("absorption")
+    if spec.scattering_per_m > 0:
+        out.append("scattering")
+    if spec.fluorescence is not None:
+        out.append("fluorescence")
+    if spec.particles is not None:
+        out.append("mie")
+    if set(out) & {"fluorescence", "mie"} or varies(spec.absorption_per_m):
+        out.append("spectral")
+    return tuple(out)
 
 
 @njit(cache=True)

@@ -7,9 +7,10 @@ A surface kind is one module in this folder (or in `tracer/optics/elements/`, fo
   carries its range in ``field(metadata=bounds(lo, hi, ...))``, and a parameter table (name, unit,
   range, default) stands in the module docstring. ``Spec.check()`` may add rules across fields.
   `spec_from_body` below builds and validates one from a wire body, for every kind alike.
-- ``row(spec) -> (≤ N_PAR,) float64``: the parameter row the kernels read; ``medium(spec)`` (optional):
-  ``(medium kind, (N_MPAR,) row)`` of the solid's inside (`tracer/optics/media/`), ``NO_MEDIUM`` if none.
-  A field whose ``bounds(...)`` names a ``column`` (or ``mcolumn``, in the medium's row) may vary with
+- ``row(spec) -> (≤ N_PAR,) float64``: the parameter row the kernels read; ``inside(spec)`` (optional, a solid):
+  ``(medium spec or None, index of the solid)``, the medium that fills it (a kind of `tracer/optics/media/`,
+  packed by `tracer.optics.media.dispatch.pack_medium` into the medium row; None or a clear one: `NO_MEDIUM`).
+  A field whose ``bounds(...)`` names a ``column`` (or ``mcolumn``, in a medium's row) may vary with
   the wavelength (``value="spectral"`` or ``"ior"``, `tracer.optics.spectra`): the row holds its
   `spectra.scalar`, and `pack_materials` puts its table beside (``ptab``/``mtab``), read through `param`
   and `mparam` by photons that carry a wavelength. A ``coating`` field (`tracer.optics.coating`) is packed
@@ -19,7 +20,11 @@ A surface kind is one module in this folder (or in `tracer/optics/elements/`, fo
   kind): a sum of `DIFFUSE` (a Lambertian lobe, of the albedo `dispatch.surface_albedo` gives), `GLOSSY` (a spread
   lobe that is not Lambertian), `SPECULAR` (a delta lobe: a mirror, a refraction) and `TRANSMITS` (light may go
   through); 0 for a surface that absorbs everything. Where the flags are exactly `DIFFUSE` the paths from the eye
-  sample the lobe themselves (`tracer.transport.radiance`).
+  sample the lobe themselves (`tracer.transport.radiance`). A kind whose lobes depend on its fields (a dielectric
+  is `SPECULAR` when smooth, `GLOSSY` when rough) also has ``flags(spec)``; the kernels read each instance's flags
+  from `MaterialArrays.flags`.
+- ``upgrade(body) -> body`` and ``ALIASES`` (optional): an older wire body of the kind (or of a kind since folded
+  into it, whose `type` is in ``ALIASES``) rewritten in today's form, so that stored scenes keep loading.
 - ``diffuse_only(spec) -> bool``: whether the backward estimator can follow it (it reflects only
   diffusely; a black surface is diffuse with albedo 0). A kind that can be diffuse also has the jitted
   ``albedo(M, inst)``, its diffuse albedo, and a branch in `dispatch.albedo` (0 for every other kind).
@@ -89,6 +94,7 @@ class MaterialArrays(NamedTuple):
     coat : (n_inst, 2) int32 — first layer and layer count of the instance's coating (count 0: none).
     phase : (n_rows, mie.N_MU) float64 — the packed Mie tables of every particle medium (`tracer.optics.mie.packed`);
         a medium's first row is its row's column `MIE_ROW` (−1: no particles, Henyey–Greenstein).
+    flags : (n_inst,) int64 — the lobes of each instance's surface (the kind's ``FLAGS``, or ``flags(spec)``).
     scatter_at : (n_kinds,) int64 — the address of each kind's ``scatter`` in this process, filled by
         `tracer.optics.surfaces.dispatch.bind` before a CPU kernel runs (zeros as packed and shipped: an address
         means nothing in another process).
@@ -104,6 +110,7 @@ class MaterialArrays(NamedTuple):
     layers: np.ndarray
     coat: np.ndarray
     phase: np.ndarray
+    flags: np.ndarray
     scatter_at: np.ndarray = np.zeros(0, np.int64)
 
 
@@ -157,21 +164,22 @@ def _value(v, name: str, meta: Mapping, where: str):
     return _number(v, name, meta, where)
 
 
-def spec_from_body(spec_cls, name: str, body: dict, where: str):
+def spec_from_body(spec_cls, name: str, body: dict, where: str, what: str = "material"):
     """Validate a wire body against a kind's spec class and build the spec.
 
     Unknown fields, missing required fields and numbers out of their `bounds` raise `MaterialError`
-    naming the field; ``id`` and ``name`` are allowed and ignored (the service keeps them).
+    naming the field (and the kind, "for a 'dielectric' material", `what` the family's noun); ``id`` and ``name``
+    are allowed and ignored (the service keeps them).
     """
     fields = spec_fields(spec_cls)
     known = {f.name for f in fields}
     extra = set(body) - known - {"type", "id", "name"}
     if extra:
-        raise MaterialError(f"{where}: unknown field(s) {sorted(extra)} for a {name!r} material")
+        raise MaterialError(f"{where}: unknown field(s) {sorted(extra)} for a {name!r} {what}")
     required = {f.name for f in fields if f.default is dataclasses.MISSING}
     missing = required - set(body)
     if missing:
-        raise MaterialError(f"{where}: missing field(s) {sorted(missing)} for a {name!r} material")
+        raise MaterialError(f"{where}: missing field(s) {sorted(missing)} for a {name!r} {what}")
     values = {f.name: _value(body[f.name], f.name, f.metadata, where) for f in fields if f.name in body}
     spec = spec_cls(**values)
     problem = spec.check() if hasattr(spec, "check") else None

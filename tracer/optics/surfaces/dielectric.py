@@ -1,35 +1,42 @@
-"""``dielectric``: a solid of refractive index n; its surface is a Fresnel interface, its inside a medium.
+"""``dielectric``: a solid of refractive index n; its surface is a Fresnel interface, smooth or rough, its inside
+a medium.
 
 | field | type | unit | range | default |
 | --- | --- | --- | --- | --- |
 | ior | float, Sellmeier or table (`tracer.optics.spectra`) | — | (0, 10] | required |
-| absorption_per_m | float or table over λ | 1/m | [0, 1e9] | 0 |
-| scattering_per_m | float | 1/m | [0, 1e9] | 0 |
-| g | float | — | (−1, 1) | 0 |
-| coating | thin films on the surface (`tracer.optics.coating`) | — | — | none |
-| fluorescence | inside (`tracer.optics.media.fluorescence`) | — | — | none |
-| particles | spheres inside (`tracer.optics.mie`): Mie scattering instead of Henyey–Greenstein | — | — | none |
+| alpha | float: GGX roughness α of the surface (along `axis` where brushed) | — | 0 or [1e-4, 1] | 0 (smooth) |
+| alpha_y | float: α across `axis` (anisotropic, brushed) | — | [1e-4, 1] | `alpha` (isotropic) |
+| axis | [x, y, z]: the direction of `alpha` in the node's frame (brushing) | — | not zero | a frame of the normal |
+| coating | thin films on the surface (on every facet where rough; `tracer.optics.coating`) | — | — | none |
+| medium | what fills it: ``{"type": "homogeneous", ...}`` (`tracer/optics/media/`) | — | — | clear |
+| absorption_per_m, scattering_per_m, g, fluorescence, particles | DESIGN.md's form of `medium` | | | none |
 
-The geometric normal points outward: a photon arriving against it enters the solid. Reflection is
-chosen with the unpolarised Fresnel reflectance (Rs + Rp)/2 of the exact formulas, total internal
-reflection where sin θt ≥ 1; n1 = n2 gives exactly zero reflectance and an unchanged direction (no
-spurious reflection from rounding). Directions are taken about the interpolated normal where the mesh
-has one, about the facet's where that would cross to the wrong side. The index outside is the one of
-the solid the photon is in (the medium stack), 1 outside every solid. The inside is a homogeneous
-medium (`tracer/optics/media/homogeneous.py`) where σa or σs > 0 or it fluoresces. A coated surface
-reflects with the coating's reflectance (transfer matrices, at the photon's wavelength and angle)
-instead of Fresnel's; the refracted direction is Snell's between the two outer indices either way.
-In a polarized scene (`tracer.optics.polarization`) reflection and refraction act with their Mueller matrices
-(s and p, the phase of total internal reflection and of a coating included): the photon reflects with the
-probability its own state gives, and leaves polarized.
-Effects: `fresnel`, + `absorption` where σa > 0, + `scattering` where σs > 0, + `dispersion` where the
-index varies with λ, + `coating`, + `fluorescence`, + `mie` where it holds particles, and `spectral` with
-any of the last four or an absorption table. Backward estimator: no.
+The geometric normal points outward: a photon arriving against it enters the solid. The index outside is the one of
+the solid the photon is in (the medium stack), 1 outside every solid. A smooth surface (α = 0) reflects with the
+unpolarised Fresnel reflectance (Rs + Rp)/2 of the exact formulas (`fresnel`), total internal reflection where
+sin θt ≥ 1; n1 = n2 gives exactly zero reflectance and an unchanged direction (no spurious reflection from
+rounding). Directions are taken about the interpolated normal where the mesh has one, about the facet's where that
+would cross to the wrong side. A coated surface reflects with the coating's reflectance (transfer matrices, at the
+photon's wavelength and angle) instead of Fresnel's; the refracted direction is Snell's between the two outer
+indices either way. A rough surface (α > 0) is a height field of such interfaces, GGX microfacets
+(`rough_dielectric`, Walter et al. 2007), as pbrt's dielectric material with a roughness. In a polarized scene
+(`tracer.optics.polarization`) reflection and refraction act with their Mueller matrices (s and p, the phase of total
+internal reflection and of a coating included): the photon reflects with the probability its own state gives, and
+leaves polarized. The inside is a medium of its own kind (absorption, scattering, fluorescence, particles).
+
+The medium is a kind of its own (`tracer/optics/media/`, ``medium``); the design's shorter form, a homogeneous
+medium's fields on the dielectric itself, says the same (`filling`), and a body gives one form or the other. The kind
+``rough_dielectric`` (a dielectric with ``alpha``), which this kind took in on 2026-12-07, is still read
+(`upgrade`).
+
+Effects: `fresnel`, + `dispersion` where the index varies with λ, + `coating`, + the medium's (`absorption`,
+`scattering`, `fluorescence`, `mie`), and `spectral` with dispersion, a coating or a medium that needs a wavelength.
+Backward estimator: no.
 """
 
 from __future__ import annotations
 
-import math
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -37,15 +44,15 @@ import numpy as np
 
 from tracer.jit import njit
 from tracer.optics.coating import Coating, coated_reflectance, parse_coating
-from tracer.optics.media.dispatch import HOMOGENEOUS
-from tracer.optics.media.fluorescence import EMISSION_NM, QY, SIGMA_F, Fluorescence, parse_fluorescence
-from tracer.optics.mie import MieTable, Particles, mie_table, packed, parse_particles
+from tracer.optics.elements.base import parse_axis
+from tracer.optics.media import dispatch as media
+from tracer.optics.media import homogeneous
 from tracer.optics.polarization import ON, enter_plane, interface_power, leave_plane
-from tracer.optics.spectra import GRID_N, WHITE_NM, grid_or_value, scalar, varies
+from tracer.optics.spectra import WHITE_NM, scalar, varies
+from tracer.optics.surfaces import rough_dielectric
 from tracer.optics.surfaces.base import (
     CONTINUES,
-    N_MPAR,
-    NO_MEDIUM,
+    GLOSSY,
     SPECULAR,
     STACK_FULL,
     TRANSMITS,
@@ -57,96 +64,109 @@ from tracer.optics.surfaces.base import (
     reflect_specular,
     specular_normal,
 )
+from tracer.optics.surfaces.fresnel import fresnel_dielectric, refract
+from tracer.optics.surfaces.microfacet import ALPHA_MIN
 from tracer.optics.thinfilm import stack_mueller
 from tracer.rng import uniform
 
 NAME = "dielectric"
-FLAGS = SPECULAR | TRANSMITS
+FLAGS = SPECULAR | TRANSMITS   # smooth; a rough one's are `flags(spec)`
+#: older wire types read as this kind (`upgrade`)
+ALIASES = ("rough_dielectric",)
+#: a homogeneous medium's fields, which the design's form writes on the dielectric itself
+MEDIUM_FIELDS = ("absorption_per_m", "scattering_per_m", "g", "fluorescence", "particles")
+ALPHA = 4   # the row's roughness columns: αx, αy, brushing axis (3), axis given (as `microfacet`)
+
+
+def _medium_field(name: str):
+    """A `homogeneous` field written on the dielectric: its rule and meaning, absent by default."""
+    meta = dict(next(f for f in dataclasses.fields(homogeneous.Spec) if f.name == name).metadata)
+    meta["doc"] = f"{meta['doc']}: the medium inside, in the design's form (or give 'medium')"
+    return field(default=None, metadata=meta)
 
 
 @dataclass(frozen=True)
 class Spec:
-    """Refractive index, and the absorption, scattering and Henyey–Greenstein asymmetry of the inside."""
+    """Refractive index, the surface's roughness, a coating, and the medium inside."""
 
     ior: Any = field(metadata=bounds(0.0, 10.0, lo_open=True, value="ior", column=0,
                                      doc="refractive index n (dimensionless): a number, {sellmeier: {b, c_um2}} or "
                                          "{table: {nm, n}}"))
-    absorption_per_m: Any = field(default=0.0, metadata=bounds(0.0, 1e9, value="spectral", mcolumn=0,
-                                                               doc="absorption coefficient σa, 1/m (or a table)"))
-    scattering_per_m: float = field(default=0.0, metadata=bounds(0.0, 1e9, doc="scattering coefficient σs, 1/m"))
-    g: float = field(default=0.0, metadata=bounds(-1.0, 1.0, lo_open=True, hi_open=True,
-                                                  doc="Henyey–Greenstein asymmetry g, dimensionless "
-                                                      "(−1 backward, 0 isotropic, 1 forward)"))
+    alpha: float | None = field(default=None, metadata=bounds(0.0, 1.0, doc=(
+        "GGX roughness α of the surface, dimensionless (along `axis` where brushed); 0 or absent: smooth")))
+    alpha_y: float | None = field(default=None, metadata=bounds(ALPHA_MIN, 1.0, doc="GGX roughness across `axis`"))
+    axis: tuple[float, float, float] | None = field(default=None, metadata=optional(
+        parse_axis, "the direction of `alpha` [x, y, z] in the node's frame (brushing)"))
     coating: Coating | None = field(default=None, metadata=optional(parse_coating, "thin films, outermost first"))
-    fluorescence: Fluorescence | None = field(default=None, metadata=optional(
-        parse_fluorescence, "absorption and isotropic re-emission inside"))
-    particles: Particles | None = field(default=None, metadata=optional(
-        parse_particles, "spheres suspended inside: Mie scattering and absorption at each wavelength"))
+    medium: Any = field(default=None, metadata=optional(
+        media.medium_spec, "what fills the solid: {type: homogeneous, absorption_per_m, scattering_per_m, g, "
+                           "fluorescence, particles}; clear where absent"))
+    absorption_per_m: Any = _medium_field("absorption_per_m")
+    scattering_per_m: float | None = _medium_field("scattering_per_m")
+    g: float | None = _medium_field("g")
+    fluorescence: Any = _medium_field("fluorescence")
+    particles: Any = _medium_field("particles")
 
     def check(self) -> str | None:
-        if self.particles is None:
+        alpha = self.alpha or 0.0
+        if 0.0 < alpha < ALPHA_MIN:
+            return f"'alpha' must be 0 (a smooth surface) or at least {ALPHA_MIN:g}, got {alpha:g}"
+        if alpha == 0.0 and (self.alpha_y is not None or self.axis is not None):
+            return "'alpha_y' and 'axis' describe a rough surface: give 'alpha' > 0 too"
+        flat = [k for k in MEDIUM_FIELDS if getattr(self, k) is not None]
+        if flat and self.medium is not None:
+            return f"give the medium once: {flat} or 'medium', not both"
+        filling = self.filling()
+        if filling is None:
             return None
-        if self.scattering_per_m > 0:
-            return ("give either 'scattering_per_m' (Henyey–Greenstein) or 'particles' (Mie), not both: the "
-                    "particles scatter with their own phase function")
-        try:   # built (or found in the cache) now: its limits are the body's, and the query then finds it ready
-            self.mie()
-        except MaterialError as exc:
-            return str(exc)
-        return None
+        problem = filling.check() if flat else None   # a medium body was checked when it was read
+        return problem or media.host_check(filling, self.ior)
 
-    def mie(self) -> MieTable:
-        """The Mie table of the particles in this host (`tracer.optics.mie`, cached by content)."""
-        if self.particles is None:
-            raise MaterialError("a dielectric without particles has no Mie table")
-        host = np.broadcast_to(grid_or_value(self.ior), (GRID_N,))
-        return mie_table(self.particles, host, "particles")
+    def filling(self):
+        """The medium inside: ``medium``, or the homogeneous one the design's form writes on the dielectric, or
+        None (clear)."""
+        flat = {k: getattr(self, k) for k in MEDIUM_FIELDS if getattr(self, k) is not None}
+        return homogeneous.Spec(**flat) if flat else self.medium
+
+
+def upgrade(body: dict) -> dict:
+    """An older body in today's form: the kind ``rough_dielectric`` read as a dielectric with its ``alpha`` (which it
+    requires, > 0)."""
+    if body.get("type") not in ALIASES:
+        return body
+    if "alpha" not in body:
+        raise MaterialError(f"missing field(s) ['alpha'] for a {body['type']!r} material")
+    if isinstance(body["alpha"], int | float) and not body["alpha"] > 0:
+        raise MaterialError(f"'alpha' of a {body['type']!r} must be at least {ALPHA_MIN:g}, got {body['alpha']!r} (a "
+                            "smooth surface is a 'dielectric' with 'alpha' 0)")
+    return {**body, "type": NAME}
 
 
 def row(spec: Spec) -> np.ndarray:
-    return np.array([scalar(spec.ior), 0.0, 0.0, 0.0])
+    """[n, 0, 0, 0, αx, αy, axis (3), axis given]: the index in column 0 (a solid nested in this one reads it there),
+    the roughness where `microfacet` keeps it (zeros where smooth)."""
+    if not spec.alpha:
+        return np.array([scalar(spec.ior), 0.0, 0.0, 0.0])
+    ay = spec.alpha if spec.alpha_y is None else spec.alpha_y
+    ax = (0.0, 0.0, 0.0, 0.0) if spec.axis is None else (*spec.axis, 1.0)
+    return np.array([scalar(spec.ior), 0.0, 0.0, 0.0, spec.alpha, ay, *ax])
 
 
-def medium(spec: Spec) -> tuple[int, np.ndarray]:
-    m = np.zeros(N_MPAR)
-    m[:3] = scalar(spec.absorption_per_m), spec.scattering_per_m, spec.g
-    fl = spec.fluorescence
-    if fl is not None:
-        m[SIGMA_F], m[QY], m[EMISSION_NM] = scalar(fl.absorption_per_m), fl.quantum_yield, fl.emission.mono_nm
-    if spec.particles is not None:
-        t = spec.mie()
-        m[0] += float(np.mean(t.sigma_ext - t.sigma_sca))
-        m[1] = float(np.mean(t.sigma_sca))
-    clear = (m[0] == 0 and spec.scattering_per_m == 0 and fl is None and not varies(spec.absorption_per_m)
-             and spec.particles is None)
-    return (NO_MEDIUM if clear else HOMOGENEOUS), m
+def flags(spec: Spec) -> int:
+    """A delta lobe where smooth, a spread one where rough; both transmit."""
+    return GLOSSY | TRANSMITS if spec.alpha else FLAGS
 
 
-def medium_tables(spec: Spec) -> dict[int, np.ndarray]:
-    """The fluorescence's tables: σf over λ, the emission spectrum's cdf; the particles' σa (with the host's) and
-    σs over λ."""
-    fl = spec.fluorescence
-    out = {}
-    if spec.particles is not None:
-        t = spec.mie()
-        out[0] = grid_or_value(spec.absorption_per_m) + (t.sigma_ext - t.sigma_sca) + np.zeros(GRID_N)
-        out[1] = np.array(t.sigma_sca)
-    if fl is not None and varies(fl.absorption_per_m):
-        out[SIGMA_F] = fl.absorption_per_m.grid()
-    if fl is not None and fl.emission.mono_nm == 0:
-        out[EMISSION_NM] = fl.emission_cdf()
-    return out
-
-
-def medium_phase(spec: Spec) -> np.ndarray | None:
-    """The particles' packed Mie table (`tracer.optics.mie.packed`), None without particles."""
-    return None if spec.particles is None else packed(spec.mie())
+def inside(spec: Spec) -> tuple[Any, Any]:
+    """(the medium that fills the solid or None, the solid's index: the host of its particles)."""
+    return spec.filling(), spec.ior
 
 
 def polarizing(spec: Spec) -> tuple[int, float]:
-    """A solid is entered and left: 2 interfaces, each reflecting pure s at Brewster's angle (diattenuation 1);
-    none where n = 1 everywhere and nothing inside scatters with a Mie matrix (`tracer.effects`)."""
-    if spec.particles is not None:
+    """A solid is entered and left: 2 interfaces (or facets), each reflecting pure s at Brewster's angle
+    (diattenuation 1); none where n = 1 everywhere and nothing inside scatters with a Mie matrix
+    (`tracer.effects`)."""
+    if media.polarizing_of(spec.filling())[0]:
         return 2, 1.0
     if not varies(spec.ior) and scalar(spec.ior) == 1.0 and spec.coating is None:
         return 0, 0.0
@@ -155,19 +175,13 @@ def polarizing(spec: Spec) -> tuple[int, float]:
 
 def effects(spec: Spec) -> tuple[str, ...]:
     out = ["fresnel"]
-    if varies(spec.absorption_per_m) or spec.absorption_per_m > 0:
-        out.append("absorption")
-    if spec.scattering_per_m > 0:
-        out.append("scattering")
     if varies(spec.ior):
         out.append("dispersion")
     if spec.coating is not None:
         out.append("coating")
-    if spec.fluorescence is not None:
-        out.append("fluorescence")
-    if spec.particles is not None:
-        out.append("mie")
-    if set(out) & {"dispersion", "coating", "fluorescence", "mie"} or varies(spec.absorption_per_m):
+    inner = media.effects_of(spec.filling())
+    out += [e for e in inner if e != "spectral"]
+    if {"dispersion", "coating"} & set(out) or "spectral" in inner:
         out.append("spectral")
     return tuple(out)
 
@@ -176,49 +190,11 @@ def diffuse_only(spec: Spec) -> bool:
     return False
 
 
-
-@njit(cache=True)
-def fresnel_dielectric(cos_i, n1, n2):
-    """Unpolarised Fresnel reflectance for light in medium n1 meeting medium n2.
-
-    cos_i : cosine of the angle of incidence, in [0, 1]. Returns R in [0, 1]; 1 under total
-    internal reflection; exactly 0 when n1 == n2.
-    """
-    if n1 == n2:
-        return 0.0
-    cos_i = min(max(cos_i, 0.0), 1.0)
-    eta = n1 / n2
-    sin2_t = eta * eta * max(0.0, 1.0 - cos_i * cos_i)
-    if sin2_t >= 1.0:
-        return 1.0
-    cos_t = math.sqrt(1.0 - sin2_t)
-    rs = (n1 * cos_i - n2 * cos_t) / (n1 * cos_i + n2 * cos_t)
-    rp = (n2 * cos_i - n1 * cos_t) / (n2 * cos_i + n1 * cos_t)
-    r = 0.5 * (rs * rs + rp * rp)
-    return min(max(r, 0.0), 1.0)
-
-
-@njit(cache=True)
-def refract(dx, dy, dz, nx, ny, nz, eta):
-    """Refracted unit direction of unit d through a surface with unit normal n facing against d.
-
-    eta = n1 / n2. Returns (ok, tx, ty, tz); ok is False under total internal reflection.
-    """
-    cos_i = -(dx * nx + dy * ny + dz * nz)
-    sin2_t = eta * eta * max(0.0, 1.0 - cos_i * cos_i)
-    if sin2_t >= 1.0:
-        return False, dx, dy, dz
-    cos_t = math.sqrt(1.0 - sin2_t)
-    k = eta * cos_i - cos_t
-    tx = eta * dx + k * nx
-    ty = eta * dy + k * ny
-    tz = eta * dz + k * nz
-    inv = 1.0 / math.sqrt(tx * tx + ty * ty + tz * tz)
-    return True, tx * inv, ty * inv, tz * inv
-
-
 @njit(cache=True, error_model="numpy", _nrt=False)
 def scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim, lam, pol):
+    if M.par[inst, ALPHA] > 0.0:   # a rough surface: one facet of it
+        return rough_dielectric.scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med, depth, key, dim,
+                                        lam, pol)
     u = uniform(key, dim)
     fx, fy, fz = arrival_normal(ngx, ngy, ngz, dx, dy, dz)
     entering = dx * ngx + dy * ngy + dz * ngz < 0.0

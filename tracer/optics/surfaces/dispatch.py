@@ -10,15 +10,17 @@ compiled once on its own and cached on its own, it is no part of any kernel, so 
 the forward, backward or luminance kernels (on a CUDA device the same call is a branch chain compiled in).
 `bind` fills the table for this process; `tracer.backends.run_kernel` does it before every CPU run.
 
-Python side: `material_spec` turns a wire body (or a spec) into the kind's typed spec, `pack_materials`
-builds the kernels' `MaterialArrays` for every instance id, `effects_of` and `backward_ok` answer from the
-specs what the scene calls for.
+Python side: `material_spec` turns a wire body (or a spec) into the kind's typed spec (an older body is read
+through its kind's `upgrade`, `upgrade_body`), `pack_materials` builds the kernels' `MaterialArrays` for every
+instance id (a solid's medium packed by `tracer.optics.media.dispatch`), `effects_of` and `backward_ok` answer from
+the specs what the scene calls for.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Any
 
 import numba
 import numpy as np
@@ -30,6 +32,7 @@ from tracer.jit import kind_table, njit
 from tracer.optics import mie, spectra
 from tracer.optics.coating import Coating
 from tracer.optics.elements import diffuser, polarizer, retarder
+from tracer.optics.media.dispatch import pack_medium
 from tracer.optics.polarization import depolarize
 from tracer.optics.surfaces import (
     black,
@@ -39,7 +42,6 @@ from tracer.optics.surfaces import (
     microfacet,
     mirror,
     mix,
-    rough_dielectric,
 )
 from tracer.optics.surfaces.base import (
     ABSORBED,
@@ -56,14 +58,15 @@ from tracer.optics.surfaces.base import (
 )
 from tracer.rng import uniform
 
-KINDS = (black, lambertian, mirror, mix, dielectric, diffuser, polarizer, retarder, microfacet, measured_brdf,
-         rough_dielectric)
-(BLACK, LAMBERTIAN, MIRROR, MIX, DIELECTRIC, DIFFUSER, POLARIZER, RETARDER, MICROFACET, MEASURED_BRDF,
- ROUGH_DIELECTRIC) = range(len(KINDS))
+KINDS = (black, lambertian, mirror, mix, dielectric, diffuser, polarizer, retarder, microfacet, measured_brdf)
+(BLACK, LAMBERTIAN, MIRROR, MIX, DIELECTRIC, DIFFUSER, POLARIZER, RETARDER, MICROFACET,
+ MEASURED_BRDF) = range(len(KINDS))
 KIND_OF = {m.NAME: k for k, m in enumerate(KINDS)}
-#: each kind's lobes (`base`: DIFFUSE, GLOSSY, SPECULAR, TRANSMITS; 0 absorbs), indexed by kind id, and those of an
-#: element feature's own surface (`fx.MAT_BLACK`, `fx.MAT_LAMBERTIAN`): what the transport asks instead of a kind
-SURFACE_FLAGS = np.array([m.FLAGS for m in KINDS], np.int64)
+#: the older wire types a kind reads (its ``ALIASES``, rewritten by its ``upgrade``)
+ALIAS_OF = {a: k for k, m in enumerate(KINDS) for a in getattr(m, "ALIASES", ())}
+#: the lobes (`base`: DIFFUSE, GLOSSY, SPECULAR, TRANSMITS; 0 absorbs) of an element feature's own surface
+#: (`fx.MAT_BLACK`, `fx.MAT_LAMBERTIAN`); an instance's are `MaterialArrays.flags`: what the transport asks instead
+#: of a kind
 FEATURE_FLAGS = np.zeros(max(fx.MAT_BLACK, fx.MAT_LAMBERTIAN) + 1, np.int64)
 FEATURE_FLAGS[fx.MAT_BLACK], FEATURE_FLAGS[fx.MAT_LAMBERTIAN] = black.FLAGS, lambertian.FLAGS
 _MODULE_OF_SPEC = {m.Spec: m for m in KINDS}
@@ -77,8 +80,24 @@ def module_of(spec):
         raise MaterialError(f"not a material spec: {type(spec).__name__}") from None
 
 
+def upgrade_body(body: Any, where: str = "material") -> Any:
+    """A material body in today's form: an older one (a folded kind's type, fields since moved) rewritten by its
+    kind's ``upgrade``; anything else returned as it is (validation says what is wrong with it)."""
+    t = body.get("type") if isinstance(body, dict) else None
+    if not isinstance(t, str):   # not a body, or no type a kind could have: validation says what is wrong
+        return body
+    k = KIND_OF.get(t, ALIAS_OF.get(t))
+    if k is None or not hasattr(KINDS[k], "upgrade"):
+        return body
+    try:
+        return KINDS[k].upgrade(body)
+    except MaterialError as exc:
+        raise MaterialError(f"{where}: {exc}") from None
+
+
 def material_spec(body, where: str = "material"):
-    """The typed spec of a material: a spec is returned as it is, a wire body (dict) is validated.
+    """The typed spec of a material: a spec is returned as it is, a wire body (dict) is validated (an older one
+    read through `upgrade_body`).
 
     Raises
     ------
@@ -89,6 +108,7 @@ def material_spec(body, where: str = "material"):
         return body
     if not isinstance(body, dict):
         raise MaterialError(f"{where}: expected a material body (dict), got {type(body).__name__}")
+    body = upgrade_body(body, where)
     t = body.get("type")
     if t not in KIND_OF:
         raise MaterialError(f"{where}: unknown material type {t!r}; known: {sorted(KIND_OF)}")
@@ -125,6 +145,13 @@ def polarizing_of(spec) -> tuple[int, float]:
     return m.polarizing(spec) if hasattr(m, "polarizing") else (0, 0.0)
 
 
+def flags_of(spec) -> int:
+    """The lobes of a material's surface (`base`: the kind's ``flags(spec)`` where its fields decide, else its
+    ``FLAGS``)."""
+    m = module_of(spec)
+    return m.flags(spec) if hasattr(m, "flags") else m.FLAGS
+
+
 def backward_ok(specs) -> tuple[bool, str]:
     """Whether the backward estimator can follow every one of these materials, and if not why."""
     for spec in specs:
@@ -153,6 +180,7 @@ def pack_materials(materials: dict, default, instance_ids: list[int], sensor_ids
     ptab = np.full((n, N_PAR), -1, np.int32)
     mtab = np.full((n, N_MPAR), -1, np.int32)
     coat = np.zeros((n, 2), np.int32)
+    flags = np.zeros(n, np.int64)
     mpar[:, MIE_ROW] = -1.0
     known = set(instance_ids)
     for i in materials:
@@ -172,9 +200,9 @@ def pack_materials(materials: dict, default, instance_ids: list[int], sensor_ids
             raise MaterialError(f"instance {i} has no material and no default_material was given")
         if spec not in rows:
             rows[spec] = _rows(spec, tables)
-        kind[i], par[i], medium[i], mpar[i], ptab[i], mtab[i], coat[i] = rows[spec]
+        kind[i], par[i], medium[i], mpar[i], ptab[i], mtab[i], coat[i], flags[i] = rows[spec]
     return MaterialArrays(kind, par, medium, mpar, ptab, mtab, tables.array(), tables.layer_array(), coat,
-                          tables.phase_array(), np.zeros(len(KINDS), np.int64))
+                          tables.phase_array(), flags, np.zeros(len(KINDS), np.int64))
 
 
 class _Tables:
@@ -221,35 +249,24 @@ class _Tables:
 
 
 def _rows(spec, tables: _Tables):
-    """(kind id, par, medium kind, mpar, ptab, mtab, coat) of one spec."""
+    """(kind id, par, medium kind, mpar, ptab, mtab, coat, flags) of one spec."""
     m = module_of(spec)
     par = _row(m, spec)
-    mkind, mpar = m.medium(spec) if hasattr(m, "medium") else (NO_MEDIUM, np.zeros(N_MPAR))
     ptab = np.full(N_PAR, -1, np.int32)
-    mtab = np.full(N_MPAR, -1, np.int32)
     coat = np.zeros(2, np.int32)
     for f in dataclasses.fields(spec):
         v = getattr(spec, f.name)
-        if spectra.varies(v):
-            if f.metadata.get("column") is not None:
-                ptab[f.metadata["column"]] = tables.add(v.grid())
-            if f.metadata.get("mcolumn") is not None:
-                mtab[f.metadata["mcolumn"]] = tables.add(v.grid())
+        if spectra.varies(v) and f.metadata.get("column") is not None:
+            ptab[f.metadata["column"]] = tables.add(v.grid())
         elif isinstance(v, Coating):
             coat[:] = len(tables.layers), len(v.layers)
             tables.layers.extend(v.layers)
-    mpar[MIE_ROW] = -1.0
     if hasattr(m, "surface_block"):   # a kind's own flat data (a measured table), rows of `tables` from par[col]
         col, flat = m.surface_block(spec)
         par[col] = tables.add_block(flat)
-    if hasattr(m, "medium_tables"):   # tables only the kind knows how to build (an emission spectrum's cdf)
-        for col, values in m.medium_tables(spec).items():
-            mtab[col] = tables.add(values)
-    if hasattr(m, "medium_phase"):    # a phase function table (Mie)
-        rows = m.medium_phase(spec)
-        if rows is not None:
-            mpar[MIE_ROW] = tables.add_phase(rows)
-    return KIND_OF[m.NAME], par, mkind, mpar, ptab, mtab, coat
+    medium, host_ior = m.inside(spec) if hasattr(m, "inside") else (None, 1.0)
+    mkind, mpar, mtab = pack_medium(medium, host_ior, tables)
+    return KIND_OF[m.NAME], par, mkind, mpar, ptab, mtab, coat, flags_of(spec)
 
 
 # ----------------------------------------------------------------------------------------- the switch
@@ -298,11 +315,11 @@ def feature_surface(sa, inst, prim):
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def surface_flags(sa, M, inst, prim):
-    """The lobes (`SURFACE_FLAGS`) of the surface a hit meets: an element feature's own, else the instance's kind's."""
+    """The lobes (`base`) of the surface a hit meets: an element feature's own, else the instance's material's."""
     own, _ = feature_surface(sa, inst, prim)
     if own != fx.MAT_PART:
         return FEATURE_FLAGS[own]
-    return SURFACE_FLAGS[M.kind[inst]]
+    return M.flags[inst]
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")

@@ -152,7 +152,7 @@ def sample_visible_normal(x, y, z, ax, ay, u1, u2):
 def facet_frame(sa, M, inst, nx, ny, nz):
     """The tangent t and bitangent b of the GGX frame (t, b, n) at shading normal n: t along the node's brushing axis
     (parameter columns 6–8, flag 9) taken onto the tangent plane where the surface is brushed, any tangent else.
-    Shared by every GGX kind (`microfacet`, `rough_dielectric`), whose parameter rows keep these columns."""
+    Shared by every GGX surface (`microfacet`, a rough `dielectric`), whose parameter rows keep these columns."""
     if M.par[inst, 9] > 0.0:   # brushed: alpha along the node's axis, taken onto the tangent plane
         tx, ty, tz = sheet_axis(sa, inst, M.par[inst, 6], M.par[inst, 7], M.par[inst, 8], nx, ny, nz)
         c = tx * nx + ty * ny + tz * nz
