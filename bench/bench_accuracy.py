@@ -330,14 +330,17 @@ def physics_effects(quick: bool) -> dict:
 
 # ------------------------------------------------------------------------------------------------ plots, report
 
-def plots(res: dict) -> list[str]:
-    import matplotlib
+def _save_figure(plt, fig, name: str) -> str:
+    """Lay the figure out, write bench/results/<name> at 110 dpi, close it: returns the name (the report lists it)."""
+    fig.tight_layout()
+    fig.savefig(RESULTS / name, dpi=110)
+    plt.close(fig)
+    return name
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
-    names = []
-    a = res["photons"]
+def _plot_photons(plt, a: dict) -> str:
+    """(a): relative error (RMS over the floor points) against seconds, log–log: each estimator's reported and
+    measured error, Radiance's -ab runs against its converged one, and the floor set by our reference's own error."""
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for est, colour in (("backward", "tab:blue"), ("forward", "tab:orange")):
         rows = a[est]["runs"]
@@ -359,41 +362,51 @@ def plots(res: dict) -> list[str]:
     ax.set_title("Diffuse room: error against time")
     ax.legend(fontsize=7)
     ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(RESULTS / "accuracy_photons.png", dpi=110)
-    plt.close(fig)
-    names.append("accuracy_photons.png")
+    return _save_figure(plt, fig, "accuracy_photons.png")
 
-    t = res["tessellation"]
-    if "runs" in t:
-        rows = t["runs"]
-        fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4.2))
-        d = [x["linear_m"] * 1000 for x in rows]
-        ax1.errorbar(d, [x["error_lux"] for x in rows], yerr=[2 * x["stderr"] for x in rows], fmt="o-",
-                     label=f"|E − {FOCUS_LUX:.3g} lx| measured (±2σ)")
-        ax1.loglog(d, [x["budget_lux"] for x in rows], "s--", label="tessellation budget (answer)")
-        ax1.loglog(d, [max(x.get("estimate_lux", 0.0), 1e-3) for x in rows], "^:",
-                   label="tessellation estimate (refined mesh)")
-        ax1.loglog(d, [x["stderr"] for x in rows], ":", color="grey", label="Monte Carlo stderr")
-        ax1.set_xscale("log")
-        ax1.set_yscale("log")
-        ax1.set_xlabel("linear deflection, mm")
-        ax1.set_ylabel("lux at the focus")
-        ax1.set_title("Paraboloid mirror: error against tolerance")
-        ax1.legend(fontsize=7)
-        ax1.grid(True, which="both", alpha=0.3)
-        ax2.loglog(d, [x["mesh_seconds"] for x in rows], "o-", label="mesh (OCCT)")
-        ax2.loglog(d, [x["trace_seconds"] for x in rows], "s-", label=f"trace ({t['photons']:,} photons)")
-        ax2.set_xlabel("linear deflection, mm")
-        ax2.set_ylabel("seconds")
-        ax2.set_title("and its time")
-        ax2.legend(fontsize=7)
-        ax2.grid(True, which="both", alpha=0.3)
-        fig.tight_layout()
-        fig.savefig(RESULTS / "accuracy_tessellation.png", dpi=110)
-        plt.close(fig)
-        names.append("accuracy_tessellation.png")
 
+def _plot_tessellation(plt, t: dict) -> str | None:
+    """(b): lux error at the focus (measured ±2σ, budget, estimate, stderr) and the seconds to mesh and to trace,
+    against the linear deflection in mm; None where the section did not run."""
+    if "runs" not in t:
+        return None
+    rows = t["runs"]
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4.2))
+    d = [x["linear_m"] * 1000 for x in rows]
+    ax1.errorbar(d, [x["error_lux"] for x in rows], yerr=[2 * x["stderr"] for x in rows], fmt="o-",
+                 label=f"|E − {FOCUS_LUX:.3g} lx| measured (±2σ)")
+    ax1.loglog(d, [x["budget_lux"] for x in rows], "s--", label="tessellation budget (answer)")
+    ax1.loglog(d, [max(x.get("estimate_lux", 0.0), 1e-3) for x in rows], "^:",
+               label="tessellation estimate (refined mesh)")
+    ax1.loglog(d, [x["stderr"] for x in rows], ":", color="grey", label="Monte Carlo stderr")
+    ax1.set_xscale("log")
+    ax1.set_yscale("log")
+    ax1.set_xlabel("linear deflection, mm")
+    ax1.set_ylabel("lux at the focus")
+    ax1.set_title("Paraboloid mirror: error against tolerance")
+    ax1.legend(fontsize=7)
+    ax1.grid(True, which="both", alpha=0.3)
+    ax2.loglog(d, [x["mesh_seconds"] for x in rows], "o-", label="mesh (OCCT)")
+    ax2.loglog(d, [x["trace_seconds"] for x in rows], "s-", label=f"trace ({t['photons']:,} photons)")
+    ax2.set_xlabel("linear deflection, mm")
+    ax2.set_ylabel("seconds")
+    ax2.set_title("and its time")
+    ax2.legend(fontsize=7)
+    ax2.grid(True, which="both", alpha=0.3)
+    return _save_figure(plt, fig, "accuracy_tessellation.png")
+
+
+def plots(res: dict) -> list[str]:
+    """The three figures of the report, written to bench/results/: their file names, (a), (b) where it ran, (c)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = [_plot_photons(plt, res["photons"])]
+    if tessellation := _plot_tessellation(plt, res["tessellation"]):
+        names.append(tessellation)
+    # (c): what each effect changes (% of the lux without it, ±2σ) and what it costs (seconds without and with)
     p = res["physics"]
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4))
     keys = list(p)
@@ -410,10 +423,7 @@ def plots(res: dict) -> list[str]:
     ax2.set_ylabel(f"seconds ({p[keys[0]]['photons']:,} photons)")
     ax2.set_title("and what it costs")
     ax2.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(RESULTS / "accuracy_physics.png", dpi=110)
-    plt.close(fig)
-    names.append("accuracy_physics.png")
+    names.append(_save_figure(plt, fig, "accuracy_physics.png"))
     return names
 
 
@@ -426,11 +436,10 @@ def _digit_text(dc: dict) -> str:
             f"seconds (fit: 1 % at {dc['seconds_at_1pct']:.3g} s, 0.1 % at {dc['seconds_at_0.1pct']:.3g} s)")
 
 
-def markdown(res: dict) -> str:
-    a, t, p = res["photons"], res["tessellation"], res["physics"]
-    md = ["Three accuracy-time curves (issue 24): photons, tessellation tolerance, physics left out. Plots: "
-          "`accuracy_photons.png`, `accuracy_tessellation.png`, `accuracy_physics.png`.", "",
-          f"### (a) Diffuse room, {a['points']} floor points: relative error against seconds", "",
+def _photons_markdown(a: dict) -> list[str]:
+    """Section (a): the relative errors (RMS over the floor points) and seconds of each run, ours and Radiance's,
+    and what a digit of accuracy costs each."""
+    md = [f"### (a) Diffuse room, {a['points']} floor points: relative error against seconds", "",
           f"Reference: backward, {a['reference']['photons']:,} paths in {a['reference']['seconds']:.1f} s, median "
           f"relative stderr {a['reference']['median_relative_stderr']:.2%}.", "",
           "| method | budget | seconds | reported error (RMS) | measured error vs reference (RMS) | RMS z |",
@@ -458,55 +467,69 @@ def markdown(res: dict) -> str:
     if "digit" in rad:
         md.append(f"- Radiance -ab 1…5: {_digit_text(rad['digit'])}. Its error is a bias: it falls with bounces, "
                   "not with time spent at one setting, and the answer does not say how large it is.")
-    md += ["", "RMS z near 1 means the reported standard errors are the real ones (measured against the reference, "
-               "whose own error is included).", ""]
-    md += ["### (b) Paraboloid mirror: lux error against tessellation tolerance", ""]
+    return md + ["", "RMS z near 1 means the reported standard errors are the real ones (measured against the "
+                     "reference, whose own error is included).", ""]
+
+
+def _tessellation_markdown(t: dict) -> list[str]:
+    """Section (b): per linear deflection the lux error at the focus beside the budget and the estimate, and what a
+    digit costs in seconds and triangles; or why it did not run."""
+    md = ["### (b) Paraboloid mirror: lux error against tessellation tolerance", ""]
     if "runs" not in t:
-        md.append(f"Did not run: {t.get('error')}")
-    else:
-        md += [f"Focus of a cadquery paraboloid (f = {DISH_F} m, rim {DISH_RIM} m) under a collimated beam; closed "
-               f"form {FOCUS_LUX:.3g} lx on a disk of radius {FOCUS_R * 1000:g} mm at the focus; {t['photons']:,} "
-               "photons per run; angular deflection 0.5 rad.", "",
-               "| linear deflection | triangles | mesh s | trace s | lux ± stderr | error | budget | budget / error "
-               "| estimate ± stderr | estimate / error | estimate s (splits) |",
-               "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
-        for x in t["runs"]:
-            ratio = x["budget_lux"] / x["error_lux"] if x["error_lux"] > 0 else math.inf
-            est = x.get("estimate_lux", 0.0)
-            est_ratio = est / x["error_lux"] if x["error_lux"] > 0 else math.inf
-            mark = "" if informs(est, x["error_lux"], FOCUS_LUX) else " ✗"
-            md.append(f"| {x['linear_m'] * 1000:g} mm | {x['triangles']:,} | {x['mesh_seconds']:.2f} | "
-                      f"{x['trace_seconds']:.2f} | {x['lux']:.4g} ± {x['stderr']:.2g} | "
-                      f"{x['error_lux'] / FOCUS_LUX:.2%} | "
-                      f"{x['budget_lux']:.3g} | {ratio:,.3g}× | {est:.3g} ± {x.get('estimate_stderr', 0.0):.2g} | "
-                      f"{est_ratio:,.3g}×{mark} | {x.get('estimate_seconds', 0.0):.2f} "
-                      f"({x.get('estimate_levels', 0)}) |")
-        dg, tv = t["digit"], t["triangles_vs_linear"]
-        loosest = min(x["budget_lux"] / x["error_lux"] for x in t["runs"] if x["error_lux"] > 0)
-        md += ["", f"Triangles ∝ deflection^{tv.get('slope') or float('nan'):.2f}. The error is the share of the "
-                   "photons the facets send past the small receiver, so it falls slowly while the blur is wider than "
-                   "the receiver and then abruptly. From "
-                   f"{dg['from_linear_m'] * 1000:g} mm to {dg['to_linear_m'] * 1000:g} mm (the finest whose error "
-                   f"exceeds 3σ) it fell by {dg['digits']:.1f} digits while mesh + trace went from "
-                   f"{dg['seconds_from']:.2f} s to {dg['seconds_to']:.2f} s: "
-                   + (f"×{dg['time_factor_per_digit']:.2f} the seconds and ×{dg['triangle_factor_per_digit']:.1f} "
-                      "the triangles per digit" if dg["time_factor_per_digit"] else "no digit resolved")
-                   + " — tessellation digits are cheap next to photon digits (×100 each): the tracing time grows "
-                   "little with the triangles (a BVH), so a fine tolerance costs mostly meshing and memory.",
-               "", "The tessellation budget " + ("bounds the measured error at every setting" if t["budget_holds"]
-                                                 else "does NOT bound the measured error everywhere")
-               + f" (budget / error ≥ {loosest:,.3g}): it is a bound built for receivers larger than the photons' "
-               "shift (the first-order normal term; `tracer.transport.tessellation_error`), and on a 0.5 mm disk "
-               "at a focus "
-               "it says little more than \"the tessellation may move everything\".",
-               "", "The estimate (`\"tessellation_estimate\": true`) "
-               + ("lies between the error and 10× it, or within 5 % of the value of it, at every setting"
-                  if t.get("estimate_informs") else "misses issue 42's aim where marked ✗ (between the error and 10× "
-                  "it, or within 5 % of the value of it)")
-               + ": the same query on the mesh split 1→4 two or three times (`tracer.transport.tessellation_error."
-               "refine`: new vertices on a quartic fitted to the positions and normals around each edge), "
-               "extrapolated with the observed convergence ratio r ≤ ½ and Roache's factor 1.25; its seconds are "
-               "those it added to the query (the refinements and 2–3 more runs)."]
+        return md + [f"Did not run: {t.get('error')}"]
+    md += [f"Focus of a cadquery paraboloid (f = {DISH_F} m, rim {DISH_RIM} m) under a collimated beam; closed "
+           f"form {FOCUS_LUX:.3g} lx on a disk of radius {FOCUS_R * 1000:g} mm at the focus; {t['photons']:,} "
+           "photons per run; angular deflection 0.5 rad.", "",
+           "| linear deflection | triangles | mesh s | trace s | lux ± stderr | error | budget | budget / error "
+           "| estimate ± stderr | estimate / error | estimate s (splits) |",
+           "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
+    for x in t["runs"]:
+        ratio = x["budget_lux"] / x["error_lux"] if x["error_lux"] > 0 else math.inf
+        est = x.get("estimate_lux", 0.0)
+        est_ratio = est / x["error_lux"] if x["error_lux"] > 0 else math.inf
+        mark = "" if informs(est, x["error_lux"], FOCUS_LUX) else " ✗"
+        md.append(f"| {x['linear_m'] * 1000:g} mm | {x['triangles']:,} | {x['mesh_seconds']:.2f} | "
+                  f"{x['trace_seconds']:.2f} | {x['lux']:.4g} ± {x['stderr']:.2g} | "
+                  f"{x['error_lux'] / FOCUS_LUX:.2%} | "
+                  f"{x['budget_lux']:.3g} | {ratio:,.3g}× | {est:.3g} ± {x.get('estimate_stderr', 0.0):.2g} | "
+                  f"{est_ratio:,.3g}×{mark} | {x.get('estimate_seconds', 0.0):.2f} "
+                  f"({x.get('estimate_levels', 0)}) |")
+    dg, tv = t["digit"], t["triangles_vs_linear"]
+    loosest = min(x["budget_lux"] / x["error_lux"] for x in t["runs"] if x["error_lux"] > 0)
+    return md + [
+        "", f"Triangles ∝ deflection^{tv.get('slope') or float('nan'):.2f}. The error is the share of the "
+            "photons the facets send past the small receiver, so it falls slowly while the blur is wider than "
+            "the receiver and then abruptly. From "
+            f"{dg['from_linear_m'] * 1000:g} mm to {dg['to_linear_m'] * 1000:g} mm (the finest whose error "
+            f"exceeds 3σ) it fell by {dg['digits']:.1f} digits while mesh + trace went from "
+            f"{dg['seconds_from']:.2f} s to {dg['seconds_to']:.2f} s: "
+            + (f"×{dg['time_factor_per_digit']:.2f} the seconds and ×{dg['triangle_factor_per_digit']:.1f} "
+               "the triangles per digit" if dg["time_factor_per_digit"] else "no digit resolved")
+            + " — tessellation digits are cheap next to photon digits (×100 each): the tracing time grows "
+            "little with the triangles (a BVH), so a fine tolerance costs mostly meshing and memory.",
+        "", "The tessellation budget " + ("bounds the measured error at every setting" if t["budget_holds"]
+                                          else "does NOT bound the measured error everywhere")
+        + f" (budget / error ≥ {loosest:,.3g}): it is a bound built for receivers larger than the photons' "
+        "shift (the first-order normal term; `tracer.transport.tessellation_error`), and on a 0.5 mm disk "
+        "at a focus "
+        "it says little more than \"the tessellation may move everything\".",
+        "", "The estimate (`\"tessellation_estimate\": true`) "
+        + ("lies between the error and 10× it, or within 5 % of the value of it, at every setting"
+           if t.get("estimate_informs") else "misses issue 42's aim where marked ✗ (between the error and 10× "
+           "it, or within 5 % of the value of it)")
+        + ": the same query on the mesh split 1→4 two or three times (`tracer.transport.tessellation_error."
+        "refine`: new vertices on a quartic fitted to the positions and normals around each edge), "
+        "extrapolated with the observed convergence ratio r ≤ ½ and Roache's factor 1.25; its seconds are "
+        "those it added to the query (the refinements and 2–3 more runs)."]
+
+
+def markdown(res: dict) -> str:
+    """The accuracy section of bench/results/REPORT.md: sections (a) and (b) from their helpers, then (c), the lux
+    each effect left out changes and its seconds."""
+    md = ["Three accuracy-time curves (issue 24): photons, tessellation tolerance, physics left out. Plots: "
+          "`accuracy_photons.png`, `accuracy_tessellation.png`, `accuracy_physics.png`.", "",
+          *_photons_markdown(res["photons"]), *_tessellation_markdown(res["tessellation"])]
+    p = res["physics"]
     md += ["", "### (c) Physics left out: lux difference and time with and without each effect", "",
            "| effect | scene | lux without | lux with | difference ± stderr | \\|difference\\| / σ | closed form "
            "| z vs closed form | seconds without → with |",

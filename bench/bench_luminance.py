@@ -21,6 +21,7 @@ import math
 import sys
 import tempfile
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -165,6 +166,99 @@ def car_camera(w: int, h: int) -> dict:
             "fov_deg": CAR_FOV, "width": w, "height": h}
 
 
+def _car_exporter(tmpd: Path):
+    """export(door_deg) -> (document, tessellation): the demo car with its doors at door_deg (degrees) written to
+    STEP in tmpd and read back as the adapter reads it. Imports cadquery here, outside any timing."""
+    from cad_adapter import read_document, tessellate
+    from cad_adapter.samples import car_assembly
+    from cad_adapter.step_uuid import write_step
+    from lumenlink.demo_car import LENS_RADIUS_BEFORE_MM
+
+    step, sidecar = tmpd / "car.step", tmpd / "car.lumenlink.json"
+
+    def export(door_deg: float):
+        built = read_document(car_assembly(door_deg, LENS_RADIUS_BEFORE_MM), sidecar=sidecar)
+        write_step(built, step)
+        doc = read_document(step)
+        return doc, tessellate(doc)
+
+    return export
+
+
+@contextmanager
+def _service_in_thread(data_dir: Path):
+    """The service (`service.app`, state under data_dir) served by uvicorn on a free local port in a daemon thread,
+    as `lumenlink demo` runs it; yields its base URL, stops it on leaving (15 s to finish). Raises if it has not
+    started within 60 s."""
+    import threading
+
+    import uvicorn
+
+    from lumenlink.demo import free_port
+    from service.app import create_app
+    from service.config import Settings
+
+    app = create_app(Settings(data_dir=data_dir, log_requests=False, warm_kernels=False))
+    port = free_port()
+    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
+    thread = threading.Thread(target=server.run, daemon=True)
+    thread.start()
+    deadline = time.monotonic() + 60.0
+    while not server.started:
+        if not thread.is_alive() or time.monotonic() > deadline:
+            raise RuntimeError("the service did not start")
+        time.sleep(0.02)
+    try:
+        yield f"http://127.0.0.1:{port}"
+    finally:
+        server.should_exit = True
+        thread.join(timeout=15.0)
+
+
+def _render(http, sid: str, cid: str, **budget) -> tuple[float, dict]:
+    """One simulation of camera cid in scene sid through REST, budget as the request's body: (wall seconds of the
+    request, the answer)."""
+    t0 = time.perf_counter()
+    r = http.post(f"/scenes/{sid}/sensors/{cid}/simulate", json=budget)
+    r.raise_for_status()
+    return time.perf_counter() - t0, r.json()
+
+
+def _car_size(http, sid: str, w: int, h: int, budget: float) -> tuple[str, dict]:
+    """One image size of the car: its camera added, the kernel loaded (this scene's effects), the first coarse image
+    (~4 paths a pixel) and a run of `budget` seconds, time to 2 % extrapolated by 1/√paths: (camera id, row)."""
+    cid = http.post(f"/scenes/{sid}/sensors", json=car_camera(w, h)).json()["id"]
+    load, _ = _render(http, sid, cid, max_photons=4 * w * h)   # compile or load the kernel (this scene's effects)
+    first_s, first = _render(http, sid, cid, max_photons=4 * w * h, seed=1)
+    run_s, r = _render(http, sid, cid, max_seconds=budget, seed=2)
+    lum, err = np.asarray(r["luminance"], float), np.asarray(r["stderr"], float)
+    m = median_rel(lum, err)
+    return cid, {
+        "width": w, "height": h, "kernel_load_seconds": load, "first_image_seconds": first_s,
+        "first_image_paths": int(first["photons"]), "budget_seconds": budget, "run_seconds": run_s,
+        "paths": int(r["photons"]), "median_rel": m,
+        "seconds_to_2pct": run_s * (m / TARGET) ** 2 if m > TARGET else run_s,
+        "light_tracing": "light tracing" in r["strategy"],
+        "strategy": r["strategy"], "unreachable": r["unreachable"],
+        "mean_cd_m2": float(np.mean(lum))}
+
+
+def _car_edit(http, base: str, sid: str, cid: str, w: int, h: int, export) -> dict:
+    """The edit-to-first-image latency: push the doors opened (a transform change; the CAD export before it not
+    counted) and render camera cid's first image of the new revision (~4 paths a pixel); seconds."""
+    from cad_adapter import Pusher
+    from lumenlink.demo_car import DOOR_OPEN_DEG, SCENE_NAME
+
+    doc2, tess2 = export(DOOR_OPEN_DEG)
+    t0 = time.perf_counter()
+    with Pusher(base) as pusher:
+        pusher.push(doc2, tess2, scene=SCENE_NAME)
+    push_s = time.perf_counter() - t0
+    img_s, img = _render(http, sid, cid, max_photons=4 * w * h, seed=3)
+    return {"width": w, "height": h, "edit": f"doors opened {DOOR_OPEN_DEG:g}°", "push_s": push_s,
+            "first_image_s": img_s, "total_s": push_s + img_s, "paths": int(img["photons"])}
+
+
 def demo_car(sizes: list[tuple[int, int, float]]) -> dict:
     """The demo car (`lumenlink demo`: cadquery model, STEP, the real adapter and REST API, the demo's materials and
     lights: a 5000 cd spot behind the headlamp's glass lens in a chrome housing, an IES downlight, a concrete floor)
@@ -172,89 +266,31 @@ def demo_car(sizes: list[tuple[int, int, float]]) -> dict:
     and a run of a fixed budget (time to 2 % extrapolated by 1/√paths); then the edit-to-first-image latency: push
     the doors opened 65° (a transform change, the CAD export not counted) and render the first image of the new
     revision."""
-    import threading
-
     import httpx
-    import uvicorn
 
-    from cad_adapter import Pusher, read_document, tessellate
-    from cad_adapter.samples import car_assembly
-    from cad_adapter.step_uuid import write_step
-    from lumenlink import demo as d
-    from lumenlink.demo_car import DOOR_OPEN_DEG, LENS_RADIUS_BEFORE_MM, SCENE_NAME, dress
-    from service.app import create_app
-    from service.config import Settings
+    from cad_adapter import Pusher
+    from lumenlink.demo_car import SCENE_NAME, dress
 
     out: dict = {"sizes": []}
     with tempfile.TemporaryDirectory() as tmp:
         tmpd = Path(tmp)
-        step, sidecar = tmpd / "car.step", tmpd / "car.lumenlink.json"
-
-        def export(door_deg: float):
-            built = read_document(car_assembly(door_deg, LENS_RADIUS_BEFORE_MM), sidecar=sidecar)
-            write_step(built, step)
-            doc = read_document(step)
-            return doc, tessellate(doc)
-
+        export = _car_exporter(tmpd)
         t = time.perf_counter()
         doc, tess = export(0.0)
         out["cad_export_s"] = time.perf_counter() - t
-        app = create_app(Settings(data_dir=tmpd / "var", log_requests=False, warm_kernels=False))
-        port = d.free_port()
-        server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
-        thread = threading.Thread(target=server.run, daemon=True)
-        thread.start()
-        deadline = time.monotonic() + 60.0
-        while not server.started:
-            if not thread.is_alive() or time.monotonic() > deadline:
-                raise RuntimeError("the service did not start")
-            time.sleep(0.02)
-        base = f"http://127.0.0.1:{port}"
-        try:
-            with httpx.Client(base_url=base, timeout=600.0) as http:
-                with Pusher(base) as pusher:
-                    first = pusher.push(doc, tess, scene=SCENE_NAME)
-                sid = first.scene_id
-                uuid_of = {node.name: node.uuid for node in doc.nodes}
-                dress(http, sid, uuid_of)   # the demo's materials, floor and lights
-                out["effects"] = http.get(f"/scenes/{sid}").json().get("effects")
-
-                def render(cid: str, **budget) -> tuple[float, dict]:
-                    t0 = time.perf_counter()
-                    r = http.post(f"/scenes/{sid}/sensors/{cid}/simulate", json=budget)
-                    r.raise_for_status()
-                    return time.perf_counter() - t0, r.json()
-
-                cams = {}
-                for w, h, budget in sizes:
-                    cid = http.post(f"/scenes/{sid}/sensors", json=car_camera(w, h)).json()["id"]
-                    cams[(w, h)] = cid
-                    load, _ = render(cid, max_photons=4 * w * h)   # compile or load the kernel (this scene's effects)
-                    first_s, first = render(cid, max_photons=4 * w * h, seed=1)
-                    run_s, r = render(cid, max_seconds=budget, seed=2)
-                    lum, err = np.asarray(r["luminance"], float), np.asarray(r["stderr"], float)
-                    m = median_rel(lum, err)
-                    out["sizes"].append({
-                        "width": w, "height": h, "kernel_load_seconds": load, "first_image_seconds": first_s,
-                        "first_image_paths": int(first["photons"]), "budget_seconds": budget, "run_seconds": run_s,
-                        "paths": int(r["photons"]), "median_rel": m,
-                        "seconds_to_2pct": run_s * (m / TARGET) ** 2 if m > TARGET else run_s,
-                        "light_tracing": "light tracing" in r["strategy"],
-                        "strategy": r["strategy"], "unreachable": r["unreachable"],
-                        "mean_cd_m2": float(np.mean(lum))})
-                w, h = sizes[0][:2]
-                doc2, tess2 = export(DOOR_OPEN_DEG)
-                t0 = time.perf_counter()
-                with Pusher(base) as pusher:
-                    pusher.push(doc2, tess2, scene=SCENE_NAME)
-                push_s = time.perf_counter() - t0
-                img_s, img = render(cams[(w, h)], max_photons=4 * w * h, seed=3)
-                out["edit"] = {"width": w, "height": h, "edit": f"doors opened {DOOR_OPEN_DEG:g}°",
-                               "push_s": push_s, "first_image_s": img_s, "total_s": push_s + img_s,
-                               "paths": int(img["photons"])}
-        finally:
-            server.should_exit = True
-            thread.join(timeout=15.0)
+        with _service_in_thread(tmpd / "var") as base, httpx.Client(base_url=base, timeout=600.0) as http:
+            with Pusher(base) as pusher:
+                first = pusher.push(doc, tess, scene=SCENE_NAME)
+            sid = first.scene_id
+            uuid_of = {node.name: node.uuid for node in doc.nodes}
+            dress(http, sid, uuid_of)   # the demo's materials, floor and lights
+            out["effects"] = http.get(f"/scenes/{sid}").json().get("effects")
+            cams = {}
+            for w, h, budget in sizes:
+                cams[(w, h)], row = _car_size(http, sid, w, h, budget)
+                out["sizes"].append(row)
+            w, h = sizes[0][:2]
+            out["edit"] = _car_edit(http, base, sid, cams[(w, h)], w, h, export)
     return out
 
 

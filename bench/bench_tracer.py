@@ -272,52 +272,54 @@ def _warm_up() -> None:
     scene.intersect(o, d)
 
 
-def run(quick: bool = False, throughput_only: bool = False, rays: int | None = None) -> dict:
-    """The whole benchmark; ``throughput_only`` re-measures section 3 alone and keeps sections 1, 2 and 4 from
-    ``bench/results/tracer.json`` (their date in ``build_from``); ``rays`` overrides the rays per row."""
-    rng = np.random.default_rng(2008)
-    _warm_up()
-    out: dict = {"quick": quick, "load_average_start": os.getloadavg(), "numba_threads": _numba_threads()}
-    old = None
-    if throughput_only:
-        import json
+def _build_sections_from_file(out: dict) -> tuple[tracer.Scene, float]:
+    """``--throughput-only``: sections 1, 2 and 4 copied into ``out`` from ``bench/results/tracer.json`` (their date
+    in ``build_from``), and paper scene 3 regenerated and committed for section 3: (scene, world size in m)."""
+    import json
 
-        old = json.loads((ROOT / "bench" / "results" / "tracer.json").read_text())
-        out.update(paper_scenes=old["paper_scenes"], scaling=old["scaling"], build_from=old.get("date", "?"))
-        if "cold_start" in old:
-            out["cold_start"] = old["cold_start"]
-        v, f, m, scene3_world = synth_scene(3, *PAPER_SCENES[2][1:3])
-        scene3, _, _ = load_scene(v, f, m)
-        scene3.commit()
-    else:
-        # 1. paper scenes
-        paper = []
-        scene3 = None
-        scene3_world = 0.0
-        for idx, (name, n_obj, n_tri, paper_build, paper_move) in enumerate(PAPER_SCENES):
-            if quick and idx < 2:
-                continue
-            v, f, m, world = synth_scene(idx + 1, n_obj, n_tri)
-            r, scene = measure_scene(v, f, m, 1 if quick else 3, 5 if quick else 21, rng)
-            r.update(name=name, paper_full_build_s=paper_build, paper_move_commit_s=paper_move)
-            paper.append(r)
-            if idx == 2:
-                scene3, scene3_world = scene, world
-        out["paper_scenes"] = paper
+    old = json.loads((ROOT / "bench" / "results" / "tracer.json").read_text())
+    out.update(paper_scenes=old["paper_scenes"], scaling=old["scaling"], build_from=old.get("date", "?"))
+    if "cold_start" in old:
+        out["cold_start"] = old["cold_start"]
+    v, f, m, scene3_world = synth_scene(3, *PAPER_SCENES[2][1:3])
+    scene3, _, _ = load_scene(v, f, m)
+    scene3.commit()
+    return scene3, scene3_world
 
-        # 2. scaling
-        sizes = [1_000, 5_000] if quick else [1_000, 5_000, 20_000, 50_000, 100_000, 200_000]
-        scaling = []
-        for n in sizes:
-            v, f, m, _ = synth_scene(100 + n, n, int(n * 14.44))
-            r, _ = measure_scene(v, f, m, 1 if (quick or n > 50_000) else 3, 5 if quick else 11, rng)
-            scaling.append(r)
-        out["scaling"] = scaling
 
-    # 3. throughput
-    k = rays or (40_000 if quick else 1_000_000)
-    reps = 1 if quick else 5
-    tm_rays = 200 if (quick or throughput_only) else 2_000   # trimesh takes minutes for 2,000 rays
+def _paper_scenes(quick: bool, rng) -> tuple[list[dict], tracer.Scene | None, float]:
+    """Section 1: build and move timings of the paper's scenes (``quick``: scene 3 alone, fewer repeats), and scene 3
+    as built, for section 3: (rows, scene 3, its world size in m)."""
+    paper = []
+    scene3 = None
+    scene3_world = 0.0
+    for idx, (name, n_obj, n_tri, paper_build, paper_move) in enumerate(PAPER_SCENES):
+        if quick and idx < 2:
+            continue
+        v, f, m, world = synth_scene(idx + 1, n_obj, n_tri)
+        r, scene = measure_scene(v, f, m, 1 if quick else 3, 5 if quick else 21, rng)
+        r.update(name=name, paper_full_build_s=paper_build, paper_move_commit_s=paper_move)
+        paper.append(r)
+        if idx == 2:
+            scene3, scene3_world = scene, world
+    return paper, scene3, scene3_world
+
+
+def _scaling(quick: bool, rng) -> list[dict]:
+    """Section 2: build and move timings against the number of objects (~14.44 triangles each), up to 200,000."""
+    sizes = [1_000, 5_000] if quick else [1_000, 5_000, 20_000, 50_000, 100_000, 200_000]
+    scaling = []
+    for n in sizes:
+        v, f, m, _ = synth_scene(100 + n, n, int(n * 14.44))
+        r, _ = measure_scene(v, f, m, 1 if (quick or n > 50_000) else 3, 5 if quick else 11, rng)
+        scaling.append(r)
+    return scaling
+
+
+def _mesh_throughput(quick: bool, k: int, reps: int, tm_rays: int, rng) -> tuple[list[dict], dict]:
+    """Section 3 on the bumpy sphere (1M triangles; ``quick``: 40k): its throughput rows (``k`` rays a kind) and its
+    BVH build in s: (rows, ``ours_build_1m_s`` and, where embreex is there, ``embree_build_1m_s`` before it)."""
+    builds = {}
     nu = 200 if quick else 1000
     v, f = bumpy_sphere(nu, nu // 2)
     big = tracer.Scene()
@@ -333,24 +335,49 @@ def run(quick: bool = False, throughput_only: bool = False, rays: int | None = N
     es = embree_scene(tri_big)
     if es is not None:
         es.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32), output=1)
-        out["embree_build_1m_s"] = time.perf_counter() - t0
-    out["ours_build_1m_s"] = big_build
-    del big, es
+        builds["embree_build_1m_s"] = time.perf_counter() - t0
+    builds["ours_build_1m_s"] = big_build
+    return rows, builds
 
+
+def _scene3_throughput(scene3: tracer.Scene, scene3_world: float, k: int, reps: int, tm_rays: int,
+                       rng) -> list[dict]:
+    """Section 3 on paper scene 3 (``scene3_world`` m a side): two levels against Embree flat and instanced, then
+    one flattened BVH over the same world-space triangles, each of its rows with its instancing overhead."""
     tri3 = world_triangles(scene3)
     c = np.full(3, scene3_world / 2)
     s3_rays = {"incoherent": incoherent_rays(rng, k, np.zeros(3), np.full(3, scene3_world)),
                "camera": camera_rays(k, c + np.array([0.3, -1.6, 0.4]) * scene3_world, c, 50.0)}
-    rows += throughput(f"paper scene 3 ({len(tri3):,} tri, 2 levels)", scene3, s3_rays, reps, tri3, tm_rays,
-                       instanced=True)
+    rows = throughput(f"paper scene 3 ({len(tri3):,} tri, 2 levels)", scene3, s3_rays, reps, tri3, tm_rays,
+                      instanced=True)
     flat = tracer.Scene()
     flat.add_instance(flat.add_geometry(tri3.reshape(-1, 3), np.arange(len(tri3) * 3).reshape(-1, 3)), np.eye(4))
     flat.commit()
     flat_rows = throughput("paper scene 3, one flattened BVH", flat, s3_rays, reps, tri3, 0)
     for r2, r1 in zip(flat_rows, rows[-4:], strict=True):   # closest hit, then any hit
         r2["instancing_overhead"] = instancing_overhead(r2, r1)
-    rows += flat_rows
-    out["throughput"] = rows
+    return rows + flat_rows
+
+
+def run(quick: bool = False, throughput_only: bool = False, rays: int | None = None) -> dict:
+    """The whole benchmark; ``throughput_only`` re-measures section 3 alone and keeps sections 1, 2 and 4 from
+    ``bench/results/tracer.json`` (their date in ``build_from``); ``rays`` overrides the rays per row."""
+    rng = np.random.default_rng(2008)   # one generator through sections 1-3, in this order: the same rays
+    _warm_up()
+    out: dict = {"quick": quick, "load_average_start": os.getloadavg(), "numba_threads": _numba_threads()}
+    if throughput_only:
+        scene3, scene3_world = _build_sections_from_file(out)
+    else:
+        out["paper_scenes"], scene3, scene3_world = _paper_scenes(quick, rng)   # 1. paper scenes
+        out["scaling"] = _scaling(quick, rng)   # 2. scaling
+
+    # 3. throughput
+    k = rays or (40_000 if quick else 1_000_000)
+    reps = 1 if quick else 5
+    tm_rays = 200 if (quick or throughput_only) else 2_000   # trimesh takes minutes for 2,000 rays
+    rows, builds = _mesh_throughput(quick, k, reps, tm_rays, rng)   # the mesh's scene freed before scene 3's rows
+    out.update(builds)
+    out["throughput"] = rows + _scene3_throughput(scene3, scene3_world, k, reps, tm_rays, rng)
 
     # 4. cold start
     if not quick and not throughput_only:
@@ -386,7 +413,9 @@ def _f(x, nd=3) -> str:
     return f"{x:.{nd}f}"
 
 
-def markdown(r: dict) -> str:
+def _build_markdown(r: dict) -> list[str]:
+    """Sections 1 and 2: build and move times of the paper's scenes (beside the paper's, s) and their scaling with
+    the number of objects (s, µs per object, ms)."""
     lines = ["### Build and update (the paper's dynamic scenes, regenerated)", "",
              "Every object is a unique geometry. *Full build* = `commit()` of a fresh scene (all BLAS + TLAS, JIT "
              "warm); *ingest* = validating and hashing the meshes in `add_geometry`/`add_instance` (once per upload, "
@@ -411,20 +440,26 @@ def markdown(r: dict) -> str:
         lines.append(f"| {n:,} | {s['triangles']:,} | {_f(s['full_build_s'])} | {_f(s['full_build_s'] / n * 1e6, 1)} | "
                      f"{_f(s['move_commit_s'] * 1e3, 2)} | {_f(s['move_rebuild_commit_s'] * 1e3, 1)} | "
                      f"{_f(s['ingest_s'], 2)} |")
-    lines += ["", "### Closest-hit throughput (Mrays/s, same rays, same process)", "",
-              "Each round times ours and the peers one after the other on the same rays; rates are medians over "
-              "the rounds, a ratio (ours / Embree, one thread each) the median of the rounds' ratios. "
-              "Embree via embreex (its `run` loops over rays on one thread; its BVH is built outside the timing) over "
-              "the world-space triangles: one flat BVH. *Embree, 2 levels*: Embree over the same instances (one "
-              "Embree scene per geometry, an instance per object with its transform; `bench/embree_instances.py`, "
-              "`rtcIntersect1` per ray from a compiled loop), the peer with our structure. trimesh = "
-              "`trimesh.ray.ray_triangle` (pure numpy) on a subset.", "",
-              "*Any hit*: the same rays as shadow segments (`shadow_t_max`: lengths uniform up to the scene's "
-              "diagonal), `Scene.occluded` (first hit found ends the walk) against Embree's `OCCLUDED` query "
-              "(`rtcOccluded1`); its agreement column compares the occluded flags.", "",
-              "| scene | rays | query | ours 1 thread | ours 2 threads | Embree flat, 1 thread | ratio | "
-              "Embree 2 levels, 1 thread | ratio | trimesh | hit agreement |",
-              "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
+    return lines
+
+
+def _throughput_markdown(r: dict) -> list[str]:
+    """Section 3: the throughput table (Mrays/s, ratios to Embree), then where ours falls short of Embree and why,
+    the instancing overhead of ours and of Embree, and the 1M-triangle BVH build (s)."""
+    lines = ["", "### Closest-hit throughput (Mrays/s, same rays, same process)", "",
+             "Each round times ours and the peers one after the other on the same rays; rates are medians over "
+             "the rounds, a ratio (ours / Embree, one thread each) the median of the rounds' ratios. "
+             "Embree via embreex (its `run` loops over rays on one thread; its BVH is built outside the timing) over "
+             "the world-space triangles: one flat BVH. *Embree, 2 levels*: Embree over the same instances (one "
+             "Embree scene per geometry, an instance per object with its transform; `bench/embree_instances.py`, "
+             "`rtcIntersect1` per ray from a compiled loop), the peer with our structure. trimesh = "
+             "`trimesh.ray.ray_triangle` (pure numpy) on a subset.", "",
+             "*Any hit*: the same rays as shadow segments (`shadow_t_max`: lengths uniform up to the scene's "
+             "diagonal), `Scene.occluded` (first hit found ends the walk) against Embree's `OCCLUDED` query "
+             "(`rtcOccluded1`); its agreement column compares the occluded flags.", "",
+             "| scene | rays | query | ours 1 thread | ours 2 threads | Embree flat, 1 thread | ratio | "
+             "Embree 2 levels, 1 thread | ratio | trimesh | hit agreement |",
+             "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
     for t in r["throughput"]:
         lines.append(f"| {t['scene']} | {t['rays']} ({t['n_rays']:,}) | {t.get('query', 'closest')} hit | "
                      f"{_f(t['ours_1t_mrays'], 2)} | "
@@ -460,6 +495,13 @@ def markdown(r: dict) -> str:
     if "embree_build_1m_s" in r:
         lines += ["", f"BVH build of the {r['throughput'][0]['scene']}: ours {r['ours_build_1m_s']:.2f} s, "
                   f"Embree {r['embree_build_1m_s']:.2f} s (embreex default device)."]
+    return lines
+
+
+def markdown(r: dict) -> str:
+    """The tracer section of bench/results/REPORT.md: sections 1-3, where sections 1, 2 and 4 came from, the profile
+    (``bench/results/tracer_profile.json``), the cold start (s) and the machine's load."""
+    lines = _build_markdown(r) + _throughput_markdown(r)
     if r.get("build_from"):
         lines += ["", f"_Build, scaling and cold start above: from the full run of {r['build_from']} (this run, "
                   "`--throughput-only`, re-measured the ray throughput only)._"]

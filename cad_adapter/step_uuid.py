@@ -36,7 +36,7 @@ from OCP.TDF import TDF_Label
 from OCP.TDocStd import TDocStd_Document
 from OCP.TopLoc import TopLoc_Location
 from OCP.XCAFApp import XCAFApp_Application
-from OCP.XCAFDoc import XCAFDoc_ColorSurf, XCAFDoc_DocumentTool, XCAFDoc_ShapeTool
+from OCP.XCAFDoc import XCAFDoc_ColorSurf, XCAFDoc_ColorTool, XCAFDoc_DocumentTool, XCAFDoc_ShapeTool
 from OCP.XSControl import XSControl_WorkSession
 
 from .errors import CadAdapterError
@@ -48,6 +48,126 @@ _STEP_UNIT = {"mm": "MM", "cm": "CM", "m": "M", "um": "UM", "in": "INCH", "ft": 
 
 def _set_name(label, text: str) -> None:
     TDataStd_Name.Set_s(label, TCollection_ExtendedString(text))
+
+
+def _location(m) -> TopLoc_Location:
+    """OCCT's location of a node's 4x4 transform (its upper 3x4 block)."""
+    t = gp_Trsf()
+    t.SetValues(*[float(m[r, c]) for r in range(3) for c in range(4)])
+    return TopLoc_Location(t)
+
+
+def _check_writable(doc: Document) -> None:
+    """Refuse a document the writer cannot carry faithfully, before any OCCT work is spent on it."""
+    if any(n.uuid is None for n in doc.nodes):
+        raise CadAdapterError("every node needs a UUID before writing (run cad_adapter.identity.identify)")
+    if doc.length_unit not in UNIT_METRES:
+        raise CadAdapterError(f"unknown length unit {doc.length_unit!r}")
+
+
+def _new_xcaf_document(length_unit: str) -> tuple[TDocStd_Document, XCAFDoc_ShapeTool, XCAFDoc_ColorTool]:
+    """An empty XCAF document in the document's unit, with its shape tool (no automatic names: the writer
+    names every label itself) and colour tool."""
+    app = XCAFApp_Application.GetApplication_s()
+    xdoc = TDocStd_Document(TCollection_ExtendedString("XmlXCAF"))
+    app.InitDocument(xdoc)
+    XCAFDoc_DocumentTool.SetLengthUnit_s(xdoc, UNIT_METRES[length_unit])
+    tool = XCAFDoc_DocumentTool.ShapeTool_s(xdoc.Main())
+    tool.SetAutoNaming_s(False)
+    ctool = XCAFDoc_DocumentTool.ColorTool_s(xdoc.Main())
+    return xdoc, tool, ctool
+
+
+def _add_parts(doc: Document, tool: XCAFDoc_ShapeTool, ctool: XCAFDoc_ColorTool) -> dict[str, TDF_Label]:
+    """One XCAF shape per part (so that its nodes share one product in the file); returns part key -> label."""
+    part_labels = {}
+    for key, part in doc.parts.items():
+        # a deep copy: the STEP writer's shape processing adjusts tolerances in place
+        lab = tool.AddShape(BRepBuilderAPI_Copy(part.shape, True, False).Shape(), False, False)
+        _set_name(lab, part.name or key)
+        if XCAFDoc_ShapeTool.IsReference_s(lab):  # a located shape: name its prototype too
+            proto = TDF_Label()
+            XCAFDoc_ShapeTool.GetReferredShape_s(lab, proto)
+            _set_name(proto, part.name or key)
+        if part.color is not None:
+            ctool.SetColor(lab, Quantity_Color(*part.color, Quantity_TOC_RGB), XCAFDoc_ColorSurf)
+        part_labels[key] = lab
+    return part_labels
+
+
+def _add_nodes(doc: Document, tool: XCAFDoc_ShapeTool, ctool: XCAFDoc_ColorTool,
+               part_labels: dict[str, TDF_Label]) -> dict[str, tuple[str, str]]:
+    """Build the node tree on the parts, naming each node's label (a root's shape, another node's component)
+    with a unique token so that its STEP entity can be found after the transfer; returns token -> (uuid,
+    real name)."""
+    tokens: dict[str, tuple[str, str]] = {}
+    node_labels = {}
+    for n in doc.nodes:
+        token = f"LLTOKEN{n.index:08d}"
+        tokens[token] = (n.uuid, n.name)
+        kids = doc.children(n.index)
+        if n.parent is None:
+            # a root: a free assembly label (even for a single part, so that the product id can carry its UUID)
+            lab = tool.NewShape()
+            _set_name(lab, token)
+            node_labels[n.index] = lab
+            if n.part is not None:
+                comp = tool.AddComponent(lab, part_labels[n.part], _location(n.transform))
+                _set_name(comp, n.name)
+            continue
+        parent_lab = node_labels[n.parent]
+        if n.part is not None and not kids:
+            comp = tool.AddComponent(parent_lab, part_labels[n.part], _location(n.transform))
+        else:
+            sub = tool.NewShape()
+            _set_name(sub, n.name)
+            node_labels[n.index] = sub
+            if n.part is not None:
+                tool.AddComponent(sub, part_labels[n.part], TopLoc_Location())
+            comp = tool.AddComponent(parent_lab, sub, _location(n.transform))
+        _set_name(comp, token)
+        if n.color is not None and (n.part is None or n.color != doc.parts[n.part].color):
+            ctool.SetColor(comp, Quantity_Color(*n.color, Quantity_TOC_RGB), XCAFDoc_ColorSurf)
+    tool.UpdateAssemblies()
+    return tokens
+
+
+def _transfer(xdoc: TDocStd_Document, length_unit: str) -> STEPCAFControl_Writer:
+    """Translate the XCAF document into an AP214 STEP model (names and colours kept), not yet written, so
+    that its entities can still be edited."""
+    session = XSControl_WorkSession()
+    writer = STEPCAFControl_Writer(session, False)
+    writer.SetNameMode(True)
+    writer.SetColorMode(True)
+    Interface_Static.SetCVal_s("write.step.schema", "AP214IS")
+    Interface_Static.SetCVal_s("write.step.unit", _STEP_UNIT[length_unit])
+    if not writer.Transfer(xdoc, STEPControl_AsIs):
+        raise CadAdapterError("OCCT could not transfer the document to STEP")
+    return writer
+
+
+def _place_uuids(writer: STEPCAFControl_Writer, tokens: dict[str, tuple[str, str]], carry_uuids: bool) -> int:
+    """Swap each token in the STEP model (a NAUO's or a product's name) for the node's real name, and put its
+    UUID into the entity's id when ``carry_uuids``; returns how many tokens were found."""
+    found = 0
+    for ent in entities(writer.ChangeWriter().Model()):
+        if isinstance(ent, StepRepr_NextAssemblyUsageOccurrence | StepBasic_Product):
+            name = entity_text(ent.Name())
+            if name in tokens:
+                uuid, real = tokens[name]
+                if carry_uuids:
+                    ent.SetId(TCollection_HAsciiString(uuid))
+                ent.SetName(TCollection_HAsciiString(real))
+                found += 1
+    return found
+
+
+def _write_file(writer: STEPCAFControl_Writer, path: str | Path) -> Path:
+    """Write the model, now carrying the UUIDs, to ``path``; OCCT's failure code becomes an error."""
+    p = Path(path)
+    if writer.Write(str(p)) != IFSelect_RetDone:
+        raise CadAdapterError(f"{p}: OCCT could not write the STEP file")
+    return p
 
 
 def write_step(doc: Document, path: str | Path, carry_uuids: bool = True) -> Path:
@@ -72,86 +192,13 @@ def write_step(doc: Document, path: str | Path, carry_uuids: bool = True) -> Pat
     CadAdapterError
         A node without UUID, or OCCT fails to write.
     """
-    if any(n.uuid is None for n in doc.nodes):
-        raise CadAdapterError("every node needs a UUID before writing (run cad_adapter.identity.identify)")
-    if doc.length_unit not in UNIT_METRES:
-        raise CadAdapterError(f"unknown length unit {doc.length_unit!r}")
-    app = XCAFApp_Application.GetApplication_s()
-    xdoc = TDocStd_Document(TCollection_ExtendedString("XmlXCAF"))
-    app.InitDocument(xdoc)
-    XCAFDoc_DocumentTool.SetLengthUnit_s(xdoc, UNIT_METRES[doc.length_unit])
-    tool = XCAFDoc_DocumentTool.ShapeTool_s(xdoc.Main())
-    tool.SetAutoNaming_s(False)
-    ctool = XCAFDoc_DocumentTool.ColorTool_s(xdoc.Main())
-    part_labels = {}
-    for key, part in doc.parts.items():
-        # a deep copy: the STEP writer's shape processing adjusts tolerances in place
-        lab = tool.AddShape(BRepBuilderAPI_Copy(part.shape, True, False).Shape(), False, False)
-        _set_name(lab, part.name or key)
-        if XCAFDoc_ShapeTool.IsReference_s(lab):  # a located shape: name its prototype too
-            proto = TDF_Label()
-            XCAFDoc_ShapeTool.GetReferredShape_s(lab, proto)
-            _set_name(proto, part.name or key)
-        if part.color is not None:
-            ctool.SetColor(lab, Quantity_Color(*part.color, Quantity_TOC_RGB), XCAFDoc_ColorSurf)
-        part_labels[key] = lab
-    tokens: dict[str, tuple[str, str]] = {}  # token -> (uuid, real name)
-    node_labels = {}
-
-    def loc_of(m) -> TopLoc_Location:
-        t = gp_Trsf()
-        t.SetValues(*[float(m[r, c]) for r in range(3) for c in range(4)])
-        return TopLoc_Location(t)
-
-    for n in doc.nodes:
-        token = f"LLTOKEN{n.index:08d}"
-        tokens[token] = (n.uuid, n.name)
-        kids = doc.children(n.index)
-        if n.parent is None:
-            # a root: a free assembly label (even for a single part, so that the product id can carry its UUID)
-            lab = tool.NewShape()
-            _set_name(lab, token)
-            node_labels[n.index] = lab
-            if n.part is not None:
-                comp = tool.AddComponent(lab, part_labels[n.part], loc_of(n.transform))
-                _set_name(comp, n.name)
-            continue
-        parent_lab = node_labels[n.parent]
-        if n.part is not None and not kids:
-            comp = tool.AddComponent(parent_lab, part_labels[n.part], loc_of(n.transform))
-        else:
-            sub = tool.NewShape()
-            _set_name(sub, n.name)
-            node_labels[n.index] = sub
-            if n.part is not None:
-                tool.AddComponent(sub, part_labels[n.part], TopLoc_Location())
-            comp = tool.AddComponent(parent_lab, sub, loc_of(n.transform))
-        _set_name(comp, token)
-        if n.color is not None and (n.part is None or n.color != doc.parts[n.part].color):
-            ctool.SetColor(comp, Quantity_Color(*n.color, Quantity_TOC_RGB), XCAFDoc_ColorSurf)
-    tool.UpdateAssemblies()
-    session = XSControl_WorkSession()
-    writer = STEPCAFControl_Writer(session, False)
-    writer.SetNameMode(True)
-    writer.SetColorMode(True)
-    Interface_Static.SetCVal_s("write.step.schema", "AP214IS")
-    Interface_Static.SetCVal_s("write.step.unit", _STEP_UNIT[doc.length_unit])
-    if not writer.Transfer(xdoc, STEPControl_AsIs):
-        raise CadAdapterError("OCCT could not transfer the document to STEP")
-    model = writer.ChangeWriter().Model()
-    found = 0
-    for ent in entities(model):
-        if isinstance(ent, StepRepr_NextAssemblyUsageOccurrence | StepBasic_Product):
-            name = entity_text(ent.Name())
-            if name in tokens:
-                uuid, real = tokens[name]
-                if carry_uuids:
-                    ent.SetId(TCollection_HAsciiString(uuid))
-                ent.SetName(TCollection_HAsciiString(real))
-                found += 1
-    p = Path(path)
-    if writer.Write(str(p)) != IFSelect_RetDone:
-        raise CadAdapterError(f"{p}: OCCT could not write the STEP file")
+    _check_writable(doc)
+    xdoc, tool, ctool = _new_xcaf_document(doc.length_unit)
+    part_labels = _add_parts(doc, tool, ctool)
+    tokens = _add_nodes(doc, tool, ctool, part_labels)
+    writer = _transfer(xdoc, doc.length_unit)
+    found = _place_uuids(writer, tokens, carry_uuids)
+    p = _write_file(writer, path)  # before the count check, as it always was: a short count leaves the file behind
     if found < len(doc.nodes):
         raise CadAdapterError(f"only {found} of {len(doc.nodes)} node UUIDs could be placed in the STEP model")
     return p

@@ -1,11 +1,12 @@
 """`lumenlink demo-guide` / `make demo-guide`: an edge-lit light guide as a backlight engineer builds it.
 
 A 120 x 80 x 4 mm PMMA plate, an LED strip at its left edge (a Lambertian emitter facing the edge), a white
-reflector sheet under it and a 3 x 3 illuminance grid over its lit face (the 9-point figure): what it measures and
-draws is illuminance (lx) 3 mm over the face, forward photons, not luminance (a luminance meter or camera over
-the face would answer cd/m²; this demo has none). Its bottom face carries extraction dots, domes 0.5 mm across, as
-an optical element with an inside: never meshed, prepared once into the service's library. Two patterns side by
-side, two scenes of one service:
+reflector sheet under it and a 3 x 3 illuminance grid over its lit face: what it draws is illuminance (lx) 3 mm over
+the face, forward photons. It also reads the face as a display is judged: the luminance (cd/m²) a viewer in front
+of it sees at the 9 points of the VESA pattern (meters 0.5 m out with a 1° cone, paths from the eye: ``POST
+/scenes/{id}/luminance/uniformity``), with the uniformity min/max and its error. Its bottom face carries extraction
+dots, domes 0.5 mm across, as an optical element with an inside: never meshed, prepared once into the service's
+library. Two patterns side by side, two scenes of one service:
 
 - uniform: every lattice site kept with the same probability, 0.3;
 - graded: the fill grows away from the LED, from 0.27 to 0.33, as a designer grades it to make up for the light the
@@ -144,6 +145,32 @@ def _save(fig: Any, path: Path) -> Path:
     return path
 
 
+#: the lit (top) face as the VESA 9-point figure sees it: the centres of its 3 x 3 division, world metres
+NINE_POINTS = {"origin": [0.0, 0.0, SIZE[2] / 1000.0], "u": [SIZE[0] / 1000.0, 0.0, 0.0],
+               "v": [0.0, SIZE[1] / 1000.0, 0.0]}
+
+
+def luminance_nine(http: Any, sid: str, seed: int, max_seconds: float = 20.0) -> dict[str, Any]:
+    """The luminance a viewer in front of the lit face sees at its 9 points (meters 0.5 m out, 1° cones, looking
+    straight down at the face): the service's answer (``readings`` in cd/m² ± stderr, ``uniformity``)."""
+    r = http.post(f"/scenes/{sid}/luminance/uniformity",
+                  json={"nine_points": NINE_POINTS, "direction": [0.0, 0.0, -1.0], "distance": 0.5,
+                        "aperture_deg": 1.0, "max_seconds": max_seconds, "seed": seed})
+    r.raise_for_status()
+    return r.json()
+
+
+def say_luminance(n: Narrator, answer: dict[str, Any]) -> None:
+    """The 9-point luminance and its uniformity, as a display datasheet gives them."""
+    u = answer["uniformity"]
+    cd = " ".join(f"{x:.0f}±{e:.0f}" for x, e in zip(answer["luminance"], answer["stderr"], strict=True))
+    ud = "undefined (a reading of 0)" if u["min_max"] is None else f"{u['min_max']:.2f}" + (
+        "" if u["min_max_stderr"] is None else f" ± {u['min_max_stderr']:.2f}")
+    n.say(f"          luminance at the 9 points (cd/m², seen from 0.5 m, {answer['seconds']:.1f} s): {cd}; "
+          f"min/max {ud}, mean {u['mean']:.0f} cd/m²" + ("" if not answer.get("unreachable") else
+                                                         f"; not seen: {answer['unreachable']}"))
+
+
 def _measure(http: Any, sid: str, sensor: str, photons: int, seed: int) -> dict[str, Any]:
     from tracer.photometry.glare import uniformity
 
@@ -202,13 +229,14 @@ def run(out_dir: Path = Path("demo-output"), photons: int = 400_000, pack: bool 
         with running_service(data) as url, Client(url) as ll, httpx.Client(base_url=url, timeout=600) as http:
             n.step(f"service at {url}; an edge-lit PMMA guide {SIZE[0]:g} x {SIZE[1]:g} x {SIZE[2]:g} mm, dots "
                    f"{2 * DOT['radius_mm']:g} mm across on a {PITCH:g} mm lattice under it")
-            rows = []
+            rows, sids = [], {}
             for pattern, fill in fills().items():
                 body = {"type": "microstructure", "feature": DOT, "relief": "bump",
                         "layout": {"type": "density", "origin_mm": [0.0, 0.0], "size_mm": [SIZE[0], SIZE[1]],
                                    "fill": fill, "seed": 1, "pitch_mm": PITCH}}
                 element = ll.add_element(body)
                 sid, _ = _scene(ll, http, f"guide-{pattern}")
+                sids[pattern] = sid
                 put = ll.put_element(sid, "backlight/guide", element["id"], facing=[0, 0, -1])
                 if not put["applied"]:
                     raise RuntimeError(f"the dots did not go onto the guide: {put['problem']}")
@@ -224,6 +252,7 @@ def run(out_dir: Path = Path("demo-output"), photons: int = 400_000, pack: bool 
                                         title=f"the lit face, two dot patterns ({photons:,} photons each)"),
                          out_dir / "guide_patterns.png")
             n.step("the lit face, 9 cells 33 x 20 mm, 3 mm over the guide (illuminance, forward photons)")
+            nine = {pattern: luminance_nine(http, sid, seed=2) for pattern, sid in sids.items()}
             for pattern, element, lux, err, seconds in rows:
                 lo, hi = int(np.argmin(lux)), int(np.argmax(lux))
                 rel = np.hypot(err.ravel()[lo] / lux.ravel()[lo], err.ravel()[hi] / lux.ravel()[hi])
@@ -233,6 +262,7 @@ def run(out_dir: Path = Path("demo-output"), photons: int = 400_000, pack: bool 
                       f"{lux.min() / lux.mean():.2f}; {seconds:.1f} s; maps {path}")
                 n.say("          cells (lx; rows away from the LED, columns along y): "
                       + " | ".join(" ".join(f"{x:7.1f}" for x in row) for row in lux))
+                say_luminance(n, nine[pattern])
             if pack:
                 n.step(f"packing the dots (issue 41): a uniform start, fill {UNIFORM_START:.1f} on an {PACK_ROWS} x 24 "
                        f"map, fed back on the nine cells to min/max 0.95")
