@@ -87,7 +87,8 @@ class ElementCalls(ClientBase):
              **options: Any) -> dict[str, Any]:
         """Pack a density element against the grid `sensor` over the lit face of the part that `assignment` puts it
         on (``POST /elements/{id}/pack``); options: target, figure, photons, max_photons, max_iterations,
-        max_seconds, damping, max_fill, pitch_mm, seed. With `wait`, follows the job (Ctrl-C cancels it; a cancelled
+        max_seconds, damping, max_fill, pitch_mm, seed, quantity ("illuminance" or "luminance"), distance,
+        aperture_deg. With `wait`, follows the job (Ctrl-C cancels it; a cancelled
         pack keeps what it measured) and answers its last state, whose ``result`` names the packed ``element``;
         otherwise the 202 answer (``url``). `sensor`: the grid's id or its name."""
         sid = self._sid(scene)

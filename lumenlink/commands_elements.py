@@ -207,6 +207,9 @@ def pack(
     pitch_mm: Annotated[float | None, typer.Option(help="The lattice pitch, mm (at least the feature's size; "
                                                         "default the element's).")] = None,
     seed: Annotated[int, typer.Option(help="Photon seed.")] = 1,
+    quantity: Annotated[str, typer.Option(help="What the cells read: illuminance (lx) or luminance (cd/m², a viewer "
+                                               "--distance m in front of each cell).")] = "illuminance",
+    distance: Annotated[float, typer.Option(help="With luminance: the viewer's distance from the grid, m.")] = 0.5,
     switch: Annotated[bool, typer.Option("--switch", help="Put the packed element in place of the start.")] = False,
     png: Annotated[Path | None, typer.Option(help="Write pack.png here.")] = None,
     server: Server = DEFAULT_SERVER,
@@ -228,7 +231,7 @@ def pack(
             job = ll.pack(element_id, info, assignment, sensor, progress=show, target=target, figure=figure,
                           photons=photons, max_photons=max_photons, max_iterations=max_iterations,
                           max_seconds=max_seconds, seed=seed, damping=damping, max_fill=max_fill,
-                          pitch_mm=pitch_mm)
+                          pitch_mm=pitch_mm, quantity=quantity, distance=distance)
             res = job.get("result") or {}
             if job["status"] == "failed" or not res.get("element"):
                 raise LumenLinkError(f"the pack {job['status']}: {job.get('error') or 'nothing was measured'}",

@@ -1,10 +1,11 @@
 """Packing a density element against a scene (issue 41): ``POST /elements/{id}/pack`` as a job.
 
 The request names the scene, the element assignment that puts the element onto the light guide's face, and a grid
-sensor over the lit face (its cells are the meters). `start` checks everything before a job is queued (422 naming
-the field, nothing changed): a target outside (0, 1], an element that is not a density layout, an assignment or a
-sensor the scene lacks, a scene without lights, a face that no light reaches (a short pilot measurement reads 0 lx
-in every cell).
+sensor over the lit face (its cells are the meters: illuminance, or with ``"quantity": "luminance"`` the luminance a
+viewer ``distance`` m in front of each cell sees, `tracer.elements.pack.Reading`). `start` checks everything before
+a job is queued (422 naming the field, nothing changed): a target outside (0, 1], an element that is not a density
+layout, an assignment or a sensor the scene lacks, a scene without lights, a face that no light reaches (a short
+pilot measurement reads 0 lx in every cell; with luminance, also a pilot of paths from the eye).
 
 The job packs on a scene of its own: the scene rebuilt from the database (`Scenes.rebuilt`, timed: the full
 rebuild each iteration would cost without the two levels), whose element it changes at each iteration with
@@ -34,15 +35,17 @@ def start(manager: Any, hub: Any, element_id: str, req: dict[str, Any]) -> tuple
     """Check a pack request and set it up: answers ``(scene_id, revision, work, budget, meta)`` for
     `JobRunner.submit` (see the module docstring for what is refused)."""
     from tracer.elements import ElementError
-    from tracer.elements.pack import PackError, check
+    from tracer.elements.pack import PackError, Reading, check
 
     library = manager.scenes.elements
     if library.summary(element_id)["type"] == "grating":   # 404: no such element
         raise Invalid(f"element {element_id} is a grating: packing places the features of a density layout "
                       f"(a microstructure)")
     start_model = library.get(element_id)
+    reading = Reading(req.get("quantity", "illuminance"), req.get("distance", 0.5), req.get("aperture_deg", 1.0))
     try:
         check(start_model, req["target"], req["figure"], req["damping"], req["max_fill"], req.get("pitch_mm"))
+        reading.check()
     except ElementError as exc:
         raise Invalid(str(exc)) from None
     scene_id = req["scene"]
@@ -66,11 +69,14 @@ def start(manager: Any, hub: Any, element_id: str, req: dict[str, Any]) -> tuple
         raise Invalid(f"sensor: no light reaches the grid over the face ({pilot.photons} photons of a pilot, every "
                       f"cell 0 lx): check the lights, and that the grid's front side (u x v) faces the lit face",
                       sensor=req["sensor"])
+    if reading.quantity == "luminance":   # what paths from the eye cannot follow here is said now, not in the job
+        _luminance_pilot(sim, sensor, reading, int(req["seed"]))
     instance = own.element_instances[req["assignment"]]
     mm = own.tree.scale * 1000.0
     assign = {"facing": assignment.get("facing"), "faces": assignment.get("faces"), "mm_per_unit": mm}
     options = {k: req[k] for k in ("target", "figure", "photons", "max_photons", "max_iterations", "max_seconds",
                                    "damping", "max_fill", "pitch_mm", "seed")}
+    options["reading"] = reading
 
     def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
         from tracer.elements.pack import pack
@@ -93,6 +99,22 @@ def start(manager: Any, hub: Any, element_id: str, req: dict[str, Any]) -> tuple
     budget = Budget(max_seconds=float(req["max_seconds"]))
     meta = {"generation": hub.generation(scene_id), "sensor": req["sensor"], "element": element_id}
     return scene_id, int(own.revision), work, budget, meta
+
+
+def _luminance_pilot(sim: Any, sensor: dict[str, Any], reading: Any, seed: int) -> None:
+    """A few paths from the eye through the grid's meters: 422 where they cannot answer this scene (an effect paths
+    from the eye do not follow) or see no light."""
+    from tracer.elements.pack import read
+    from tracer.errors import TracerError
+
+    try:
+        values, _, _ = read(sim, sensor, reading, PILOT_PHOTONS, seed, None, None)
+    except TracerError as exc:
+        raise Invalid(f"quantity: luminance cannot be read on this scene: {exc}", field="quantity") from None
+    if not float(np.max(values)) > 0:
+        raise Invalid(f"sensor: a viewer {reading.distance:g} m in front of the grid sees no light at any cell "
+                      f"({PILOT_PHOTONS} paths of a pilot): check that the grid's front side (u x v) faces the lit "
+                      f"face", field="quantity")
 
 
 def _assignment_and_sensor(manager: Any, scene_id: str, element_id: str, req: dict[str, Any]) -> dict[str, Any]:
@@ -150,6 +172,7 @@ def keep(library: Any, element_id: str, req: dict[str, Any], result: Any, rebuil
     record = {"element": summary["id"], "packed_from": element_id, "scene": req["scene"],
               "assignment": req["assignment"], "sensor": req["sensor"], "target": result.target,
               "figure": result.figure, "stopped": result.stopped, "best": result.best,
+              "quantity": result.reading.quantity, "unit": result.reading.unit,
               "uniformity": best.uniformity, "uniformity_stderr": best.stderr, "min_mean": best.min_mean,
               "iterations": len(history), "seconds": result.seconds, "rebuild_seconds": rebuild_seconds,
               "update_seconds_mean": float(np.mean(updates)),
@@ -189,7 +212,8 @@ def plot(record: dict[str, Any], layout: dict[str, Any]) -> bytes:
 
 def plot_figure(record: dict[str, Any], layout: dict[str, Any]) -> Any:
     """The figure of ``pack.png`` (a matplotlib `Figure`, constrained layout): the chosen density map over the
-    support in the element's own u, v (mm), the illuminance it measured on the sensor grid in world mm (its colour
+    support in the element's own u, v (mm), the illuminance (or luminance) it measured on the sensor grid in world mm
+    (its colour
     scale from the smallest cell to the largest), and the figure against the iterations with its error bars and the
     target."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -214,7 +238,8 @@ def plot_figure(record: dict[str, Any], layout: dict[str, Any]) -> Any:
     for (j, i), x in np.ndenumerate(lux):
         b.text(extent[0] + (i + 0.5) * (extent[1] - extent[0]) / nu, extent[2] + (j + 0.5) * (extent[3] - extent[2])
                / nv, f"{x:.0f}", ha="center", va="center", color="cyan", fontsize=8)
-    fig.colorbar(im2, ax=b, label="illuminance E (lx), min to max")
+    quantity, unit = record.get("quantity", "illuminance"), record.get("unit", "lx")
+    fig.colorbar(im2, ax=b, label=f"{quantity} {'E' if unit == 'lx' else 'L'} ({unit}), min to max")
     b.set(title=f"measured on the sensor grid: {record['figure'].replace('_', '/')} {record['uniformity']:.3f} ± "
                 f"{record['uniformity_stderr']:.3f}", xlabel=xlabel, ylabel=ylabel)
     h = record["history"]

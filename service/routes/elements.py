@@ -229,6 +229,15 @@ class PackRequest(BaseModel):
     pitch_mm: float | None = Field(None, description="the lattice pitch (the minimum pitch between features); "
                                                      "default the element's")
     seed: int = Field(1, ge=0, lt=2 ** 31, description="photon seed (each iteration takes its own from it)")
+    quantity: Literal["illuminance", "luminance"] = Field(
+        "illuminance", description="what the grid's cells read: 'illuminance' (lx, forward photons) or 'luminance' "
+                                   "(cd/m², as a display is judged: a viewer `distance` m in front of each cell, "
+                                   "looking through it at the lit face along the grid's front normal u × v; paths "
+                                   "from the eye)")
+    distance: float = Field(0.5, gt=0.0, le=1000.0, description="with luminance: how far each meter stands in "
+                                                                "front of its cell, m")
+    aperture_deg: float = Field(1.0, gt=0.0, le=180.0, description="with luminance: each meter's acceptance "
+                                                                   "angle (full cone), degrees")
 
 
 PACK_EXAMPLES = {"guide": {"summary": "the demo guide's dots to 0.8 min/max on its 9-point grid", "value": {

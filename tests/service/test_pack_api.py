@@ -125,10 +125,31 @@ def test_a_cancelled_pack_keeps_what_it_measured(guide: Any) -> None:
     assert client.get(f"/scenes/{sid}/elements/{aid}").json() == before   # the scene's assignment is untouched
 
 
+def test_a_pack_driven_by_luminance_reads_cd_m2_at_the_cells(guide: Any) -> None:
+    """Issue 53: the cells read the luminance a viewer 0.5 m in front sees (paths from the eye); the record and its
+    plot say so. One iteration, few paths: the wiring through the job, not the convergence (tests/tracer/elements/
+    test_pack_luminance.py has the closed form)."""
+    client, sid, aid, sensor, _, eid = guide
+    r = client.post(f"/elements/{eid}/pack", json={"scene": sid, "assignment": aid, "sensor": sensor,
+                                                    "quantity": "luminance", "distance": 0.5, "target": 1.0,
+                                                    "photons": 9000, "max_iterations": 1, "seed": 3})
+    assert r.status_code == 202, r.text
+    job = _follow(client, r.headers["location"])
+    assert job["status"] == "succeeded", job
+    record = client.get(f"/elements/{job['result']['element']}/pack").json()
+    assert record["quantity"] == "luminance" and record["unit"] == "cd/m²" and record["stopped"] == "iterations"
+    lum = np.asarray(record["lux"])   # the chosen iteration's readings, cd/m²
+    assert lum.shape == (3, 3) and np.all(lum > 0)
+    assert client.get(f"/elements/{job['result']['element']}/pack.png").status_code == 200
+
+
 @pytest.mark.parametrize("change, field", [({"target": 1.5}, "target"), ({"target": 0.0}, "target"),
                                            ({"target": -0.2}, "target"), ({"pitch_mm": 0.1}, "pitch_mm"),
                                            ({"sensor": "dark"}, "no light reaches"),
-                                           ({"assignment": "nope"}, "assignment"), ({"figure": "max"}, "figure")])
+                                           ({"assignment": "nope"}, "assignment"), ({"figure": "max"}, "figure"),
+                                           ({"quantity": "brightness"}, "quantity"),
+                                           ({"quantity": "luminance", "distance": 0}, "distance"),
+                                           ({"quantity": "luminance", "aperture_deg": 181}, "aperture_deg")])
 def test_a_bad_pack_is_a_422_naming_it_and_nothing_changes(guide: Any, change: dict, field: str) -> None:
     client, sid, aid, sensor, dark, eid = guide
     library = client.get("/elements").json()

@@ -2,12 +2,14 @@
 (issue 41; LightTools calls it mesh feedback optimisation).
 
 Start from a density element (`tracer.elements.microstructure`, layout ``density``) on a part's face and a grid
-sensor of cells over the lit face (its cells are the meters: illuminance, lx). Each iteration
+sensor of cells over the lit face (its cells are the meters: illuminance, lx; or, as a display is judged, the
+luminance a viewer in front of each cell sees, cd/m², `Reading`). Each iteration
 
 1. prepares the element's inner model from the current fill map and puts it onto the part
    (`tracer.Scene.set_element`, then `commit`): only that instance's element changes, the top level and every other
    bottom level stay (`PackIteration.update_seconds` against a full rebuild, measured by the caller);
-2. measures the grid with forward photons (a fresh seed each time);
+2. measures the grid (a fresh seed each time): with forward photons, or with luminance meters and paths from the
+   eye;
 3. takes the log-deviation of each cell from the mean, ``d = ln(mean / E)``, shrinks it by its own measurement
    error (soft threshold at `NOISE_SIGMAS` standard errors: a deviation the noise could make changes nothing),
    interpolates it over the support (the cells' centres projected onto the sensor plane, bilinear, clamped at the
@@ -43,6 +45,7 @@ from tracer.elements.checks import ElementError
 from tracer.elements.microstructure import Microstructure, prepare
 
 FIGURES = ("min_max", "min_mean")
+QUANTITIES = ("illuminance", "luminance")
 NOISE_SIGMAS = 2.0     # a cell's deviation within this many standard errors is noise: no change
 RAISE_SIGMAS = 4.0     # the largest deviation within this many typical errors: four times the photons next
 MAX_STEP = math.log(2.0)   # the largest log-change of a cell's target per iteration (before damping)
@@ -52,6 +55,58 @@ SUB = 5                # samples per side of a map cell when the correction is i
 
 class PackError(ElementError):
     """A pack that cannot run: a target out of range, an element that is not a density map, a dark face."""
+
+
+@dataclass(frozen=True)
+class Reading:
+    """How a pack reads the lit face at its grid's cells: ``illuminance`` (lx: the grid sensor itself, forward
+    photons) or ``luminance`` (cd/m²: what a viewer sees, a meter `distance` m behind each cell's centre, on the
+    grid's back side, looking through it along its front normal u × v with a cone of `aperture_deg` degrees; paths
+    from the eye, `tracer.sensors.luminance.meters`)."""
+
+    quantity: str = "illuminance"
+    distance: float = 0.5
+    aperture_deg: float = 1.0
+
+    def check(self) -> None:
+        """`PackError` naming the field that cannot be read."""
+        if self.quantity not in QUANTITIES:
+            raise PackError(f"quantity must be one of {list(QUANTITIES)}, got {self.quantity!r}")
+        for name, x, hi in (("distance", self.distance, 1e3), ("aperture_deg", self.aperture_deg, 180.0)):
+            if isinstance(x, bool) or not isinstance(x, int | float) or not 0.0 < x <= hi:
+                raise PackError(f"{name} must be a number in (0, {hi:g}], got {x!r}")
+
+    @property
+    def unit(self) -> str:
+        return "lx" if self.quantity == "illuminance" else "cd/m²"
+
+
+def cell_centres(sensor: dict) -> tuple[np.ndarray, np.ndarray]:
+    """The centres of a grid sensor's cells, (nv * nu, 3) world m row by row along v (its readings' order), and
+    its unit front normal u × v."""
+    o, u, v = (np.asarray(sensor[k], float) for k in ("origin", "u", "v"))
+    s = (np.arange(int(sensor["nu"])) + 0.5) / int(sensor["nu"])
+    t = (np.arange(int(sensor["nv"])) + 0.5) / int(sensor["nv"])
+    centres = o + t[:, None, None] * v + s[None, :, None] * u
+    front = np.cross(u, v)
+    return centres.reshape(-1, 3), front / np.linalg.norm(front)
+
+
+def read(sim: Any, sensor: dict, reading: Reading, photons: int, seed: int, report: Callable | None,
+         cancel: Callable[[], bool] | None) -> tuple[np.ndarray, np.ndarray, int]:
+    """The lit face read at the grid's cells: (values (nv, nu) in `reading.unit`, their standard errors, photons
+    or paths traced)."""
+    if reading.quantity == "illuminance":
+        res = sim.run(sensor, max_photons=photons, seed=seed, estimator="forward", progress=report, cancel=cancel)
+        return np.asarray(res.lux, float), np.asarray(res.stderr, float), int(res.photons)
+    from tracer.sensors.luminance import meters
+
+    centres, front = cell_centres(sensor)
+    res = meters(sim, centres - reading.distance * front, np.tile(front, (len(centres), 1)), reading.aperture_deg,
+                 max_photons=photons, seed=seed, estimator="backward", progress=report, cancel=cancel)
+    shape = (int(sensor["nv"]), int(sensor["nu"]))
+    return (np.asarray(res.luminance, float).reshape(shape), np.asarray(res.stderr, float).reshape(shape),
+            int(res.photons))
 
 
 @dataclass
@@ -65,7 +120,7 @@ class PackIteration:
     uniformity: float
     stderr: float
     min_mean: float
-    lux: list[list[float]]
+    lux: list[list[float]]          # the readings: lx, or cd/m² where the pack reads luminance (`Reading`)
     lux_stderr: list[list[float]]
     update_seconds: float      # prepare + set_element + commit + a new Simulation
     measure_seconds: float
@@ -101,20 +156,21 @@ class PackResult:
     figure: str = "min_max"
     target: float = 0.8
     seconds: float = 0.0
+    reading: Reading = Reading()
 
 
 def confirm(sim: Any, sensor: dict, measured: PackIteration, photons: int, seed: int, figure: str, target: float,
-            report: Callable, cancel: Callable[[], bool] | None) -> tuple[np.ndarray, np.ndarray] | None:
+            report: Callable, cancel: Callable[[], bool] | None, reading: Reading = Reading()
+            ) -> tuple[np.ndarray, np.ndarray] | None:
     """Measure iteration `measured`'s pattern again with the fresh `seed` (its reading reached `target`) and keep the
     reading in ``measured.confirmation``; answers the two readings pooled (lux, stderr), or None where it was
     cancelled (nothing kept)."""
     t0 = time.perf_counter()
-    again = sim.run(sensor, max_photons=photons, seed=seed, estimator="forward", progress=report, cancel=cancel)
+    lux, err, traced = read(sim, sensor, reading, photons, seed, report, cancel)
     if cancel is not None and cancel():
         return None
-    lux, err = np.asarray(again.lux, float), np.asarray(again.stderr, float)
     u, s, _ = figure_of(lux, err, figure)
-    measured.confirmation = {"uniformity": u, "stderr": s, "photons": int(again.photons), "seed": seed,
+    measured.confirmation = {"uniformity": u, "stderr": s, "photons": traced, "seed": seed,
                              "confirmed": bool(u >= target)}
     measured.measure_seconds += time.perf_counter() - t0
     measured.seconds += time.perf_counter() - t0
@@ -223,9 +279,10 @@ class _Run:
 
 
 def _check_run(start: Microstructure, sensor: dict, target: float, figure: str, damping: float, max_fill: float,
-               pitch_mm: float | None, photons: int, max_photons: int, max_iterations: int) -> None:
-    """Refuse a pack before it changes the scene: `check`'s fields, then the sensor, then the budgets."""
+               pitch_mm: float | None, photons: int, max_photons: int, max_iterations: int, reading: Reading) -> None:
+    """Refuse a pack before it changes the scene: `check`'s fields, the reading, then the sensor, then the budgets."""
     check(start, target, figure, damping, max_fill, pitch_mm)
+    reading.check()
     if sensor.get("type") != "grid":
         raise PackError(f"sensor: a pack measures a grid of cells over the lit face, got a {sensor.get('type')!r} "
                         f"sensor")
@@ -264,13 +321,13 @@ def _reporter(progress: Callable[[dict[str, Any]], None] | None, history: list[P
 
 
 def _target_reached(run: _Run, sim: Any, sensor: dict, it: int, seed: int, figure: str, target: float,
-                    max_photons: int, report: Callable, cancel: Callable[[], bool] | None
+                    max_photons: int, report: Callable, cancel: Callable[[], bool] | None, reading: Reading
                     ) -> tuple[np.ndarray, np.ndarray] | None:
     """Confirm a reading at the target with a fresh seed (issue 53): None where the pack stops (`run.stopped` says
     why), else the two readings pooled to correct the map with, and four times the photons next (near the target
     the noise decides: halve it)."""
     pooled = confirm(sim, sensor, run.history[-1], run.photons, confirmation_seed(seed, it), figure, target, report,
-                     cancel)
+                     cancel, reading)
     again = run.history[-1].confirmation
     if pooled is None or again is None:
         run.stopped = "cancelled"
@@ -313,13 +370,14 @@ def _best(run: _Run) -> int:
 def pack(scene: Any, instance: int, start: Microstructure, sensor: dict, simulation: Callable[[Any], Any], *,
          assign: dict[str, Any], target: float = 0.8, figure: str = "min_max", photons: int = 100_000,
          max_photons: int = 1_600_000, max_iterations: int = 10, max_seconds: float = 600.0, damping: float = 0.7,
-         max_fill: float = 1.0, pitch_mm: float | None = None, seed: int = 1,
+         max_fill: float = 1.0, pitch_mm: float | None = None, seed: int = 1, reading: Reading = Reading(),
          progress: Callable[[dict[str, Any]], None] | None = None,
          cancel: Callable[[], bool] | None = None) -> PackResult:
     """Pack `start`'s fill map on `instance` of `scene` (a `tracer.Scene` the caller owns: the pack changes its
     element) against the grid sensor body `sensor` (world units); `simulation(scene)` makes a
     `tracer.simulate.Simulation` of the committed scene; `assign` holds `Scene.set_element`'s keywords (facing or
-    faces, mm_per_unit). See the module docstring. `progress(state)` gets ``{"iteration", "photons", "measured",
+    faces, mm_per_unit); `reading` says what the grid's cells read (illuminance, or luminance as a viewer sees
+    it). See the module docstring. `progress(state)` gets ``{"iteration", "photons", "measured",
     "uniformity", "stderr", "seconds"}`` between photon rounds and after each iteration: "iteration" is the one
     running, "uniformity" ± "stderr" that of iteration "measured" (the one before while an iteration measures, None
     before the first has); `cancel()` is polled between rounds.
@@ -329,7 +387,8 @@ def pack(scene: Any, instance: int, start: Microstructure, sensor: dict, simulat
     PackError
         See `check`; a sensor that is not a grid; no light on the grid in the first measurement.
     """
-    _check_run(start, sensor, target, figure, damping, max_fill, pitch_mm, photons, max_photons, max_iterations)
+    _check_run(start, sensor, target, figure, damping, max_fill, pitch_mm, photons, max_photons, max_iterations,
+               reading)
     t_start = time.perf_counter()
     fill = np.asarray(start.body["layout"]["fill"], float)
     layout = start.body["layout"]
@@ -340,20 +399,18 @@ def pack(scene: Any, instance: int, start: Microstructure, sensor: dict, simulat
         model, sim, placed = _place(scene, instance, start, fill, pitch_mm, it, simulation, assign)
         t1 = time.perf_counter()
         report = _reporter(progress, history, it, run.total, t_start)
-        res = sim.run(sensor, max_photons=run.photons, seed=int(seed) * 1009 + it, estimator="forward",
-                      progress=report, cancel=cancel)
+        lux, err, traced = read(sim, sensor, reading, run.photons, int(seed) * 1009 + it, report, cancel)
         t2 = time.perf_counter()
-        lux, err = np.asarray(res.lux, float), np.asarray(res.stderr, float)
-        run.total += int(res.photons)
+        run.total += traced
         if cancel is not None and cancel() and history:
             run.stopped = "cancelled"    # a partial measurement is not taken
             break
         if not lux.max() > 0:
-            raise PackError("sensor: no light reaches the grid over the face with the starting pattern (every cell "
-                            "read 0 lx): check the lights and that the grid faces the lit face")
+            raise PackError(f"sensor: no light reaches the grid over the face with the starting pattern (every cell "
+                            f"read 0 {reading.unit}): check the lights and that the grid faces the lit face")
         u, s, u0 = figure_of(lux, err, figure)
         run.models.append(model)
-        history.append(PackIteration(it, fill.tolist(), int(model.features or 0), int(res.photons), u, s, u0,
+        history.append(PackIteration(it, fill.tolist(), int(model.features or 0), traced, u, s, u0,
                                      lux.tolist(), err.tolist(), t1 - t0, t2 - t1, time.perf_counter() - t0))
         if progress is not None:
             progress({"iteration": it, "photons": run.total, "measured": it, "uniformity": u, "stderr": s,
@@ -362,7 +419,8 @@ def pack(scene: Any, instance: int, start: Microstructure, sensor: dict, simulat
             run.stopped = "cancelled"
             break
         if u >= target:   # confirmed by a fresh seed, or the two readings pooled correct the map
-            pooled = _target_reached(run, sim, sensor, it, seed, figure, target, max_photons, report, cancel)
+            pooled = _target_reached(run, sim, sensor, it, seed, figure, target, max_photons, report, cancel,
+                                     reading)
             if pooled is None:
                 break
             lux, err = pooled
@@ -375,4 +433,4 @@ def pack(scene: Any, instance: int, start: Microstructure, sensor: dict, simulat
         raise PackError("the pack was cancelled before its first measurement")
     best = _best(run)
     return PackResult(run.models[best], best, run.stopped, history, figure, float(target),
-                      time.perf_counter() - t_start)
+                      time.perf_counter() - t_start, reading)
