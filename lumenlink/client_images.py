@@ -43,23 +43,26 @@ class ImageCalls(ClientBase):
                                params=params or None))
 
     def uniformity(self, scene: str | dict, *, direction: Any, points: Any = None, nine_points: Any = None,
-                   distance: float | None = None, aperture_deg: float | None = None, target: float | None = None,
-                   max_seconds: float | None = None, max_photons: int | None = None, seed: int = 0,
-                   **extra: Any) -> dict[str, Any]:
-        """Luminance meters looking along `direction` at `points` ([[x, y, z], …] m) or at the 9-point figure of a
-        rectangle (`nine_points`: (origin, u, v), each [x, y, z] m), each `distance` m back from its point, measured
+                   thirteen_points: Any = None, distance: float | None = None, aperture_deg: float | None = None,
+                   target: float | None = None, max_seconds: float | None = None, max_photons: int | None = None,
+                   seed: int = 0, **extra: Any) -> dict[str, Any]:
+        """Luminance meters looking along `direction` at `points` ([[x, y, z], …] m), at the 9-point figure of a
+        rectangle (`nine_points`: (origin, u, v), each [x, y, z] m) or at its 13-point figure (`thirteen_points`:
+        the same, or a dict with an ``inset`` in m, default 10 mm), each `distance` m back from its point, measured
         together: ``{luminance, stderr (cd/m², one per point), uniformity: {min, max, mean, min_max,
         min_max_stderr, min_mean, min_mean_stderr}, photons, seconds, …}``."""
-        if (points is None) == (nine_points is None):
-            raise LumenLinkError("give either points or nine_points", usage=True)
+        if sum(x is not None for x in (points, nine_points, thirteen_points)) != 1:
+            raise LumenLinkError("give one of points, nine_points or thirteen_points", usage=True)
         body: dict[str, Any] = {"direction": triples([direction], "direction")[0], "seed": seed, **extra}
         if points is not None:
             body["points"] = triples(points, "points")
-        else:
-            if isinstance(nine_points, dict):
-                nine_points = [nine_points.get(k) for k in ("origin", "u", "v")]
-            o, u, v = triples(nine_points, "nine_points (origin, u, v)")
-            body["nine_points"] = {"origin": o, "u": u, "v": v}
+        for name, rect in (("nine_points", nine_points), ("thirteen_points", thirteen_points)):
+            if rect is not None:
+                inset = rect.get("inset") if isinstance(rect, dict) else None
+                if isinstance(rect, dict):
+                    rect = [rect.get(k) for k in ("origin", "u", "v")]
+                o, u, v = triples(rect, f"{name} (origin, u, v)")
+                body[name] = {"origin": o, "u": u, "v": v, **({} if inset is None else {"inset": inset})}
         for key, value in (("distance", distance), ("aperture_deg", aperture_deg), ("target_relative_error", target),
                            ("max_seconds", max_seconds), ("max_photons", max_photons)):
             if value is not None:

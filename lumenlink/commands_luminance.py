@@ -20,6 +20,9 @@ def uniformity(
     direction: Annotated[str, typer.Option(help="The way the meters look, X,Y,Z (e.g. 0,0,-1: down).")],
     nine_points: Annotated[tuple[str, str, str] | None, typer.Option(
         metavar="ORIGIN U V", help="The 9-point figure of the rectangle ORIGIN + s*U + t*V (each X,Y,Z, m).")] = None,
+    thirteen_points: Annotated[tuple[str, str, str] | None, typer.Option(
+        metavar="ORIGIN U V", help="The 13-point (SPWG) figure of that rectangle, --inset in from its edges.")] = None,
+    inset: Annotated[float, typer.Option(help="With --thirteen-points: the outer points' inset, m.")] = 0.01,
     point: Annotated[list[str] | None, typer.Option(help="A point a meter looks at, X,Y,Z (m); repeat it.")] = None,
     distance: Annotated[float | None, typer.Option(help="How far each meter stands back from its point, m "
                                                         "(default 0.5).")] = None,
@@ -33,12 +36,16 @@ def uniformity(
 ) -> int:
     """Luminance uniformity over a grid of meters: each reading (CSV on stdout) and min/max, min/mean ± error."""
     def work(console: Console) -> int:
-        if (nine_points is None) == (not point):
-            raise LumenLinkError("give --nine-points ORIGIN U V or one or more --point X,Y,Z", usage=True)
+        if sum((nine_points is not None, thirteen_points is not None, bool(point))) != 1:
+            raise LumenLinkError("give --nine-points ORIGIN U V, --thirteen-points ORIGIN U V or one or more --point "
+                                 "X,Y,Z", usage=True)
         d = vec3(direction, "--direction", DIRECTION)
         kwargs: dict[str, Any] = {}
         if nine_points is not None:
             kwargs["nine_points"] = [vec3(t, "--nine-points") for t in nine_points]
+        elif thirteen_points is not None:
+            o, u, v = (vec3(t, "--thirteen-points") for t in thirteen_points)
+            kwargs["thirteen_points"] = {"origin": o, "u": u, "v": v, "inset": inset}
         else:
             kwargs["points"] = [vec3(t, "--point") for t in point or []]
         with Client(server) as ll:

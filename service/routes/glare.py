@@ -7,8 +7,9 @@
   luminance L_b is ``background`` where given, else the solid-angle-weighted mean of the other pixels. ``stderr``
   is first-order, from the pixels' standard errors (the sources' and the background's).
 - ``POST /scenes/{id}/luminance/uniformity`` — a grid of luminance meters measured together (one run, one stop
-  rule): the listed ``points`` or the ``nine_points`` of a rectangle (the 9-point figure of a backlight or a
-  display: the centres of its 3 × 3 division), each seen by a meter ``distance`` metres back from it along
+  rule): the listed ``points``, the ``nine_points`` of a rectangle (the 9-point figure of a backlight or a
+  display: the centres of its 3 × 3 division) or its ``thirteen_points`` (the SPWG pattern, 10 mm in from the
+  edges), each seen by a meter ``distance`` metres back from it along
   ``direction``; the answer holds each meter's cd/m² ± stderr and the uniformity over them: min/max (U_d), min/mean
   (U₀), with their standard errors (the delta method, the smallest and largest meters held fixed).
 - ``POST /scenes/{id}/luminance/conoscope`` — a conoscopic view of one point of a lit face: the luminance it shows
@@ -21,7 +22,7 @@
 from __future__ import annotations
 
 import math
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
 from fastapi import APIRouter, Query, Request, Response
@@ -34,7 +35,7 @@ from service.routes.simulation import _answer, _targeted
 from service.simulation import _refusals, hub_for, request_query
 from service.simulation_wire import FiniteFloat, Mode, QueryBudget, Vec3
 from tracer.errors import SimulationError
-from tracer.photometry.glare import nine_points, ugr_from_image, uniformity
+from tracer.photometry.glare import nine_points, thirteen_points, ugr_from_image, uniformity
 from tracer.sensors.luminance import CONOSCOPE_AZIMUTHS, CONOSCOPE_MAX_THETA_DEG, CONOSCOPE_RINGS, conoscope_views
 
 router = APIRouter(tags=["simulation"])
@@ -88,20 +89,40 @@ class NinePoints(BaseModel):
     """A rectangle origin + s u + t v (s, t in [0, 1]) whose 9-point figure is asked."""
 
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    FIELD: ClassVar[str] = "nine_points"   # the query's field, named in what is refused
     origin: Vec3 = Field(description="A corner of the lit area, world metres.")
     u: Vec3 = Field(description="One edge, m.")
     v: Vec3 = Field(description="The other edge, m.")
 
     @model_validator(mode="after")
     def _check(self) -> NinePoints:
-        """A rectangle with an area: its 9 points would otherwise fall on a line or on one point."""
-        u, v = np.asarray(self.u, float), np.asarray(self.v, float)
+        """A rectangle with an area: its points would otherwise fall on a line or on one point."""
+        u, v, at = np.asarray(self.u, float), np.asarray(self.v, float), self.FIELD
         for name, edge in (("u", u), ("v", v)):
             if not np.any(edge):
-                raise ValueError(f"nine_points.{name} is the zero vector: give the rectangle's two edges, in metres")
+                raise ValueError(f"{at}.{name} is the zero vector: give the rectangle's two edges, in metres")
         if np.linalg.norm(np.cross(u, v)) <= 1e-9 * np.linalg.norm(u) * np.linalg.norm(v):
-            raise ValueError("nine_points.u and nine_points.v are parallel: the rectangle has no area; give two "
-                             "edges at an angle (perpendicular for a display's 9-point figure)")
+            raise ValueError(f"{at}.u and {at}.v are parallel: the rectangle has no area; give two edges at an "
+                             f"angle (perpendicular for a display's figure)")
+        return self
+
+
+class ThirteenPoints(NinePoints):
+    """A rectangle origin + s u + t v whose 13-point figure (SPWG) is asked: points `inset` m in from its edges."""
+
+    FIELD: ClassVar[str] = "thirteen_points"
+
+    inset: Annotated[FiniteFloat, Field(gt=0.0)] = Field(
+        default=0.01, description="How far the outer points stand in from each edge, m (10 mm in the SPWG pattern); "
+                                  "less than half of each edge.")
+
+    @model_validator(mode="after")
+    def _inset(self) -> ThirteenPoints:
+        """An inset that leaves the outer points inside the rectangle, on their own side of its middle."""
+        half = 0.5 * min(math.hypot(*self.u), math.hypot(*self.v))
+        if self.inset >= half:
+            raise ValueError(f"thirteen_points.inset is {self.inset:g} m, at least half of the shorter edge "
+                             f"({half:g} m): give an inset below it (10 mm on a display)")
         return self
 
 
@@ -113,6 +134,11 @@ class UniformityQuery(QueryBudget):
     nine_points: NinePoints | None = Field(
         default=None, description="The 9-point figure of a rectangle: the centres of its 3 × 3 division (at 1/6, "
                                   "1/2 and 5/6 of each edge), row by row along v.")
+    thirteen_points: ThirteenPoints | None = Field(
+        default=None, description="The 13-point figure of a rectangle (the SPWG notebook-panel pattern): rows at "
+                                  "`inset` from each edge along v, at 1/4, 1/2 and 3/4; the edge and middle rows "
+                                  "at `inset` from each side and the middle, the quarter rows at 1/4 and 3/4 along "
+                                  "u; row by row along v.")
     direction: Vec3 = Field(description="The way every meter looks (towards the points), any non-zero length.")
     distance: Annotated[FiniteFloat, Field(gt=0.0)] = Field(
         default=DEFAULT_DISTANCE_M, description="How far each meter stands back from its point, m.")
@@ -125,8 +151,8 @@ class UniformityQuery(QueryBudget):
 
     @model_validator(mode="after")
     def _check(self) -> UniformityQuery:
-        if (self.points is None) == (self.nine_points is None):
-            raise ValueError("give either points or nine_points (one of them)")
+        if sum(x is not None for x in (self.points, self.nine_points, self.thirteen_points)) != 1:
+            raise ValueError("give one of points, nine_points or thirteen_points")
         if math.hypot(*self.direction) == 0.0:
             raise ValueError("direction must not be the zero vector")
         meters_only(self)
@@ -187,7 +213,7 @@ def run_fields(res: Any, prepared: Any, aperture_deg: float) -> dict[str, Any]:
 class UniformityPublic(MetersRun):
     """The meters' readings and their uniformity."""
 
-    figure: str = Field(description="`9-point` for nine_points, else `points`.")
+    figure: str = Field(description="`9-point` for nine_points, `13-point` for thirteen_points, else `points`.")
     points: list[list[float]] = Field(description="The points looked at, world metres.")
     positions: list[list[float]] = Field(description="Each meter's eye, world metres.")
     luminance: list[float] = Field(description="Each meter's reading, cd/m².")
@@ -221,6 +247,9 @@ def _uniformity_query(scene_id: str, query: UniformityQuery, request: Request) -
     if query.nine_points is not None:
         n = query.nine_points
         pts, figure = nine_points(n.origin, n.u, n.v), "9-point"
+    elif query.thirteen_points is not None:
+        t = query.thirteen_points
+        pts, figure = thirteen_points(t.origin, t.u, t.v, t.inset), "13-point"
     else:
         pts, figure = np.asarray(query.points, float), "points"
     d = np.asarray(query.direction, float)

@@ -3,7 +3,7 @@
 Uniformity: a Lambertian floor of reflectance ρ under a point source of intensity I; nine meters look straight down
 at the 9-point figure of a 2 × 1.2 m rectangle. Each reads ρ I cosθ / (π r²) within 4 of its standard errors, and
 min/max and min/mean of the readings lie within 4 of their propagated standard errors of the same ratios of the
-closed forms.
+closed forms. The 13-point figure (issue 53, the SPWG pattern) likewise, its points where the pattern puts them.
 
 UGR: one luminaire, a square panel of exitance M (luminance M/π) facing the observer above the line of sight, the
 room black, the background luminance given (CIE 117-1995: L_b = E_ind/π, here stated). The panel lies parallel to
@@ -28,6 +28,7 @@ import numpy as np
 import pytest
 from service_helpers import glb, lit_floor, make_client, node, uid
 
+from lumenlink.errors import LumenLinkError
 from tracer.photometry.glare import guth_position_index, ugr, uniformity
 
 I_CD, H, RHO, SIDE, Z = 100.0, 1.5, 0.6, 6.0, 4.0
@@ -89,6 +90,27 @@ def test_nine_point_uniformity_of_the_floor(client: Any, floor: str) -> None:
     assert out["revision"] == client.get(f"/scenes/{floor}").json()["revision"]
 
 
+def test_thirteen_point_uniformity_of_the_floor(client: Any, floor: str) -> None:
+    """The SPWG 13-point figure: the points where the pattern puts them (10 mm from the edges, quarters, middle) and
+    each reading the floor's closed form within 4 of its standard errors."""
+    r = client.post(f"/scenes/{floor}/luminance/uniformity",
+                    json={"thirteen_points": {**NINE, "inset": 0.05}, "direction": [0.0, 0.0, -1.0], "distance": 0.5,
+                          "aperture_deg": 1.0, "max_photons": 13 * 6000, "seed": 4})
+    assert r.status_code == 200, r.text
+    out = r.json()
+    pts = np.array(out["points"])
+    assert out["figure"] == "13-point" and pts.shape == (13, 3)
+    o, su, sv = np.array(NINE["origin"]), 2.0, 1.2
+    a, b = 0.05 / su, 0.05 / sv
+    want = [(s, t) for t, ss in ((b, (a, 0.5, 1 - a)), (0.25, (0.25, 0.75)), (0.5, (a, 0.5, 1 - a)),
+                                 (0.75, (0.25, 0.75)), (1 - b, (a, 0.5, 1 - a))) for s in ss]
+    np.testing.assert_allclose(pts, [o + [s * su, t * sv, 0.0] for s, t in want], atol=1e-12)
+    lum, err = np.array(out["luminance"]), np.array(out["stderr"])
+    exact = floor_luminance(pts)
+    assert np.all(err > 0) and np.all(np.abs(lum - exact) <= Z * err + 1e-4 * exact), (lum, err, exact)
+    assert out["uniformity"] == pytest.approx(uniformity(lum, err), rel=1e-12)
+
+
 def test_uniformity_of_listed_points(client: Any, floor: str) -> None:
     pts = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]
     r = client.post(f"/scenes/{floor}/luminance/uniformity",
@@ -102,8 +124,12 @@ def test_uniformity_of_listed_points(client: Any, floor: str) -> None:
 
 
 @pytest.mark.parametrize("body, says", [
-    ({"direction": [0, 0, -1]}, "points or nine_points"),
-    ({"points": [[0, 0, 0]], "nine_points": NINE, "direction": [0, 0, -1]}, "points or nine_points"),
+    ({"direction": [0, 0, -1]}, "one of points, nine_points or thirteen_points"),
+    ({"points": [[0, 0, 0]], "nine_points": NINE, "direction": [0, 0, -1]}, "one of points"),
+    ({"nine_points": NINE, "thirteen_points": NINE, "direction": [0, 0, -1]}, "one of points"),
+    ({"thirteen_points": {**NINE, "inset": 0.6}, "direction": [0, 0, -1]}, "thirteen_points.inset"),
+    ({"thirteen_points": {**NINE, "inset": 0}, "direction": [0, 0, -1]}, "inset"),
+    ({"thirteen_points": {**NINE, "u": [0, 0, 0]}, "direction": [0, 0, -1]}, "thirteen_points.u is the zero vector"),
     ({"points": [[0, 0, 0]], "direction": [0, 0, 0]}, "direction"),
     ({"points": [[0, 0, 0]], "direction": [0, 0, -1], "distance": 0}, "distance"),
     ({"points": [[0, 0, 0]], "direction": [0, 0, -1], "aperture_deg": 200}, "aperture_deg"),
@@ -221,6 +247,11 @@ def test_client_and_cli_uniformity_and_ugr(client: Any, floor: str, monkeypatch:
                                                                       "v": NINE["v"]}, max_photons=9000, seed=4)
         assert out["figure"] == "9-point" and len(out["luminance"]) == 9
         assert out["uniformity"]["min_max_stderr"] > 0
+        out13 = ll.uniformity(floor, direction=(0, 0, -1), thirteen_points={**NINE, "inset": 0.05}, max_photons=13000,
+                              seed=5)
+        assert out13["figure"] == "13-point" and len(out13["luminance"]) == 13
+        with pytest.raises(LumenLinkError, match="one of points, nine_points or thirteen_points"):
+            ll.uniformity(floor, direction=(0, 0, -1), nine_points=NINE, thirteen_points=NINE)
         cam = ll.add_sensor(floor, {**CAMERA, "position": [0.0, -2.0, 1.0], "look_at": [0.0, 0.0, 1.0],
                                     "width": 16, "height": 12, "name": "lamp view"})
         ll.simulate(floor, "lamp view", max_photons=16 * 12 * 64)
@@ -236,6 +267,11 @@ def test_client_and_cli_uniformity_and_ugr(client: Any, floor: str, monkeypatch:
     assert r.exit_code == 0, r.output
     cli_out = json.loads(r.stdout)
     assert cli_out["luminance"] == out["luminance"] and cli_out["uniformity"] == out["uniformity"]   # same seed
+    r = runner.invoke(app, ["uniformity", "--scene", floor, "--direction", "0,0,-1", "--thirteen-points",
+                            "-1,-0.6,0", "2,0,0", "0,1.2,0", "--inset", "0.05", "--max-photons", "13000", "--seed",
+                            "5", "--json"])
+    assert r.exit_code == 0, r.output
+    assert json.loads(r.stdout)["luminance"] == out13["luminance"]   # the client's figure, the same seed
     r = runner.invoke(app, ["uniformity", "--scene", floor, "--direction", "0,0,-1", "--point", "0,0,0", "--point",
                             "1,0,0", "--max-photons", "4000"])
     assert r.exit_code == 0, r.output

@@ -56,6 +56,18 @@ def nine_points(origin, u, v) -> np.ndarray:
     return np.array([o + s * uu + t * vv for t in f for s in f])
 
 
+def thirteen_points(origin, u, v, inset: float = 0.01) -> np.ndarray:
+    """(13, 3) points of the 13-point figure (the SPWG notebook-panel pattern) on the area origin + s u + t v:
+    rows along v at `inset` metres from each edge, at a quarter, a half and three quarters; the rows at the edges
+    and the middle hold three points (at `inset` from each side and the middle), the quarter rows two (a quarter and
+    three quarters along u); row by row, s increasing. `inset` must be less than half of each edge."""
+    o, uu, vv = (np.asarray(x, float) for x in (origin, u, v))
+    a, b = inset / np.linalg.norm(uu), inset / np.linalg.norm(vv)
+    three, two = (a, 0.5, 1.0 - a), (0.25, 0.75)
+    rows = ((b, three), (0.25, two), (0.5, three), (0.75, two), (1.0 - b, three))
+    return np.array([o + s * uu + t * vv for t, ss in rows for s in ss])
+
+
 def guth_position_index(alpha_deg, beta_deg):
     """The Luckiesh–Guth position index p(α, β) (module docstring); arrays broadcast."""
     a = np.asarray(alpha_deg, float)
