@@ -21,7 +21,6 @@ import math
 import sys
 import tempfile
 import time
-from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -185,36 +184,6 @@ def _car_exporter(tmpd: Path):
     return export
 
 
-@contextmanager
-def _service_in_thread(data_dir: Path):
-    """The service (`service.app`, state under data_dir) served by uvicorn on a free local port in a daemon thread,
-    as `lumenlink demo` runs it; yields its base URL, stops it on leaving (15 s to finish). Raises if it has not
-    started within 60 s."""
-    import threading
-
-    import uvicorn
-
-    from lumenlink.demo import free_port
-    from service.app import create_app
-    from service.config import Settings
-
-    app = create_app(Settings(data_dir=data_dir, log_requests=False, warm_kernels=False))
-    port = free_port()
-    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
-    thread = threading.Thread(target=server.run, daemon=True)
-    thread.start()
-    deadline = time.monotonic() + 60.0
-    while not server.started:
-        if not thread.is_alive() or time.monotonic() > deadline:
-            raise RuntimeError("the service did not start")
-        time.sleep(0.02)
-    try:
-        yield f"http://127.0.0.1:{port}"
-    finally:
-        server.should_exit = True
-        thread.join(timeout=15.0)
-
-
 def _render(http, sid: str, cid: str, **budget) -> tuple[float, dict]:
     """One simulation of camera cid in scene sid through REST, budget as the request's body: (wall seconds of the
     request, the answer)."""
@@ -269,6 +238,7 @@ def demo_car(sizes: list[tuple[int, int, float]]) -> dict:
     import httpx
 
     from cad_adapter import Pusher
+    from lumenlink.demo import running_service
     from lumenlink.demo_car import SCENE_NAME, dress
 
     out: dict = {"sizes": []}
@@ -278,7 +248,8 @@ def demo_car(sizes: list[tuple[int, int, float]]) -> dict:
         t = time.perf_counter()
         doc, tess = export(0.0)
         out["cad_export_s"] = time.perf_counter() - t
-        with _service_in_thread(tmpd / "var") as base, httpx.Client(base_url=base, timeout=600.0) as http:
+        with (running_service(tmpd / "var", warm_kernels=False) as base,
+              httpx.Client(base_url=base, timeout=600.0) as http):
             with Pusher(base) as pusher:
                 first = pusher.push(doc, tess, scene=SCENE_NAME)
             sid = first.scene_id

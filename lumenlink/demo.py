@@ -179,15 +179,17 @@ def free_port() -> int:
 
 
 @contextlib.contextmanager
-def running_service(data_dir: Path) -> Iterator[str]:
-    """The real service app under uvicorn in a daemon thread on a free loopback port; yields its URL."""
+def running_service(data_dir: Path, warm_kernels: bool = True) -> Iterator[str]:
+    """The real service app under uvicorn in a daemon thread on a free loopback port; yields its URL (stopped on
+    leaving, 15 s to finish; raises where it has not started in 60 s). `warm_kernels` False: no background compile
+    (a benchmark that times the first queries itself)."""
     app_mod = need("service.app", 5, "create_app")
     config_mod = need("service.config", 5, "Settings")
     import uvicorn
 
     # the query kernels compile in two background processes from the start (tracer.warmup), as under
     # `lumenlink serve`, while this process builds the car, tessellates and pushes it
-    settings = config_mod.Settings(data_dir=data_dir, log_requests=False, warm_kernels=True)
+    settings = config_mod.Settings(data_dir=data_dir, log_requests=False, warm_kernels=warm_kernels)
     app = app_mod.create_app(settings)
     port = free_port()
     server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
