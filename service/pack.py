@@ -213,9 +213,8 @@ def plot(record: dict[str, Any], layout: dict[str, Any]) -> bytes:
 def plot_figure(record: dict[str, Any], layout: dict[str, Any]) -> Any:
     """The figure of ``pack.png`` (a matplotlib `Figure`, constrained layout): the chosen density map over the
     support in the element's own u, v (mm), the illuminance (or luminance) it measured on the sensor grid in world mm
-    (its colour
-    scale from the smallest cell to the largest), and the figure against the iterations with its error bars and the
-    target."""
+    (its colour scale from the smallest cell to the largest), and the figure against the iterations with its error
+    bars and the target."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
