@@ -522,6 +522,43 @@ def conoscope_figure(answer: dict[str, Any]) -> Figure:
     return fig
 
 
+def uniformity_figure(answer: dict[str, Any]) -> Figure:
+    """Luminance meters' readings (``POST …/luminance/uniformity``'s answer) where they look on the lit face: each
+    point marked and numbered, coloured on a cd/m² scale from the smallest reading to the largest and labelled with
+    its reading ± error; the two world axes along which the points spread most, in mm; the figure's uniformity
+    (min/max, min/mean) with its standard errors in the title."""
+    pts = np.asarray(answer["points"], float)
+    lum, err = np.asarray(answer["luminance"], float), np.asarray(answer["stderr"], float)
+    a, b = (int(k) for k in np.argsort(np.ptp(pts, axis=0))[::-1][:2])
+    x, y = 1000.0 * pts[:, a], 1000.0 * pts[:, b]
+    fig = Figure(figsize=(7.0, 5.2), dpi=110, layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    lo, hi = float(lum.min()), float(lum.max())
+    dots = ax.scatter(x, y, c=lum, s=260, cmap="turbo", edgecolors="black",
+                      norm=Normalize(lo, hi if hi > lo else lo + max(abs(lo), 1.0) * 1e-6))
+    for k in range(len(lum)):
+        ax.annotate(f"{k + 1}: {lum[k]:.4g} ± {err[k]:.2g}", (x[k], y[k]), textcoords="offset points",
+                    xytext=(0, 12), ha="center", fontsize=7)
+    ax.margins(0.15)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set(xlabel=f"world {'xyz'[a]} (mm)", ylabel=f"world {'xyz'[b]} (mm)")
+    fig.colorbar(dots, ax=ax, shrink=0.8).set_label("Luminance L (cd/m²), min to max")
+    u = answer["uniformity"]
+
+    def pm(name: str) -> str:
+        return "—" if u.get(name) is None else f"{u[name]:.3f} ± {u[f'{name}_stderr']:.3f}"
+
+    ax.set_title(f"{answer['figure']} luminance uniformity: min/max {pm('min_max')} · min/mean {pm('min_mean')}\n"
+                 f"mean {u['mean']:.4g} cd/m² · {answer['aperture_deg']:g}° meters", fontsize=9)
+    return fig
+
+
+def uniformity_png(answer: dict[str, Any]) -> bytes:
+    """`uniformity_figure` as a PNG."""
+    return figure_png(uniformity_figure(answer))
+
+
 def conoscope_png(answer: dict[str, Any]) -> bytes:
     """`conoscope_figure` as a PNG."""
     return figure_png(conoscope_figure(answer))

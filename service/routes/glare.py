@@ -223,12 +223,25 @@ class UniformityPublic(MetersRun):
 
 
 @router.post("/scenes/{scene_id}/luminance/uniformity", response_model=UniformityPublic,
-             responses={202: {}, 413: {}, 503: {}})
+             responses={200: {"content": {"image/png": {}}, "description": "With ?format=png: the points marked "
+                                                                          "with their readings."},
+                        202: {}, 413: {}, 503: {}})
 async def luminance_uniformity(scene_id: SceneId, query: UniformityQuery, request: Request,
-                               mode: Mode = "sync") -> Any:
-    """Luminance meters looking at points (or the 9-point figure of a rectangle), measured together, and their
-    uniformity (min/max, min/mean), each value with its standard error."""
-    return await _answer(request, mode, _uniformity_query, scene_id, query, request)
+                               mode: Mode = "sync",
+                               format: Annotated[Literal["json", "png"], Query(
+                                   description="`png`: the points marked where they look, each with its reading, "
+                                               "and the uniformity in the title (sync only).")] = "json",
+                               ) -> Any:
+    """Luminance meters looking at points (or the 9- or 13-point figure of a rectangle), measured together, and
+    their uniformity (min/max, min/mean), each value with its standard error."""
+    if format == "png" and mode == "async":
+        raise Invalid("format=png answers at once: ask it with mode=sync (an async job's result is JSON)")
+    payload = await _answer(request, mode, _uniformity_query, scene_id, query, request)
+    if format == "png":
+        from service.maps import uniformity_png
+
+        return Response(uniformity_png(payload), media_type="image/png")
+    return payload
 
 
 #: what luminance meters take of a request beside its budget (they carry no Stokes vector and measure no left-out

@@ -90,6 +90,29 @@ def test_nine_point_uniformity_of_the_floor(client: Any, floor: str) -> None:
     assert out["revision"] == client.get(f"/scenes/{floor}").json()["revision"]
 
 
+def test_the_uniformity_picture_marks_each_point_with_its_reading(client: Any, floor: str) -> None:
+    """Issue 53, pictures an engineer reads: ?format=png draws the points where they look (world mm), each coloured on
+    a scale from the smallest reading to the largest and labelled with its reading, the uniformity in the title."""
+    from service.maps import uniformity_figure
+
+    body = {"nine_points": NINE, "direction": [0.0, 0.0, -1.0], "max_photons": 9 * 2000, "seed": 6}
+    r = client.post(f"/scenes/{floor}/luminance/uniformity?format=png", json=body)
+    assert r.status_code == 200 and r.headers["content-type"] == "image/png" and r.content[:4] == b"\x89PNG", r.text
+    out = client.post(f"/scenes/{floor}/luminance/uniformity", json=body).json()   # the same seed: the same answer
+    fig = uniformity_figure(out)
+    ax = fig.axes[0]
+    dots = ax.collections[0]
+    np.testing.assert_allclose(dots.get_offsets(), 1000.0 * np.array(out["points"])[:, :2])
+    assert dots.norm.vmin == min(out["luminance"]) and dots.norm.vmax == max(out["luminance"])
+    labels = [t.get_text() for t in ax.texts]
+    assert len(labels) == 9 and labels[0].startswith(f"1: {out['luminance'][0]:.4g} ± ")
+    u = out["uniformity"]
+    assert f"min/max {u['min_max']:.3f} ± {u['min_max_stderr']:.3f}" in ax.get_title()
+    assert ax.get_xlabel() == "world x (mm)" and ax.get_ylabel() == "world y (mm)"
+    r = client.post(f"/scenes/{floor}/luminance/uniformity?format=png&mode=async", json=body)
+    assert r.status_code == 422 and "mode=sync" in r.text
+
+
 def test_thirteen_point_uniformity_of_the_floor(client: Any, floor: str) -> None:
     """The SPWG 13-point figure: the points where the pattern puts them (10 mm from the edges, quarters, middle) and
     each reading the floor's closed form within 4 of its standard errors."""
