@@ -234,13 +234,20 @@ async def luminance_uniformity(scene_id: SceneId, query: UniformityQuery, reques
                                ) -> Any:
     """Luminance meters looking at points (or the 9- or 13-point figure of a rectangle), measured together, and
     their uniformity (min/max, min/mean), each value with its standard error."""
+    return await _answer_or_drawn(request, mode, format, "uniformity_png", _uniformity_query, scene_id, query)
+
+
+async def _answer_or_drawn(request: Request, mode: str, format: str, draw: str, setup: Any, scene_id: str,
+                           query: Any) -> Any:
+    """The query's answer (`_answer`), or with ``format=png`` the picture `service.maps.<draw>` makes of it (at once:
+    an async job's result is JSON, so png with mode=async is a 422)."""
     if format == "png" and mode == "async":
         raise Invalid("format=png answers at once: ask it with mode=sync (an async job's result is JSON)")
-    payload = await _answer(request, mode, _uniformity_query, scene_id, query, request)
+    payload = await _answer(request, mode, setup, scene_id, query, request)
     if format == "png":
-        from service.maps import uniformity_png
+        from service import maps  # matplotlib, loaded on the first picture
 
-        return Response(uniformity_png(payload), media_type="image/png")
+        return Response(getattr(maps, draw)(payload), media_type="image/png")
     return payload
 
 
@@ -352,14 +359,7 @@ async def luminance_conoscope(scene_id: SceneId, query: ConoscopeQuery, request:
     """A conoscopic view: the luminance a point of a lit face shows against viewing angle (polar angle from its
     normal, azimuth), read by meters on a polar grid in one run, each value with its standard error; the on-axis
     luminance and the flatness (min/max, min/mean) over the view."""
-    if format == "png" and mode == "async":
-        raise Invalid("format=png answers at once: ask it with mode=sync (an async job's result is JSON)")
-    payload = await _answer(request, mode, _conoscope_query, scene_id, query, request)
-    if format == "png":
-        from service.maps import conoscope_png
-
-        return Response(conoscope_png(payload), media_type="image/png")
-    return payload
+    return await _answer_or_drawn(request, mode, format, "conoscope_png", _conoscope_query, scene_id, query)
 
 
 def _conoscope_query(scene_id: str, query: ConoscopeQuery, request: Request) -> tuple:
