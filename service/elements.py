@@ -33,14 +33,16 @@ from sqlalchemy import Engine, insert, select
 
 from service import db
 from service.errors import Invalid, NotFound
+from tracer.geometry_id import is_geometry_id
 
 
 class ElementLibrary:
     """Prepared elements by id: in the database and their files, and in memory once used."""
 
-    def __init__(self, engine: Engine, directory: Path) -> None:
+    def __init__(self, engine: Engine, directory: Path, meshes: Any = None) -> None:
         self.engine = engine
         self.directory = directory
+        self.meshes = meshes   # the service's `service.meshes.MeshStore`: a feature may be a pushed mesh
         self._models: dict[str, Any] = {}
         self._tables: dict[tuple[str, float], Any] = {}
         self._lock = threading.Lock()
@@ -56,7 +58,7 @@ class ElementLibrary:
         if isinstance(body, dict) and body.get("type") == "grating":
             return self._create_grating(body)
         try:
-            model = prepare(body)
+            model = prepare(self._with_pushed_mesh(body))
         except ElementError as exc:
             raise Invalid(str(exc)) from None
         known = self._row(model.id)
@@ -75,6 +77,26 @@ class ElementLibrary:
         with self._lock:
             self._models[model.id] = model
         return s, True
+
+    def _with_pushed_mesh(self, body: Any) -> Any:
+        """`body` with a feature given as a pushed mesh (``{"geometry": "<gid>"}``, DESIGN.md: a geometry pushed by
+        ``PUT /geometries/{gid}``, in mm) read into ``{"shape": "mesh", "vertices_mm", "triangles"}``
+        (`tracer.elements.shapes.mesh`); 422 where it names no pushed geometry. The element keeps the mesh itself,
+        so the same mesh is the same element however it came."""
+        feature = body.get("feature") if isinstance(body, dict) else None
+        if not isinstance(feature, dict) or "geometry" not in feature:
+            return body
+        if set(feature) != {"geometry"}:
+            raise Invalid(f"feature: a pushed mesh is {{'geometry': '<gid>'}} alone; got also "
+                          f"{sorted(set(feature) - {'geometry'})}"[:300])
+        gid = feature["geometry"]
+        if not isinstance(gid, str) or not is_geometry_id(gid):
+            raise Invalid(f"feature.geometry must be a geometry id (64 lowercase hex characters), got {gid!r}"[:300])
+        if self.meshes is None or not self.meshes.has(gid):
+            raise Invalid(f"feature.geometry {gid} is not pushed: PUT /geometries/{gid} first (its mesh in mm)")
+        mesh = self.meshes.load(gid)
+        return {**body, "feature": {"shape": "mesh", "vertices_mm": mesh.vertices.astype(np.float64).tolist(),
+                                    "triangles": mesh.triangles.astype(np.int64).tolist()}}
 
     def _create_grating(self, body: dict) -> tuple[dict[str, Any], bool]:
         """A grating: checked and its cost bounded (422, nothing stored), answered as it is where the library holds

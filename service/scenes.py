@@ -132,7 +132,7 @@ class Scenes(SceneGeometries, SceneViews):
         # so a query reads the scene's state once, in `live_scene`
         self.live = LiveRegistry(self.live_scene, self.revision, self.scene_lock)
         self.known_geometries: set[str] = store.geometry_ids()
-        self.elements = ElementLibrary(store.engine, settings.data_dir / "elements")   # shared by every scene
+        self.elements = ElementLibrary(store.engine, settings.data_dir / "elements", meshes)   # shared by all scenes
 
     def new_tracer_scene(self) -> Any:
         if self._scene_factory is not None:

@@ -10,11 +10,13 @@ import numpy as np
 import pytest
 from service_helpers import glb, make_client, node, uid
 
+from tests.tracer.elements.test_mesh_feature import pyramid_mesh, upside_down
 from tests.tracer.transport_scenes import box
 
 DOTS = {"type": "microstructure", "feature": {"shape": "dome", "radius_mm": 0.3, "height_mm": 0.15},
         "layout": {"type": "grid", "pitch_mm": [1.0, 1.0]}}
 PMMA = {"type": "dielectric", "ior": 1.49}
+MESH = pyramid_mesh(0.6, 0.2)
 # world metres: a beam into the guide's left edge, rising 0.3 per unit of x (trapped by total internal reflection),
 # and a grid over the middle of its top face, front side down
 BEAM = {"type": "collimated", "origin": [-0.002, 0.02, 0.001], "direction": [1.0, 0.0, 0.3], "radius": 0.0005,
@@ -92,6 +94,24 @@ def test_dots_on_an_edge_lit_guide_let_the_trapped_light_out_and_taking_them_off
     assert back["lux"] == plain["lux"] and back["stderr"] == plain["stderr"]
 
 
+def test_a_pushed_mesh_feature_lights_the_guide_as_the_same_analytic_pyramid(client: Any) -> None:
+    """A pyramid pushed as a mesh (its vertices and triangles in the element's body) and the analytic pyramid, each on
+    a guide of its own: the same planes, so the same answer on the same seed (up to rounding of the hits)."""
+    answers = []
+    for feature in ({"shape": "pyramid", "base_mm": 0.6, "height_mm": 0.2}, pyramid_mesh(0.6, 0.2)):
+        sid = _guide(client, name=feature["shape"])
+        sensor = client.post(f"/scenes/{sid}/sensors", json=ABOVE).json()["id"]
+        r = client.post("/elements", json={**DOTS, "feature": feature})
+        assert r.status_code == 201, r.text
+        assert client.post(f"/scenes/{sid}/elements", json={"element": r.json()["id"], "node": uid(1),
+                                                            "facing": [0, 0, -1]}).status_code == 201
+        answers.append(_above(client, sid, sensor))
+    analytic, meshed = (np.array(a["lux"]) for a in answers)
+    assert analytic.sum() > 0 and np.allclose(meshed, analytic, rtol=1e-9)
+    assert client.get(f"/elements/{r.json()['id']}").json()["body"]["feature"]["triangles"] == \
+        pyramid_mesh(0.6, 0.2)["triangles"]
+
+
 def test_an_element_outlives_a_restart_loaded_from_the_library_not_prepared_again(
         tmp_path: Path, monkeypatch: Any) -> None:
     with make_client(tmp_path) as c:
@@ -130,6 +150,9 @@ def test_an_element_outlives_a_restart_loaded_from_the_library_not_prepared_agai
     ({**DOTS, "material": {"type": "lambertian", "reflectance": 1.5}}, "material.reflectance must be >= 0"),
     ({**DOTS, "material": {"type": "dielectric", "ior": 1.5}}, "material.type 'dielectric' is not a feature"),
     ({**DOTS, "material": {"type": "lambertian"}}, "material: missing field(s) ['reflectance']"),
+    ({**DOTS, "feature": {**MESH, "triangles": MESH["triangles"][1:]}}, "feature.triangles: the mesh is not closed"),
+    ({**DOTS, "feature": upside_down()}, "must look up, at most 89 deg from the normal"),
+    ({**DOTS, "feature": {**MESH, "triangles": "0 1 2"}}, "feature.triangles must be a non-empty list"),
 ])
 def test_a_bad_element_body_is_a_422_naming_the_field_and_the_library_is_unchanged(
         client: Any, body: Any, words: str) -> None:
@@ -232,3 +255,24 @@ def test_a_density_lattice_too_costly_to_prepare_is_a_422_saying_why_before_any_
     # preparing it: a lattice at that pitch over the same face is within the bound
     pitch = float(re.search(r"pitch_mm \(at least ([\d.]+) mm", detail).group(1))
     assert int(245.0 // pitch) * int(183.5 // pitch) <= max_density_sites()
+
+
+def test_a_feature_given_as_a_pushed_geometry_is_the_same_element_as_its_mesh_in_the_body(client: Any) -> None:
+    """DESIGN.md's ``{"geometry": "<gid>"}``: the mesh pushed by PUT /geometries (mm; float32-exact here) is read
+    into the element, so the element is the one its mesh inline gives; a geometry never pushed is a 422, and the
+    library is unchanged."""
+    m = pyramid_mesh(0.5, 0.25)
+    gid, data = glb(np.array(m["vertices_mm"], np.float32), np.array(m["triangles"], np.uint32))
+    missing = client.post("/elements", json={**DOTS, "feature": {"geometry": gid}})
+    assert missing.status_code == 422 and f"feature.geometry {gid} is not pushed" in missing.text
+    bad = client.post("/elements", json={**DOTS, "feature": {"geometry": "cafe"}})
+    assert bad.status_code == 422 and "feature.geometry must be a geometry id" in bad.text
+    mixed = client.post("/elements", json={**DOTS, "feature": {"geometry": gid, "shape": "mesh"}})
+    assert mixed.status_code == 422 and "alone" in mixed.text
+    assert client.get("/elements").json() == []
+    assert client.put(f"/geometries/{gid}", content=data, headers={"content-type": "model/gltf-binary"}
+                      ).status_code in (200, 201)
+    pushed = client.post("/elements", json={**DOTS, "feature": {"geometry": gid}})
+    assert pushed.status_code == 201, pushed.text
+    inline = client.post("/elements", json={**DOTS, "feature": m})
+    assert inline.status_code == 200 and inline.json()["id"] == pushed.json()["id"]

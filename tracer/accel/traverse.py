@@ -67,7 +67,8 @@ class SceneArrays(NamedTuple):
     of :mod:`tracer.elements.features`); shared tables ``el_prim`` i4 (triangle maps), ``el_bits`` u1 (kept lattice
     sites), ``el_uv`` (P, 2) f4 (listed feature centres, mm), ``el_bin`` i4 and ``el_item`` i4 (their cells),
     ``el_tab`` (T, B) f8 (the rows of the tabulated BSDFs of elements used through their ``bsdf`` model:
-    :mod:`tracer.elements.bsdf`).
+    :mod:`tracer.elements.bsdf`), ``el_face`` (Q, 4) f8 (the face planes of mesh features:
+    :mod:`tracer.elements.shapes.mesh`).
     """
 
     bvh_f: np.ndarray
@@ -100,6 +101,7 @@ class SceneArrays(NamedTuple):
     el_bin: np.ndarray
     el_item: np.ndarray
     el_tab: np.ndarray
+    el_face: np.ndarray
 
 
 #: dtype and dimensions of each :class:`SceneArrays` field, as :class:`tracer.Scene` packs them
@@ -112,7 +114,7 @@ SCENE_ARRAY_TYPES = {"bvh_f": ("f4", 1), "bvh_i": ("i4", 1), "tri_v": ("f4", 1),
                      "sen_f": ("f4", 1), "sen_i": ("i4", 1), "sen_items": ("i4", 1), "inst_aux": ("i4", 1),
                      "el_f": ("f8", 2), "el_i": ("i8", 2), "el_prim": ("i4", 1), "el_bits": ("u1", 1),
                      "el_uv": ("f4", 2), "el_bin": ("i4", 1), "el_item": ("i4", 1),
-                     "el_tab": ("f8", 2)}
+                     "el_tab": ("f8", 2), "el_face": ("f8", 2)}
 
 
 def empty_scene_arrays() -> SceneArrays:

@@ -17,6 +17,9 @@ ray's path over the layout's cells (Amanatides and Woo's 2D DDA), never from a m
 - ``DENSITY``: a lattice of the pitch whose sites are kept or not (one bit each, `el_bits`);
 - ``POINTS``: listed centres (`el_uv`, float32 mm) binned by cell (`el_bin` starts, `el_item` ids).
 
+A mesh feature's face planes are rows of `el_face` (``faces``), one table for all its copies, from row
+``I[FACE]``, ``I[NFACE]`` of them (empty for the other shapes).
+
 HEX and POINTS test the 3 x 3 cells around the walked one: their features may cross a cell's edge, by less than a
 cell. The row columns below index `SceneArrays.el_f` and `el_i` (packed by `tracer.elements.support`).
 """
@@ -52,7 +55,9 @@ MAP_A, MAP_S, MAP_INV = 5, 6, 7           # offsets in el_prim: rest -> part, su
 BITS, UV, BINS = 8, 9, 10                 # offsets in el_bits (bytes), el_uv (rows), el_bin (starts)
 ITEMS = 11                                # offset in el_item
 MODEL, TAB, TAB_MU, TAB_PHI = 12, 13, 14, 15   # 0 exact, 1 bsdf, 2 grating: its table's first row in el_tab, its
-NI = 16                                        # bins (bsdf); a grating's sizes are in its table (`diffraction`)
+                                               # bins (bsdf); a grating's sizes are in its table (`diffraction`)
+FACE, NFACE = 16, 17                           # the feature's face planes: first row in el_face, count (a mesh's)
+NI = 18
 EXACT, BSDF, GRATING = 0, 1, 2
 
 NEAR = 1.0e300
@@ -73,10 +78,10 @@ def _clip(o, d, lo_b, hi_b, lo, hi):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def cross_feature(shape, a, h, rs, slope, cu, cv, ou, ov, ow, du, dv, dw, t_lo, t_hi):
+def cross_feature(shape, a, h, rs, slope, P, cu, cv, ou, ov, ow, du, dv, dw, t_lo, t_hi):
     """The first ``t`` in ``(t_lo, t_hi)`` where the ray (in ``w'``) crosses the boundary of the feature centred at
     ``(cu, cv)`` above its base; ``inf`` where it does not."""
-    lo, hi = shape_interval(shape, a, h, rs, slope, cu, cv, ou, ov, ow, du, dv, dw)
+    lo, hi = shape_interval(shape, a, h, rs, slope, P, cu, cv, ou, ov, ow, du, dv, dw)
     lo2, hi2, lo_base, hi_base = half_space(0.0, 0.0, -1.0, 0.0, ou, ov, ow, du, dv, dw, lo, hi)   # w' >= 0
     if not lo2 < hi2:
         return math.inf
@@ -119,7 +124,7 @@ def _inside(F, cu, cv):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def _cell(F, I, bits, uv, bins, items, i, j, ou, ov, ow, du, dv, dw, lo, best, bf, pu, pv, probe):
+def _cell(F, I, bits, uv, bins, items, P, i, j, ou, ov, ow, du, dv, dw, lo, best, bf, pu, pv, probe):
     """Test the features of cell (i, j) (and its neighbours for HEX and POINTS): with ``probe``, whether one covers
     the plane point (pu, pv) (returns its index as ``bf``); otherwise the nearest crossing in ``(lo, best)``."""
     lay = I[LAYOUT]
@@ -147,10 +152,10 @@ def _cell(F, I, bits, uv, bins, items, i, j, ou, ov, ow, du, dv, dw, lo, best, b
                 if lay == HEX and not _inside(F, cu, cv):
                     continue
                 if probe:
-                    if shape_covers(shape, F[A], pu - cu, pv - cv):
+                    if shape_covers(shape, F[A], P, pu - cu, pv - cv):
                         return best, f
                     continue
-                t = cross_feature(shape, F[A], F[H], F[RS], F[SLOPE], cu, cv, ou, ov, ow, du, dv, dw, lo, best)
+                t = cross_feature(shape, F[A], F[H], F[RS], F[SLOPE], P, cu, cv, ou, ov, ow, du, dv, dw, lo, best)
                 if t < best:
                     best = t
                     bf = f
@@ -158,16 +163,17 @@ def _cell(F, I, bits, uv, bins, items, i, j, ou, ov, ow, du, dv, dw, lo, best, b
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def feature_at(F, I, bits, uv, bins, items, pu, pv):
+def feature_at(F, I, bits, uv, bins, items, faces, pu, pv):
     """The feature whose base covers the plane point ``(pu, pv)`` (mm), -1 where none does."""
     i = int(math.floor((pu - F[ORG_U]) / F[CU]))
     j = int(math.floor((pv - F[ORG_V]) / F[CV]))
-    _, f = _cell(F, I, bits, uv, bins, items, i, j, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1, pu, pv, True)
+    P = faces[I[FACE]:I[FACE] + I[NFACE]]
+    _, f = _cell(F, I, bits, uv, bins, items, P, i, j, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1, pu, pv, True)
     return f
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def search(F, I, bits, uv, bins, items, ou, ov, ow, du, dv, dw, t_lo, t_hi):
+def search(F, I, bits, uv, bins, items, faces, ou, ov, ow, du, dv, dw, t_lo, t_hi):
     """``(t, f)``: the nearest crossing in ``(t_lo, t_hi)`` of the ray (frame, mm; ``w``, not ``w'``) with a
     feature, and the feature's index; ``(inf, -1)`` where it meets none. Walks the layout's cells along the ray from
     where it enters the features' slab, and stops at the first cell that starts beyond the best crossing."""
@@ -196,8 +202,9 @@ def search(F, I, bits, uv, bins, items, ou, ov, ow, du, dv, dw, t_lo, t_hi):
     delta_v = cv / abs(dv) if dv != 0.0 else math.inf
     best = hi
     bf = -1
+    P = faces[I[FACE]:I[FACE] + I[NFACE]]
     for _ in range(nu + nv + 4):
-        best, bf = _cell(F, I, bits, uv, bins, items, i, j, ou, ov, ow, du, dv, dw, t_lo, best, bf, 0.0, 0.0,
+        best, bf = _cell(F, I, bits, uv, bins, items, P, i, j, ou, ov, ow, du, dv, dw, t_lo, best, bf, 0.0, 0.0,
                          False)
         leave = min(next_u, next_v)
         if leave >= best or leave >= hi:
@@ -214,7 +221,7 @@ def search(F, I, bits, uv, bins, items, ou, ov, ow, du, dv, dw, t_lo, t_hi):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def surface(F, I, uv, f, hu, hv):
+def surface(F, I, uv, faces, f, hu, hv):
     """``(w, nu, nv, nw)`` of feature ``f`` at plane point ``(hu, hv)`` (mm): the relief's height above the plane
     there (``w``, mm, signed: negative in a pit) and its unit normal, outward of the part, in the frame."""
     cu, cv = center(F, I, uv, f)
@@ -223,6 +230,7 @@ def surface(F, I, uv, f, hu, hv):
     sign = F[SIGN]
     du = hu - cu
     dv = hv - cv
-    wk, ku, kv, kw = shape_surface(I[SHAPE], a, h, F[RS], F[SLOPE], du, dv)
+    P = faces[I[FACE]:I[FACE] + I[NFACE]]
+    wk, ku, kv, kw = shape_surface(I[SHAPE], a, h, F[RS], F[SLOPE], P, du, dv)
     # K's outward normal in (u, v, w'); the part's outward normal is K's for a bump and the opposite for a pit
     return sign * max(wk, 0.0), sign * ku, sign * kv, kw

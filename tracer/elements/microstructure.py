@@ -9,6 +9,8 @@ The body (docs/DESIGN.md "Optical elements with an inside"; lengths in mm, on th
               | {"shape": "corner_cube", "side_mm": s},                    (three perpendicular faces meeting at
                                    the apex, axis along the normal, over an equilateral triangle of side s with a
                                    vertex towards +v; height s / sqrt(6): a retroreflector)
+              | {"shape": "mesh", "vertices_mm": [[u, v, w], ...], "triangles": [[i, j, k], ...]}   (any closed
+                                   convex solid standing on its base at w = 0: `tracer.elements.shapes.mesh`)
      "relief": "bump" | "pit",
      "material": null                                              (the features take the part's own material)
                | {"type": "lambertian", "reflectance": r} | {"type": "black"},   (their own surface: a printed dot)
@@ -22,7 +24,8 @@ The body (docs/DESIGN.md "Optical elements with an inside"; lengths in mm, on th
 
 `prepare` checks it (`ElementError` naming the field and what to do) and packs what the inner tracer
 (:mod:`tracer.elements.features`) walks: nothing per feature for the periodic layouts (their memory does not grow with
-the count), one bit per lattice site for a density map, 12 to 20 bytes per listed point. The same body gives the same
+the count), one bit per lattice site for a density map, 12 to 20 bytes per listed point; a mesh feature's face
+planes once (32 bytes each), whatever the count. The same body gives the same
 `Microstructure.id` (a SHA-256 of its canonical JSON), so a library keeps one prepared model per body.
 """
 
@@ -75,7 +78,8 @@ class Microstructure:
     ``reflectance`` its reflectance; ``cell`` the layout's cell (mm, (2,)), ``origin`` its first corner (mm);
     ``cells`` (nu, nv) for the listed layouts (zero: the periodic ones, counted on their support);
     ``bits`` (uint8) the kept lattice sites of a density map; ``uv`` (P, 2) float32 listed centres with ``bins``
-    (int32 starts, nu nv + 1) and ``items`` (int32) their ids by cell.
+    (int32 starts, nu nv + 1) and ``items`` (int32) their ids by cell; ``faces`` (K, 4) float64 the feature's face
+    planes (a mesh's: `tracer.elements.shapes.base`).
     """
 
     id: str
@@ -97,11 +101,12 @@ class Microstructure:
     prepare_seconds: float = 0.0
     material: int = fx.MAT_PART
     reflectance: float = 0.0
+    faces: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
 
     @property
     def nbytes(self) -> int:
         """Memory the prepared features take (bytes); a periodic layout's is constant."""
-        return int(self.bits.nbytes + self.uv.nbytes + self.bins.nbytes + self.items.nbytes)
+        return int(self.bits.nbytes + self.uv.nbytes + self.bins.nbytes + self.items.nbytes + self.faces.nbytes)
 
     def summary(self) -> dict[str, Any]:
         """What a library lists: id, type, features (None: periodic), bytes, prepare_seconds."""
@@ -111,7 +116,7 @@ class Microstructure:
     def arrays(self) -> dict[str, np.ndarray]:
         """Its packed arrays and parameters, for a library file (`from_arrays` reads them back)."""
         return {"body": np.frombuffer(json.dumps(self.body, sort_keys=True).encode(), np.uint8),
-                "bits": self.bits, "uv": self.uv, "bins": self.bins, "items": self.items,
+                "bits": self.bits, "uv": self.uv, "bins": self.bins, "items": self.items, "faces": self.faces,
                 "params": np.array([self.a, self.h, self.rs, self.sign, *self.cell, *self.origin,
                                     self.prepare_seconds, self.reflectance]),
                 "ints": np.array([self.shape, self.layout, *self.cells, -1 if self.features is None else self.features,
@@ -128,7 +133,8 @@ class Microstructure:
                    np.asarray(arrays["bits"], np.uint8), np.asarray(arrays["uv"], np.float32),
                    np.asarray(arrays["bins"], np.int32), np.asarray(arrays["items"], np.int32),
                    None if ints[4] < 0 else ints[4], float(p[8]),
-                   ints[5] if len(ints) > 5 else fx.MAT_PART, float(p[9]) if len(p) > 9 else 0.0)
+                   ints[5] if len(ints) > 5 else fx.MAT_PART, float(p[9]) if len(p) > 9 else 0.0,
+                   np.asarray(arrays["faces"], np.float64).reshape(-1, 4) if "faces" in arrays else np.zeros((0, 4)))
 
 
 def element_id(body: dict, uv: np.ndarray | None = None) -> str:
@@ -162,8 +168,8 @@ def _uv_array(x: Any) -> np.ndarray:
     return uv
 
 
-def _feature(f: Any) -> tuple[dict, int, float, float, float]:
-    """The checked feature: (canonical body, shape id, a, h, rs) in mm (`tracer.elements.shapes`)."""
+def _feature(f: Any) -> tuple[dict, int, float, float, float, np.ndarray]:
+    """The checked feature: (canonical body, shape id, a, h, rs, face planes) in mm (`tracer.elements.shapes`)."""
     if not isinstance(f, dict):
         raise ElementError(f"feature must be an object with a 'shape' ({sorted(SHAPE_OF_NAME)}), got {f!r}"[:300])
     name = f.get("shape")
@@ -172,8 +178,8 @@ def _feature(f: Any) -> tuple[dict, int, float, float, float]:
     shape = SHAPE_OF_NAME[name]
     module = SHAPE_KINDS[shape]
     check_fields(f, "feature", {"shape", *module.FIELDS}, set())
-    canon, a, h, rs = module.parse(f)
-    return canon, shape, a, h, rs
+    canon, a, h, rs, faces = module.parse(f)
+    return canon, shape, a, h, rs, faces
 
 
 def prepare(body: Any) -> Microstructure:
@@ -195,7 +201,7 @@ def prepare(body: Any) -> Microstructure:
     relief = body.get("relief", "bump")
     if relief not in ("bump", "pit"):
         raise ElementError(f"relief must be 'bump' (raised from the surface) or 'pit' (cut into it), got {relief!r}")
-    feature, shape, a, h, rs = _feature(body["feature"])
+    feature, shape, a, h, rs, faces = _feature(body["feature"])
     layout = body["layout"]
     if not isinstance(layout, dict) or layout.get("type") not in LAYOUTS:
         got = layout.get("type") if isinstance(layout, dict) else layout
@@ -210,7 +216,7 @@ def prepare(body: Any) -> Microstructure:
                            f"{list(takes)}{ridge}")
     common = {"type": "microstructure", "relief": relief, "material": material, "feature": feature}
     sign = 1.0 if relief == "bump" else -1.0
-    args = (shape, a, h, rs, sign, mat, rho)
+    args = (shape, a, h, rs, sign, mat, rho, faces)
     if lay == fx.GRID:
         return _grid(layout, common, args, t0)
     if lay == fx.HEX:
@@ -249,8 +255,8 @@ def _pitch(x: Any, where: str, a: float) -> float:
 
 def _model(canon: dict, args: tuple, layout: int, cell: tuple[float, float], t0: float, uv64: np.ndarray | None = None,
            **arrays: Any) -> Microstructure:
-    shape, a, h, rs, sign, mat, rho = args
-    return Microstructure(element_id(canon, uv64), canon, shape, a, h, rs, sign, layout, cell, **arrays,
+    shape, a, h, rs, sign, mat, rho, faces = args
+    return Microstructure(element_id(canon, uv64), canon, shape, a, h, rs, sign, layout, cell, **arrays, faces=faces,
                           prepare_seconds=time.perf_counter() - t0, material=mat, reflectance=rho)
 
 

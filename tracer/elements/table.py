@@ -1,7 +1,8 @@
 """The scene's elements in use: one `Row` per instance that carries one, packed into `SceneArrays` at commit.
 
 Python owns the rows; :mod:`tracer.kinds.relief` reads the packed ``el_*`` arrays. A model used by several instances
-(the same element on many parts, in one scene) is packed once: its bits, points and cells are shared by id.
+(the same element on many parts, in one scene) is packed once: its bits, points, cells and face planes are shared by
+id.
 """
 
 from __future__ import annotations
@@ -69,7 +70,8 @@ class Reliefs:
         return Row(element, fr, full, rest, sup, rest_prims, support_prims)
 
     def pack(self, n_ids: int, index_of: Callable[[str], int]) -> tuple[np.ndarray, ...]:
-        """``(inst_aux, el_f, el_i, el_prim, el_bits, el_uv, el_bin, el_item, el_tab)`` for `n_ids` instance ids;
+        """``(inst_aux, el_f, el_i, el_prim, el_bits, el_uv, el_bin, el_item, el_tab, el_face)`` for `n_ids`
+        instance ids;
         `index_of` gives a geometry's index in the store."""
         aux = np.full(n_ids, -1, np.int32)
         for r, i in enumerate(sorted(self.rows)):
@@ -79,7 +81,8 @@ class Reliefs:
         return (aux, *self._packed)
 
     def _pack(self, index_of: Callable[[str], int]) -> tuple[np.ndarray, ...]:
-        """``(el_f, el_i, el_prim, el_bits, el_uv, el_bin, el_item, el_tab)`` of the rows, in instance order."""
+        """``(el_f, el_i, el_prim, el_bits, el_uv, el_bin, el_item, el_tab, el_face)`` of the rows, in instance
+        order."""
         ef = np.zeros((len(self.rows), fx.NF))
         ei = np.zeros((len(self.rows), fx.NI), np.int64)
         prim: list[np.ndarray] = []
@@ -88,10 +91,11 @@ class Reliefs:
         bins: list[np.ndarray] = []
         items: list[np.ndarray] = []
         tabs: list[np.ndarray] = []
+        faces: list[np.ndarray] = []
         n_tab = 0
-        shared: dict[str, tuple[int, int, int, int]] = {}
+        shared: dict[str, tuple[int, int, int, int, int]] = {}
         gratings: dict[str, int] = {}   # a grating's first row in el_tab
-        sizes = [0, 0, 0, 0, 0]   # el_prim, el_bits, el_uv, el_bin, el_item so far
+        sizes = [0, 0, 0, 0, 0, 0]   # el_prim, el_bits, el_uv, el_bin, el_item, el_face so far
         for r, (_, row) in enumerate(sorted(self.rows.items())):
             ef[r], ei[r] = support.row_params(row, index_of(row.support))
             inverse = np.empty(len(row.rest_prims) + len(row.support_prims), np.int32)
@@ -111,14 +115,16 @@ class Reliefs:
                 ei[r, fx.TAB] = gratings[e.id]
                 continue
             if e.id not in shared:
-                shared[e.id] = (sizes[1], sizes[2], sizes[3], sizes[4])
+                shared[e.id] = (sizes[1], sizes[2], sizes[3], sizes[4], sizes[5])
                 bits.append(e.bits)
                 uv.append(e.uv)
                 bins.append(e.bins)
                 items.append(e.items)
-                for k, a in enumerate((e.bits, e.uv, e.bins, e.items)):
+                faces.append(e.faces)
+                for k, a in enumerate((e.bits, e.uv, e.bins, e.items, e.faces)):
                     sizes[1 + k] += len(a)
-            ei[r, fx.BITS], ei[r, fx.UV], ei[r, fx.BINS], ei[r, fx.ITEMS] = shared[e.id]
+            ei[r, fx.BITS], ei[r, fx.UV], ei[r, fx.BINS], ei[r, fx.ITEMS], ei[r, fx.FACE] = shared[e.id]
+            ei[r, fx.NFACE] = len(e.faces)
             if row.table is not None:
                 ei[r, fx.TAB] = n_tab
                 tabs.append(row.table.cdf)
@@ -130,7 +136,7 @@ class Reliefs:
             tab[k:k + len(t), :t.shape[1]] = t
             k += len(t)
         return (ef, ei, _cat(prim, np.int32), _cat(bits, np.uint8), _cat(uv, np.float32, (0, 2)),
-                _cat(bins, np.int32), _cat(items, np.int32), tab)
+                _cat(bins, np.int32), _cat(items, np.int32), tab, _cat(faces, np.float64, (0, 4)))
 
 
 def _cat(parts: list[np.ndarray], dtype: type, empty: tuple[int, ...] = (0,)) -> np.ndarray:

@@ -58,10 +58,12 @@ def intersect(sa, inst, ox, oy, oz, dx, dy, dz, t_max, any_hit, stack, tstack):
             return True, ts, ss, us, vs
         return hit, t, slot, u, v
     ou, ov, ow, du, dv, dw = _to_frame(F, ox, oy, oz, dx, dy, dz)
-    if hs and fx.feature_at(F, I, sa.el_bits, sa.el_uv, sa.el_bin, sa.el_item, ou + ts * du, ov + ts * dv) < 0:
+    if hs and fx.feature_at(F, I, sa.el_bits, sa.el_uv, sa.el_bin, sa.el_item, sa.el_face, ou + ts * du,
+                            ov + ts * dv) < 0:
         hit, t, slot, u, v = True, ts, ss, us, vs
         best = ts
-    tf, f = fx.search(F, I, sa.el_bits, sa.el_uv, sa.el_bin, sa.el_item, ou, ov, ow, du, dv, dw, 0.0, best)
+    tf, f = fx.search(F, I, sa.el_bits, sa.el_uv, sa.el_bin, sa.el_item, sa.el_face, ou, ov, ow, du, dv, dw, 0.0,
+                      best)
     if f >= 0:
         return True, tf, -2 - f, ou + tf * du, ov + tf * dv
     return hit, t, slot, u, v
@@ -89,7 +91,7 @@ def _feature_normal(sa, inst, f, u, v):
     """Unit object-space normal (outward of the part) of feature ``f`` at plane point ``(u, v)`` mm."""
     r = sa.inst_aux[inst]
     F = sa.el_f[r]
-    _, nu, nv, nw = fx.surface(F, sa.el_i[r], sa.el_uv, f, u, v)
+    _, nu, nv, nw = fx.surface(F, sa.el_i[r], sa.el_uv, sa.el_face, f, u, v)
     return (nu * F[fx.U_X] + nv * F[fx.V_X] + nw * F[fx.N_X],
             nu * F[fx.U_X + 1] + nv * F[fx.V_X + 1] + nw * F[fx.N_X + 1],
             nu * F[fx.U_X + 2] + nv * F[fx.V_X + 2] + nw * F[fx.N_X + 2])
@@ -129,7 +131,7 @@ def point(sa, inst, prim, u, v):
     if prim < -1:
         r = sa.inst_aux[inst]
         F = sa.el_f[r]
-        w, _, _, _ = fx.surface(F, sa.el_i[r], sa.el_uv, -2 - prim, u, v)
+        w, _, _, _ = fx.surface(F, sa.el_i[r], sa.el_uv, sa.el_face, -2 - prim, u, v)
         s = 1.0 / F[fx.MM]
         return (F[fx.O_X] + s * (u * F[fx.U_X] + v * F[fx.V_X] + w * F[fx.N_X]),
                 F[fx.O_X + 1] + s * (u * F[fx.U_X + 1] + v * F[fx.V_X + 1] + w * F[fx.N_X + 1]),

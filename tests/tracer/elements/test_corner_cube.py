@@ -111,7 +111,7 @@ def test_a_corner_cube_is_three_perpendicular_faces_over_its_triangle():
         F[fx.ORG_U] = F[fx.ORG_V] = -0.5
         I = np.zeros(fx.NI, np.int64)
         I[fx.SHAPE], I[fx.LAYOUT], I[fx.NU], I[fx.NV] = e.shape, fx.GRID, 1, 1
-        w, nu, nv, nw = fx.surface(F, I, np.zeros((0, 2), np.float32), 0, hu, hv)
+        w, nu, nv, nw = fx.surface(F, I, np.zeros((0, 2), np.float32), np.zeros((0, 4)), 0, hu, hv)
         assert w == pytest.approx(e.h - math.sqrt(2.0) * r)
         normals.append([nu, nv, nw])
     g = np.array(normals) @ np.array(normals).T

@@ -52,7 +52,7 @@ def test_hits_equal_the_cpu_walk(simulated):
 def test_move_uploads_only_the_top_level(simulated):
     store = {"bvh_f", "bvh_i", "tri_v", "tri_prim", "prim_slot", "tri_n", "geom_node0", "geom_tri0", "geom_ntri",
              "geom_has_normals"}
-    assert len(simulated["first_upload"]) == simulated["fields"] == 30   # 21, and 9 of the elements with an inside
+    assert len(simulated["first_upload"]) == simulated["fields"] == 31   # 21, and 10 of the elements with an inside
     moved = set(simulated["move_upload"])
     assert moved and not moved & store, moved
     assert {"world_from_object", "object_from_world", "top_f", "top_i", "top_items", "top_rec"} <= moved

@@ -8,8 +8,10 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from tracer.elements.checks import number
-from tracer.elements.shapes.base import C30, S2, half_space
+from tracer.elements.shapes.base import C30, NO_FACES, S2, half_space
 from tracer.jit import njit
 
 NAME = "corner_cube"
@@ -20,13 +22,14 @@ RIDGE = False
 EXAMPLE = {"shape": NAME, "side_mm": 0.3}
 
 
-def parse(f: dict) -> tuple[dict, float, float, float]:
+def parse(f: dict) -> tuple[dict, float, float, float, np.ndarray]:
     side = number(f["side_mm"], "feature.side_mm")
-    return {"shape": NAME, "side_mm": side}, side / math.sqrt(3.0), side / math.sqrt(6.0), side / (2.0 * math.sqrt(3.0))
+    a, h, rs = side / math.sqrt(3.0), side / math.sqrt(6.0), side / (2.0 * math.sqrt(3.0))
+    return {"shape": NAME, "side_mm": side}, a, h, rs, NO_FACES
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def interval(a, h, rs, slope, cu, cv, ou, ov, ow, du, dv, dw):
+def interval(a, h, rs, slope, P, cu, cv, ou, ov, ow, du, dv, dw):
     c = h / S2
     lo, hi, _, _ = half_space(0.0, -1.0, 1.0 / S2, -cv + c, ou, ov, ow, du, dv, dw, -math.inf, math.inf)
     lo, hi, _, _ = half_space(C30, 0.5, 1.0 / S2, C30 * cu + 0.5 * cv + c, ou, ov, ow, du, dv, dw, lo, hi)
@@ -35,13 +38,13 @@ def interval(a, h, rs, slope, cu, cv, ou, ov, ow, du, dv, dw):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def covers(a, du, dv):
+def covers(a, P, du, dv):
     ri = 0.5 * a
     return -dv <= ri and C30 * du + 0.5 * dv <= ri and -C30 * du + 0.5 * dv <= ri
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def surface(a, h, rs, slope, du, dv):
+def surface(a, h, rs, slope, P, du, dv):
     p0 = -dv
     p1 = C30 * du + 0.5 * dv
     p2 = -C30 * du + 0.5 * dv
