@@ -1,5 +1,5 @@
 """`lumenlink.Client`'s calls for optical files (ray files, measured BRDFs) and elements with an inside (add,
-place, switch, pack). A mixin: the connection, the scene lookup and the errors are `Client`'s."""
+place, switch, pack, design). A mixin: the connection, the scene lookup and the errors are `Client`'s."""
 
 from __future__ import annotations
 
@@ -100,6 +100,29 @@ class ElementCalls(ClientBase):
         if not wait:
             return accepted
         return self.follow(accepted["url"], progress=progress, poll=poll)
+
+    def design(self, element: str, scene: str | dict, assignment: str, sensor: str,
+               parameters: list[dict[str, Any]], *, objective: str = "min_max", wait: bool = True,
+               progress: Callable[[dict[str, Any]], None] | None = None, poll: float = 0.5,
+               **options: Any) -> dict[str, Any]:
+        """Tune one to three numbers of an element (``POST /elements/{id}/design``: `parameters` as ``[{"name":
+        "feature.height_mm", "values": [...]}]`` or ``{"name", "lo", "hi", "steps"}``) against `objective`
+        ("min_max", "min_mean" or "mean") read on the grid `sensor`; options as `pack` takes them, and `pack_map`
+        (pack the density map before and after the sweep). With `wait`, follows the job (Ctrl-C cancels it, keeping
+        the best read so far) and answers its last state, whose ``result`` names the chosen ``element``, its
+        ``values`` and the ``confirmation`` on a fresh seed; otherwise the 202 answer (``url``)."""
+        sid = self._sid(scene)
+        body = {"scene": sid, "assignment": assignment, "sensor": self._sensor_ids(sid, sensor)[0]["id"],
+                "parameters": parameters, "objective": objective, **options}
+        accepted = dict(self._call("POST", f"/elements/{element}/design", "starting a design loop", ok=(202,),
+                                   json=body))
+        if not wait:
+            return accepted
+        return self.follow(accepted["url"], progress=progress, poll=poll)
+
+    def design_record(self, element: str) -> dict[str, Any]:
+        """How a designed element was found: its values, the baseline, every candidate, the confirmation."""
+        return dict(self._call("GET", f"/elements/{element}/design", "reading a design loop's record"))
 
     def pack_record(self, element: str) -> dict[str, Any]:
         """How a packed element was found: target, stop, history (uniformity ± error and seconds per iteration)."""

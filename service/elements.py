@@ -212,21 +212,24 @@ class ElementLibrary:
             self._tables[key] = table
         return table
 
-    def keep_pack(self, eid: str, record: dict[str, Any], png: bytes) -> None:
-        """Keep how element `eid` was packed: its record (history, figures) and ``pack.png``, beside its file."""
+    def keep_record(self, eid: str, suffix: str, record: dict[str, Any] | bytes) -> None:
+        """Keep how element `eid` was made, beside its file: a pack's record (``.pack.json``) and picture
+        (``.pack.png``), a design loop's record (``.design.json``); a dict is kept as JSON."""
         import json
 
-        for suffix, data in ((".pack.json", json.dumps(record).encode()), (".pack.png", png)):
-            tmp = self.directory / f".{eid}{suffix}.{os.getpid()}.{threading.get_ident()}"
-            tmp.write_bytes(data)
-            os.replace(tmp, self.directory / f"{eid}{suffix}")
+        data = json.dumps(record).encode() if isinstance(record, dict) else record
+        tmp = self.directory / f".{eid}{suffix}.{os.getpid()}.{threading.get_ident()}"
+        tmp.write_bytes(data)
+        os.replace(tmp, self.directory / f"{eid}{suffix}")
 
-    def pack_record(self, eid: str, suffix: str = ".pack.json") -> bytes:
-        """The pack record (JSON bytes) or ``pack.png`` of element `eid`; 404 where it was not made by a pack."""
+    def record(self, eid: str, suffix: str) -> bytes:
+        """What `keep_record` kept for element `eid` under `suffix`; 404 where the element was not made that way."""
         self.summary(eid)
         path = self.directory / f"{eid}{suffix}"
         if not path.exists():
-            raise NotFound(f"element {eid} was not made by a pack (POST /elements/{{id}}/pack makes one)")
+            how = "a design loop (POST /elements/{id}/design" if suffix.startswith(".design") else \
+                "a pack (POST /elements/{id}/pack"
+            raise NotFound(f"element {eid} was not made by {how} makes one)")
         return path.read_bytes()
 
     def loaded(self) -> set[str]:

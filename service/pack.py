@@ -11,7 +11,7 @@ The job packs on a scene of its own: the scene rebuilt from the database (`Scene
 rebuild each iteration would cost without the two levels), whose element it changes at each iteration with
 `tracer.Scene.set_element` (`tracer.elements.pack`). The scene everybody queries is never touched: switching its
 assignment to the result is one more call (``PUT /scenes/{id}/elements/{aid}``). The result, the chosen pattern,
-is a new element in the library with its history (`ElementLibrary.keep_pack`: uniformity, photons and seconds per
+is a new element in the library with its history (`ElementLibrary.keep_record`: uniformity, photons and seconds per
 iteration) and ``pack.png`` (`plot`); a cancelled job keeps what it measured the same way.
 """
 
@@ -20,6 +20,8 @@ from __future__ import annotations
 import io
 import math
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -31,11 +33,32 @@ from tracer.transport.query import Budget
 PILOT_PHOTONS = 20_000   # the pilot that tells a face no light reaches
 
 
-def start(manager: Any, hub: Any, element_id: str, req: dict[str, Any]) -> tuple[str, int, Any, Budget, dict]:
-    """Check a pack request and set it up: answers ``(scene_id, revision, work, budget, meta)`` for
-    `JobRunner.submit` (see the module docstring for what is refused)."""
+@dataclass
+class Run:
+    """What a pack (or a design loop, `service.design`) works on, checked: the library and the starting element, the
+    scene of its own (`own`, rebuilt from the database in `rebuild_seconds`) with the instance that carries the
+    element and `Scene.set_element`'s keywords (`assign`), the grid sensor's body (world m), how its cells are read,
+    and `simulation(scene)`."""
+
+    library: Any
+    start: Any
+    scene_id: str
+    own: Any
+    instance: int
+    assign: dict[str, Any]
+    sensor: dict[str, Any]
+    reading: Any
+    simulation: Callable[[Any], Any]
+    rebuild_seconds: float
+    grid: dict[str, Any]
+
+
+def setup(manager: Any, hub: Any, element_id: str, req: dict[str, Any], checks: Callable[[Any], None]) -> Run:
+    """Check a request that changes an element on a scene's face against a grid over the lit face, and set it up
+    (see the module docstring for what is refused); `checks(start)` refuses what the caller's own fields cannot do
+    (an `ElementError`, answered as a 422)."""
     from tracer.elements import ElementError
-    from tracer.elements.pack import PackError, Reading, check
+    from tracer.elements.pack import Reading
 
     library = manager.scenes.elements
     if library.summary(element_id)["type"] == "grating":   # 404: no such element
@@ -44,14 +67,14 @@ def start(manager: Any, hub: Any, element_id: str, req: dict[str, Any]) -> tuple
     start_model = library.get(element_id)
     reading = Reading(req.get("quantity", "illuminance"), req.get("distance", 0.5), req.get("aperture_deg", 1.0))
     try:
-        check(start_model, req["target"], req["figure"], req["damping"], req["max_fill"], req.get("pitch_mm"))
+        checks(start_model)
         reading.check()
     except ElementError as exc:
         raise Invalid(str(exc)) from None
     scene_id = req["scene"]
     assignment = _assignment_and_sensor(manager, scene_id, element_id, req)
     t0 = time.perf_counter()
-    own = manager.scenes.rebuilt(scene_id)      # the pack's own scene: a full rebuild, timed
+    own = manager.scenes.rebuilt(scene_id)      # a scene of its own: a full rebuild, timed
     live = manager.scenes.live_locked(own)
     if req["assignment"] not in own.element_instances:
         raise Invalid(f"assignment {req['assignment']} is not applied: {own.element_problems.get(req['assignment'])}")
@@ -63,7 +86,6 @@ def start(manager: Any, hub: Any, element_id: str, req: dict[str, Any]) -> tuple
     from service.simulation import find_sensor
 
     sensor = kind_of(find_sensor(live, req["sensor"])).body(find_sensor(live, req["sensor"]), live)
-    req = {**req, "grid": {k: sensor[k] for k in ("origin", "u", "v")}}   # world metres, for pack.png's axes
     pilot = sim.run(sensor, max_photons=PILOT_PHOTONS, seed=int(req["seed"]), estimator="forward")
     if not float(np.max(pilot.lux)) > 0:
         raise Invalid(f"sensor: no light reaches the grid over the face ({pilot.photons} photons of a pilot, every "
@@ -71,12 +93,23 @@ def start(manager: Any, hub: Any, element_id: str, req: dict[str, Any]) -> tuple
                       sensor=req["sensor"])
     if reading.quantity == "luminance":   # what paths from the eye cannot follow here is said now, not in the job
         _luminance_pilot(sim, sensor, reading, int(req["seed"]))
-    instance = own.element_instances[req["assignment"]]
     mm = own.tree.scale * 1000.0
     assign = {"facing": assignment.get("facing"), "faces": assignment.get("faces"), "mm_per_unit": mm}
+    return Run(library, start_model, scene_id, own, own.element_instances[req["assignment"]], assign, sensor,
+               reading, simulation, rebuild_seconds, {k: sensor[k] for k in ("origin", "u", "v")})
+
+
+def start(manager: Any, hub: Any, element_id: str, req: dict[str, Any]) -> tuple[str, int, Any, Budget, dict]:
+    """Check a pack request and set it up: answers ``(scene_id, revision, work, budget, meta)`` for
+    `JobRunner.submit` (see the module docstring for what is refused)."""
+    from tracer.elements.pack import PackError, check
+
+    run = setup(manager, hub, element_id, req, lambda model: check(
+        model, req["target"], req["figure"], req["damping"], req["max_fill"], req.get("pitch_mm")))
+    req = {**req, "grid": run.grid}   # world metres, for pack.png's axes
     options = {k: req[k] for k in ("target", "figure", "photons", "max_photons", "max_iterations", "max_seconds",
                                    "damping", "max_fill", "pitch_mm", "seed")}
-    options["reading"] = reading
+    options["reading"] = run.reading
 
     def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
         from tracer.elements.pack import pack
@@ -88,17 +121,17 @@ def start(manager: Any, hub: Any, element_id: str, req: dict[str, Any]) -> tuple
                          uniformity=u, uniformity_stderr=s["stderr"])
 
         try:
-            result = pack(own.tracer, instance, start_model, sensor, simulation, assign=assign, progress=report,
-                          cancel=cancel, **options)
+            result = pack(run.own.tracer, run.instance, run.start, run.sensor, run.simulation, assign=run.assign,
+                          progress=report, cancel=cancel, **options)
         except PackError as exc:
             if cancel is not None and cancel():   # cancelled before anything was measured: nothing to keep
                 return {"element": None, "stopped": "cancelled", "history": [], "seconds": 0.0}
             raise Invalid(str(exc)) from None
-        return keep(library, element_id, req, result, rebuild_seconds)
+        return keep(run.library, element_id, req, result, run.rebuild_seconds)
 
     budget = Budget(max_seconds=float(req["max_seconds"]))
-    meta = {"generation": hub.generation(scene_id), "sensor": req["sensor"], "element": element_id}
-    return scene_id, int(own.revision), work, budget, meta
+    meta = {"generation": hub.generation(run.scene_id), "sensor": req["sensor"], "element": element_id}
+    return run.scene_id, int(run.own.revision), work, budget, meta
 
 
 def _luminance_pilot(sim: Any, sensor: dict[str, Any], reading: Any, seed: int) -> None:
@@ -182,7 +215,8 @@ def keep(library: Any, element_id: str, req: dict[str, Any], result: Any, rebuil
               if req.get("grid") else None,
               "start": {"uniformity": result.history[0].uniformity, "stderr": result.history[0].stderr}}
     png = plot(record, result.element.body["layout"])
-    library.keep_pack(summary["id"], record, png)
+    library.keep_record(summary["id"], ".pack.json", record)
+    library.keep_record(summary["id"], ".pack.png", png)
     return {**{k: v for k, v in record.items() if k not in ("fill", "lux", "stderr")}, "summary": summary,
             "pack_url": f"/elements/{summary['id']}/pack", "png_url": f"/elements/{summary['id']}/pack.png"}
 

@@ -292,6 +292,14 @@ class JobProgress(BaseModel):
     fraction: float | None = Field(None, description="Prepare jobs: the fraction of the grating's table solved.")
     points: int | None = Field(None, description="Prepare jobs: table points solved (each side of the face counts).")
     points_total: int | None = Field(None, description="Prepare jobs: table points to solve.")
+    stage: Literal["baseline", "sweep", "confirmed"] | None = Field(
+        None, description="Design jobs: the reading last taken: the baseline, a candidate of the sweep, or the "
+                          "confirmation on a fresh seed.")
+    candidate: int | None = Field(None, description="Design jobs: the candidate last read (-1: the baseline or "
+                                                    "the confirmation).")
+    candidates: int | None = Field(None, description="Design jobs: the combinations to sweep.")
+    objective: float | None = Field(None, description="Design jobs: the objective of that reading.")
+    objective_stderr: float | None = Field(None, description="Design jobs: its standard error.")
 
 
 class JobPublic(BaseModel):
@@ -300,10 +308,10 @@ class JobPublic(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     id: str = Field(description="The job's id.")
-    kind: Literal["illuminance", "sensor", "uniformity", "conoscope", "pack", "prepare"] = Field(
+    kind: Literal["illuminance", "sensor", "uniformity", "conoscope", "pack", "design", "prepare"] = Field(
         description="A point query, a sensor simulation, luminance meters (`uniformity`, `conoscope`), a pack of a "
-                    "density element, or the preparation of a grating (`POST /elements?mode=async`: no scene, "
-                    "`scene_id` empty; its result the element's summary).")
+                    "density element, a design loop over an element's parameters, or the preparation of a grating "
+                    "(`POST /elements?mode=async`: no scene, `scene_id` empty; its result the element's summary).")
     status: Literal["queued", "running", "succeeded", "failed", "cancelled"] = Field(description="Where it is.")
     scene_id: str = Field(description="The scene's id.")
     revision: int = Field(description="Scene revision the job computes.")
@@ -320,6 +328,6 @@ class JobPublic(BaseModel):
     url: str = Field(description="This job's URL.")
     points: int | None = Field(None, description="Illuminance jobs: how many points; prepare jobs: table points "
                                                  "(each side of the face counts).")
-    sensor: str | None = Field(None, description="Sensor and pack jobs: the sensor's id.")
-    element: str | None = Field(None, description="Pack jobs: the element packed (its starting pattern).")
+    sensor: str | None = Field(None, description="Sensor, pack and design jobs: the sensor's id.")
+    element: str | None = Field(None, description="Pack and design jobs: the element they start from.")
     estimate_seconds: float | None = Field(None, description="Prepare jobs: the cost estimated before solving, s.")

@@ -267,14 +267,61 @@ def pack_element(element_id: ElementId, body: Annotated[PackRequest, Body(openap
 def pack_record(element_id: ElementId, manager: Manager) -> Response:
     """How a packed element was found: target, why it stopped, every iteration (uniformity ± error, photons,
     seconds), the full-rebuild and per-iteration update times, the chosen map and what it measured."""
-    return Response(manager.scenes.elements.pack_record(element_id), media_type="application/json")
+    return Response(manager.scenes.elements.record(element_id, ".pack.json"), media_type="application/json")
+
+
+class DesignRequest(PackRequest):
+    """A design loop over the element's parameters on a scene's light guide (`service.design`): a pack's request
+    (the scene, the assignment, the grid, what its cells read; with ``pack_map``, the pack's own fields) with the
+    numbers to vary and the objective."""
+
+    parameters: list[dict[str, Any]] = Field(
+        min_length=1, max_length=3, description="one to three numbers of the element's body to vary: {name, values} "
+                                                "or {name, lo, hi, steps}; name as 'feature.height_mm', "
+                                                "'feature.apex_deg', 'layout.pitch_mm[0]', 'material.reflectance'")
+    objective: Literal["min_max", "min_mean", "mean"] = Field(
+        "min_max", description="what the loop raises: a uniformity of the grid's readings (min/max, min/mean) or "
+                               "their mean (on-axis luminance where the cells read luminance)")
+    pack_map: bool = Field(False, description="pack the density map before and after the sweep (with target, "
+                                              "figure, max_iterations, ...); false keeps the map as it is")
+
+
+DESIGN_EXAMPLES = {"guide": {"summary": "the dots' height for the most light out of the guide", "value": {
+    "scene": "<scene id>", "assignment": "<element assignment id>", "sensor": "<grid sensor id>",
+    "parameters": [{"name": "feature.height_mm", "lo": 0.05, "hi": 0.25, "steps": 5}], "objective": "mean"}}}
+
+
+@router.post("/elements/{element_id}/design", status_code=202, responses={202: {"description": "the design job"}})
+def design_element(element_id: ElementId, body: Annotated[DesignRequest, Body(openapi_examples=DESIGN_EXAMPLES)],
+                   manager: Manager, request: Request) -> JSONResponse:
+    """Tune one to three numbers of the element against what the scene's lit face reads, as a job (`GET
+    /jobs/{id}`: stage, candidate, objective ± error; `DELETE` cancels it and keeps the best read so far): every
+    candidate read with the same random numbers, the best confirmed against the start on a fresh seed. The result is
+    a new element in the library with its record (`GET /elements/{id}/design`); `PUT /scenes/{id}/elements/{aid}`
+    switches the scene to it. 422 before any job for a parameter the element lacks, too many combinations, a face no
+    light reaches."""
+    from service import design
+    from service.routes.simulation import _accepted, _submit
+    from service.simulation import hub_for
+
+    hub = hub_for(request.app)
+    scene_id, revision, work, budget, meta = design.start(manager, hub, element_id, body.model_dump())
+    job = _submit(hub, "design", scene_id, revision, work, budget, meta)
+    return _accepted(request, job)
+
+
+@router.get("/elements/{element_id}/design")
+def design_record(element_id: ElementId, manager: Manager) -> Response:
+    """How a designed element was found: the parameters' values, the baseline, every candidate (objective ± error,
+    photons, seconds, or why it was refused), the packs, and the confirmation on a fresh seed."""
+    return Response(manager.scenes.elements.record(element_id, ".design.json"), media_type="application/json")
 
 
 @router.get("/elements/{element_id}/pack.png", response_class=Response,
             responses={200: {"content": {"image/png": {}}}, 404: {}})
 def pack_png(element_id: ElementId, manager: Manager) -> Response:
     """The density map, the map it measured over the face, and the uniformity against the iterations."""
-    return Response(manager.scenes.elements.pack_record(element_id, ".pack.png"), media_type="image/png")
+    return Response(manager.scenes.elements.record(element_id, ".pack.png"), media_type="image/png")
 
 
 @router.get("/elements/{element_id}/orders.png", response_class=Response,
