@@ -281,7 +281,7 @@ NO_IOR = ("model: a tabulated BSDF ('bsdf') is computed for the part's material,
 
 def check_support(body: dict, state: Any) -> None:
     """422 where the node's part cannot carry the element (after `check_assignment`): its `facing` or `faces` select
-    no planar rectangle of the part's mesh, or a 'bsdf' model has no dielectric ior to be computed for. Reads the
+    no plane of the part's mesh, or a 'bsdf' model has no dielectric ior to be computed for. Reads the
     mesh only (the tracer's own `support` checks, lengths in the document's unit); changes nothing."""
     from tracer.elements import ElementError
     from tracer.elements import support as sup

@@ -21,7 +21,9 @@ A mesh feature's face planes are rows of `el_face` (``faces``), one table for al
 ``I[FACE]``, ``I[NFACE]`` of them (empty for the other shapes).
 
 HEX and POINTS test the 3 x 3 cells around the walked one: their features may cross a cell's edge, by less than a
-cell. The row columns below index `SceneArrays.el_f` and `el_i` (packed by `tracer.elements.support`).
+cell. On a support that is not its u-v box, a feature is there only where its centre's cell of the outline mask is
+kept (`_on_outline`, `tracer.elements.outline`; its bits follow the density bits in `el_bits`). The row columns
+below index `SceneArrays.el_f` and `el_i` (packed by `tracer.elements.support`).
 """
 
 from __future__ import annotations
@@ -46,7 +48,8 @@ ORG_U, ORG_V = 21, 22                     # the layout's first cell corner, mm
 SIGN = 23                                 # +1 bump, -1 pit
 FMAT, FRHO = 24, 25                       # the features' own surface (-1: the part's material; 0 black;
                                           # 1 Lambertian of reflectance FRHO)
-NF = 26
+MASK_H = 26                               # the outline mask's cell, mm
+NF = 27
 MAT_PART, MAT_BLACK, MAT_LAMBERTIAN = -1, 0, 1
 # el_i columns (int64)
 SHAPE, LAYOUT, NU, NV = 0, 1, 2, 3        # feature shape, layout kind, cells along u and v
@@ -57,7 +60,8 @@ ITEMS = 11                                # offset in el_item
 MODEL, TAB, TAB_MU, TAB_PHI = 12, 13, 14, 15   # 0 exact, 1 bsdf, 2 grating: its table's first row in el_tab, its
                                                # bins (bsdf); a grating's sizes are in its table (`diffraction`)
 FACE, NFACE = 16, 17                           # the feature's face planes: first row in el_face, count (a mesh's)
-NI = 18
+MASK, MASK_NU, MASK_NV = 18, 19, 20            # a support that is not its u-v box: its kept cells' first byte in
+NI = 21                                        # el_bits and their count along u and v (0: no mask)
 EXACT, BSDF, GRATING = 0, 1, 2
 
 NEAR = 1.0e300
@@ -117,6 +121,20 @@ def _kept(I, bits, i, j):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _on_outline(F, I, bits, cu, cv):
+    """Whether a feature centred at (cu, cv) lies wholly on a support that is not its u-v box (its outline mask's
+    cell is kept: `tracer.elements.outline`); always, on a support without a mask."""
+    if I[MASK_NU] == 0:
+        return True
+    i = int(math.floor(cu / F[MASK_H]))
+    j = int(math.floor(cv / F[MASK_H]))
+    if i < 0 or j < 0 or i >= I[MASK_NU] or j >= I[MASK_NV]:
+        return False
+    s = I[MASK] * 8 + j * I[MASK_NU] + i
+    return (bits[s >> 3] >> (s & 7)) & 1 == 1
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _inside(F, cu, cv):
     """Whether a HEX feature at (cu, cv) lies wholly on the support (its odd rows may run over the far edge)."""
     a = F[A]
@@ -149,7 +167,7 @@ def _cell(F, I, bits, uv, bins, items, P, i, j, ou, ov, ow, du, dv, dw, lo, best
             for k in range(first, last):
                 f = items[I[ITEMS] + k] if lay == POINTS else jj * nu + ii
                 cu, cv = center(F, I, uv, f)
-                if lay == HEX and not _inside(F, cu, cv):
+                if (lay == HEX and not _inside(F, cu, cv)) or not _on_outline(F, I, bits, cu, cv):
                     continue
                 if probe:
                     if shape_covers(shape, F[A], P, pu - cu, pv - cv):

@@ -56,14 +56,15 @@ class SceneElements:
                 if not isinstance(row.element, Microstructure)]
 
     def element_support(self, i: int) -> dict[str, Any] | None:
-        """What carries instance `i`'s element: ``{"triangles": n, "size_mm": [lu, lv], "normal": [x, y, z]}`` (its
-        support's triangles of the part, its extent along u and v, its outward normal in the part's frame); None
-        where the instance carries none."""
+        """What carries instance `i`'s element: ``{"triangles": n, "size_mm": [lu, lv], "normal": [x, y, z],
+        "outline": bool}`` (its support's triangles of the part, its extent along u and v, its outward normal in the
+        part's frame, and whether it is less than its u-v box, so that only the features whose base lies wholly on
+        it are placed: `tracer.elements.outline`); None where the instance carries none."""
         row = self._reliefs.rows.get(self._instance(i))
         if row is None:
             return None
         return {"triangles": int(len(row.support_prims)), "size_mm": [row.frame.lu, row.frame.lv],
-                "normal": [float(x) for x in row.frame.n]}
+                "normal": [float(x) for x in row.frame.n], "outline": row.frame.outline is not None}
 
     def element_of(self, i: int) -> tuple[Microstructure, np.ndarray, np.ndarray, np.ndarray] | None:
         """The element instance `i` carries and where its support lies in the world: ``(model, origin, du, dv)``,

@@ -1,10 +1,12 @@
 """Where an element sits: its support faces on a part, their frame, and the scene's table of elements in use.
 
 An element goes onto the triangles of a part that face a direction (in the part's frame, within `FACING_DEG`) or
-onto named B-rep faces. They must be planar and, for now, a rectangle in their own u-v frame: u runs along the part's
-x axis projected onto the face (its y axis where x is normal to it), v = n x u, from the corner of smallest u and v
-(docs/DESIGN.md). The part's mesh is split once per assignment into the support (its own bottom level, so a ray that
-misses every feature meets the same triangles with the same test as without the element: bit-exact) and the rest.
+onto named B-rep faces. They must be planar, of any outline: u runs along the part's x axis projected onto the face
+(its y axis where x is normal to it), v = n x u, from the corner of smallest u and v (docs/DESIGN.md); the layout
+covers that u-v box, and where the support is not the whole box, only features whose base lies wholly on it are
+placed (`tracer.elements.outline`). The part's mesh is split once per assignment into the support (its own bottom
+level, so a ray that misses every feature meets the same triangles with the same test as without the element:
+bit-exact) and the rest.
 
 `Reliefs` is the scene's table: one row per instance that carries an element, packed at commit into the
 `SceneArrays` ``el_*`` fields that :mod:`tracer.kinds.relief` reads.
@@ -31,7 +33,8 @@ RECTANGLE_REL = 1e-4      # the support's area within this fraction of its u-v b
 @dataclass(frozen=True)
 class Frame:
     """The support's frame in object space: origin ``o`` (its corner of smallest u, v on the plane) and unit axes
-    ``u, v, n`` ((3,) each); its extent ``lu, lv`` in mm; ``mm`` millimetres per object unit."""
+    ``u, v, n`` ((3,) each); its extent ``lu, lv`` in mm; ``mm`` millimetres per object unit; ``outline`` its
+    triangles (T, 3, 2) in u-v mm where it is not the whole u-v box (None where it is)."""
 
     o: np.ndarray
     u: np.ndarray
@@ -40,6 +43,7 @@ class Frame:
     lu: float
     lv: float
     mm: float
+    outline: np.ndarray | None = None
 
 
 def select(vertices: np.ndarray, triangles: np.ndarray, *, facing: Any = None, faces: Any = None,
@@ -89,7 +93,7 @@ def _normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
 
 
 def frame(vertices: np.ndarray, triangles: np.ndarray, prims: np.ndarray, mm_per_unit: float) -> Frame:
-    """The support's frame; `ElementError` where the selected triangles are not one plane or not a rectangle."""
+    """The support's frame; `ElementError` where the selected triangles are not one plane."""
     if not (isinstance(mm_per_unit, int | float) and math.isfinite(mm_per_unit) and mm_per_unit > 0):
         raise ElementError(f"mm_per_unit must be a positive number, got {mm_per_unit!r}")
     tri = np.asarray(vertices, np.float64)[np.asarray(triangles)[prims]]
@@ -112,11 +116,12 @@ def frame(vertices: np.ndarray, triangles: np.ndarray, prims: np.ndarray, mm_per
     v = np.cross(n, u)
     pu, pv = pts @ u, pts @ v
     box = float(np.ptp(pu) * np.ptp(pv))
-    if abs(0.5 * float(area2.sum()) - box) > RECTANGLE_REL * box:
-        raise ElementError("the selected support is not a rectangle in its u-v frame (its area differs from its "
-                           "bounding rectangle's): an element is laid over a rectangular face for now")
+    outline = None
+    if abs(0.5 * float(area2.sum()) - box) > RECTANGLE_REL * box:   # not its whole u-v box: features within it
+        outline = (np.column_stack([pu - pu.min(), pv - pv.min()]) * mm_per_unit).reshape(-1, 3, 2)
     o = pu.min() * u + pv.min() * v + float(np.mean(off)) * n
-    return Frame(o, u, v, n, float(np.ptp(pu)) * mm_per_unit, float(np.ptp(pv)) * mm_per_unit, float(mm_per_unit))
+    return Frame(o, u, v, n, float(np.ptp(pu)) * mm_per_unit, float(np.ptp(pv)) * mm_per_unit, float(mm_per_unit),
+                 outline)
 
 
 @dataclass(frozen=True)
@@ -132,6 +137,7 @@ class Row:
     rest_prims: np.ndarray    # rest triangle -> part triangle
     support_prims: np.ndarray  # support triangle -> part triangle
     table: Any = None         # a `tracer.elements.bsdf.Table`: the element used through its tabulated model
+    mask: tuple[np.ndarray, int, int, float] | None = None   # the outline's kept cells (`outline.mask`)
 
 
 def row_params(row: Row, support_index: int) -> tuple[np.ndarray, np.ndarray]:
@@ -153,6 +159,8 @@ def row_params(row: Row, support_index: int) -> tuple[np.ndarray, np.ndarray]:
     f[fx.ORG_U], f[fx.ORG_V] = e.origin
     i = np.zeros(fx.NI, np.int64)
     i[fx.SHAPE], i[fx.LAYOUT], i[fx.GEOM_S] = e.shape, e.layout, support_index
+    if row.mask is not None:   # its bits' offset is `Reliefs.pack`'s
+        _, i[fx.MASK_NU], i[fx.MASK_NV], f[fx.MASK_H] = row.mask
     if row.table is not None:
         i[fx.MODEL], i[fx.TAB_MU], i[fx.TAB_PHI] = fx.BSDF, row.table.n_mu, row.table.n_phi
     if e.layout in (fx.GRID, fx.HEX):

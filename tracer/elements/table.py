@@ -7,13 +7,14 @@ id.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
 from tracer.accel.store import Geometry
-from tracer.elements import diffraction, support
+from tracer.elements import diffraction, outline, support
 from tracer.elements import features as fx
 from tracer.elements.microstructure import Microstructure
 from tracer.elements.support import Row
@@ -50,24 +51,27 @@ class Reliefs:
         prims = support.select(g.vertices, g.triangles, facing=facing, faces=faces, face_ids=ids)
         row = self.make_row(add_geometry, element, full, g.vertices, g.triangles, g.normals, prims, mm_per_unit)
         if table is not None:
-            row = Row(row.element, row.frame, row.full, row.rest, row.support, row.rest_prims, row.support_prims,
-                      table)
+            row = dataclasses.replace(row, table=table)
         self.rows[i] = row
         self._packed = None
         return relief.KIND, row.rest, support.box(row, g.box)
 
     def make_row(self, add_geometry: Callable, element: Any, full: str, vertices: np.ndarray,
                  triangles: np.ndarray, normals: np.ndarray | None, prims: np.ndarray, mm_per_unit: float) -> Row:
-        """A row for `element` on the triangles `prims` of geometry `full` (checked: a planar rectangle), its mesh
-        split by `add_geometry` (`tracer.Scene.add_geometry`) into the rest and the support. Changes no row."""
+        """A row for `element` on the triangles `prims` of geometry `full` (checked: planar; where they are not their
+        u-v box, the features that lie wholly on them: `outline.mask`), its mesh split by `add_geometry`
+        (`tracer.Scene.add_geometry`) into the rest and the support. Changes no row."""
         fr = support.frame(vertices, triangles, prims, mm_per_unit)
+        kept = None
+        if fr.outline is not None and isinstance(element, Microstructure):
+            kept = outline.mask(fr.outline, fr.lu, fr.lv, element.a)
         on = np.zeros(len(triangles), bool)
         on[prims] = True
         rest_prims = np.flatnonzero(~on).astype(np.int32)
         support_prims = np.flatnonzero(on).astype(np.int32)
         rest = add_geometry(vertices, triangles[rest_prims], normals)
         sup = add_geometry(vertices, triangles[support_prims], normals)
-        return Row(element, fr, full, rest, sup, rest_prims, support_prims)
+        return Row(element, fr, full, rest, sup, rest_prims, support_prims, mask=kept)
 
     def pack(self, n_ids: int, index_of: Callable[[str], int]) -> tuple[np.ndarray, ...]:
         """``(inst_aux, el_f, el_i, el_prim, el_bits, el_uv, el_bin, el_item, el_tab, el_face)`` for `n_ids`
@@ -125,6 +129,10 @@ class Reliefs:
                     sizes[1 + k] += len(a)
             ei[r, fx.BITS], ei[r, fx.UV], ei[r, fx.BINS], ei[r, fx.ITEMS], ei[r, fx.FACE] = shared[e.id]
             ei[r, fx.NFACE] = len(e.faces)
+            if row.mask is not None:   # the row's own outline (the same element may lie on other outlines)
+                ei[r, fx.MASK] = sizes[1]
+                bits.append(row.mask[0])
+                sizes[1] += len(row.mask[0])
             if row.table is not None:
                 ei[r, fx.TAB] = n_tab
                 tabs.append(row.table.cdf)
