@@ -29,8 +29,10 @@ NO_DESCRIPTION: dict[str, str] = {}
 MAY_ALSO_ANSWER = {("post", "/scenes"): {409}}
 SIMULATION = {"/scenes/{scene_id}/illuminance", "/scenes/{scene_id}/illuminance/plan",
               "/scenes/{scene_id}/sensors/{sensor_id}/simulate", "/scenes/{scene_id}/luminance/uniformity"}
-#: examples that name ids only a run gives (an element assignment, a pack's scene and sensor): read by their models
-BY_MODEL = {"/elements/{element_id}/pack": "PackRequest", "/scenes/{scene_id}/elements/{item_id}": "ElementSwitch"}
+#: examples that name ids only a run gives (an element assignment, a pack or design loop's scene and sensor): read by
+#: their models
+BY_MODEL = {"/elements/{element_id}/pack": "PackRequest", "/elements/{element_id}/design": "DesignRequest",
+            "/scenes/{scene_id}/elements/{item_id}": "ElementSwitch"}
 CEILING_PANEL = "6f1c9a52-3b7e-4d08-9e2a-51c4b7d3e003"
 
 
