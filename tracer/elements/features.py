@@ -15,15 +15,19 @@ ray's path over the layout's cells (Amanatides and Woo's 2D DDA), never from a m
 - ``GRID``: one feature in each cell of the pitch, centred (``cells start at the face's smallest u and v``);
 - ``HEX``: rows ``pv = pitch sqrt(3) / 2`` apart, odd rows shifted by half a pitch (domes);
 - ``DENSITY``: a lattice of the pitch whose sites are kept or not (one bit each, `el_bits`);
-- ``POINTS``: listed centres (`el_uv`, float32 mm) binned by cell (`el_bin` starts, `el_item` ids).
+- ``POINTS``: listed centres (`el_uv`, float32 mm) binned by cell (`el_bin` starts, `el_item` ids);
+- ``TRIANGULAR``: triangles of side ``s`` close-packed, cells ``s/2`` by the row height ``H = s sqrt(3)/2``: feature
+  ``(i, j)`` centred at ``u = (i + 1) s/2``, ``v = j H + H/3`` pointing to +v where ``i + j`` is even, else turned
+  180 degrees about its axis (``v = j H + 2H/3``): every shape is met in its own frame mirrored through its axis
+  (`_turned`), so the triangular corner cubes tile the face with no gap.
 
 A mesh feature's face planes are rows of `el_face` (``faces``), one table for all its copies, from row
 ``I[FACE]``, ``I[NFACE]`` of them (empty for the other shapes).
 
-HEX and POINTS test the 3 x 3 cells around the walked one: their features may cross a cell's edge, by less than a
-cell. On a support that is not its u-v box, a feature is there only where its centre's cell of the outline mask is
-kept (`_on_outline`, `tracer.elements.outline`; its bits follow the density bits in `el_bits`). The row columns
-below index `SceneArrays.el_f` and `el_i` (packed by `tracer.elements.support`).
+HEX, POINTS and TRIANGULAR test the 3 x 3 cells around the walked one: their features may cross a cell's edge, by
+less than a cell. On a support that is not its u-v box, a feature is there only where its centre's cell of the
+outline mask is kept (`_on_outline`, `tracer.elements.outline`; its bits follow the density bits in `el_bits`). The
+row columns below index `SceneArrays.el_f` and `el_i` (packed by `tracer.elements.support`).
 """
 
 from __future__ import annotations
@@ -36,7 +40,7 @@ from tracer.elements.shapes.base import half_space
 from tracer.elements.shapes.dispatch import shape_covers, shape_interval, shape_surface
 from tracer.jit import njit
 
-GRID, HEX, DENSITY, POINTS = 0, 1, 2, 3
+GRID, HEX, DENSITY, POINTS, TRIANGULAR = 0, 1, 2, 3, 4
 
 # el_f columns (float64): the frame in object space, the scale, the support, the feature, the layout
 O_X, U_X, V_X, N_X = 0, 3, 6, 9          # frame origin and unit axes, object space (3 each)
@@ -108,7 +112,18 @@ def center(F, I, uv, f):
     i = f - j * nu
     if lay == HEX:
         return (i + 0.5 + 0.5 * (j & 1)) * F[CU], (j + 0.5) * F[CV]
+    if lay == TRIANGULAR:
+        return (i + 1.0) * F[CU], (j + (2.0 if (i + j) & 1 else 1.0) / 3.0) * F[CV]
     return F[ORG_U] + (i + 0.5) * F[CU], F[ORG_V] + (j + 0.5) * F[CV]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _turned(I, f):
+    """Whether feature ``f`` is turned 180 degrees about its axis (a TRIANGULAR layout's odd sites)."""
+    if I[LAYOUT] != TRIANGULAR:
+        return False
+    j = f // I[NU]
+    return ((f - j * I[NU]) + j) & 1 == 1
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -149,7 +164,7 @@ def _cell(F, I, bits, uv, bins, items, P, i, j, ou, ov, ow, du, dv, dw, lo, best
     nu = I[NU]
     nv = I[NV]
     shape = I[SHAPE]
-    reach = 1 if (lay == HEX or lay == POINTS) else 0
+    reach = 1 if (lay == HEX or lay == POINTS or lay == TRIANGULAR) else 0
     for jj in range(j - reach, j + reach + 1):
         if jj < 0 or jj >= nv:
             continue
@@ -169,11 +184,13 @@ def _cell(F, I, bits, uv, bins, items, P, i, j, ou, ov, ow, du, dv, dw, lo, best
                 cu, cv = center(F, I, uv, f)
                 if (lay == HEX and not _inside(F, cu, cv)) or not _on_outline(F, I, bits, cu, cv):
                     continue
+                turn = -1.0 if _turned(I, f) else 1.0   # met in its own frame, mirrored through its axis
                 if probe:
-                    if shape_covers(shape, F[A], P, pu - cu, pv - cv):
+                    if shape_covers(shape, F[A], P, turn * (pu - cu), turn * (pv - cv)):
                         return best, f
                     continue
-                t = cross_feature(shape, F[A], F[H], F[RS], F[SLOPE], P, cu, cv, ou, ov, ow, du, dv, dw, lo, best)
+                t = cross_feature(shape, F[A], F[H], F[RS], F[SLOPE], P, cu, cv, cu + turn * (ou - cu),
+                                  cv + turn * (ov - cv), ow, turn * du, turn * dv, dw, lo, best)
                 if t < best:
                     best = t
                     bf = f
@@ -203,7 +220,7 @@ def search(F, I, bits, uv, bins, items, faces, ou, ov, ow, du, dv, dw, t_lo, t_h
     cv = F[CV]
     nu = I[NU]
     nv = I[NV]
-    reach = 1.0 if (I[LAYOUT] == HEX or I[LAYOUT] == POINTS) else 0.0
+    reach = 1.0 if (I[LAYOUT] == HEX or I[LAYOUT] == POINTS or I[LAYOUT] == TRIANGULAR) else 0.0
     lo, hi = _clip(ou, du, F[ORG_U] - reach * cu, F[ORG_U] + (nu + reach) * cu, lo, hi)
     lo, hi = _clip(ov, dv, F[ORG_V] - reach * cv, F[ORG_V] + (nv + reach) * cv, lo, hi)
     if not lo < hi:
@@ -249,6 +266,7 @@ def surface(F, I, uv, faces, f, hu, hv):
     du = hu - cu
     dv = hv - cv
     P = faces[I[FACE]:I[FACE] + I[NFACE]]
-    wk, ku, kv, kw = shape_surface(I[SHAPE], a, h, F[RS], F[SLOPE], P, du, dv)
+    turn = -1.0 if _turned(I, f) else 1.0
+    wk, ku, kv, kw = shape_surface(I[SHAPE], a, h, F[RS], F[SLOPE], P, turn * du, turn * dv)
     # K's outward normal in (u, v, w'); the part's outward normal is K's for a bump and the opposite for a pit
-    return sign * max(wk, 0.0), sign * ku, sign * kv, kw
+    return sign * max(wk, 0.0), sign * turn * ku, sign * turn * kv, kw

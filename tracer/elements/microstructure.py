@@ -20,7 +20,9 @@ The body (docs/DESIGN.md "Optical elements with an inside"; lengths in mm, on th
                                        of its sites, rows along v from v0, columns along u)
                 "placement": "blue_noise" | "random"}   (which sites: by error diffusion, the default, or each site
                                        alone with probability fill; `tracer.elements.placement`)
-             | {"type": "points", "uv_mm": [[u, v], ...]}}
+             | {"type": "points", "uv_mm": [[u, v], ...]}
+             | {"type": "triangular"}}    (triangles close-packed, every other one turned 180 degrees: corner cubes
+                                           with no gap between them; rows along u from the support's corner)
 
 `prepare` checks it (`ElementError` naming the field and what to do) and packs what the inner tracer
 (:mod:`tracer.elements.features`) walks: nothing per feature for the periodic layouts (their memory does not grow with
@@ -48,7 +50,7 @@ from tracer.elements.shapes.dispatch import KINDS as SHAPE_KINDS
 from tracer.elements.shapes.dispatch import SHAPE_OF_NAME
 
 FEATURE_MATERIALS = ("lambertian", "black")
-LAYOUTS = {"grid": fx.GRID, "hex": fx.HEX, "density": fx.DENSITY, "points": fx.POINTS}
+LAYOUTS = {"grid": fx.GRID, "hex": fx.HEX, "density": fx.DENSITY, "points": fx.POINTS, "triangular": fx.TRIANGULAR}
 MAX_SITES = 4_000_000_000     # a density lattice's sites (one bit each: 500 MB)
 #: What preparing a density lattice costs, per site: its kept bit (1/8 byte, packed a band at a time, so no byte per
 #: site is ever held: tracemalloc's peak 0.18 B/site over 4e8 sites, 1.17 before), and the rate per placement:
@@ -226,6 +228,11 @@ def prepare(body: Any) -> Microstructure:
         return _model(canon, args, fx.HEX, (p, p * math.sqrt(3.0) / 2.0), t0)
     if lay == fx.DENSITY:
         return _density(layout, common, args, t0)
+    if lay == fx.TRIANGULAR:   # the base's side from its circumradius; rows of height side sqrt(3)/2
+        check_fields(layout, "layout", {"type"}, set())
+        side = a * math.sqrt(3.0)
+        return _model({**common, "layout": {"type": "triangular"}}, args, fx.TRIANGULAR,
+                      (side / 2.0, side * math.sqrt(3.0) / 2.0), t0)
     return _points(layout, common, args, t0)
 
 

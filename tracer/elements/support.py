@@ -170,6 +170,8 @@ def row_params(row: Row, support_index: int) -> tuple[np.ndarray, np.ndarray]:
             nv = 1
             f[fx.CV] = fr.lv
         i[fx.NU], i[fx.NV] = nu, nv
+    elif e.layout == fx.TRIANGULAR:   # feature i spans cells i and i + 1 along u
+        i[fx.NU], i[fx.NV] = max(0, int(fr.lu // e.cell[0]) - 1), int(fr.lv // e.cell[1])
     else:
         i[fx.NU], i[fx.NV] = e.cells
     return f, i

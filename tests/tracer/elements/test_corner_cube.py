@@ -183,3 +183,78 @@ def test_a_feature_material_changes_the_id_and_survives_the_library_file(tmp_pat
     with np.load(tmp_path / "e.npz") as z:
         back = Microstructure.from_arrays(z)
     assert back.id == white.id and back.material == white.material and back.reflectance == 0.9
+
+
+H_ROW = SIDE * math.sqrt(3.0) / 2.0    # mm: a triangular layout's row height
+
+
+def _close_packed_plate():
+    s = Scene()
+    v, t = box([0, 0, 0], PLATE)
+    part = s.add_instance(s.add_geometry(v, t), np.eye(4))
+    cubes = prepare({"type": "microstructure", "feature": {"shape": "corner_cube", "side_mm": SIDE},
+                     "layout": {"type": "triangular"}})
+    s.set_element(part, cubes, facing=[0, 0, 1])
+    s.commit()
+    return s
+
+
+def _interior(n, rng):
+    """n plane points (mm) inside the tiled rows, away from the rows' ragged ends."""
+    rows = int(PLATE[1] * 1e3 // H_ROW)
+    return np.column_stack([rng.uniform(SIDE, PLATE[0] * 1e3 - SIDE, n), rng.uniform(0.0, rows * H_ROW, n)])
+
+
+def test_close_packed_corner_cubes_leave_no_gap_on_the_face():
+    """Triangles of side s in rows of height s sqrt(3)/2, every other one turned 180 degrees, tile the plane: a ray
+    up into the face anywhere inside the tiled rows meets a corner cube (at a pitch, 1.155 s at least, they covered
+    (sqrt(3)/4 s^2) / pitch^2 = 0.65 of it)."""
+    s = _close_packed_plate()
+    p = _interior(20_000, np.random.default_rng(3))
+    o = np.column_stack([p * 1e-3, np.full(len(p), PLATE[2] / 2)])
+    hit = s.intersect(o, np.tile([0.0, 0.0, 1.0], (len(p), 1)))
+    assert (hit.primitive < -1).all(), int((hit.primitive >= -1).sum())
+
+
+def test_a_turned_corner_cube_returns_light_as_an_upright_one_through_its_own_axis():
+    """In the close-packed array, each ray that enters a cube where its point reflection about that cube's axis is
+    in the cube's aperture (turned or not) leaves antiparallel after three reflections, at that point reflection;
+    those are 2/3 of the face, and rays elsewhere are not returned in their cube."""
+    s = _close_packed_plate()
+    rng = np.random.default_rng(9)
+    n = 20_000
+    p = _interior(n, rng)
+    o = np.column_stack([p * 1e-3, np.full(n, PLATE[2] / 2)])
+    d = np.tile([0.0, 0.0, 1.0], (n, 1))
+    first = s.intersect(o, d)
+    f = -2 - first.primitive
+    nu = int(PLATE[0] * 1e3 // (SIDE / 2)) - 1
+    i, j = f % nu, f // nu
+    turned = (i + j) % 2 == 1
+    centre = np.column_stack([(i + 1) * SIDE / 2, (j + np.where(turned, 2.0, 1.0) / 3.0) * H_ROW])
+    local = np.where(turned[:, None], -1.0, 1.0) * (p - centre)     # in the cube's own (upright) frame
+    _, verts = _triangle(1, rng)
+    assert _inside(local, verts, -1e-6).all()                       # each ray met the cube it entered
+    reflections = np.zeros(n, int)
+    alive = np.ones(n, bool)
+    for _ in range(6):
+        h = s.intersect(o[alive], d[alive])
+        idx = np.flatnonzero(alive)
+        on = h.primitive < -1
+        alive[idx[~on]] = False
+        k = idx[on]
+        q = o[k] + h.t[on, None] * d[k]
+        nrm = h.normal[on]
+        d[k] = d[k] - 2.0 * np.sum(d[k] * nrm, axis=1)[:, None] * nrm
+        o[k] = q - 1e-9 * nrm
+        reflections[k] += 1
+        if not alive.any():
+            break
+    returned = np.abs(d[:, 2] + 1.0) < 1e-9
+    mirrored_in = _inside(-local, verts, 1e-6)
+    assert returned[mirrored_in].all() and (reflections[mirrored_in] == 3).all()
+    assert np.abs(o[mirrored_in, :2] * 1e3 - (2 * centre[mirrored_in] - p[mirrored_in])).max() < 1e-6
+    assert not returned[~_inside(-local, verts, -1e-6)].any()
+    for side in (turned, ~turned):
+        share = mirrored_in[side].mean()
+        assert abs(share - 2 / 3) < 4 * math.sqrt(2 / 9 / side.sum()), share

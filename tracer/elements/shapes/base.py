@@ -10,7 +10,8 @@ every row (a mesh's faces; empty, `NO_FACES`, for a shape given by its numbers a
 A shape module defines:
 
 - ``NAME``: the body's ``"shape"``; ``FIELDS``: its other keys, all required; ``EXAMPLE``: a body of it;
-- ``LAYOUTS``: the layouts it takes (of ``"grid"``, ``"hex"``, ``"density"``, ``"points"``);
+- ``LAYOUTS``: the layouts it takes (of ``"grid"``, ``"hex"``, ``"density"``, ``"points"``, ``"triangular"``: a
+  triangle-based shape only, every other feature turned 180 degrees);
 - ``ROUND``: whether its base is round (two features overlap closer than ``2a`` apart, Euclidean) or square (in each
   axis); ``RIDGE``: whether it runs across the whole support along v (one row; its pitch along v is free);
 - ``parse(feature) -> (canonical body, a, h, rs, P)``, raising `tracer.elements.checks.ElementError` naming the

@@ -16,7 +16,7 @@ from tracer.jit import njit
 
 NAME = "corner_cube"
 FIELDS = {"side_mm"}
-LAYOUTS = ("grid", "hex", "density", "points")
+LAYOUTS = ("grid", "hex", "density", "points", "triangular")
 ROUND = True
 RIDGE = False
 EXAMPLE = {"shape": NAME, "side_mm": 0.3}
