@@ -6,14 +6,16 @@ the lit face, what its cells read) with the parameters to vary (``[{"name": "fea
 ``pack_map`` (pack the density map before and after the sweep with the pack's fields: target, figure, iterations).
 Everything is checked before a job is queued (422 naming the field, nothing changed), as a pack is. The job works on
 a scene of its own (`tracer.elements.design.design`); the chosen element goes into the library with its record
-(``GET /elements/{id}/design``: every candidate, the baseline, the confirmation on a fresh seed), and the scene
-everybody queries is switched to it by ``PUT /scenes/{id}/elements/{aid}``, as after a pack.
+(``GET /elements/{id}/design``: every candidate, the baseline, the confirmation on a fresh seed; ``design.png``, its
+picture), and the scene everybody queries is switched to it by ``PUT /scenes/{id}/elements/{aid}``, as after a pack.
 """
 
 from __future__ import annotations
 
 import math
 from typing import Any
+
+import numpy as np
 
 from service.errors import Invalid
 from tracer.transport.query import Budget
@@ -74,6 +76,53 @@ def keep(library: Any, element_id: str, req: dict[str, Any], result: Any) -> dic
                          "uniformity_stderr": p.history[p.best].stderr} for p in result.packs],
               "seconds": result.seconds}
     if summary["id"] == element_id:   # no candidate read better than the start: the start stays, no record
-        return {**record, "summary": summary, "design_url": None}
+        return {**record, "summary": summary, "design_url": None, "png_url": None}
     library.keep_record(summary["id"], ".design.json", record)
-    return {**record, "summary": summary, "design_url": f"/elements/{summary['id']}/design"}
+    library.keep_record(summary["id"], ".design.png", plot(record))
+    return {**record, "summary": summary, "design_url": f"/elements/{summary['id']}/design",
+            "png_url": f"/elements/{summary['id']}/design.png"}
+
+
+def plot(record: dict[str, Any]) -> bytes:
+    """``design.png``: `plot_figure` as a PNG."""
+    import io
+
+    out = io.BytesIO()
+    plot_figure(record).savefig(out, format="png")
+    return out.getvalue()
+
+
+def plot_figure(record: dict[str, Any]) -> Any:
+    """The figure of ``design.png`` (a matplotlib `Figure`): every candidate's objective with its error bar (the same
+    seed for all), the start's reading beside them, the chosen one starred, the confirmation on a fresh seed in the
+    title."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(9, 4.8), dpi=100, layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    read = [c for c in record["candidates"] if c["objective"] is not None]
+    names = list(record["values"])
+    labels = [", ".join(f"{c['values'][n]:g}" for n in names) for c in read]
+    x = np.arange(len(read))
+    ax.errorbar(x, [c["objective"] for c in read], yerr=[c["stderr"] for c in read], marker="o", ls="none",
+                capsize=3, label="candidates (one seed for all)")
+    b = record["baseline"]
+    ax.axhline(b["objective"], color="grey", ls="--", label=f"start {b['objective']:.4g} ± {b['stderr']:.2g}")
+    chosen = [k for k, c in enumerate(read) if c["values"] == record["values"]]
+    if chosen:
+        ax.plot(x[chosen], [read[k]["objective"] for k in chosen], marker="*", ms=16, ls="none", color="tab:red",
+                label="chosen")
+    ax.set_xticks(x, labels, rotation=30 if len(read) > 6 else 0)
+    unit = record.get("unit", "lx")
+    what = {"mean": f"mean {record.get('quantity', 'illuminance')} ({unit})"}.get(record["objective"],
+                                                                                 record["objective"].replace("_", "/"))
+    c = record.get("confirmation")
+    title = f"{record['stopped']}: {record['values']}"
+    if c:
+        title += (f"\nfresh seed: {c['baseline']:.4g} ± {c['baseline_stderr']:.2g} → {c['objective']:.4g} ± "
+                  f"{c['stderr']:.2g} (gain {c['improvement']:.3g} ± {c['improvement_stderr']:.2g})")
+    ax.set(title=title, xlabel=", ".join(names), ylabel=what)
+    ax.legend(loc="best")
+    return fig

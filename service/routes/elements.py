@@ -317,6 +317,14 @@ def design_record(element_id: ElementId, manager: Manager) -> Response:
     return Response(manager.scenes.elements.record(element_id, ".design.json"), media_type="application/json")
 
 
+@router.get("/elements/{element_id}/design.png", response_class=Response,
+            responses={200: {"content": {"image/png": {}}}, 404: {}})
+def design_png(element_id: ElementId, manager: Manager) -> Response:
+    """Every candidate's objective with its error bar, the start's reading, the chosen one, and the confirmation on
+    a fresh seed."""
+    return Response(manager.scenes.elements.record(element_id, ".design.png"), media_type="image/png")
+
+
 @router.get("/elements/{element_id}/pack.png", response_class=Response,
             responses={200: {"content": {"image/png": {}}}, 404: {}})
 def pack_png(element_id: ElementId, manager: Manager) -> Response:

@@ -47,6 +47,9 @@ def test_the_design_job_finds_taller_domes_and_the_switched_scene_lets_out_more_
     assert any(p.get("stage") == "sweep" for p in polled)
     record = client.get(res["design_url"]).json()
     assert record["designed_from"] == eid and record["candidates"] == res["candidates"]
+    png = client.get(res["png_url"])
+    assert png.status_code == 200 and png.content[:4] == b"\x89PNG"
+    _check_picture(record)
     new = res["element"]
     assert client.get(f"/elements/{new}").json()["body"]["feature"]["height_mm"] == res["values"]["feature.height_mm"]
     # the scene everybody queries is untouched until it is switched; then it reads more light on a fresh seed
@@ -93,3 +96,21 @@ def test_the_client_runs_a_design_and_reads_its_record(setup: Any) -> None:
     assert job["status"] == "succeeded", job
     values = [c["values"]["feature.height_mm"] for c in ll.design_record(job["result"]["element"])["candidates"]]
     assert values == [0.05, 0.15] and seen
+
+
+def _check_picture(record: dict) -> None:
+    """design.png's figure says what the record says: a point and error bar per candidate read, at its values, the
+    start's line, the chosen one starred, the fresh-seed confirmation in the title."""
+    from service.design import plot_figure
+
+    ax = plot_figure(record).axes[0]
+    read = [c for c in record["candidates"] if c["objective"] is not None]
+    (points, *_), = [c.lines for c in ax.containers]
+    assert list(points.get_ydata()) == [c["objective"] for c in read]
+    assert [t.get_text() for t in ax.get_xticklabels()] == [f"{c['values']['feature.height_mm']:g}" for c in read]
+    assert any(line.get_marker() == "*" and list(line.get_ydata()) == [
+        next(c["objective"] for c in read if c["values"] == record["values"])] for line in ax.lines)
+    c = record["confirmation"]
+    assert f"gain {c['improvement']:.3g}" in ax.get_title()
+    assert any(t.get_text().startswith(f"start {record['baseline']['objective']:.4g}")
+               for t in ax.get_legend().get_texts())
