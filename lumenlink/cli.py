@@ -90,8 +90,8 @@ element_app.callback(invoke_without_command=True)(exits(commands_elements.elemen
 for _name, _command in (("list", commands_elements.element_list), ("switch", commands_elements.element_switch),
                         ("remove", commands_elements.element_remove)):
     element_app.command(_name)(exits(_command))
-for _command in (commands_elements.optical_file, commands_elements.pack, commands_luminance.ugr,
-                 commands_luminance.uniformity, commands_luminance.conoscope):
+for _command in (commands_elements.optical_file, commands_elements.pack, commands_elements.design,
+                 commands_luminance.ugr, commands_luminance.uniformity, commands_luminance.conoscope):
     app.command()(exits(_command))
 
 

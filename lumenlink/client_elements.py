@@ -124,6 +124,10 @@ class ElementCalls(ClientBase):
         """How a designed element was found: its values, the baseline, every candidate, the confirmation."""
         return dict(self._call("GET", f"/elements/{element}/design", "reading a design loop's record"))
 
+    def design_png(self, element: str) -> bytes:
+        """A designed element's ``design.png``: each candidate's objective ± error, the start, the chosen one."""
+        return self._bytes(f"/elements/{element}/design.png", f"reading the design plot of {element}")
+
     def pack_record(self, element: str) -> dict[str, Any]:
         """How a packed element was found: target, stop, history (uniformity ± error and seconds per iteration)."""
         return dict(self._call("GET", f"/elements/{element}/pack", "reading a pack's history"))

@@ -251,3 +251,81 @@ def pack(
                 print(f"assignment {assignment} now carries {res['element']}")
         return EXIT_OK
     return _run(work)
+
+
+def _parameter(text: str) -> dict[str, Any]:
+    """``NAME=V1,V2,...`` or ``NAME=LO:HI:STEPS`` as a design parameter's body."""
+    name, sep, values = text.partition("=")
+    try:
+        if not sep or not name:
+            raise ValueError
+        if ":" in values:
+            lo, hi, steps = values.split(":")
+            return {"name": name, "lo": float(lo), "hi": float(hi), "steps": int(steps)}
+        return {"name": name, "values": [float(x) for x in values.split(",")]}
+    except ValueError:
+        raise LumenLinkError(f"--param {text!r}: give NAME=V1,V2,... or NAME=LO:HI:STEPS (e.g. "
+                             f"feature.height_mm=0.05:0.2:4)", usage=True) from None
+
+
+def design(
+    element_id: Annotated[str, typer.Argument(help="The element to start from (its library id).")],
+    scene: SceneOpt,
+    assignment: Annotated[str, typer.Option(help="The element assignment that puts it onto the guide's face.")],
+    sensor: Annotated[str, typer.Option(help="A grid sensor over the lit face (its cells are the meters).")],
+    param: Annotated[list[str], typer.Option(help="A number of the element to vary: NAME=V1,V2,... or "
+                                                  "NAME=LO:HI:STEPS (feature.height_mm, feature.apex_deg, "
+                                                  "layout.pitch_mm[0], material.reflectance); one to three.")],
+    objective: Annotated[str, typer.Option(help="min_max, min_mean or mean (the mean reading).")] = "min_max",
+    photons: Annotated[int, typer.Option(help="Photons of each reading.")] = 100_000,
+    seed: Annotated[int, typer.Option(help="Photon seed (every candidate reads with the same one).")] = 1,
+    pack_map: Annotated[bool, typer.Option("--pack-map", help="Pack the density map before and after the sweep "
+                                                              "(to --target).")] = False,
+    target: Annotated[float, typer.Option(help="With --pack-map: the uniformity the packs aim at.")] = 0.8,
+    quantity: Annotated[str, typer.Option(help="What the cells read: illuminance (lx) or luminance (cd/m²).")
+                        ] = "illuminance",
+    switch: Annotated[bool, typer.Option("--switch", help="Put the chosen element in place of the start.")] = False,
+    png: Annotated[Path | None, typer.Option(help="Write design.png here.")] = None,
+    server: Server = DEFAULT_SERVER,
+) -> int:
+    """Tune an element's numbers against what its lit face reads (a job; Ctrl-C cancels it, keeping the best)."""
+    def work(console: Console) -> int:
+        parameters = [_parameter(p) for p in param]
+
+        def show(job: dict[str, Any]) -> None:
+            p = job["progress"]
+            if p.get("stage") == "sweep" and p.get("objective") is not None:
+                console.print(f"  candidate {p['candidate'] + 1} of {p['candidates']}: {objective} "
+                              f"{p['objective']:.4g} ± {p['objective_stderr']:.2g}")
+
+        with Client(server) as ll:
+            info = ll.scene(scene)
+            job = ll.design(element_id, info, assignment, sensor, parameters, objective=objective, progress=show,
+                            photons=photons, seed=seed, pack_map=pack_map, target=target, quantity=quantity)
+            res = job.get("result") or {}
+            if job["status"] == "failed" or not res.get("element"):
+                raise LumenLinkError(f"the design loop {job['status']}: {job.get('error') or 'nothing was read'}",
+                                     problem=job)
+            for c in res["candidates"]:
+                values = ", ".join(f"{k} {v:g}" for k, v in c["values"].items())
+                said = f"refused: {c['refused']}" if c["refused"] else f"{objective} {c['objective']:.4g} ± " \
+                    f"{c['stderr']:.2g}"
+                print(f"{values}: {said}")
+            b, c = res["baseline"], res.get("confirmation")
+            print(f"start {b['objective']:.4g} ± {b['stderr']:.2g}; stopped: {res['stopped']}")
+            if c:
+                print(f"fresh seed: start {c['baseline']:.4g} ± {c['baseline_stderr']:.2g}, chosen {c['objective']:.4g}"
+                      f" ± {c['stderr']:.2g}, gain {c['improvement']:.4g} ± {c['improvement_stderr']:.2g} "
+                      f"({'beyond' if c['improved'] else 'within'} 2 sigma)")
+            if res["element"] == element_id:
+                print(f"no candidate read better than the start: element {element_id} stays")
+                return EXIT_OK
+            print(f"element {res['element']}: {res['values']}")
+            if png is not None:
+                Path(png).write_bytes(ll.design_png(res["element"]))
+                print(f"plot {png}")
+            if switch:
+                ll.switch_element(info, assignment, res["element"])
+                print(f"assignment {assignment} now carries {res['element']}")
+        return EXIT_OK
+    return _run(work)

@@ -254,13 +254,19 @@ def pack_element(element_id: ElementId, body: Annotated[PackRequest, Body(openap
     scene to it. 422 before any job for a target outside (0, 1], an element that is not a density layout, a face
     no light reaches."""
     from service import pack
+
+    return _element_job(request, manager, "pack", pack.start, element_id, body)
+
+
+def _element_job(request: Request, manager: Manager, kind: str, start: Any, element_id: str,
+                 body: BaseModel) -> JSONResponse:
+    """A pack or a design loop as a job: checked and set up by `start` (a 422 before any job), then queued."""
     from service.routes.simulation import _accepted, _submit
     from service.simulation import hub_for
 
     hub = hub_for(request.app)
-    scene_id, revision, work, budget, meta = pack.start(manager, hub, element_id, body.model_dump())
-    job = _submit(hub, "pack", scene_id, revision, work, budget, meta)
-    return _accepted(request, job)
+    scene_id, revision, work, budget, meta = start(manager, hub, element_id, body.model_dump())
+    return _accepted(request, _submit(hub, kind, scene_id, revision, work, budget, meta))
 
 
 @router.get("/elements/{element_id}/pack")
@@ -301,13 +307,8 @@ def design_element(element_id: ElementId, body: Annotated[DesignRequest, Body(op
     switches the scene to it. 422 before any job for a parameter the element lacks, too many combinations, a face no
     light reaches."""
     from service import design
-    from service.routes.simulation import _accepted, _submit
-    from service.simulation import hub_for
 
-    hub = hub_for(request.app)
-    scene_id, revision, work, budget, meta = design.start(manager, hub, element_id, body.model_dump())
-    job = _submit(hub, "design", scene_id, revision, work, budget, meta)
-    return _accepted(request, job)
+    return _element_job(request, manager, "design", design.start, element_id, body)
 
 
 @router.get("/elements/{element_id}/design")

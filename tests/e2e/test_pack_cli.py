@@ -1,6 +1,6 @@
 """`lumenlink pack` against a real service (issue 41): the demo guide's uniform dots packed from the command line,
-the scene switched to the result (--switch) and the plot written (--png). Tiny photon budgets: the physics is checked
-in tests/service/test_pack_api.py."""
+the scene switched to the result (--switch) and the plot written (--png); then `lumenlink design` on the result.
+Tiny photon budgets: the physics is checked in tests/service/test_pack_api.py and test_design_api.py."""
 
 from __future__ import annotations
 
@@ -47,6 +47,15 @@ def test_lumenlink_pack_packs_switches_and_writes_the_plot(tmp_path: Path) -> No
             assert ll.scene_elements(sid)[0]["body"]["element"] == new and new != eid
             assert png.read_bytes()[:4] == b"\x89PNG"
             assert ll.pack_record(new)["packed_from"] == eid
+            # lumenlink design on the packed element: flatter dots let out far less light, so the start stays
+            designed = CliRunner().invoke(app, ["design", new, "--scene", "guide-cli", "--assignment", aid,
+                                                "--sensor", GRID["name"], "--param", "feature.height_mm=0.03,0.04",
+                                                "--objective", "mean", "--photons", "20000", "--server", url])
+            assert designed.exit_code == 0, designed.output
+            assert "feature.height_mm 0.03: mean" in designed.output and f"element {new} stays" in designed.output
+            unread = CliRunner().invoke(app, ["design", new, "--scene", "guide-cli", "--assignment", aid, "--sensor",
+                                              GRID["name"], "--param", "feature.height_mm", "--server", url])
+            assert unread.exit_code == 2 and "NAME=V1,V2" in unread.output, unread.output
             bad = CliRunner().invoke(app, ["pack", eid, "--scene", "guide-cli", "--assignment", aid, "--sensor",
                                            sensor, "--target", "1.5", "--server", url])   # by its id
             assert bad.exit_code == 2 and "target" in bad.output, bad.output
