@@ -8,7 +8,8 @@
 3. Photons through a 10^6-dot light guide against the same guide with a plain face: forward photons per second,
    wall time, in turn (the plain guide keeps its light in by total internal reflection until the far edge).
 4. Beside the same dots meshed: 20 x 20 domes as an element and meshed explicitly (~250k triangles): the
-   bottom-level build, and closest hits per second of rays leaving the plate through its dotted face.
+   bottom-level build, and closest hits per second of rays leaving the plate through its dotted face; and the same
+   element whose dome is given as a mesh feature (48 x 8, 384 face planes: `tracer.elements.shapes.mesh`).
 """
 
 from __future__ import annotations
@@ -147,6 +148,14 @@ def beside_meshed(rounds: int) -> dict:
     element.set_element(part, model, facing=[0, 0, -1])
     element_built = element.commit()
     element_seconds = time.perf_counter() - t0
+    from tests.tracer.elements.test_mesh_feature import dome_mesh
+
+    as_mesh = Scene()
+    part = as_mesh.add_instance(as_mesh.add_geometry(bv, bt), np.eye(4))
+    dome = dome_mesh(DOME["radius_mm"], DOME["height_mm"])
+    as_mesh.set_element(part, prepare({"type": "microstructure", "feature": dome,
+                                       "layout": {"type": "grid", "pitch_mm": [0.2, 0.2]}}), facing=[0, 0, -1])
+    as_mesh.commit()
     rng = np.random.default_rng(9)
     k = 200_000
     o = np.column_stack([rng.uniform(0, size, k), rng.uniform(0, size, k), np.full(k, 0.5e-3)])
@@ -154,13 +163,17 @@ def beside_meshed(rounds: int) -> dict:
     d = d / np.linalg.norm(d, axis=1)[:, None]
     meshed.intersect(o[:100], d[:100], threads=1)
     element.intersect(o[:100], d[:100], threads=1)
+    as_mesh.intersect(o[:100], d[:100], threads=1)
     times = _interleaved({"meshed": lambda: meshed.intersect(o, d, threads=1),
-                          "element": lambda: element.intersect(o, d, threads=1)}, rounds)
+                          "element": lambda: element.intersect(o, d, threads=1),
+                          "element, dome as a mesh feature": lambda: as_mesh.intersect(o, d, threads=1)}, rounds)
     return {"triangles": int(len(t)), "build_seconds": {"meshed": built.blas_seconds + built.tlas_seconds,
                                                         "element": element_seconds},
             "element_blas_seconds": element_built.blas_seconds,
             "rays_per_second": {n: k / statistics.median(ts) for n, ts in times.items()},
-            "ratio (element / meshed, seconds)": _ratios(times, "meshed")["element"]}
+            "ratio (element / meshed, seconds)": _ratios(times, "meshed")["element"],
+            "ratio (mesh feature / analytic dome, seconds)": _ratios(times, "element")[
+                "element, dome as a mesh feature"]}
 
 
 def run(quick: bool = False) -> dict:
@@ -189,7 +202,9 @@ def run(quick: bool = False) -> dict:
                   f"element (prepare, split the plate, two small bottom levels); closest hits of rays leaving through "
                   f"the dotted face {m['rays_per_second']['element']:,.0f}/s as an element against "
                   f"{m['rays_per_second']['meshed']:,.0f}/s meshed (time ratio "
-                  f"{m['ratio (element / meshed, seconds)']:.2f})."]
+                  f"{m['ratio (element / meshed, seconds)']:.2f}); with the dome given as a mesh feature (48 x 8, "
+                  f"384 face planes) {m['rays_per_second']['element, dome as a mesh feature']:,.0f}/s (time ratio "
+                  f"{m['ratio (mesh feature / analytic dome, seconds)']:.2f} against the analytic dome)."]
     result["markdown"] = "\n".join(lines)
     return result
 

@@ -158,8 +158,9 @@ def _inside(F, cu, cv):
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def _cell(F, I, bits, uv, bins, items, P, i, j, ou, ov, ow, du, dv, dw, lo, best, bf, pu, pv, probe):
-    """Test the features of cell (i, j) (and its neighbours for HEX and POINTS): with ``probe``, whether one covers
-    the plane point (pu, pv) (returns its index as ``bf``); otherwise the nearest crossing in ``(lo, best)``."""
+    """Test the features of cell (i, j) (and its neighbours for HEX, POINTS and TRIANGULAR): with ``probe``, whether
+    one covers the plane point (pu, pv) (returns its index as ``bf``); otherwise the nearest crossing in
+    ``(lo, best)``. ``P``: the row's face planes (a mesh feature's)."""
     lay = I[LAYOUT]
     nu = I[NU]
     nv = I[NV]

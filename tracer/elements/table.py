@@ -75,8 +75,7 @@ class Reliefs:
 
     def pack(self, n_ids: int, index_of: Callable[[str], int]) -> tuple[np.ndarray, ...]:
         """``(inst_aux, el_f, el_i, el_prim, el_bits, el_uv, el_bin, el_item, el_tab, el_face)`` for `n_ids`
-        instance ids;
-        `index_of` gives a geometry's index in the store."""
+        instance ids; `index_of` gives a geometry's index in the store."""
         aux = np.full(n_ids, -1, np.int32)
         for r, i in enumerate(sorted(self.rows)):
             aux[i] = r
