@@ -47,7 +47,7 @@ def start(manager: Any, hub: Any, element_id: str, req: dict[str, Any]) -> tuple
 
         def report(s: dict[str, Any]) -> None:
             if progress is not None:
-                progress(0, math.nan, s["seconds"], stage=s["stage"], candidate=s["candidate"],
+                progress(s["photons"], math.nan, s["seconds"], stage=s["stage"], candidate=s["candidate"],
                          candidates=s["candidates"], objective=s["objective"], objective_stderr=s["stderr"])
 
         try:

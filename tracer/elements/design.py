@@ -172,7 +172,7 @@ def objective_of(values: np.ndarray, err: np.ndarray, objective: str) -> tuple[f
 
 def check(start: Microstructure, parameters: list[Parameter], objective: str) -> None:
     """Refuse a design that cannot run, naming the field: an unknown objective, no or too many parameters, one named
-    twice or absent from the element, too many combinations, a starting element whose body is not a microstructure's."""
+    twice or absent from the element, too many combinations."""
     if objective not in OBJECTIVES:
         raise PackError(f"objective must be one of {list(OBJECTIVES)}, got {objective!r}")
     if not 1 <= len(parameters) <= MAX_PARAMETERS:
@@ -203,13 +203,15 @@ class _Bench:
     objective: str
     cancel: Callable[[], bool] | None
 
-    def measure(self, model: Microstructure, seed: int) -> tuple[float, float, int]:
+    def measure(self, model: Microstructure, seed: int) -> tuple[float, float, int] | None:
         """Put `model` onto the part, commit, and read the grid with `seed`: (objective, its standard error,
-        photons)."""
+        photons); None where a cancel cut the reading short (a partial reading is not taken)."""
         self.scene.set_element(self.instance, model, **self.assign)
         self.scene.commit()
         values, err, traced = read(self.simulation(self.scene), self.sensor, self.reading, self.photons, seed, None,
                                    self.cancel)
+        if self.cancel is not None and self.cancel():
+            return None
         if not values.max() > 0:
             raise PackError(f"sensor: no light reaches the grid over the face (every cell read 0 "
                             f"{self.reading.unit})")
@@ -226,12 +228,15 @@ class _Bench:
         out.packs.append(result)
         return result.element
 
-    def confirm(self, base: Microstructure, best: Microstructure, seed: int) -> dict[str, Any]:
+    def confirm(self, base: Microstructure, best: Microstructure, seed: int) -> dict[str, Any] | None:
         """The baseline and the result read with a fresh seed: their objectives, the improvement and its error bar
-        (the two errors combined as if independent: an upper bound under shared random numbers)."""
+        (the two errors combined as if independent: an upper bound under shared random numbers); None where a
+        cancel cut it short."""
         fresh = int(seed) * CONFIRM_SEED + 1
-        b, eb, nb = self.measure(base, fresh)
-        r, er, nr = self.measure(best, fresh)
+        start, chosen = self.measure(base, fresh), self.measure(best, fresh)
+        if start is None or chosen is None:
+            return None
+        (b, eb, nb), (r, er, nr) = start, chosen
         gain, gain_err = r - b, math.hypot(eb, er)
         return {"seed": fresh, "baseline": b, "baseline_stderr": eb, "objective": r, "stderr": er,
                 "improvement": gain, "improvement_stderr": gain_err, "improved": bool(gain > 2.0 * gain_err),
@@ -248,7 +253,8 @@ def design(scene: Any, instance: int, start: Microstructure, sensor: dict, simul
     module docstring); `simulation`, `assign` and `reading` as `tracer.elements.pack.pack` takes them;
     `pack_options` (pack's keywords: target, figure, max_iterations, ...) packs the density map before and after
     the sweep, None keeps it. `progress(state)` gets ``{"stage", "candidate", "candidates", "objective", "stderr",
-    "seconds"}`` after each reading (stage "baseline", "sweep" or "confirmed").
+    "photons", "seconds"}`` after each reading (stage "baseline", "sweep" or "confirmed"; photons: read so far, the
+    packs' not counted).
 
     Raises
     ------
@@ -264,11 +270,13 @@ def design(scene: Any, instance: int, start: Microstructure, sensor: dict, simul
     out = DesignResult(start, {p.name: p.read_from(start.body) for p in parameters}, objective, "done",
                        reading=reading)
     combos = list(itertools.product(*(p.values for p in parameters)))
+    traced = [0]
 
-    def say(stage: str, k: int, value: float, err: float) -> None:
+    def say(stage: str, k: int, value: float, err: float, photons: int) -> None:
+        traced[0] += photons
         if progress is not None:
             progress({"stage": stage, "candidate": k, "candidates": len(combos), "objective": value, "stderr": err,
-                      "seconds": time.perf_counter() - t_start})
+                      "photons": traced[0], "seconds": time.perf_counter() - t_start})
 
     def stopping() -> str | None:
         if cancel is not None and cancel():
@@ -277,9 +285,13 @@ def design(scene: Any, instance: int, start: Microstructure, sensor: dict, simul
 
     base = bench.packed(start, pack_options, int(seed), out)
     sweep_seed = int(seed) * SWEEP_SEED
-    v0, e0, n0 = bench.measure(base, sweep_seed)
+    first = bench.measure(base, sweep_seed)
+    if first is None:   # cancelled before anything was read whole: the start stays
+        out.element, out.stopped, out.seconds = base, "cancelled", time.perf_counter() - t_start
+        return out
+    v0, e0, n0 = first
     out.baseline = {"values": dict(out.values), "objective": v0, "stderr": e0, "photons": n0}
-    say("baseline", -1, v0, e0)
+    say("baseline", -1, v0, e0, n0)
     best, best_model = v0, base
     for k, combo in enumerate(combos):
         why = stopping()
@@ -294,14 +306,19 @@ def design(scene: Any, instance: int, start: Microstructure, sensor: dict, simul
         t0 = time.perf_counter()
         try:
             model = prepare(body)
-            c.objective, c.stderr, c.photons = bench.measure(model, sweep_seed)
-        except PackError:
+            got = bench.measure(model, sweep_seed)
+        except PackError:   # no light on the grid: the design cannot go on
             raise
         except ElementError as exc:   # the body cannot be (a dome taller than its radius), or the face cannot carry it
             c.refused = str(exc)
             continue
+        if got is None:   # a partial reading is not taken
+            out.candidates.pop()
+            out.stopped = "cancelled"
+            break
+        c.objective, c.stderr, c.photons = got
         c.seconds = time.perf_counter() - t0
-        say("sweep", k, c.objective, c.stderr)
+        say("sweep", k, c.objective, c.stderr, c.photons)
         if c.objective > best:
             best, best_model, out.values = c.objective, model, dict(c.values)
     if out.stopped == "done" and best_model is not base:
@@ -309,7 +326,11 @@ def design(scene: Any, instance: int, start: Microstructure, sensor: dict, simul
     out.element = best_model
     if out.stopped == "done":
         out.confirmation = bench.confirm(base, best_model, int(seed))
-        say("confirmed", -1, out.confirmation["objective"], out.confirmation["stderr"])
+        if out.confirmation is None:
+            out.stopped = "cancelled"
+        else:
+            say("confirmed", -1, out.confirmation["objective"], out.confirmation["stderr"],
+                out.confirmation["photons"])
     scene.set_element(instance, best_model, **assign)
     scene.commit()
     out.seconds = time.perf_counter() - t_start

@@ -52,6 +52,9 @@ def test_the_loop_finds_domes_that_let_more_light_out_and_confirms_it_on_a_fresh
     same = res.candidates[0]
     assert same.values == {"feature.height_mm": 0.02} and same.objective == res.baseline["objective"]
     assert [x["stage"] for x in seen] == ["baseline", "sweep", "sweep", "sweep", "confirmed"]
+    photons = [x["photons"] for x in seen]
+    assert photons == sorted(photons) and photons[-1] == res.baseline["photons"] + sum(
+        x.photons for x in res.candidates) + c["photons"]
 
 
 def test_a_cancelled_loop_keeps_the_best_it_read_unconfirmed() -> None:
@@ -62,6 +65,27 @@ def test_a_cancelled_loop_keeps_the_best_it_read_unconfirmed() -> None:
                  cancel=lambda: len(readings) >= 2)
     assert res.stopped == "cancelled" and res.confirmation is None
     assert len(res.candidates) == 1 and res.values == {"feature.height_mm": 0.08}
+    assert s.element_of(part)[0] is res.element and res.element.h == 0.08
+
+
+def test_a_reading_a_cancel_cuts_short_is_not_taken(monkeypatch) -> None:
+    """Cancelled as the second candidate starts to read (once it is prepared, past the loop's own check): its partial
+    reading is dropped, not compared; the first candidate's whole reading is kept, unconfirmed."""
+    import tracer.elements.design as loop
+
+    s, part, make = guide()
+    prepared = []
+
+    def counting(body):
+        prepared.append(body)
+        return prepare(body)
+
+    monkeypatch.setattr(loop, "prepare", counting)
+    res = design(s, part, prepare(FLAT_DOMES), ABOVE, make, assign=ASSIGN, objective="mean", photons=10_000,
+                 parameters=[Parameter("feature.height_mm", (0.08, 0.1))], cancel=lambda: len(prepared) >= 2)
+    assert len(prepared) == 2 and res.stopped == "cancelled" and res.confirmation is None
+    assert [c.values for c in res.candidates] == [{"feature.height_mm": 0.08}]
+    assert res.candidates[0].objective > 0 and res.element.h == 0.08
 
 
 def test_the_loop_packs_the_density_map_before_and_after_its_sweep() -> None:
