@@ -214,7 +214,7 @@ class ElementLibrary:
 
     def keep_record(self, eid: str, suffix: str, record: dict[str, Any] | bytes) -> None:
         """Keep how element `eid` was made, beside its file: a pack's record (``.pack.json``) and picture
-        (``.pack.png``), a design loop's record (``.design.json``); a dict is kept as JSON."""
+        (``.pack.png``), a design loop's (``.design.json``, ``.design.png``); a dict is kept as JSON."""
         import json
 
         data = json.dumps(record).encode() if isinstance(record, dict) else record

@@ -292,35 +292,7 @@ def design(scene: Any, instance: int, start: Microstructure, sensor: dict, simul
     v0, e0, n0 = first
     out.baseline = {"values": dict(out.values), "objective": v0, "stderr": e0, "photons": n0}
     say("baseline", -1, v0, e0, n0)
-    best, best_model = v0, base
-    for k, combo in enumerate(combos):
-        why = stopping()
-        if why is not None:
-            out.stopped = why
-            break
-        c = Candidate(dict(zip((p.name for p in parameters), combo, strict=True)))
-        out.candidates.append(c)
-        body = base.body
-        for p, x in zip(parameters, combo, strict=True):
-            body = p.set_in(body, x)
-        t0 = time.perf_counter()
-        try:
-            model = prepare(body)
-            got = bench.measure(model, sweep_seed)
-        except PackError:   # no light on the grid: the design cannot go on
-            raise
-        except ElementError as exc:   # the body cannot be (a dome taller than its radius), or the face cannot carry it
-            c.refused = str(exc)
-            continue
-        if got is None:   # a partial reading is not taken
-            out.candidates.pop()
-            out.stopped = "cancelled"
-            break
-        c.objective, c.stderr, c.photons = got
-        c.seconds = time.perf_counter() - t0
-        say("sweep", k, c.objective, c.stderr, c.photons)
-        if c.objective > best:
-            best, best_model, out.values = c.objective, model, dict(c.values)
+    best_model = _sweep(bench, base, parameters, combos, sweep_seed, out, say, stopping)
     if out.stopped == "done" and best_model is not base:
         best_model = bench.packed(best_model, pack_options, int(seed) + 1, out)
     out.element = best_model
@@ -335,3 +307,41 @@ def design(scene: Any, instance: int, start: Microstructure, sensor: dict, simul
     scene.commit()
     out.seconds = time.perf_counter() - t_start
     return out
+
+
+def _sweep(bench: _Bench, base: Microstructure, parameters: list[Parameter], combos: list[tuple[float, ...]],
+           seed: int, out: DesignResult, say: Callable[..., None], stopping: Callable[[], str | None]
+           ) -> Microstructure:
+    """Read every combination with `base`'s map and the one `seed` (each a `Candidate` in ``out.candidates``; the
+    best read sets ``out.values``); answers the best model, `base` where none read better than the baseline.
+    ``out.stopped`` says where a cancel or the budget stopped it."""
+    best, best_model = out.baseline["objective"], base
+    for k, combo in enumerate(combos):
+        why = stopping()
+        if why is not None:
+            out.stopped = why
+            break
+        c = Candidate(dict(zip((p.name for p in parameters), combo, strict=True)))
+        out.candidates.append(c)
+        body = base.body
+        for p, x in zip(parameters, combo, strict=True):
+            body = p.set_in(body, x)
+        t0 = time.perf_counter()
+        try:
+            model = prepare(body)
+            got = bench.measure(model, seed)
+        except PackError:   # no light on the grid: the design cannot go on
+            raise
+        except ElementError as exc:   # the body cannot be (a dome taller than its radius), or the face cannot carry it
+            c.refused = str(exc)
+            continue
+        if got is None:   # a partial reading is not taken
+            out.candidates.pop()
+            out.stopped = "cancelled"
+            break
+        c.objective, c.stderr, c.photons = got
+        c.seconds = time.perf_counter() - t0
+        say("sweep", k, c.objective, c.stderr, c.photons)
+        if c.objective > best:
+            best, best_model, out.values = c.objective, model, dict(c.values)
+    return best_model
