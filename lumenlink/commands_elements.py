@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -243,14 +244,21 @@ def pack(
             print(f"element {res['element']}: {figure} {res['uniformity']:.3f} ± {res['uniformity_stderr']:.3f} "
                   f"(iteration {res['best']}; stopped: {res['stopped']}); a full rebuild took "
                   f"{res['rebuild_seconds']:.2f} s, an iteration's update {res['update_seconds_mean'] * 1000:.1f} ms")
-            if png is not None:
-                Path(png).write_bytes(ll.pack_png(res["element"]))
-                print(f"plot {png}")
-            if switch:
-                ll.switch_element(info, assignment, res["element"])
-                print(f"assignment {assignment} now carries {res['element']}")
+            _picture_and_switch(ll, info, assignment, res["element"], png, ll.pack_png, switch)
         return EXIT_OK
     return _run(work)
+
+
+def _picture_and_switch(ll: Client, info: dict[str, Any], assignment: str, element: str, png: Path | None,
+                        picture: Callable[[str], bytes], switch: bool) -> None:
+    """After a pack or a design loop: write the made element's picture (`picture(element)`: PNG bytes) to `png`,
+    and put the element in place of the start on `assignment`, where asked."""
+    if png is not None:
+        Path(png).write_bytes(picture(element))
+        print(f"plot {png}")
+    if switch:
+        ll.switch_element(info, assignment, element)
+        print(f"assignment {assignment} now carries {element}")
 
 
 def _parameter(text: str) -> dict[str, Any]:
@@ -321,11 +329,6 @@ def design(
                 print(f"no candidate read better than the start: element {element_id} stays")
                 return EXIT_OK
             print(f"element {res['element']}: {res['values']}")
-            if png is not None:
-                Path(png).write_bytes(ll.design_png(res["element"]))
-                print(f"plot {png}")
-            if switch:
-                ll.switch_element(info, assignment, res["element"])
-                print(f"assignment {assignment} now carries {res['element']}")
+            _picture_and_switch(ll, info, assignment, res["element"], png, ll.design_png, switch)
         return EXIT_OK
     return _run(work)
