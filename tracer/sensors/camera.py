@@ -35,7 +35,7 @@ import numpy as np
 from tracer.errors import SimulationError
 from tracer.optics.fields import BodyField, fields
 from tracer.sensors.base import IlluminanceResult, Probe, vec3
-from tracer.sensors.views import LuminanceResult, angle, check_fields, luminance_result, unit
+from tracer.sensors.views import LuminanceResult, angle, check_fields, luminance_result, merge_pilots, unit
 from tracer.transport.radiance import PIXEL, ViewArrays
 
 TYPE = "camera"
@@ -214,7 +214,8 @@ def run_in_bands(sim, body: dict, max_pixels: int, query: Any, progress=None, ca
                         batches=sum(int(r.batches) for r in parts), rejected=sum(int(r.rejected) for r in parts),
                         counters=counters, compile_seconds=sum(float(r.compile_seconds) for r in parts),
                         through_specular=np.concatenate([np.asarray(r.through_specular) for r in parts]),
-                        light_traced=any(r.light_traced for r in parts))
+                        light_traced=any(r.light_traced for r in parts),
+                        area_pilot=merge_pilots([r.area_pilot for r in parts]))
     combined.backend, combined.effect_reasons = first.backend, first.effect_reasons
     combined.cost = cost_of(combined.lux, combined.stderr, combined.photons,
                             combined.seconds - combined.compile_seconds)

@@ -21,10 +21,10 @@ STRATEGY = ("paths from the eye: next-event estimation to every light at diffuse
             "picked by flux), multiple importance sampling (power heuristic) with BSDF sampling where a light has "
             "area, specular chains followed through mirrors and glass, Russian roulette after 3 diffuse bounces; "
             "point-like lights in view added exactly")
-LIGHT_TRACING = ("; light tracing from the point-like, collimated and rayfile lights where the scene has what the "
-                 "paths from the eye miss (a caustic: photons through specular surfaces; a beam): each diffuse vertex "
-                 "of a photon whose first bounce was specular (any photon of a beam) joined to the eye, the paths "
-                 "split so that none is counted by both; both unbiased")
+LIGHT_TRACING = ("; light tracing where the scene has what the paths from the eye miss or find badly (a specular "
+                 "surface: photons of every light through it, a caustic, an area light behind glass; a beam): each "
+                 "diffuse vertex of a photon whose first bounce was specular (any photon of a beam) joined to the "
+                 "eye, the paths split so that none is counted by both; both unbiased")
 BODY_COMMON = frozenset({"type", "id", "name", "attached_to"})   # kept by the service, ignored here
 
 
@@ -89,6 +89,29 @@ def unreachable(sim, share: np.ndarray, caustic_paths: int, light_traced: bool =
             "caustic_paths": int(caustic_paths)}
 
 
+def merge_pilots(pilots: list[dict | None]) -> dict | None:
+    """The area-light pilots of a camera's bands (`tracer.transport.rounds.area_light_pilot`) as one: photons and
+    joins summed, traced where any band traced."""
+    ran = [p for p in pilots if p is not None]
+    if not ran:
+        return None
+    return {"photons": sum(p["photons"] for p in ran), "joined": sum(p["joined"] for p in ran),
+            "eye_finds": sum(p["eye_finds"] for p in ran), "share": max(p["share"] for p in ran),
+            "traced": any(p["traced"] for p in ran),
+            "per_batch": max(p["per_batch"] for p in ran)}
+
+
+def pilot_words(pilot: dict | None) -> str:
+    """What the area-light pilot found, for the answer's strategy ('' where none ran)."""
+    if pilot is None:
+        return ""
+    how = (f"traced ({pilot['per_batch']:,} photons a batch)" if pilot["traced"] else
+           "left to the paths from the eye")
+    return (f"; area lights {how}: a pilot of {pilot['photons']:,} of their photons had {pilot['joined']:,} diffuse "
+            f"vertices joined to the views, where its paths from the eye found {pilot['eye_finds']:,} of those paths; "
+            f"{pilot['share']:.1%} of the light seen came by light tracing")
+
+
 def luminance_result(sim, res: IlluminanceResult, shape: tuple[int, ...] | None) -> LuminanceResult:
     """The raw view bins (`tracer.transport.rounds.ViewBins`) as a `LuminanceResult`: scalars where `shape` is None
     (a meter), else arrays of `shape`."""
@@ -100,7 +123,8 @@ def luminance_result(sim, res: IlluminanceResult, shape: tuple[int, ...] | None)
 
     traced = bool(getattr(res, "light_traced", False))
     return LuminanceResult(**res.readout(), luminance=shaped(res.lux), stderr=shaped(res.stderr), cost=res.cost,
-                           strategy=STRATEGY + (LIGHT_TRACING if traced else ""), through_specular=shaped(share),
+                           strategy=STRATEGY + (LIGHT_TRACING if traced else "") + pilot_words(
+                               getattr(res, "area_pilot", None)), through_specular=shaped(share),
                            unreachable=unreachable(sim, share, int(res.counters.get("caustic_paths", 0)), traced))
 
 

@@ -26,19 +26,10 @@ mirror or through glass, a caustic on a wall): the kernel counts, per view, the 
 on through a specular surface before any diffuse one (`through_specular`), and the paths that met a specular
 surface after a diffuse one (counter `caustic_paths`); the sensor's answer states what is missing from them.
 
-Light tracing (`trace_light`, where `light_paths` says the scene needs it: a point-like light and a specular
-surface, or a collimated or rayfile light). Photons leave the lights that are not area lights in proportion to their
-flux and follow the scene by `scatter`, as the forward photons do. Each diffuse vertex x of an eligible photon is
-joined to the eye (`join_eye`, pbrt-v3's `LightTracer` with the camera's `Sample_Wi`): the photon's flux Φ × ρ/π ×
-cosθ_x / d² × W goes to the view that sees x unoccluded, W the view's importance (1/Ω for a meter's cone, 1/(cos³θ ×
-film area) for the pixel x projects to, through a lens point where the camera has a lens). Eligible: every photon
-of a collimated or rayfile light (no shadow ray reaches them); a photon of a point-like light once its first bounce
-was specular. So the two strategies split the paths: paths from the eye take those whose vertex next to the light
-scatters diffusely (the shadow ray), light tracing those whose vertex next to the light scatters specularly and whose
-vertex next to the eye diffusely; a photon whose first bounce is diffuse ends there. Both are unbiased, and a
-batch's value of a view is their sum, so the batch means' standard error holds for both. What neither finds: light
-from a point-like or collimated source whose vertex next to the eye is specular too (a lamp, or its caustic, seen in
-a mirror or through glass); `through_specular` still flags the views that may miss it.
+Light tracing (`tracer.transport.light_tracing`, where the scene needs it) runs beside them in the same batch and
+takes the paths whose vertex next to the light scatters specularly and whose vertex next to the eye diffusely; a
+path from the eye whose first vertex was diffuse adds nothing where it meets a traced area light after a specular
+vertex (`traced_area`): light tracing has it.
 
 Media (absorption or scattering inside solids), spectra and polarization are not followed here: the query refuses
 scenes that need them (`tracer.simulate`).
@@ -53,24 +44,31 @@ import numpy as np
 
 from tracer.accel.spawn import offset_ray_origin
 from tracer.accel.traverse import any_with_stacks, closest_with_stacks, new_stacks
-from tracer.effects import BASELINE
 from tracer.jit import njit
-from tracer.optics.frames import find_in_cdf, sample_cosine
-from tracer.optics.lights import light_connect, pick_light, sample_emission
-from tracer.optics.lights.base import AREA_EMITTER, DELTA_DIRECTION, P_I0
-from tracer.optics.lights.dispatch import LIGHT_FLAGS, flags_of, light_flags
+from tracer.optics.frames import sample_cosine
+from tracer.optics.lights import light_connect, pick_light
+from tracer.optics.lights.base import AREA_EMITTER, P_I0
+from tracer.optics.lights.dispatch import flags_of, light_flags
 from tracer.optics.polarization import N_POL
 from tracer.optics.surfaces.base import CONTINUES, DIFFUSE, STACK_FULL, arrival_normal, reflect_specular
 from tracer.optics.surfaces.dispatch import scatter, surface_albedo, surface_flags
 from tracer.rng import path_key, uniform
+from tracer.transport.light_tracing import (
+    C_CAUSTIC,
+    C_LEFT,
+    C_REJECTED,
+    C_STACK,
+    C_TRUNCATED,
+    C_VIEW_RAYS,
+    COUNTERS,
+    MAX_BOUNCES,
+    trace_light,
+    traced_area,
+)
 
 RR_DEPTH = 3            # diffuse bounces before Russian roulette (as `tracer.transport.backward`)
-MAX_BOUNCES = 10_000    # a longer path is cut and counted
 MEDIUM_DEPTH = 8        # nested solids a path may be inside
 CONE, PIXEL = 0, 1      # view kinds
-COUNTERS = ("rejected", "truncated", "stack_overflow", "caustic_paths", "light_paths", "light_splats")
-C_REJECTED, C_TRUNCATED, C_STACK, C_CAUSTIC, C_LIGHT_PATHS, C_LIGHT_SPLATS = range(6)
-LIGHT_RR_WEIGHT = 0.01   # a light path below this fraction of its initial flux plays Russian roulette (`forward`)
 
 
 class ViewArrays(NamedTuple):
@@ -264,196 +262,12 @@ def seen_point_lights(sa, L, V, q, stack, tstack):
     return total
 
 
-class LightPaths(NamedTuple):
-    """The light-tracing half of a query (`light_paths`): photons from the lights paths from the eye cannot reach
-    through a specular surface, joined to the eye at diffuse vertices (module docstring, "Light tracing").
-
-    cdf (n_lights,): the cumulative probability of emitting from each light, ∝ its flux over the lights traced
-    from (0 for area lights: paths from the eye find them). always (n_lights,) int64: 1 for a light no shadow ray
-    reaches (collimated, rayfile): its photons join the eye at every diffuse vertex; 0 for a point-like light: only
-    the photons whose first bounce was specular do. flux (1,): the traced lights' flux (lm). photons (1,) int64:
-    photons a batch (0: no light tracing). width (1,) int64: a camera's columns (its pixels a row-major grid of
-    the same eye, film and lens); 0 for meters (cones), each joined on its own.
-    """
-
-    cdf: np.ndarray
-    always: np.ndarray
-    flux: np.ndarray
-    photons: np.ndarray
-    width: np.ndarray
-
-
-def no_light_paths(n_lights: int) -> LightPaths:
-    """A `LightPaths` that traces nothing."""
-    n = max(n_lights, 1)
-    return LightPaths(np.ones(n), np.zeros(n, np.int64), np.zeros(1), np.zeros(1, np.int64), np.zeros(1, np.int64))
-
-
-def light_paths(L, effects, photons: int, width: int) -> LightPaths:
-    """The `LightPaths` of a query: light tracing from every light that is not an area light, where the scene has
-    something paths from the eye miss from it: a collimated or rayfile light (no shadow ray reaches it), or a
-    point-like light and a specular surface (a caustic). `L`: the packed lights (`LightArrays`); `effects`: the
-    scene's (`tracer.effects`); `photons` a batch; `width`: a camera's columns, 0 for meters."""
-    flags = LIGHT_FLAGS[np.asarray(L.kind)]
-    n = len(flags)
-    pick = np.diff(np.concatenate([[0.0], np.asarray(L.cdf, float)])) * float(L.flux_total[0])
-    traced = (flags & AREA_EMITTER == 0) & (pick > 0.0)
-    always = (flags & DELTA_DIRECTION != 0).astype(np.int64)   # no shadow ray reaches it
-    specular = bool(set(effects) - {BASELINE})
-    if n == 0 or not traced.any() or not (np.any(always[traced]) or specular):
-        return no_light_paths(n)
-    flux = float(pick[traced].sum())
-    cdf = np.cumsum(np.where(traced, pick, 0.0)) / flux
-    cdf[-1] = 1.0
-    return LightPaths(cdf, always, np.array([flux]), np.array([photons], np.int64), np.array([width], np.int64))
-
-
 @njit(cache=True, error_model="numpy", _nrt=False)
-def join_eye(sa, V, P, lum, x, y, z, nx, ny, nz, value, u0, u1, stack, tstack):
-    """Join a diffuse vertex x (off its surface; n its unit normal on the side the photon came from) to the views'
-    eyes: `value` = the photon's flux × ρ/π (lm/sr, the radiant intensity per unit projected area that its diffuse
-    reflection gives each direction × area) adds value × cosθ_x / d² × W to each view that sees x unoccluded, W the
-    view's importance: 1/Ω for a cone that holds the direction, 1/(cos³θ × film area) for the pixel it falls in
-    (θ from the camera axis; with a thin lens through the lens point u0, u1 picks, uniform on the lens). Returns
-    the number of views joined."""
-    joined = 0
-    if P.width[0] > 0:     # a camera: the views are one grid, from one eye
-        ox, oy, oz = V.o[0, 0], V.o[0, 1], V.o[0, 2]
-        ex, ey, ez = ox, oy, oz
-        if V.lens[0] > 0.0:
-            r = V.lens[0] * math.sqrt(u0)
-            phi = 2.0 * math.pi * u1
-            ia = 1.0 / math.sqrt(V.a[0, 0] ** 2 + V.a[0, 1] ** 2 + V.a[0, 2] ** 2)
-            ib = 1.0 / math.sqrt(V.b[0, 0] ** 2 + V.b[0, 1] ** 2 + V.b[0, 2] ** 2)
-            ca, sb = r * math.cos(phi) * ia, r * math.sin(phi) * ib
-            ex = ox + ca * V.a[0, 0] + sb * V.b[0, 0]
-            ey = oy + ca * V.a[0, 1] + sb * V.b[0, 1]
-            ez = oz + ca * V.a[0, 2] + sb * V.b[0, 2]
-        sx, sy, sz = ex - x, ey - y, ez - z     # from the vertex to the eye (or the lens point)
-        d2 = sx * sx + sy * sy + sz * sz
-        dist = math.sqrt(d2)
-        cos_x = (sx * nx + sy * ny + sz * nz) / dist
-        along = -(sx * V.axis[0, 0] + sy * V.axis[0, 1] + sz * V.axis[0, 2])   # (x − eye) · axis
-        if cos_x <= 0.0 or along <= 0.0:
-            return 0
-        # the film point (unit distance along the axis) whose pinhole ray meets the ray eye → x on the plane of
-        # focus (for a pinhole: the ray itself)
-        if V.lens[0] > 0.0:
-            k = V.focus[0] / along
-            f = 1.0 / V.focus[0]
-            fx = (ex - k * sx - ox) * f
-            fy = (ey - k * sy - oy) * f
-            fz = (ez - k * sz - oz) * f
-        else:
-            fx, fy, fz = -sx / along, -sy / along, -sz / along
-        fx, fy, fz = fx - V.c[0, 0], fy - V.c[0, 1], fz - V.c[0, 2]
-        a2 = V.a[0, 0] ** 2 + V.a[0, 1] ** 2 + V.a[0, 2] ** 2
-        b2 = V.b[0, 0] ** 2 + V.b[0, 1] ** 2 + V.b[0, 2] ** 2
-        s = (fx * V.a[0, 0] + fy * V.a[0, 1] + fz * V.a[0, 2]) / a2
-        t = (fx * V.b[0, 0] + fy * V.b[0, 1] + fz * V.b[0, 2]) / b2
-        width = P.width[0]
-        height = V.kind.shape[0] // width
-        if not (0.0 <= s < width and 0.0 <= t < height):
-            return 0
-        q = int(t) * width + int(s)
-        if any_with_stacks(sa, x, y, z, sx, sy, sz, 1.0, stack, tstack):
-            return 0
-        cos_c = along / dist
-        lum[q] += value * cos_x / d2 / (cos_c ** 3 * V.size[q])
-        return 1
-    for q in range(V.kind.shape[0]):   # meters: each cone on its own
-        sx, sy, sz = V.o[q, 0] - x, V.o[q, 1] - y, V.o[q, 2] - z
-        d2 = sx * sx + sy * sy + sz * sz
-        dist = math.sqrt(d2)
-        cos_x = (sx * nx + sy * ny + sz * nz) / dist
-        cos_c = -(sx * V.axis[q, 0] + sy * V.axis[q, 1] + sz * V.axis[q, 2]) / dist
-        if cos_x <= 0.0 or cos_c < V.cos_max[q] or cos_c <= 0.0:
-            continue
-        if any_with_stacks(sa, x, y, z, sx, sy, sz, 1.0, stack, tstack):
-            continue
-        lum[q] += value * cos_x / d2 / V.size[q]
-        joined += 1
-    return joined
-
-
-@njit(cache=True, error_model="numpy", _nrt=False)
-def trace_light(sa, M, L, V, P, seed, batch, first, lum, counters, med, pol, stack, tstack):
-    """Light tracing, one batch: `P.photons` photons from the lights of `P.cdf` through the scene (`scatter`, as
-    the forward photons go), each diffuse vertex of an eligible photon joined to the eyes (`join_eye`), the sum
-    divided by the photon count added to lum (k,). Eligible: a photon of a light in `P.always`, or one whose first
-    bounce was specular (the rest, whose first bounce is diffuse, are next-event estimation's: they end there).
-    Keys: path_key(seed, batch, first + i), past the paths from the eye."""
-    n = P.photons[0]
-    nl = P.cdf.shape[0]
-    for i in range(n):
-        key = path_key(seed, batch, first + i)
-        j = find_in_cdf(P.cdf, 0, nl, uniform(key, 0))
-        pj = P.cdf[j] - (P.cdf[j - 1] if j > 0 else 0.0)
-        if pj <= 0.0:
-            continue
-        ox, oy, oz, dx, dy, dz, f, on_surface, nx, ny, nz = sample_emission(
-            L, j, uniform(key, 1), uniform(key, 2), uniform(key, 3), uniform(key, 4), uniform(key, 5))
-        w = P.flux[0] * f / n     # lm: the photon's share of the traced lights' flux
-        if on_surface:
-            ox, oy, oz = offset_ray_origin(ox, oy, oz, nx, ny, nz, dx, dy, dz)
-        if not (math.isfinite(w) and math.isfinite(dx + dy + dz) and math.isfinite(ox + oy + oz)) or w <= 0.0:
-            continue
-        counters[C_LIGHT_PATHS] += 1
-        w_init = w
-        eligible = P.always[j] != 0
-        dim = 6
-        depth = 0
-        truncated = True
-        for bounce in range(MAX_BOUNCES):
-            t, inst, prim, hu, hv, ngx, ngy, ngz = closest_with_stacks(sa, ox, oy, oz, dx, dy, dz, math.inf, stack,
-                                                                       tstack)
-            if inst < 0:
-                truncated = False
-                break
-            px, py, pz = ox + t * dx, oy + t * dy, oz + t * dz
-            fx, fy, fz = arrival_normal(ngx, ngy, ngz, dx, dy, dz)
-            rho = surface_albedo(sa, M, inst, prim)
-            if eligible and rho > 0.0:
-                sx, sy, sz = offset_ray_origin(px, py, pz, ngx, ngy, ngz, fx, fy, fz)
-                counters[C_LIGHT_SPLATS] += join_eye(sa, V, P, lum, sx, sy, sz, fx, fy, fz, w * rho / math.pi,
-                                                     uniform(key, dim), uniform(key, dim + 1), stack, tstack)
-                dim += 2
-            status, ux, uy, uz, f, depth, dim = scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med,
-                                                        depth, key, dim, 0.0, pol)
-            if status == STACK_FULL:
-                counters[C_STACK] += 1
-            if status != CONTINUES:
-                truncated = False
-                break
-            if bounce == 0 and not eligible:
-                # the first bounce: specular (a mirror, glass, the specular lobe of a mix) or diffuse
-                if surface_flags(sa, M, inst, prim) == DIFFUSE:
-                    truncated = False
-                    break
-                if rho > 0.0 and ux * fx + uy * fy + uz * fz > 0.0:
-                    mx, my, mz = reflect_specular(sa, inst, prim, hu, hv, dx, dy, dz, fx, fy, fz)
-                    if not (mx == ux and my == uy and mz == uz):
-                        truncated = False
-                        break
-                eligible = True
-            w *= f
-            dx, dy, dz = ux, uy, uz
-            ox, oy, oz = offset_ray_origin(px, py, pz, ngx, ngy, ngz, dx, dy, dz)
-            if w < LIGHT_RR_WEIGHT * w_init:   # Russian roulette: unbiased
-                q = w / (LIGHT_RR_WEIGHT * w_init)
-                if uniform(key, dim) >= q:
-                    truncated = False
-                    break
-                dim += 1
-                w /= q
-        if truncated:
-            counters[C_TRUNCATED] += 1
-
-
-@njit(cache=True, error_model="numpy", _nrt=False)
-def trace_view(sa, M, L, V, E, q, key, counters, med, pol, stack, tstack):
+def trace_view(sa, M, L, V, E, P, q, key, counters, med, pol, stack, tstack):
     """One path from the eye of view q: (an unbiased estimate of the luminance the paths find, cd/m²; 1.0 where
-    the view ray met a specular surface (or took a specular lobe) before any diffuse one, else 0.0)."""
+    the view ray met a specular surface (or took a specular lobe) before any diffuse one, else 0.0). A traced area
+    light met after a specular vertex by a path whose first vertex was diffuse adds nothing: light tracing (`P`)
+    has that path (module docstring)."""
     dx, dy, dz = view_direction(V, q, uniform(key, 0), uniform(key, 1))
     x, y, z = V.o[q, 0], V.o[q, 1], V.o[q, 2]
     dim = 2
@@ -468,17 +282,23 @@ def trace_view(sa, M, L, V, E, q, key, counters, med, pol, stack, tstack):
     depth = 0
     diffuse_bounces = 0
     from_eye = True   # no diffuse vertex yet: a specular chain from here is one the eye looks along
+    eye_diffuse = False   # the first vertex scattered diffusely: light tracing may join there
     through_specular = 0.0
     caustic = False
     truncated = True
-    for _ in range(MAX_BOUNCES):
+    for bounce in range(MAX_BOUNCES):
         t, inst, prim, hu, hv, ngx, ngy, ngz = closest_with_stacks(sa, x, y, z, dx, dy, dz, math.inf, stack, tstack)
+        counters[C_VIEW_RAYS] += 1
         if inst < 0:
             truncated = False
             break
         px, py, pz = x + t * dx, y + t * dy, z + t * dz
         cos_hit = -(dx * ngx + dy * ngy + dz * ngz)
-        if inst < E.le.shape[0] and E.le[inst] > 0.0 and cos_hit > 0.0:
+        lit = inst < E.le.shape[0] and E.le[inst] > 0.0 and cos_hit > 0.0
+        if lit and eye_diffuse and pb_scale == 0.0 and traced_area(P, E, inst):
+            counters[C_LEFT] += 1
+            lit = P.photons[0] <= 0   # after a specular vertex, seen from a diffuse first vertex: light tracing's
+        if lit:
             mis = 1.0
             if pb_scale > 0.0:
                 j = E.light[inst]
@@ -495,6 +315,7 @@ def trace_view(sa, M, L, V, E, q, key, counters, med, pol, stack, tstack):
             lum += w * rho / math.pi * light_sample(sa, L, sx, sy, sz, fx, fy, fz, lobe, uniform(key, dim),
                                                     uniform(key, dim + 1), uniform(key, dim + 2),
                                                     uniform(key, dim + 3), stack, tstack)
+            counters[C_VIEW_RAYS] += 1
             dim += 4
         if lambertian:
             w *= rho
@@ -505,6 +326,7 @@ def trace_view(sa, M, L, V, E, q, key, counters, med, pol, stack, tstack):
             dim += 2
             pb_scale, cos_prev = 1.0 / math.pi, dx * fx + dy * fy + dz * fz
             x, y, z = sx, sy, sz
+            eye_diffuse = eye_diffuse or bounce == 0
             from_eye = False
             diffuse_bounces += 1
             if diffuse_bounces >= RR_DEPTH:
@@ -536,6 +358,7 @@ def trace_view(sa, M, L, V, E, q, key, counters, med, pol, stack, tstack):
             diffuse_lobe = not (mx == ox and my == oy and mz == oz)
         if diffuse_lobe:
             pb_scale, cos_prev = rho / math.pi, ox * fx + oy * fy + oz * fz
+            eye_diffuse = eye_diffuse or bounce == 0
             from_eye = False
         else:
             pb_scale = 0.0
@@ -560,13 +383,14 @@ def trace_view(sa, M, L, V, E, q, key, counters, med, pol, stack, tstack):
 def radiance_batch(sa, M, L, V, E, P, seed, batch, paths, lum, share, counters, med, pol, stack, tstack):
     """Batch `batch`: `paths` paths per view and `P.photons` light paths (`trace_light`); each view's luminance
     estimate (cd/m²) into lum (k,), its share of paths through a specular chain from the eye into share (k,), the
-    counters into counters (`COUNTERS`)."""
-    for q in range(V.kind.shape[0]):
+    counters into counters (`COUNTERS`). With no paths (a pilot's light tracing alone) lum holds light tracing's
+    part only."""
+    for q in range(V.kind.shape[0] if paths > 0 else 0):
         acc = 0.0
         spec = 0.0
         for i in range(paths):
             key = path_key(seed, batch, q * paths + i)
-            v, s = trace_view(sa, M, L, V, E, q, key, counters, med, pol, stack, tstack)
+            v, s = trace_view(sa, M, L, V, E, P, q, key, counters, med, pol, stack, tstack)
             acc += v
             spec += s
         lum[q] = acc / paths + seen_point_lights(sa, L, V, q, stack, tstack)
@@ -580,7 +404,7 @@ def radiance_batches(sa, M, L, V, E, P, seed, batch0, n_batches, paths):
     """Batches batch0 … batch0+n_batches−1, `paths` paths per view and `P.photons` light paths each.
 
     Returns (values (n_batches, 2k): each batch's luminance (cd/m²) per view, then its share of paths through a
-    specular chain from the eye per view; counters (n_batches, 6) int64, `COUNTERS`). Serial and without the GIL,
+    specular chain from the eye per view; counters (n_batches, 9) int64, `COUNTERS`). Serial and without the GIL,
     like `tracer.transport.backward.backward_batches`.
     """
     k = V.kind.shape[0]

@@ -29,9 +29,17 @@ from tracer.sensors.base import IlluminanceResult, Probe
 from tracer.transport.backward import QueryArrays, disk_queries
 from tracer.transport.estimate import Estimate, cost_of
 from tracer.transport.forward import COUNTERS, SensorArrays, tally_columns
+from tracer.transport.light_tracing import (
+    C_LEFT,
+    C_LIGHT_PATHS,
+    C_LIGHT_RAYS,
+    C_LIGHT_SPLATS,
+    C_VIEW_RAYS,
+    light_paths,
+)
 from tracer.transport.query import Budget
 from tracer.transport.radiance import COUNTERS as RADIANCE_COUNTERS
-from tracer.transport.radiance import PIXEL, emitters, light_paths
+from tracer.transport.radiance import PIXEL, emitters
 
 log = logging.getLogger(__name__)
 
@@ -297,11 +305,62 @@ class ViewBins(IlluminanceResult):
 
     through_specular: np.ndarray | None = None
     light_traced: bool = False   # light tracing ran beside the paths from the eye (`tracer.transport.radiance`)
+    area_pilot: dict | None = None   # `area_light_pilot`'s finding, where it ran
 
 
 VIEW_PATHS = 4096   # paths per batch over all the views together, at least one per view (a camera: one a pixel)
 MIN_LIGHT_PATHS = 1024   # light paths per batch at least, where light tracing runs (`tracer.transport.radiance`)
 VIEW_EFFECTS = ("lambertian", "specular", "fresnel")   # what paths from the eye follow (`tracer.transport.radiance`)
+MIN_AREA_JOINS = 1e-4   # joins a pilot photon of the area lights must average for them to be traced
+AREA_RAY_SHARE = 0.5    # their photons cast this many rays per ray of the paths from the eye at least ...
+AREA_SHARE_FULL = 0.1   # ... where this share of the light seen comes by light tracing (less: fewer in proportion)
+AREA_MAX_RAYS = 4.0     # and at most this many, however much of the light it carries
+PILOT_SEED = 0x5EED_A4EA   # the pilot's seed is the query's plus this: its random numbers are none of the query's
+
+
+def area_light_pilot(scene: Shipment, views, emit, lights, effects, photons: int, paths: int, width: int, seed: int,
+                     backend: QueryBackend) -> tuple[dict | None, Any]:
+    """Whether, and with how many photons a batch, light tracing from the area lights runs beside this query's paths
+    from the eye (`tracer.transport.radiance`, "Light tracing"). Two batches of `photons` photons from the area
+    lights alone (on a seed of their own) give light tracing's part of the light the views see; two batches of the
+    query's paths from the eye alone (`paths` a view) give theirs, and count the paths they found that light tracing
+    would take (they meet the emitter after a specular vertex: counter ``left_to_light_tracing``). The area lights
+    are traced where their photons had diffuse vertices joined to the views (at least `MIN_AREA_JOINS` a photon;
+    behind a light guide's top face none can be), more joins a ray than the paths from the eye had finds a ray.
+    Their photons then cast rays in proportion to the light each strategy carries, share / (1 − share) per ray of
+    the paths from the eye, up to `AREA_MAX_RAYS` (an LED behind a pane, whose light only light tracing finds), and
+    at least `AREA_RAY_SHARE` where the share is `AREA_SHARE_FULL` or more (fewer photons would leave a view that
+    needs them with joins too rare for its error bar to see), fewer in proportion below (a guide whose frame alone is
+    lit so gives light tracing little). Paths from the eye find all of an area light's light anyway, so the choice
+    moves the error bar, not the mean. Counted in rays, not seconds: the same seed gives the same answer.
+
+    Returns (None, None) where there is nothing to decide (no area light, or no specular surface); else ({"photons",
+    "joined", "eye_finds", "share", "traced", "per_batch"}, the eye batches' (values, counters) where they are the
+    query's own batches 0 and 1, else None). They are reused where no light is traced at all, the area lights
+    included: the query's batches are then paths from the eye alone, as these are. Where light tracing is chosen they
+    are dropped: paths from the eye alone read, behind a pane, 0 in almost every batch and a spike in a rare one,
+    unbiased but no start for an estimate.)"""
+    trial = light_paths(lights, effects, photons, width, area=True, others=False)
+    if int(trial.photons[0]) == 0:
+        return None, None
+    pilot_seed = (seed + PILOT_SEED) % 2 ** 63
+    k = len(views.kind)
+    light, counters = backend.run(("radiance",), scene, Shipment((views, emit, trial, pilot_seed)), 0, 2, 0)
+    reuse = int(light_paths(lights, effects, 1, width).photons[0]) == 0
+    counting = trial._replace(photons=np.zeros(1, np.int64))   # no photons: the eye paths count, and keep, the finds
+    eye = backend.run(("radiance",), scene, Shipment((views, emit, counting, seed if reuse else pilot_seed)), 0, 2,
+                      paths)
+    by_light, by_eye = float(np.sum(light[:, :k])), float(np.sum(eye[0][:, :k]))
+    share = by_light / (by_light + by_eye) if by_light > 0.0 else 0.0
+    sent, joined = int(counters[:, C_LIGHT_PATHS].sum()), int(counters[:, C_LIGHT_SPLATS].sum())
+    light_rays = max(int(counters[:, C_LIGHT_RAYS].sum()), 1)
+    view_rays, finds = int(eye[1][:, C_VIEW_RAYS].sum()), int(eye[1][:, C_LEFT].sum())
+    traced = joined > 0 and joined >= MIN_AREA_JOINS * sent and joined * view_rays > finds * light_rays
+    ratio = AREA_MAX_RAYS if share >= 1.0 else min(AREA_MAX_RAYS, share / (1.0 - share))
+    ratio = max(ratio, AREA_RAY_SHARE * min(1.0, share / AREA_SHARE_FULL))
+    per_batch = max(1, int(photons * ratio * view_rays / light_rays)) if traced else 0
+    return ({"photons": sent, "joined": joined, "eye_finds": finds, "share": share, "traced": traced,
+             "per_batch": per_batch}, eye if reuse and not traced else None)
 
 
 def radiance(sim, probe: Probe, budget: Budget, seed: int, estimator: str, effects: list[str], progress, cancel,
@@ -332,20 +391,30 @@ def radiance(sim, probe: Probe, budget: Budget, seed: int, estimator: str, effec
     emit = emitters(sim.light_bodies, len(sim.snapshot("backward").parts[1].kind))
     shape_2d = (probe.keep or {}).get("shape")
     width = int(shape_2d[1]) if shape_2d is not None and int(views.kind[0]) == PIXEL else 0
-    lights = sim.snapshot("backward").parts[2]
-    traced = light_paths(lights, effects, max(per_batch, MIN_LIGHT_PATHS), width)
-    scene, query = sim.snapshot("backward"), Shipment((views, emit, traced, seed))
-    compile_s = warm(("radiance",), scene, query, backend)
+    lights, scene = sim.snapshot("backward").parts[2], sim.snapshot("backward")
+    photons = max(per_batch, MIN_LIGHT_PATHS)
+    compile_s = warm(("radiance",), scene, Shipment((views, emit, light_paths(lights, effects, 1, width), seed)),
+                     backend)
+    pilot, start = area_light_pilot(scene, views, emit, lights, effects, photons, paths, width, seed, backend)
+    traced = light_paths(lights, effects, photons, width, area=pilot is not None and pilot["traced"])
+    if pilot is not None and pilot["traced"] and int(light_paths(lights, effects, 1, width).photons[0]) == 0:
+        traced = traced._replace(photons=np.array([pilot["per_batch"]], np.int64))   # the area lights alone
+    query = Shipment((views, emit, traced, seed))
 
     def run_round(b0, nb):
-        return backend.run(("radiance",), scene, query, b0, nb, paths)
+        if start is None or b0 > 0:
+            return backend.run(("radiance",), scene, query, b0, nb, paths)
+        rest = backend.run(("radiance",), scene, query, 2, nb - 2, paths) if nb > 2 else None
+        if rest is None:   # the pilot's eye batches are batches 0 and 1
+            return start
+        return np.concatenate([start[0], rest[0]]), np.concatenate([start[1], rest[1]])
 
     est, batches, stop, counters = loop(run_round, 2 * k, per_batch, budget, progress, cancel, t0, shape, k)
     cdict = {name: int(c) for name, c in zip(RADIANCE_COUNTERS, counters, strict=True)}
     res = ViewBins(est.mean[:k], est.stderr[:k], photons=batches * per_batch, seconds=time.perf_counter() - t0,
                    effects=effects, estimator="backward", stop_reason=stop, batches=batches,
                    rejected=cdict["rejected"], counters=cdict, compile_seconds=compile_s,
-                   through_specular=est.mean[k:], light_traced=int(traced.photons[0]) > 0)
+                   through_specular=est.mean[k:], light_traced=int(traced.photons[0]) > 0, area_pilot=pilot)
     res.cost = cost_of(res.lux, res.stderr, res.photons, res.seconds - res.compile_seconds)
     res.backend = backend.describe()
     return res
