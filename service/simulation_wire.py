@@ -73,7 +73,10 @@ class QueryBudget(BaseModel):
                                           "its standard error, lx). Each effect that changes the photons' state "
                                           "(polarization, spectral and the effects needing a wavelength) adds up to "
                                           "one more run's time; one already on, or acting wherever the scene's "
-                                          "materials call for it, changes nothing: 0 ± 0 lx, no run.")
+                                          "materials call for it, changes nothing: 0 ± 0 lx, no run. "
+                                          "`element_geometry` measures the elements used through their tabulated "
+                                          "BSDF (`model: bsdf`): the query runs again with each traced by its exact "
+                                          "micro-geometry (0 ± 0 lx, no run, where none is tabulated).")
 
     tessellation_estimate: Annotated[bool, Strict()] = Field(
         default=False, description="Where the scene has curved mirror or glass meshes (the answer then carries "

@@ -71,7 +71,7 @@ from tracer.sensors.placement import place_receivers, probe_distance, sensor_off
 from tracer.sensors.points import DEFAULT_RADIUS
 from tracer.sensors.surface import SurfaceResult
 from tracer.transport.estimate import cost_of
-from tracer.transport.query import DEFAULT_MAX_SECONDS, ESTIMATORS, OBSERVABLES, TARGET_SCOPES, Query
+from tracer.transport.query import DEFAULT_MAX_SECONDS, ESTIMATORS, LEFT_OUT_MODELS, OBSERVABLES, TARGET_SCOPES, Query
 from tracer.transport.query import query as make_query
 from tracer.transport.rounds import (
     BACKWARD_BATCH,
@@ -147,6 +147,7 @@ class Simulation:
         self.backend = IN_PROCESS if backend is None else backend
         self._inputs = (materials, lights, default_material)   # what `refined` rebuilds from (validated below)
         self._refined: Simulation | None = None
+        self._exact: Simulation | None = None   # `exact_elements`
         self._shipments: dict[str, Shipment] = {}   # the snapshot each kernel reads, per photon state
         self.scene = scene
         self.arrays = scene.arrays()   # the committed scene, read-only from here on
@@ -218,8 +219,9 @@ class Simulation:
         reference : (3,) float, optional
             The x axis of the receivers' polarization frames (world), taken onto each receiver's plane; default
             world x, or world y where x is within 25° of the receiver's normal.
-        physics_left_out : effect names (`tracer.effects.EFFECTS`) whose share of the answer to measure: the result's
-            `physics_left_out` (`left_out`).
+        physics_left_out : effect names (`tracer.effects.EFFECTS`) whose share of the answer to measure, or
+            ``"element_geometry"``: how far the elements used through their tabulated BSDF are from their exact
+            micro-geometry; the result's `physics_left_out` (`left_out`).
         tessellation_estimate : bool — where the scene has curved mirror or glass meshes, also run the query on
             those meshes refined 1→4, twice or three times (`tessellation_levels`; the same stop rules and seed, so
             up to 3 or 4 times the time) and add to the result's `error_budget` ``tessellation_estimate`` and
@@ -264,7 +266,8 @@ class Simulation:
         probe = probe_of(self, body)
         res = self._run(probe, query, progress, cancel)
         if query.physics_left_out:
-            res.physics_left_out = left_out(self, res, query, lambda pilot: self._run(probe, pilot, None, cancel))
+            res.physics_left_out = left_out(self, res, query,
+                                            lambda pilot, sim=self: sim._run(probe, pilot, None, cancel))
         if query.tessellation_estimate and res.error_budget and res.stop_reason != "cancelled":
             res.error_budget.update(tessellation_levels(self, res, lambda sim: sim._run(probe, query, None, cancel)))
         return probe, res
@@ -385,7 +388,7 @@ def left_out(sim: Simulation, res: IlluminanceResult, query: Query, rerun) -> di
     per effect ``{"difference": lux with it forced on − res.lux, "stderr": √(σ_run² + σ_pilot²), "photons",
     "seconds", "estimator" of the pilot, "ran"}``.
 
-    The pilot (`rerun(pilot query)`) is the same query with the effect forced on, under the
+    The pilot (`rerun(pilot query, simulation)`) is the same query with the effect forced on, under the
     query's own stop rules (its target error, photon and time budget: the difference's error is then about √2
     times the run's own, and the answer takes up to 1 + (effects named) times as long) and an independent seed
     (`_pilot_seed`: the two estimates are independent, so their variances add). An effect that leaves the photon
@@ -394,7 +397,9 @@ def left_out(sim: Simulation, res: IlluminanceResult, query: Query, rerun) -> di
     is exactly 0 ± 0 and no pilot runs (``"ran": false``). What a pilot can change today is therefore the light's
     state: polarization (polarized Fresnel instead of the s/p average) and a wavelength per photon (spectral and
     the effects that need it). An effect the query forced off (`force_effects_off`) is measured the same way: the
-    pilot turns it back on. A cancelled run runs no pilot (``{}``).
+    pilot turns it back on. ``"element_geometry"`` (`LEFT_OUT_MODELS`) measures the elements used through their
+    tabulated BSDF: the pilot runs on the scene with each traced by its exact micro-geometry (`exact_elements`;
+    0 ± 0, no pilot, where no element is tabulated). A cancelled run runs no pilot (``{}``).
     """
     if res.stop_reason == "cancelled":
         return {}
@@ -403,20 +408,42 @@ def left_out(sim: Simulation, res: IlluminanceResult, query: Query, rerun) -> di
     pilot_estimator = "forward" if query.estimator == "forward" else "auto"
     out = {}
     for k, name in enumerate(query.physics_left_out):
-        if photon_state(with_forced(base, name)) == photon_state(base):
+        on: Simulation | None = sim   # what the pilot runs on; None: nothing would change
+        if name in LEFT_OUT_MODELS:
+            on, force = exact_elements(sim), asked
+        else:
+            force = (*asked, name)
+            if photon_state(with_forced(base, name)) == photon_state(base):
+                on = None
+        if on is None:
             zero = np.zeros_like(res.lux)
             out[name] = {"difference": zero, "stderr": zero.copy(), "photons": 0, "seconds": 0.0,
                          "estimator": None, "ran": False}
             continue
-        force = (*asked, name)
         pilot = rerun(dataclasses.replace(query, seed=_pilot_seed(query.seed, k), estimator=pilot_estimator,
                                           force_effects=force, observe=(), reference=None, physics_left_out=(),
                                           tessellation_estimate=False,
-                                          force_effects_off=tuple(e for e in off if e not in force)))
+                                          force_effects_off=tuple(e for e in off if e not in force)), on)
         out[name] = {"difference": pilot.lux - res.lux, "stderr": np.hypot(pilot.stderr, res.stderr),
                      "photons": int(pilot.photons), "seconds": float(pilot.seconds),
                      "estimator": pilot.estimator, "ran": True}
     return out
+
+
+def exact_elements(sim: Simulation) -> Simulation | None:
+    """The same simulation with every element that a tabulated BSDF stands for traced by its exact micro-geometry
+    (`tracer.Scene.exact_elements`), built once; None where the scene has no tabulated element."""
+    if not sim.scene.tabulated_elements():
+        return None
+    if sim._exact is None:
+        import copy
+
+        materials, lights, default = sim._inputs
+        scene = copy.deepcopy(sim.scene)
+        scene.exact_elements()
+        scene.commit()
+        sim._exact = Simulation(scene, materials, lights, default, sim.backend)
+    return sim._exact
 
 
 # ------------------------------------------------------------------------------------------ tessellation

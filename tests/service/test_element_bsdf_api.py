@@ -121,3 +121,28 @@ def test_every_answer_through_a_table_carries_its_measured_error_and_it_covers_t
     difference = share[0] - share[1]
     bound = abs(error["air"]["deviation"])
     assert abs(difference) <= bound + 4 * np.hypot(error["air"]["stderr"], np.hypot(*sigma)), (difference, error)
+
+
+def test_physics_left_out_says_how_far_the_table_is_from_the_exact_dots(client: Any) -> None:
+    """Over REST: ``physics_left_out: ["element_geometry"]`` on a scene whose element goes through its table gives
+    the exact micro-geometry's lux minus the answer's, with its error bar, and leaves the assignment tabulated; an
+    unknown name is a 422 naming the names it takes."""
+    sid = _scene(client)
+    eid = client.post("/elements", json=DOTS).json()["id"]
+    assert client.post(f"/scenes/{sid}/elements", json={"element": eid, "node": uid(1), "facing": [0, 0, 1],
+                                                        "model": "bsdf"}).status_code == 201
+    sensor = client.post(f"/scenes/{sid}/sensors", json={
+        "type": "grid", "origin": [0.0, 0.0, -0.001], "u": [0.02, 0, 0], "v": [0, 0.02, 0], "nu": 1, "nv": 1}
+                         ).json()["id"]
+    client.post(f"/scenes/{sid}/lights", json={"type": "collimated", "origin": [0.01, 0.01, 0.005],
+                                               "direction": [0, 0, -1], "radius": 0.003, "illuminance_lx": 1000})
+    ask = {"max_photons": 4000, "seed": 1, "estimator": "forward"}
+    a = client.post(f"/scenes/{sid}/sensors/{sensor}/simulate", json={**ask, "physics_left_out": ["element_geometry"]})
+    assert a.status_code == 200, a.text
+    left = a.json()["physics_left_out"]["element_geometry"]
+    assert left["ran"] and left["photons"] > 0 and left["stderr"][0][0] > 0
+    assert np.isfinite(left["difference"][0][0])
+    assert [e["model"] for e in a.json()["elements"]] == ["bsdf"]
+    assert client.get(f"/scenes/{sid}/elements").json()[0]["model"] == "bsdf"
+    bad = client.post(f"/scenes/{sid}/sensors/{sensor}/simulate", json={**ask, "physics_left_out": ["elements"]})
+    assert bad.status_code == 422 and "element_geometry" in bad.text, bad.text

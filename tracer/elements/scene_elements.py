@@ -50,6 +50,18 @@ class SceneElements:
         self._kind[i], self._igeom[i], self._obox[i] = kind, self._geometry(rest).index, box
         self._touch(i, True)
 
+    def tabulated_elements(self) -> list[int]:
+        """The instances whose element is used through its tabulated BSDF, ascending."""
+        return sorted(i for i, row in self._reliefs.rows.items() if row.table is not None)
+
+    def exact_elements(self) -> list[int]:
+        """Trace every element by its exact micro-geometry where its tabulated BSDF stood for it (what the query option
+        ``physics_left_out: ["element_geometry"]`` measures against); the instances changed (commit to see them)."""
+        changed = self._reliefs.untabulate()
+        for i in changed:
+            self._touch(i, False)
+        return changed
+
     def gratings(self) -> list[Any]:
         """The grating (`tracer.elements.grating.GratingTable`) of each instance that carries one, in instance order."""
         return [row.element for _, row in sorted(self._reliefs.rows.items())

@@ -34,6 +34,16 @@ class Reliefs:
         if self.rows.pop(i, None) is not None:
             self._packed = None
 
+    def untabulate(self) -> list[int]:
+        """Use every element through its exact micro-geometry where a tabulated BSDF stood for it; the instances
+        whose row changed."""
+        changed = [i for i, row in self.rows.items() if row.table is not None]
+        for i in changed:
+            self.rows[i] = dataclasses.replace(self.rows[i], table=None)
+        if changed:
+            self._packed = None
+        return changed
+
     def full_of(self, i: int, own: str) -> str:
         """The part's own geometry id of instance `i`: its row's where it carries an element, else `own`."""
         return self.rows[i].full if i in self.rows else own

@@ -49,8 +49,9 @@ class Query:
     """One measurement's request (see the module docstring; `Simulation.run` says what each field does).
 
     budget : `Budget` (stop rules as stated, None where not).  seed : int in [0, 2**63).
-    estimator : one of `ESTIMATORS`.  force_effects, force_effects_off, physics_left_out : effect names
-    (`tracer.effects.EFFECTS`).  observe : names of `OBSERVABLES`.  reference : (3,) floats or None.
+    estimator : one of `ESTIMATORS`.  force_effects, force_effects_off : effect names (`tracer.effects.EFFECTS`).
+    physics_left_out : effect names, or names of `LEFT_OUT_MODELS`.  observe : names of `OBSERVABLES`.
+    reference : (3,) floats or None.
     tessellation_estimate : bool.
     """
 
@@ -77,6 +78,10 @@ class Query:
         return (*self.force_effects, *(("spectral",) if spectrum else ()), *(("polarization",) if stokes else ()))
 
 
+#: what ``physics_left_out`` measures beside the effects: a model the scene uses in place of the exact one
+LEFT_OUT_MODELS = ("element_geometry",)   # the elements' micro-geometry where their tabulated BSDF stands for it
+
+
 def query(target_relative_error=None, max_seconds=None, max_photons=None, seed=0, estimator="auto",
           force_effects=(), force_effects_off=(), observe=(), reference=None, physics_left_out=(),
           target_scope="worst", tessellation_estimate=False) -> Query:
@@ -91,7 +96,7 @@ def query(target_relative_error=None, max_seconds=None, max_photons=None, seed=0
                  _one_of(estimator, ESTIMATORS, "estimator"), forced, off,
                  _names(observe, OBSERVABLES, "observe", "observable"),
                  _reference(reference),
-                 _names(physics_left_out, EFFECTS, "physics_left_out", "effect", once=True),
+                 _names(physics_left_out, (*EFFECTS, *LEFT_OUT_MODELS), "physics_left_out", "effect", once=True),
                  _flag(tessellation_estimate, "tessellation_estimate"))
 
 
