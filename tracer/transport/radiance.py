@@ -47,6 +47,7 @@ from tracer.accel.traverse import any_with_stacks, closest_with_stacks, new_stac
 from tracer.jit import njit
 from tracer.optics.frames import sample_cosine
 from tracer.optics.lights import light_connect, pick_light
+from tracer.optics.lights.area import emitting_triangles
 from tracer.optics.lights.base import AREA_EMITTER, P_I0
 from tracer.optics.lights.dispatch import flags_of, light_flags
 from tracer.optics.polarization import N_POL
@@ -101,22 +102,45 @@ def pinhole(k: int) -> tuple[np.ndarray, np.ndarray]:
 
 class Emitters(NamedTuple):
     """Which instance emits: le (n_inst,) its radiance M/π on its front side (cd/m², 0: none); light (n_inst,) int64
-    the area light it belongs to (−1: none), whose pick probability and area the MIS weight reads."""
+    the area light it belongs to (−1: none), whose pick probability and area the MIS weight reads; tri0 (n_inst,)
+    int64: where the instance's triangle mask starts in `emits` (−1: every triangle emits); emits (m,) uint8: 1 for
+    a triangle that emits (an area light with `facing`: its chosen faces only)."""
 
     le: np.ndarray
     light: np.ndarray
+    tri0: np.ndarray
+    emits: np.ndarray
 
 
-def emitters(light_bodies: list[dict], n_inst: int) -> Emitters:
-    """The `Emitters` of a simulation's (validated) light bodies: each area light's instances emit M/π."""
+def emitters(light_bodies: list[dict], n_inst: int, scene) -> Emitters:
+    """The `Emitters` of a simulation's (validated) light bodies over `scene` (a `tracer.Scene`): each area light's
+    instances emit M/π, from the triangles facing its `facing` where it has one."""
     le = np.zeros(max(n_inst, 1))
     light = np.full(max(n_inst, 1), -1, np.int64)
+    tri0 = np.full(max(n_inst, 1), -1, np.int64)
+    masks = [np.zeros(1, np.uint8)]
+    used = 1
     for j, body in enumerate(light_bodies):
         if flags_of(body) & AREA_EMITTER:
             for i in body["instances"]:
                 le[int(i)] += float(body["exitance_lm_m2"]) / math.pi
                 light[int(i)] = j
-    return Emitters(le, light)
+                mask = emitting_triangles(scene, int(i), body.get("facing"))
+                if mask is not None:
+                    tri0[int(i)] = used
+                    masks.append(mask.astype(np.uint8))
+                    used += len(mask)
+    return Emitters(le, light, tri0, np.concatenate(masks))
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def emits(E, inst, prim):
+    """Whether triangle `prim` of instance `inst` emits (an instance of an area light; a feature of an element,
+    prim < 0, does not where the light chose its faces)."""
+    o = E.tri0[inst]
+    if o < 0:
+        return True
+    return prim >= 0 and E.emits[o + prim] != 0
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
@@ -294,7 +318,7 @@ def trace_view(sa, M, L, V, E, P, q, key, counters, med, pol, stack, tstack):
             break
         px, py, pz = x + t * dx, y + t * dy, z + t * dz
         cos_hit = -(dx * ngx + dy * ngy + dz * ngz)
-        lit = inst < E.le.shape[0] and E.le[inst] > 0.0 and cos_hit > 0.0
+        lit = inst < E.le.shape[0] and E.le[inst] > 0.0 and cos_hit > 0.0 and emits(E, inst, prim)
         if lit and eye_diffuse and pb_scale == 0.0 and traced_area(P, E, inst):
             counters[C_LEFT] += 1
             lit = P.photons[0] <= 0   # after a specular vertex, seen from a diffuse first vertex: light tracing's

@@ -388,7 +388,7 @@ def radiance(sim, probe: Probe, budget: Budget, seed: int, estimator: str, effec
     if budget.max_photons is not None:
         paths = int(min(paths, max(1, budget.max_photons // (4 * shape.first_round * k))))
     per_batch = paths * k
-    emit = emitters(sim.light_bodies, len(sim.snapshot("backward").parts[1].kind))
+    emit = emitters(sim.light_bodies, len(sim.snapshot("backward").parts[1].kind), sim.scene)
     shape_2d = (probe.keep or {}).get("shape")
     width = int(shape_2d[1]) if shape_2d is not None and int(views.kind[0]) == PIXEL else 0
     lights, scene = sim.snapshot("backward").parts[2], sim.snapshot("backward")

@@ -179,6 +179,25 @@ def test_plane_under_an_area_light_reads_rho_e_over_pi_with_mis():
     assert abs(r.luminance - exact) <= Z * r.stderr + 1e-4 * exact, (r.luminance, r.stderr, exact)
 
 
+def test_an_led_box_emits_from_its_chosen_face_only():
+    """An area light on a 1 × 1 × 0.2 m box with ``facing`` down: the floor 1.5 m off its axis reads ρE/π with E
+    from the bottom face alone (E = 2 × (corner(2.0, 0.5) − corner(1.0, 0.5)) at h = 2; the box's +x side, which
+    that point sees, must not glow; E's curvature over the 1° spot moves it by < 1e-5), and meters see M/π on the
+    bottom face and 0 on the side."""
+    s, ids = scene_of(box([-0.5, -0.5, 2.0], [0.5, 0.5, 2.2]), quad([-50, -50, 0], [100, 0, 0], [0, 100, 0]))
+    light = {"type": "area", "instances": [ids[0]], "exitance_lm_m2": M_EXIT, "facing": [0, 0, -1]}
+    sim = Simulation(s, {ids[0]: {"type": "black"}, ids[1]: {"type": "lambertian", "reflectance": RHO}}, [light])
+    r = sim.run({"type": "luminance", "position": [1.5, 0, 1.0], "direction": [0, 0, -1], "aperture_deg": 1.0},
+                max_photons=80_000, seed=8)
+    e = 2 * (rectangle_corner_e(M_EXIT, 2.0, 0.5, 2.0) - rectangle_corner_e(M_EXIT, 1.0, 0.5, 2.0))
+    exact = RHO / math.pi * e
+    assert abs(r.luminance - exact) <= Z * r.stderr + 1e-4 * exact, (r.luminance, r.stderr, exact)
+    bottom = sim.run(UP_METER, max_photons=4_000, seed=9)
+    side = sim.run({"type": "luminance", "position": [1.5, 0.0, 2.1], "direction": [-1, 0, 0], "aperture_deg": 1.0},
+                   max_photons=4_000, seed=9)
+    assert bottom.luminance == pytest.approx(M_EXIT / math.pi) and side.luminance == 0.0
+
+
 def test_point_source_seen_in_a_mirror_is_unreachable():
     """A meter looking into a mirror toward a point source: paths from the eye cannot find it; the answer says so
     (`unreachable`) rather than a silent 0."""

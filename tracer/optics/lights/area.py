@@ -119,6 +119,22 @@ def pack(spec: Spec, j: int, out: Packing, where: str) -> float:
     return row[P_FLUX]
 
 
+def facing_triangles(v: np.ndarray, tri: np.ndarray, facing: tuple) -> np.ndarray:
+    """(m,) bool: which triangles (indices into vertices `v`, object space) face `facing` (any length) within
+    `FACING_DEG`."""
+    n = np.cross(v[tri[:, 1]] - v[tri[:, 0]], v[tri[:, 2]] - v[tri[:, 0]])
+    f = np.asarray(facing, np.float64)
+    return n @ (f / np.linalg.norm(f)) >= math.cos(math.radians(FACING_DEG)) * np.linalg.norm(n, axis=1)
+
+
+def emitting_triangles(scene, inst: int, facing: tuple | None) -> np.ndarray | None:
+    """(m,) bool over instance `inst`'s triangles (its part's own, in order): which emit; None where all do."""
+    if facing is None:
+        return None
+    v, tri = scene.geometry_arrays(scene.instance_geometry(inst))[:2]
+    return facing_triangles(np.asarray(v, np.float64), np.asarray(tri, np.int64), facing)
+
+
 def _world_triangles(scene, inst: int, facing: tuple | None = None) -> np.ndarray:
     """(m, 9) world-space triangles (v0, e1, e2) of one instance, those whose object-space front normal lies within
     `FACING_DEG` of `facing` where it is given; edges of a mirrored instance are swapped so that e1 × e2 keeps
@@ -127,9 +143,7 @@ def _world_triangles(scene, inst: int, facing: tuple | None = None) -> np.ndarra
     arrays = scene.geometry_arrays(gid)
     v, tri = np.asarray(arrays[0], np.float64), np.asarray(arrays[1], np.int64)
     if facing is not None:
-        n = np.cross(v[tri[:, 1]] - v[tri[:, 0]], v[tri[:, 2]] - v[tri[:, 0]])
-        length = np.linalg.norm(n, axis=1)
-        tri = tri[n @ np.asarray(facing) >= math.cos(math.radians(FACING_DEG)) * length]
+        tri = tri[facing_triangles(v, tri, facing)]
     m = np.asarray(scene.instance_transform(inst), np.float64)
     w = v @ m[:3, :3].T + m[:3, 3]
     p0, p1, p2 = w[tri[:, 0]], w[tri[:, 1]], w[tri[:, 2]]
