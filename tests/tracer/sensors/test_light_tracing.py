@@ -78,7 +78,17 @@ CAMERA = {"type": "camera", "position": [3.0, 0.0, 2.5], "look_at": [2.0, 0.0, 0
 
 
 def pixel_means(body: dict, mirror: bool = True, n: int = 24, area: bool = False) -> np.ndarray:
-    """Each pixel's mean luminance over its film area (midpoint rule, n × n), top row first."""
+    """Each pixel's mean floor luminance over its film area (midpoint rule, n × n), top row first."""
+    def mean(eye: np.ndarray, d: np.ndarray) -> float:
+        p = eye[None, :] + (-eye[2] / d[:, 2])[:, None] * d
+        assert np.all(p[:, 0] > 0.5)   # every pixel sees the floor in front of the mirror
+        return float(floor_luminance(p, mirror, area).mean())
+    return over_pixels(body, n, mean)
+
+
+def over_pixels(body: dict, n: int, mean) -> np.ndarray:
+    """(height, width), top row first: `mean(eye, directions (n², 3))` of each pixel of camera `body`, its
+    directions those of the midpoint rule (n × n) over the pixel's film area."""
     eye = np.asarray(body["position"], float)
     fwd = np.asarray(body["look_at"], float) - eye
     fwd /= np.linalg.norm(fwd)
@@ -93,10 +103,7 @@ def pixel_means(body: dict, mirror: bool = True, n: int = 24, area: bool = False
     for row in range(h):
         for col in range(w):
             X, Y = np.meshgrid(-hw + (col + sub) * 2 * hw / w, hh - (row + sub) * 2 * hh / h)
-            d = (fwd + X[..., None] * right + Y[..., None] * up).reshape(-1, 3)
-            p = eye[None, :] + (-eye[2] / d[:, 2])[:, None] * d
-            assert np.all(p[:, 0] > 0.5)   # every pixel sees the floor in front of the mirror
-            out[row, col] = floor_luminance(p, mirror, area).mean()
+            out[row, col] = mean(eye, (fwd + X[..., None] * right + Y[..., None] * up).reshape(-1, 3))
     return out
 
 
@@ -164,23 +171,8 @@ def wall_luminance(p: np.ndarray) -> np.ndarray:
 
 def wall_pixel_means(body: dict, n: int = 24) -> np.ndarray:
     """Each pixel's mean wall luminance (midpoint rule, n × n), top row first."""
-    eye = np.asarray(body["position"], float)
-    fwd = np.asarray(body["look_at"], float) - eye
-    fwd /= np.linalg.norm(fwd)
-    right = np.cross(fwd, [0, 0, 1.0])
-    right /= np.linalg.norm(right)
-    up = np.cross(right, fwd)
-    w, h = body["width"], body["height"]
-    hh = math.tan(math.radians(body["fov_deg"]) / 2)
-    hw = hh * w / h
-    sub = (np.arange(n) + 0.5) / n
-    out = np.zeros((h, w))
-    for row in range(h):
-        for col in range(w):
-            X, Y = np.meshgrid(-hw + (col + sub) * 2 * hw / w, hh - (row + sub) * 2 * hh / h)
-            d = (fwd + X[..., None] * right + Y[..., None] * up).reshape(-1, 3)
-            out[row, col] = wall_luminance(eye[None, :] + ((WALL_X - eye[0]) / d[:, 0])[:, None] * d).mean()
-    return out
+    return over_pixels(body, n, lambda eye, d: float(
+        wall_luminance(eye[None, :] + ((WALL_X - eye[0]) / d[:, 0])[:, None] * d).mean()))
 
 
 def test_an_led_behind_a_glass_pane_lights_the_wall_by_the_panes_transmission():
