@@ -36,6 +36,7 @@ from tracer.transport.light_tracing import (
     C_LIGHT_SPLATS,
     C_VIEW_RAYS,
     light_paths,
+    no_light_paths,
 )
 from tracer.transport.query import Budget
 from tracer.transport.radiance import COUNTERS as RADIANCE_COUNTERS
@@ -319,7 +320,7 @@ PILOT_SEED = 0x5EED_A4EA   # the pilot's seed is the query's plus this: its rand
 
 
 def area_light_pilot(scene: Shipment, views, emit, lights, effects, photons: int, paths: int, width: int, seed: int,
-                     backend: QueryBackend) -> tuple[dict | None, Any]:
+                     backend: QueryBackend, others_traced: bool) -> tuple[dict | None, Any]:
     """Whether, and with how many photons a batch, light tracing from the area lights runs beside this query's paths
     from the eye (`tracer.transport.radiance`, "Light tracing"). Two batches of `photons` photons from the area
     lights alone (on a seed of their own) give light tracing's part of the light the views see; two batches of the
@@ -336,17 +337,17 @@ def area_light_pilot(scene: Shipment, views, emit, lights, effects, photons: int
 
     Returns (None, None) where there is nothing to decide (no area light, or no specular surface); else ({"photons",
     "joined", "eye_finds", "share", "traced", "per_batch"}, the eye batches' (values, counters) where they are the
-    query's own batches 0 and 1, else None). They are reused where no light is traced at all, the area lights
-    included: the query's batches are then paths from the eye alone, as these are. Where light tracing is chosen they
-    are dropped: paths from the eye alone read, behind a pane, 0 in almost every batch and a spike in a rare one,
-    unbiased but no start for an estimate.)"""
+    query's own batches 0 and 1, else None). They are reused where no light is traced at all (`others_traced`
+    False: no other light is traced anyway), the area lights included: the query's batches are then paths from the
+    eye alone, as these are. Where light tracing is chosen they are dropped: paths from the eye alone read, behind
+    a pane, 0 in almost every batch and a spike in a rare one, unbiased but no start for an estimate.)"""
     trial = light_paths(lights, effects, photons, width, area=True, others=False)
     if int(trial.photons[0]) == 0:
         return None, None
     pilot_seed = (seed + PILOT_SEED) % 2 ** 63
     k = len(views.kind)
     light, counters = backend.run(("radiance",), scene, Shipment((views, emit, trial, pilot_seed)), 0, 2, 0)
-    reuse = int(light_paths(lights, effects, 1, width).photons[0]) == 0
+    reuse = not others_traced
     counting = trial._replace(photons=np.zeros(1, np.int64))   # no photons: the eye paths count, and keep, the finds
     eye = backend.run(("radiance",), scene, Shipment((views, emit, counting, seed if reuse else pilot_seed)), 0, 2,
                       paths)
@@ -393,12 +394,16 @@ def radiance(sim, probe: Probe, budget: Budget, seed: int, estimator: str, effec
     width = int(shape_2d[1]) if shape_2d is not None and int(views.kind[0]) == PIXEL else 0
     lights, scene = sim.snapshot("backward").parts[2], sim.snapshot("backward")
     photons = max(per_batch, MIN_LIGHT_PATHS)
-    compile_s = warm(("radiance",), scene, Shipment((views, emit, light_paths(lights, effects, 1, width), seed)),
-                     backend)
-    pilot, start = area_light_pilot(scene, views, emit, lights, effects, photons, paths, width, seed, backend)
-    traced = light_paths(lights, effects, photons, width, area=pilot is not None and pilot["traced"])
-    if pilot is not None and pilot["traced"] and int(light_paths(lights, effects, 1, width).photons[0]) == 0:
-        traced = traced._replace(photons=np.array([pilot["per_batch"]], np.int64))   # the area lights alone
+    others = light_paths(lights, effects, photons, width)   # traced whatever the pilot finds of the area lights
+    others_traced = int(others.photons[0]) > 0
+    compile_s = warm(("radiance",), scene, Shipment((views, emit, no_light_paths(len(others.cdf)), seed)), backend)
+    pilot, start = area_light_pilot(scene, views, emit, lights, effects, photons, paths, width, seed, backend,
+                                    others_traced)
+    traced = others
+    if pilot is not None and pilot["traced"]:
+        traced = light_paths(lights, effects, photons, width, area=True)
+        if not others_traced:   # the area lights alone: as many photons as the pilot found they pay for
+            traced = traced._replace(photons=np.array([pilot["per_batch"]], np.int64))
     query = Shipment((views, emit, traced, seed))
 
     def run_round(b0, nb):
