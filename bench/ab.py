@@ -13,7 +13,9 @@ Rays ``KIND/any`` (``camera/any``) time ``Scene.occluded`` on them as shadow seg
 to 1.5 times the farthest closest hit, as the tracer bench's any-hit rows). Scene ``room`` with rays ``photons``
 (or ``photons:N``) times forward photon tracing instead: 200,000 (N)
 photons through the diffuse room of ``bench/bench_transport.py`` (``Simulation.illuminance``, nine floor points);
-``mixed`` (``mixed:N``) adds a mirror block and a glass block to it.
+``mixed`` (``mixed:N``) adds a mirror block and a glass block to it; ``lux`` (``lux:N``) times the backward lux
+kernel instead (200,000 paths over the nine points), ``camera`` (``camera:N``) the luminance kernel (480,000 paths from
+an 80 x 60 camera, `bench/bench_luminance.py`'s view of the room).
 
 ``AB_ENV_B="NUMBA_OPT=1 NUMBA_CACHE_DIR=/tmp/o1"`` adds settings to checkout B's worker alone (A and B may then be one
 checkout: an LLVM level against the default; give B its own numba cache, whose index does not key the level).
@@ -38,9 +40,10 @@ def one_pass(scene: str, rays: str) -> Callable[[], object]:
     if scene == "room":
         import numpy as np
 
-        if rays.split(":")[0] not in ("photons", "mixed"):
-            raise SystemExit("scene room takes rays 'photons', 'photons:N', 'mixed' or 'mixed:N'")
-        photons = int(rays.split(":")[1]) if ":" in rays else 200_000
+        kind = rays.split(":")[0]
+        if kind not in ("photons", "mixed", "lux", "camera"):
+            raise SystemExit("scene room takes rays 'photons', 'mixed', 'lux' or 'camera', each with ':N' or not")
+        photons = int(rays.split(":")[1]) if ":" in rays else {"lux": 200_000, "camera": 480_000}.get(kind, 200_000)
         from bench.bench_transport import floor_points, room_scene
         from tracer.simulate import Simulation
 
@@ -55,6 +58,14 @@ def one_pass(scene: str, rays: str) -> Callable[[], object]:
             s.commit()
         sim = Simulation(s, materials, [{"type": "point", "position": [2.0, 2.0, 2.5], "intensity_cd": 1000.0}])
         pts, nrm = floor_points(3)
+        if kind == "lux":
+            sim.illuminance(pts, nrm, max_photons=1000, estimator="backward")
+            return lambda: sim.illuminance(pts, nrm, max_photons=photons, estimator="backward")
+        if kind == "camera":
+            from bench.bench_luminance import camera
+
+            sim.run(camera(2, 2), max_photons=64)
+            return lambda: sim.run(camera(80, 60), max_photons=photons)
         sim.illuminance(pts, nrm, max_photons=1000, estimator="forward")
         return lambda: sim.illuminance(pts, nrm, max_photons=photons, estimator="forward")
     from bench.instructions import scene_and_rays

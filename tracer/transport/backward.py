@@ -60,7 +60,7 @@ class QueryArrays(NamedTuple):
     n: np.ndarray
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def direct_illuminance(sa, L, x, y, z, nx, ny, nz, u0, u1, u2, u3, stack, tstack):
     """Estimate of the direct illuminance (lx) at point x on a surface with unit normal n, from one light.
 
@@ -79,7 +79,7 @@ def direct_illuminance(sa, L, x, y, z, nx, ny, nz, u0, u1, u2, u3, stack, tstack
     return e / pj
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def trace_path(sa, M, L, Q, q, key, counters, stack, tstack):
     """One backward path from query patch q: an unbiased estimate of its mean illuminance (lx)."""
     if Q.kind[q] == 0:

@@ -114,7 +114,7 @@ def traced_area(P, E, inst):
     return P.cdf[j] - (P.cdf[j - 1] if j > 0 else 0.0) > 0.0
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def join_eye(sa, V, P, lum, x, y, z, nx, ny, nz, value, u0, u1, stack, tstack):
     """Join a diffuse vertex x (off its surface; n its unit normal on the side the photon came from) to the views'
     eyes: `value` = the photon's flux × ρ/π (lm/sr, the radiant intensity per unit projected area that its diffuse

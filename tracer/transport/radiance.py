@@ -237,7 +237,7 @@ def power_heuristic(p, other):
     return p * p / (p * p + other * other)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def light_sample(sa, L, x, y, z, nx, ny, nz, pb_scale, u0, u1, u2, u3, stack, tstack):
     """Next-event estimation at x (off its surface, unit normal n): the illuminance (lx) from one light picked in
     proportion to its flux, divided by the pick's probability, MIS-weighted against a diffuse lobe that draws the
@@ -286,7 +286,7 @@ def seen_point_lights(sa, L, V, q, stack, tstack):
     return total
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def trace_view(sa, M, L, V, E, P, q, key, counters, med, pol, stack, tstack):
     """One path from the eye of view q: (an unbiased estimate of the luminance the paths find, cd/m²; 1.0 where
     the view ray met a specular surface (or took a specular lobe) before any diffuse one, else 0.0). A traced area
