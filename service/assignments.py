@@ -119,7 +119,7 @@ class Assignments:
             if field is not None and not any(u in state.instances for u in state.tree.subtree(body[field])):
                 raise Invalid(f"{body['type']} sensor: node {body[field]} and its descendants have no geometry: "
                               f"nothing to tally", node=body[field])
-            if kind == "light" and body.get("facing") is not None:
+            if kind == "light" and (body.get("facing") is not None or body.get("faces") is not None):
                 _check_facing(state, body)
             if kind == "object" and self.scenes.missing_geometries([body["geometry"]]):
                 raise Invalid(f"geometry {body['geometry']} is not uploaded (PUT /geometries/{{id}} first)",
@@ -309,8 +309,9 @@ def validate_body(kind: str, body: Any) -> dict:
 
 
 def _check_facing(state: SceneState, body: dict) -> None:
-    """422 for an area light whose `facing` no triangle of its node's subtree faces (`tracer.optics.lights.area`),
-    before anything is stored; a node without geometry yet is left to the query, which names it."""
+    """422 for an area light whose `facing` no triangle of its node's subtree faces, or whose `faces` its parts'
+    meshes do not have (`tracer.optics.lights.area`), before anything is stored; a node without geometry yet is left
+    to the query, which names it."""
     from tracer.errors import TracerError
     from tracer.optics.lights import pack_lights
 
@@ -325,4 +326,4 @@ def _check_facing(state: SceneState, body: dict) -> None:
     try:
         pack_lights([{**light, "instances": instances}], state.tracer)
     except TracerError as exc:
-        raise Invalid(f"light: {exc}", field="facing") from None
+        raise Invalid(f"light: {exc}", field="faces" if "faces" in body else "facing") from None

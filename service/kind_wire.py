@@ -26,6 +26,7 @@ from pydantic import BaseModel, ConfigDict, Field, StringConstraints, create_mod
 
 from service.wire import Attachable, NodeRef, Spectral, Vec3, Wire
 from tracer.errors import TracerError
+from tracer.geometry_id import MAX_FACE_INDEX
 from tracer.optics.fields import PLACED, BodyField, is_placed, node_field
 from tracer.optics.lights import dispatch as light_kinds
 from tracer.sensors import dispatch as sensor_kinds
@@ -60,6 +61,8 @@ def _type(f: BodyField) -> Any:
         return Vec3
     if f.value == "node":
         return NodeRef
+    if f.value == "faces":
+        return Annotated[list[Annotated[int, Field(ge=0, le=MAX_FACE_INDEX)]], Field(min_length=1, max_length=10_000)]
     if f.value == "choice":
         return Literal[f.choices]
     if f.value == "text":

@@ -71,7 +71,7 @@ class SceneGeometries:
                               f"directory (LUMENLINK_DATA_DIR)", geometry=gid)
         mesh = self.meshes.load(gid)
         # the store holds only meshes whose id was checked on upload (one hash per mesh): not hashed again here
-        state.tracer.add_geometry(mesh.vertices, mesh.triangles, mesh.normals, known_id=gid)
+        state.tracer.add_geometry(mesh.vertices, mesh.triangles, mesh.normals, known_id=gid, face_ids=mesh.face_ids)
         state.geometries.add(gid)
         if mesh.face_ids is not None:   # what an element assignment by B-rep `faces` selects from
             state.face_ids[gid] = mesh.face_ids

@@ -30,7 +30,7 @@ from tracer.accel.traverse import SceneArrays
 from tracer.elements.scene_elements import SceneElements
 from tracer.elements.table import Reliefs
 from tracer.errors import NotCommittedError, TracerError, UnknownIdError
-from tracer.geometry_id import canonical_arrays, hash_canonical, is_geometry_id
+from tracer.geometry_id import canonical_arrays, canonical_faces, hash_canonical, is_geometry_id
 from tracer.jit import njit
 from tracer.kinds import REGISTRY, SENSOR_KINDS, mesh
 
@@ -194,12 +194,14 @@ class Scene(SceneElements, SceneQueries):
         self._dirty_ids: set[int] = set()
         self._top = TopLevels(self._wbox, self.tlas_refit)   # the solid and the sensor top level
         self._reliefs = Reliefs()   # the instances that carry an element with an inside
+        self._face_ids: dict[str, np.ndarray] = {}   # geometry id -> each triangle's B-rep face index
         self._inst_changed = True
         self._arrays: SceneArrays | None = None
         self._changed = True
 
     # ---------------------------------------------------------------- geometries
-    def add_geometry(self, vertices: Any, triangles: Any, normals: Any = None, *, known_id: str | None = None) -> str:
+    def add_geometry(self, vertices: Any, triangles: Any, normals: Any = None, *, known_id: str | None = None,
+                     face_ids: Any = None) -> str:
         """Add a triangle mesh; its BLAS is built at the next commit unless its id is known. Returns its geometry id
         (:func:`tracer.geometry_id`: the same content gives the same id).
 
@@ -207,16 +209,21 @@ class Scene(SceneElements, SceneQueries):
         vertex indices; normals : (n, 3) float or None — vertex normals for shading (need not be unit).
         known_id : str, optional — the arrays' geometry id where the caller has already computed it (the service
         checked it when the mesh was uploaded): taken as given, not hashed again, so it must be the arrays' own id.
+        face_ids : (m,) int or None — each triangle's B-rep face index (`tracer.geometry_id.canonical_faces`), hashed
+        with the mesh and kept for what selects faces by index (an area light's `faces`).
         """
         try:
             v, f, n = canonical_arrays(vertices, triangles, normals)
+            faces = canonical_faces(face_ids, len(f))
         except ValueError as exc:
             raise TracerError(f"add_geometry: {exc}") from None
         if known_id is not None and not is_geometry_id(known_id):
             raise TracerError(f"add_geometry: known_id must be a geometry id (64 lowercase hex), got {known_id!r}")
-        gid = hash_canonical(v, f, n) if known_id is None else known_id
+        gid = hash_canonical(v, f, n, faces) if known_id is None else known_id
         if gid in self._blas.geoms:
             return gid
+        if faces is not None:
+            self._face_ids[gid] = faces
         box = mesh.object_bounds_of(v) if len(f) else np.array([np.inf] * 3 + [-np.inf] * 3)
         self._blas.add(gid, v, f, n, box)
         self._changed = True
@@ -226,6 +233,11 @@ class Scene(SceneElements, SceneQueries):
         """``(vertices float32 (n,3), triangles uint32 (m,3), normals float32 (n,3) or None)`` of ``gid``."""
         g = self._geometry(gid)
         return g.vertices, g.triangles, g.normals
+
+    def face_ids(self, gid: str) -> np.ndarray | None:
+        """Each triangle's B-rep face index, uint32 (m,), as `add_geometry` was given it; None where it was not."""
+        self._geometry(gid)
+        return self._face_ids.get(gid)
 
     def geometries(self) -> list[str]:
         """Ids of all geometries added (built or pending)."""

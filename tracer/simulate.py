@@ -497,7 +497,8 @@ def refined(sim: Simulation) -> Simulation:
             gid = scene.instance_geometry(i)
             if gid not in done:
                 v, t, n = scene.geometry_arrays(gid)
-                done[gid] = scene.add_geometry(*refine(v, t, n))
+                ids = scene.face_ids(gid)   # refine's four children of each triangle come in four blocks
+                done[gid] = scene.add_geometry(*refine(v, t, n), face_ids=None if ids is None else np.tile(ids, 4))
             j = scene.add_instance(done[gid], scene.instance_transform(i))
             scene.remove_instance(i)
             if i in materials:

@@ -126,3 +126,38 @@ def test_a_bad_faces_is_a_422_naming_it_and_a_mesh_without_face_indices_is_valid
     assert client.get(f"/scenes/{sid}").json() == before
     ok = client.post(f"/scenes/{sid}/elements", json={"element": eid, "node": uid(2), "facing": [0, 0, 1]})
     assert ok.status_code == 201 and ok.json()["support"]["size_mm"] == pytest.approx([10.0, 10.0])
+
+
+def test_an_area_light_on_b_rep_faces_emits_from_that_face_and_a_bad_faces_is_a_422(client: Any, plate: Any) -> None:
+    """An LED's chosen face by B-rep index (issue 53): the light on the guide's bottom face carries Φ = M × its
+    2400 mm², whatever the rounded edges' tessellation; a face the part lacks, `faces` beside `facing`, or `faces` on
+    a part pushed without face indices is a 422 naming what is wrong, nothing stored."""
+    from tracer.optics.lights import pack_lights
+
+    bottom = _bottom(plate)
+    sid = client.post("/scenes", json={"name": "led face"}).json()["id"]
+    coarse, _ = _upload(client, plate, *COARSE)
+    v, t = box([0, 0, 0], [10, 10, 1])
+    plain, data = glb(v.astype(np.float32), t)
+    assert client.put(f"/geometries/{plain}", content=data,
+                      headers={"content-type": "model/gltf-binary"}).status_code in (200, 201)
+    nodes = [node(uid(0), None, "root"), node(uid(1), uid(0), "guide", geometry=coarse),
+             node(uid(2), uid(0), "plain", geometry=plain)]
+    assert client.put(f"/scenes/{sid}/document", json={"base_revision": 0, "length_unit": "mm", "nodes": nodes}
+                      ).status_code == 200
+    before = client.get(f"/scenes/{sid}").json()
+    for body, words in (({"node": uid(1), "faces": [99]}, "no triangle of the emitting parts lies on B-rep face 99"),
+                        ({"node": uid(2), "faces": [0]}, "carries no B-rep face indices"),
+                        ({"node": uid(1), "faces": [bottom], "facing": [0, 0, -1]}, "not both"),
+                        ({"node": uid(1), "faces": []}, "faces"),
+                        ({"node": uid(1), "faces": [-3]}, "faces")):
+        r = client.post(f"/scenes/{sid}/lights", json={"type": "area", "exitance_lm_m2": 1000.0, **body})
+        assert r.status_code == 422 and words in r.text, (body, r.text)
+    assert client.get(f"/scenes/{sid}/lights").json() == []
+    assert client.get(f"/scenes/{sid}").json() == before
+    r = client.post(f"/scenes/{sid}/lights", json={"type": "area", "node": uid(1), "exitance_lm_m2": 1000.0,
+                                                   "faces": [bottom]})
+    assert r.status_code == 201, r.text
+    live = client.app.state.live.get(sid)
+    L = pack_lights(live.lights, live.tracer)
+    assert L.flux_total[0] == pytest.approx(1000.0 * 60e-3 * 40e-3, rel=1e-6)   # the bottom face alone, m²

@@ -19,6 +19,8 @@ node       a node of the service's scene (UUID or path) whose surfaces, its desc
            body covers; the tracer receives ``instances``, the ids of their instances
 part_dir   3 finite numbers, not all zero: a direction in each covered part's own frame (as an element's
            ``facing``); it does not turn with an attachment, the parts carry it
+faces      a non-empty list of B-rep face indices (ints, 0 to 2^24 − 1) of each covered part's mesh (as an
+           element's ``faces``; the CAD adapter sends each triangle's face); the parts carry it too
 =========  ==========================================================================================
 
 ``doc`` states the meaning with its unit (shown by the API docs); ``required`` fields have no default (an
@@ -31,7 +33,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-VALUES = ("point", "direction", "vector", "number", "count", "choice", "text", "node", "part_dir")
+VALUES = ("point", "direction", "vector", "number", "count", "choice", "text", "node", "part_dir", "faces")
 PLACED = ("point", "direction", "vector")   # values that follow the node a body is attached to
 
 

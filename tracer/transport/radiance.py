@@ -104,7 +104,7 @@ class Emitters(NamedTuple):
     """Which instance emits: le (n_inst,) its radiance M/π on its front side (cd/m², 0: none); light (n_inst,) int64
     the area light it belongs to (−1: none), whose pick probability and area the MIS weight reads; tri0 (n_inst,)
     int64: where the instance's triangle mask starts in `emits` (−1: every triangle emits); emits (m,) uint8: 1 for
-    a triangle that emits (an area light with `facing`: its chosen faces only)."""
+    a triangle that emits (an area light with `facing` or `faces`: its chosen triangles only)."""
 
     le: np.ndarray
     light: np.ndarray
@@ -114,7 +114,7 @@ class Emitters(NamedTuple):
 
 def emitters(light_bodies: list[dict], n_inst: int, scene) -> Emitters:
     """The `Emitters` of a simulation's (validated) light bodies over `scene` (a `tracer.Scene`): each area light's
-    instances emit M/π, from the triangles facing its `facing` where it has one."""
+    instances emit M/π, from the triangles its `facing` or `faces` chooses where it has one."""
     le = np.zeros(max(n_inst, 1))
     light = np.full(max(n_inst, 1), -1, np.int64)
     tri0 = np.full(max(n_inst, 1), -1, np.int64)
@@ -125,7 +125,7 @@ def emitters(light_bodies: list[dict], n_inst: int, scene) -> Emitters:
             for i in body["instances"]:
                 le[int(i)] += float(body["exitance_lm_m2"]) / math.pi
                 light[int(i)] = j
-                mask = emitting_triangles(scene, int(i), body.get("facing"))
+                mask = emitting_triangles(scene, int(i), body.get("facing"), body.get("faces"))
                 if mask is not None:
                     tri0[int(i)] = used
                     masks.append(mask.astype(np.uint8))

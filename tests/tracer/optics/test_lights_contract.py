@@ -169,6 +169,61 @@ def test_an_area_light_facing_nothing_or_a_bad_direction_says_so(facing, words):
         pack_lights([{"type": "area", "instances": [led], "exitance_lm_m2": 1.0, "facing": facing}], s)
 
 
+def _led_with_faces(face_ids=True):
+    """The 2 x 1 x 0.5 m box of the test above, its triangles numbered by B-rep face as a CAD adapter would: faces
+    10 (−z), 11 (+z), 12 (−y), 13 (+x), 14 (+y), 15 (−x), two triangles each (`transport_scenes.box`'s order)."""
+    from tracer.scene import Scene
+
+    v, t = box([-1, -0.5, -0.25], [1, 0.5, 0.25])
+    s = Scene()
+    gid = s.add_geometry(v, t, face_ids=10 + np.arange(12) // 2 if face_ids else None)
+    led = s.add_instance(gid, np.eye(4))
+    s.commit()
+    return s, led
+
+
+def test_an_area_light_on_chosen_b_rep_faces_emits_from_those_triangles_only():
+    """`faces` picks the triangles of those B-rep faces: face 13 (+x) is the very light `facing` +x is (the same
+    triangles, Φ = M × 0.5 m²), faces 13 and 15 (two parallel faces, which no one direction picks) emit
+    Φ = M × 1 m² from x = ±1 only, each photon leaving its own face outward."""
+    s, led = _led_with_faces()
+    assert s.face_ids(s.instance_geometry(led)).tolist() == (10 + np.arange(12) // 2).tolist()
+    m_exit = 300.0
+    by_face = pack_lights([{"type": "area", "instances": [led], "exitance_lm_m2": m_exit, "faces": [13]}], s)
+    by_dir = pack_lights([{"type": "area", "instances": [led], "exitance_lm_m2": m_exit, "facing": [1, 0, 0]}], s)
+    assert by_face.flux_total[0] == pytest.approx(m_exit * 1.0 * 0.5, rel=1e-12)
+    np.testing.assert_array_equal(by_face.tri, by_dir.tri)
+    both = pack_lights([{"type": "area", "instances": [led], "exitance_lm_m2": m_exit, "faces": [15, 13]}], s)
+    assert both.flux_total[0] == pytest.approx(m_exit * 2 * 1.0 * 0.5, rel=1e-12)
+    out = emit(both, n=20_000)
+    np.testing.assert_allclose(np.abs(out[:, 0]), 1.0, rtol=0, atol=1e-12)          # on x = +1 or x = −1
+    assert 0.45 < np.mean(out[:, 0] > 0) < 0.55                                       # equal areas: half each
+    np.testing.assert_allclose(out[:, 8], np.sign(out[:, 0]), atol=1e-12)           # the face's outward normal
+    assert np.all(out[:, 3] * np.sign(out[:, 0]) > 0)                                 # leaving outward
+
+
+@pytest.mark.parametrize("extra, words", [
+    ({"faces": [13], "facing": [1, 0, 0]}, "give 'facing' or 'faces', not both"),
+    ({"faces": []}, "'faces' must be a non-empty list of B-rep face indices"),
+    ({"faces": [True]}, "'faces' must be a non-empty list"),
+    ({"faces": [-1]}, "'faces' must be a non-empty list"),
+    ({"faces": ["13"]}, "'faces' must be a non-empty list"),
+    ({"faces": 13}, "'faces' must be a non-empty list"),
+    ({"faces": [13, 99]}, r"faces\[1\] = 99: no triangle of the emitting parts lies on B-rep face 99 \(their faces: "
+                          r"\[10, 11, 12, 13, 14, 15\]\)"),
+])
+def test_an_area_light_on_faces_its_part_lacks_or_given_badly_says_so(extra, words):
+    s, led = _led_with_faces()
+    with pytest.raises(LightError, match=words):
+        pack_lights([{"type": "area", "instances": [led], "exitance_lm_m2": 1.0, **extra}], s)
+
+
+def test_an_area_light_on_faces_of_a_mesh_without_face_indices_says_how_to_choose_instead():
+    s, led = _led_with_faces(face_ids=False)
+    with pytest.raises(LightError, match="mesh carries no B-rep face indices .* or select by 'facing'"):
+        pack_lights([{"type": "area", "instances": [led], "exitance_lm_m2": 1.0, "faces": [13]}], s)
+
+
 # ------------------------------------------------------------------------------------- what is not connectable
 
 

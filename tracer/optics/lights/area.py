@@ -3,7 +3,9 @@
 The front side is the geometric normal's (e1 × e2 in world space; a mirrored instance keeps its
 outward side). Radiance M/π, Φ = M × area. `node` is the service's; the transport reads `instances`.
 With `facing`, only the triangles whose front normal, in their part's own frame, lies within `FACING_DEG` of it emit
-(an LED package's lens face, not its sides and back: issue 53); the flux is M × their area.
+(an LED package's lens face, not its sides and back: issue 53); the flux is M × their area. With `faces`, only the
+triangles of those B-rep faces emit (each part's mesh gives each triangle's face: `Scene.add_geometry`'s `face_ids`,
+which the CAD adapter sends): a face that no direction singles out, a curved lens or one of two parallel faces.
 
 ==============  ==================  =====  ====================================
 Field           Type                Unit   Default
@@ -11,6 +13,7 @@ Field           Type                Unit   Default
 instances       non-empty int list  —      required (instance ids, not sensors)
 exitance_lm_m2  float ≥ 0           lm/m²  required
 facing          [x, y, z], not 0    —      every triangle (a direction in each part's own frame)
+faces           non-empty int list  —      every triangle (B-rep face indices; not with `facing`)
 node            any                 —      ignored (the service's: its FIELDS value "node" gives `instances`)
 ==============  ==================  =====  ====================================
 
@@ -25,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tracer.geometry_id import MAX_FACE_INDEX
 from tracer.jit import njit
 from tracer.optics.fields import BodyField, fields
 from tracer.optics.frames import find_in_cdf, sample_cosine
@@ -47,7 +51,10 @@ FIELDS = fields(
     BodyField("exitance_lm_m2", "number", "Luminous exitance of the surfaces, lm/m².", lo=0.0, hi=1e15),
     BodyField("facing", "part_dir", "Only the triangles facing this way emit: a direction in each part's own frame "
                                     f"(as an element's `facing`), within {FACING_DEG:g}°; default every triangle.",
-              required=False))
+              required=False),
+    BodyField("faces", "faces", "Only the triangles of these B-rep faces emit: face indices of each emitting part's "
+                                "mesh, as the CAD adapter numbers them (as an element's `faces`); default every "
+                                "triangle. Not with `facing`.", required=False))
 EXAMPLE = {"type": "area", "name": "ceiling panel", "node": "room/ceiling_panel", "exitance_lm_m2": 2000.0}
 EFFECTS = ()
 FLAGS = AREA_EMITTER
@@ -56,11 +63,12 @@ FLAGS = AREA_EMITTER
 @dataclass(frozen=True)
 class Spec:
     """exitance_lm_m2 (lm/m²); instances: the ids as given (checked against the scene by `pack`); facing: a unit
-    direction in each part's own frame, or None (every triangle emits)."""
+    direction in each part's own frame, or None; faces: B-rep face indices, or None (neither: every triangle emits)."""
 
     exitance_lm_m2: float
     instances: tuple
     facing: tuple | None = None
+    faces: tuple | None = None
 
     @classmethod
     def from_body(cls, body: dict, where: str) -> Spec:
@@ -76,7 +84,17 @@ class Spec:
                 raise LightError(f"{where}: 'facing' must be 3 finite numbers, not all zero (a direction in each "
                                  f"emitting part's own frame), got {facing!r}"[:300])
             facing = tuple(unit)
-        return cls(m_exit, tuple(ids), facing)
+        faces = body.get("faces")
+        if faces is not None:
+            if facing is not None:
+                raise LightError(f"{where}: give 'facing' or 'faces', not both (a direction, or B-rep face indices)")
+            if not isinstance(faces, list | tuple) or not faces or not all(
+                    isinstance(f, int | np.integer) and not isinstance(f, bool) and 0 <= f <= MAX_FACE_INDEX
+                    for f in faces):
+                raise LightError(f"{where}: 'faces' must be a non-empty list of B-rep face indices (ints 0 to "
+                                 f"{MAX_FACE_INDEX}), got {faces!r}"[:300])
+            faces = tuple(sorted({int(f) for f in faces}))
+        return cls(m_exit, tuple(ids), facing, faces)
 
 
 def pack(spec: Spec, j: int, out: Packing, where: str) -> float:
@@ -91,7 +109,7 @@ def pack(spec: Spec, j: int, out: Packing, where: str) -> float:
             raise LightError(f"{where}: instance {i!r} is not in the scene")
         if int(i) in out.sensor_ids:
             raise LightError(f"{where}: instance {i} is a sensor and cannot emit")
-        world.append(_world_triangles(scene, int(i), spec.facing))
+        world.append(_world_triangles(scene, int(i), spec, where))
     tri = np.concatenate(world)
     e1, e2 = tri[:, 3:6], tri[:, 6:9]
     cr = np.cross(e1, e2)
@@ -102,6 +120,8 @@ def pack(spec: Spec, j: int, out: Packing, where: str) -> float:
     if len(tri) == 0 and spec.facing is not None:
         raise LightError(f"{where}: no triangle of the instances faces {list(spec.facing)} (within {FACING_DEG:g}°, "
                          f"in each part's own frame): check 'facing'")
+    if spec.faces is not None:
+        _check_faces(scene, spec, where)
     if len(tri) == 0:
         raise LightError(f"{where}: the instances have no triangle of non-zero area")
     area = 0.5 * area2
@@ -127,23 +147,47 @@ def facing_triangles(v: np.ndarray, tri: np.ndarray, facing: tuple) -> np.ndarra
     return n @ (f / np.linalg.norm(f)) >= math.cos(math.radians(FACING_DEG)) * np.linalg.norm(n, axis=1)
 
 
-def emitting_triangles(scene, inst: int, facing: tuple | None) -> np.ndarray | None:
-    """(m,) bool over instance `inst`'s triangles (its part's own, in order): which emit; None where all do."""
+def emitting_triangles(scene, inst: int, facing: tuple | None, faces: tuple | None = None,
+                       where: str = "area light") -> np.ndarray | None:
+    """(m,) bool over instance `inst`'s triangles (its part's own, in order): which emit (those facing `facing`, or
+    those of the B-rep faces `faces`); None where all do. A LightError where `faces` is given and the part's mesh
+    carries no face indices."""
+    gid = scene.instance_geometry(inst)
+    if faces is not None:
+        ids = scene.face_ids(gid)
+        if ids is None:
+            raise LightError(f"{where}: instance {inst}'s mesh carries no B-rep face indices (push it from CAD with "
+                             f"them, or select by 'facing')")
+        return np.isin(ids, np.asarray(faces, np.int64))
     if facing is None:
         return None
-    v, tri = scene.geometry_arrays(scene.instance_geometry(inst))[:2]
+    v, tri = scene.geometry_arrays(gid)[:2]
     return facing_triangles(np.asarray(v, np.float64), np.asarray(tri, np.int64), facing)
 
 
-def _world_triangles(scene, inst: int, facing: tuple | None = None) -> np.ndarray:
-    """(m, 9) world-space triangles (v0, e1, e2) of one instance, those whose object-space front normal lies within
-    `FACING_DEG` of `facing` where it is given; edges of a mirrored instance are swapped so that e1 × e2 keeps
-    pointing to the instance's outward side."""
+def _check_faces(scene, spec: Spec, where: str) -> None:
+    """A LightError naming each of `spec.faces` that no emitting part's mesh has a triangle of."""
+    present: set[int] = set()
+    for i in spec.instances:
+        present.update(np.unique(scene.face_ids(scene.instance_geometry(int(i)))).tolist())
+    for k, face in enumerate(spec.faces or ()):
+        if face not in present:
+            listed = sorted(present)
+            raise LightError(f"{where}: faces[{k}] = {face}: no triangle of the emitting parts lies on B-rep face "
+                             f"{face} (their faces: {listed[:50]}{' ...' if len(listed) > 50 else ''})")
+
+
+def _world_triangles(scene, inst: int, spec: Spec | None = None, where: str = "area light") -> np.ndarray:
+    """(m, 9) world-space triangles (v0, e1, e2) of one instance, those `spec` chooses (`emitting_triangles`) where
+    it is given; edges of a mirrored instance are swapped so that e1 × e2 keeps pointing to the instance's outward
+    side."""
     gid = scene.instance_geometry(inst)
     arrays = scene.geometry_arrays(gid)
     v, tri = np.asarray(arrays[0], np.float64), np.asarray(arrays[1], np.int64)
-    if facing is not None:
-        tri = tri[facing_triangles(v, tri, facing)]
+    if spec is not None:
+        chosen = emitting_triangles(scene, inst, spec.facing, spec.faces, where)
+        if chosen is not None:
+            tri = tri[chosen]
     m = np.asarray(scene.instance_transform(inst), np.float64)
     w = v @ m[:3, :3].T + m[:3, 3]
     p0, p1, p2 = w[tri[:, 0]], w[tri[:, 1]], w[tri[:, 2]]
