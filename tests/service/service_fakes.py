@@ -25,10 +25,10 @@ class FakeScene:
         self.next_id = 0
         self.calls = {"add_instance": 0, "remove_instance": 0, "set_transform": 0, "add_geometry": 0}
 
-    def add_geometry(self, vertices, triangles, normals=None, *, known_id=None) -> str:
+    def add_geometry(self, vertices, triangles, normals=None, *, known_id=None, face_ids=None) -> str:
         from tracer.geometry_id import geometry_id
 
-        gid = known_id if known_id is not None else geometry_id(vertices, triangles, normals)
+        gid = known_id if known_id is not None else geometry_id(vertices, triangles, normals, face_ids)
         self.calls["add_geometry"] += 1
         if gid not in self.geoms:
             self.pending.add(gid)
