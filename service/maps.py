@@ -16,16 +16,15 @@ from __future__ import annotations
 import io
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from matplotlib.axes import Axes
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.colors import Normalize, TwoSlopeNorm
-from matplotlib.figure import Figure
-from matplotlib.ticker import MaxNLocator
 
 from service.errors import ServiceError
+
+if TYPE_CHECKING:   # matplotlib itself is imported with the first picture (`_canvas`): 1.6 s of the service's start
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
 # A change counts as significant where |ΔE| exceeds this many combined standard errors
 # (2σ: about 5 % of unchanged cells of a large grid are flagged by chance, which is why the
@@ -149,12 +148,22 @@ def _axes_frame(o: np.ndarray, uu: np.ndarray, vv: np.ndarray) -> tuple[tuple[fl
     return (0.0, float(np.linalg.norm(uu)), 0.0, float(np.linalg.norm(vv))), "along u (m)", "along v (m)"
 
 
+def _canvas(width: float, height: float) -> Figure:
+    """A figure of width x height inches on an Agg canvas; matplotlib is imported here, with the first picture a
+    service process draws, not when the service starts (1.6 s of it)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width, height), dpi=110, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
 def _figure(aspect: float) -> tuple[Figure, Axes]:
     # Width fixed, height from the sensor's aspect ratio (clamped so labels stay legible).
     width = 7.0
     height = float(np.clip(width * aspect * 0.85 + 1.2, 3.5, 9.0))
-    fig = Figure(figsize=(width, height), dpi=110, layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = _canvas(width, height)
     return fig, fig.add_subplot()
 
 
@@ -216,6 +225,8 @@ def illuminance_map_figure(
     o, uu, vv = _check_frame(origin, u, v)
     lu, lv = float(np.linalg.norm(uu)), float(np.linalg.norm(vv))
     bottom, top = _lux_range(e, vmax, vmin, scale)
+
+    from matplotlib.colors import Normalize
 
     fig, ax = _figure(lv / lu)
     extent, xlabel, ylabel = _axes_frame(o, uu, vv)
@@ -359,6 +370,8 @@ def difference_map_png(
     span = float(np.abs(delta).max())
     span = span if span > 0 else 1.0
 
+    from matplotlib.colors import TwoSlopeNorm
+
     fig, ax = _figure(lv / lu)
     extent, xlabel, ylabel = _axes_frame(o, uu, vv)
     im = ax.imshow(delta, origin="lower", extent=extent, cmap="RdBu_r",
@@ -458,7 +471,7 @@ def luminance_map_png(luminance: object, *, stderr: object | None = None, title:
     bytes
         A PNG image.
     """
-    from matplotlib.colors import LogNorm
+    from matplotlib.colors import LogNorm, Normalize
 
     lum = _check_grid("luminance", luminance)
     if np.any(lum < 0):
@@ -501,8 +514,10 @@ def conoscope_figure(answer: dict[str, Any]) -> Figure:
     step_p = 2.0 * math.pi / len(phi)
     r_edges = np.concatenate([[0.0], theta[:-1] + step_t / 2.0, [theta[-1] + step_t / 2.0]])
     p_edges = np.concatenate([phi - step_p / 2.0, [phi[-1] + step_p / 2.0]])
-    fig = Figure(figsize=(6.4, 6.0), dpi=110, layout="constrained")
-    FigureCanvasAgg(fig)
+    from matplotlib.colors import Normalize
+    from matplotlib.ticker import MaxNLocator
+
+    fig = _canvas(6.4, 6.0)
     ax: Any = fig.add_subplot(projection="polar")   # a PolarAxes
     lo, hi = float(lum.min()), float(lum.max())
     mesh = ax.pcolormesh(p_edges, r_edges, lum, cmap="turbo", shading="flat",
@@ -531,8 +546,9 @@ def uniformity_figure(answer: dict[str, Any]) -> Figure:
     lum, err = np.asarray(answer["luminance"], float), np.asarray(answer["stderr"], float)
     a, b = (int(k) for k in np.argsort(np.ptp(pts, axis=0))[::-1][:2])
     x, y = 1000.0 * pts[:, a], 1000.0 * pts[:, b]
-    fig = Figure(figsize=(7.0, 5.2), dpi=110, layout="constrained")
-    FigureCanvasAgg(fig)
+    from matplotlib.colors import Normalize
+
+    fig = _canvas(7.0, 5.2)
     ax = fig.add_subplot()
     lo, hi = float(lum.min()), float(lum.max())
     dots = ax.scatter(x, y, c=lum, s=260, cmap="turbo", edgecolors="black",
