@@ -120,7 +120,7 @@ class Assignments:
                 raise Invalid(f"{body['type']} sensor: node {body[field]} and its descendants have no geometry: "
                               f"nothing to tally", node=body[field])
             if kind == "light" and (body.get("facing") is not None or body.get("faces") is not None):
-                _check_facing(state, body)
+                _check_chosen_faces(state, body)
             if kind == "object" and self.scenes.missing_geometries([body["geometry"]]):
                 raise Invalid(f"geometry {body['geometry']} is not uploaded (PUT /geometries/{{id}} first)",
                               missing=[body["geometry"]])
@@ -308,7 +308,7 @@ def validate_body(kind: str, body: Any) -> dict:
     return {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}   # [x, y, z] as JSON keeps it
 
 
-def _check_facing(state: SceneState, body: dict) -> None:
+def _check_chosen_faces(state: SceneState, body: dict) -> None:
     """422 for an area light whose `facing` no triangle of its node's subtree faces, or whose `faces` its parts'
     meshes do not have (`tracer.optics.lights.area`), before anything is stored; a node without geometry yet is left
     to the query, which names it."""
