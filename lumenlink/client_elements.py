@@ -106,11 +106,12 @@ class ElementCalls(ClientBase):
                progress: Callable[[dict[str, Any]], None] | None = None, poll: float = 0.5,
                **options: Any) -> dict[str, Any]:
         """Tune one to three numbers of an element (``POST /elements/{id}/design``: `parameters` as ``[{"name":
-        "feature.height_mm", "values": [...]}]`` or ``{"name", "lo", "hi", "steps"}``) against `objective`
-        ("min_max", "min_mean" or "mean") read on the grid `sensor`; options as `pack` takes them, and `pack_map`
-        (pack the density map before and after the sweep). With `wait`, follows the job (Ctrl-C cancels it, keeping
-        the best read so far) and answers its last state, whose ``result`` names the chosen ``element``, its
-        ``values`` and the ``confirmation`` on a fresh seed; otherwise the 202 answer (``url``)."""
+        "feature.height_mm", "values": [...]}]`` or ``{"name", "lo", "hi", "steps"}``) against `objective` ("min_max",
+        "min_mean" or "mean" read on the grid `sensor`, or "half_angle": the viewing-angle spread of its centre,
+        degrees); options as `pack` takes them, ``goal`` ("max", or "min" to lower the objective), and `pack_map` (pack
+        the density map before and after the sweep). With `wait`, follows the job (Ctrl-C cancels it, keeping the best
+        read so far) and answers its last state, whose ``result`` names the chosen ``element``, its ``values`` and the
+        ``confirmation`` on a fresh seed; otherwise the 202 answer (``url``)."""
         sid = self._sid(scene)
         body = {"scene": sid, "assignment": assignment, "sensor": self._sensor_ids(sid, sensor)[0]["id"],
                 "parameters": parameters, "objective": objective, **options}

@@ -284,7 +284,10 @@ def design(
     param: Annotated[list[str], typer.Option(help="A number of the element to vary: NAME=V1,V2,... or "
                                                   "NAME=LO:HI:STEPS (feature.height_mm, feature.apex_deg, "
                                                   "layout.pitch_mm[0], material.reflectance); one to three.")],
-    objective: Annotated[str, typer.Option(help="min_max, min_mean or mean (the mean reading).")] = "min_max",
+    objective: Annotated[str, typer.Option(help="min_max, min_mean, mean (the mean reading) or half_angle (the "
+                                                "viewing-angle spread of the grid's centre, degrees).")] = "min_max",
+    goal: Annotated[str, typer.Option(help="max (raise the objective) or min (lower it: a narrower spread).")
+                    ] = "max",
     photons: Annotated[int, typer.Option(help="Photons of each reading.")] = 100_000,
     seed: Annotated[int, typer.Option(help="Photon seed (every candidate reads with the same one).")] = 1,
     pack_map: Annotated[bool, typer.Option("--pack-map", help="Pack the density map before and after the sweep "
@@ -309,7 +312,8 @@ def design(
         with Client(server) as ll:
             info = ll.scene(scene)
             job = ll.design(element_id, info, assignment, sensor, parameters, objective=objective, progress=show,
-                            photons=photons, seed=seed, pack_map=pack_map, target=target, quantity=quantity)
+                            photons=photons, seed=seed, pack_map=pack_map, target=target, quantity=quantity,
+                            goal=goal)
             res = job.get("result") or {}
             if job["status"] == "failed" or not res.get("element"):
                 raise LumenLinkError(f"the design loop {job['status']}: {job.get('error') or 'nothing was read'}",

@@ -108,8 +108,11 @@ def conoscope(
         for i, theta in enumerate(out["theta_deg"]):
             for j, phi in enumerate(out["phi_deg"]):
                 print(f"{i},{j},{theta:.6g},{phi:.6g},{out['luminance'][i][j]!r},{out['stderr'][i][j]!r}")
-        f = out["flatness"]
-        console.print(f"on axis {_pm(out['on_axis'], out['on_axis_stderr'])} cd/m²; min/max "
+        f, spread = out["flatness"], out.get("half_angle_deg")
+        half = ("—" if spread is None else f"{_pm(spread, out['half_angle_stderr'])}°"
+                if out.get("half_angle_within_view") else f"≥ {spread:g}°")
+        console.print(f"on axis {_pm(out['on_axis'], out['on_axis_stderr'])} cd/m²; half-luminance angle {half}; "
+                      "min/max "
                       f"{_pm(f['min_max'], f['min_max_stderr'])}, min/mean {_pm(f['min_mean'], f['min_mean_stderr'])}; "
                       f"{out['photons']:,} paths in {out['seconds']:.2f} s" + (f"; plot: {png}" if png else ""))
         return EXIT_OK

@@ -1,13 +1,14 @@
 """The design loop over an element's parameters against a scene (issue 53): ``POST /elements/{id}/design`` as a job.
 
-The request is a pack's (`service.pack`: the scene, the element assignment on the guide's face, a grid sensor over
-the lit face, what its cells read) with the parameters to vary (``[{"name": "feature.height_mm", "values": [...]}
-| {"name", "lo", "hi", "steps"}]``, one to three), the ``objective`` (``min_max``, ``min_mean`` or ``mean``) and
-``pack_map`` (pack the density map before and after the sweep with the pack's fields: target, figure, iterations).
-Everything is checked before a job is queued (422 naming the field, nothing changed), as a pack is. The job works on
-a scene of its own (`tracer.elements.design.design`); the chosen element goes into the library with its record
-(``GET /elements/{id}/design``: every candidate, the baseline, the confirmation on a fresh seed; ``design.png``, its
-picture), and the scene everybody queries is switched to it by ``PUT /scenes/{id}/elements/{aid}``, as after a pack.
+The request is a pack's (`service.pack`: the scene, the element assignment on the guide's face, a grid sensor over the
+lit face, what its cells read) with the parameters to vary (``[{"name": "feature.height_mm", "values": [...]} | {"name",
+"lo", "hi", "steps"}]``, one to three), the ``objective`` (``min_max``, ``min_mean``, ``mean`` or the viewing-angle
+spread ``half_angle``), its ``goal`` (``max`` or ``min``) and ``pack_map`` (pack the density map before and after the
+sweep with the pack's fields: target, figure, iterations). Everything is checked before a job is queued (422 naming the
+field, nothing changed), as a pack is. The job works on a scene of its own (`tracer.elements.design.design`); the chosen
+element goes into the library with its record (``GET /elements/{id}/design``: every candidate, the baseline, the
+confirmation on a fresh seed; ``design.png``, its picture), and the scene everybody queries is switched to it by ``PUT
+/scenes/{id}/elements/{aid}``, as after a pack.
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ def start(manager: Any, hub: Any, element_id: str, req: dict[str, Any]) -> tuple
         raise Invalid(str(exc)) from None
 
     def checks(model: Any) -> None:
-        check(model, parameters, req["objective"])
+        check(model, parameters, req["objective"], req.get("goal", "max"))
         if req["pack_map"]:
             check_pack(model, req["target"], req["figure"], req["damping"], req["max_fill"], req.get("pitch_mm"))
 
@@ -52,8 +53,8 @@ def start(manager: Any, hub: Any, element_id: str, req: dict[str, Any]) -> tuple
 
         try:
             result = design(run.own.tracer, run.instance, run.start, run.sensor, run.simulation, assign=run.assign,
-                            parameters=parameters, objective=req["objective"], photons=req["photons"],
-                            seed=req["seed"], reading=run.reading, pack_options=pack_options,
+                            parameters=parameters, objective=req["objective"], goal=req.get("goal", "max"),
+                            photons=req["photons"], seed=req["seed"], reading=run.reading, pack_options=pack_options,
                             max_seconds=req["max_seconds"], progress=report, cancel=cancel)
         except ElementError as exc:
             raise Invalid(str(exc)) from None
@@ -69,7 +70,7 @@ def keep(library: Any, element_id: str, req: dict[str, Any], result: Any) -> dic
     summary, _ = library.create(result.element.body)
     record = {"element": summary["id"], "designed_from": element_id, "scene": req["scene"],
               "assignment": req["assignment"], "sensor": req["sensor"], "objective": result.objective,
-              "quantity": result.reading.quantity, "unit": result.reading.unit, "stopped": result.stopped,
+              "goal": result.goal, **_measured(result), "stopped": result.stopped,
               "values": result.values, "baseline": result.baseline, "confirmation": result.confirmation,
               "candidates": [c.public() for c in result.candidates],
               "packs": [{"stopped": p.stopped, "iterations": len(p.history), "uniformity": p.history[p.best].uniformity,
@@ -81,6 +82,13 @@ def keep(library: Any, element_id: str, req: dict[str, Any], result: Any) -> dic
     library.keep_record(summary["id"], ".design.png", plot(record))
     return {**record, "summary": summary, "design_url": f"/elements/{summary['id']}/design",
             "png_url": f"/elements/{summary['id']}/design.png"}
+
+
+def _measured(result: Any) -> dict[str, str]:
+    """What the objective was read as: ``quantity`` and ``unit`` (a conoscopic view's angle for ``half_angle``)."""
+    if result.objective == "half_angle":
+        return {"quantity": "luminance", "unit": "deg"}
+    return {"quantity": result.reading.quantity, "unit": result.reading.unit}
 
 
 def plot(record: dict[str, Any]) -> bytes:
@@ -116,8 +124,10 @@ def plot_figure(record: dict[str, Any]) -> Any:
                 label="chosen")
     ax.set_xticks(x, labels, rotation=30 if len(read) > 6 else 0)
     unit = record.get("unit", "lx")
-    what = {"mean": f"mean {record.get('quantity', 'illuminance')} ({unit})"}.get(record["objective"],
-                                                                                 record["objective"].replace("_", "/"))
+    what = {"mean": f"mean {record.get('quantity', 'illuminance')} ({unit})",
+            "half_angle": "half-luminance viewing angle (°)"}.get(record["objective"],
+                                                                  record["objective"].replace("_", "/"))
+    what += " · lower is better" if record.get("goal") == "min" else ""
     c = record.get("confirmation")
     title = f"{record['stopped']}: {record['values']}"
     if c:

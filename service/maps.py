@@ -505,8 +505,8 @@ def luminance_map_png(luminance: object, *, stderr: object | None = None, title:
 def conoscope_figure(answer: dict[str, Any]) -> Figure:
     """A conoscopic view (``POST …/luminance/conoscope``'s answer) as a polar plot: the azimuth around, the polar
     angle from the normal outwards (degrees), each reading a cell of a cd/m² colour scale from the smallest reading
-    to the largest (so that a near-flat view shows its variation), the on-axis luminance and the flatness min/max
-    with their standard errors in the title."""
+    to the largest (so that a near-flat view shows its variation), the half-luminance angle as a dashed ring, the
+    on-axis luminance, that angle and the flatness min/max with their standard errors in the title."""
     theta = np.asarray(answer["theta_deg"], float)
     phi = np.radians(np.asarray(answer["phi_deg"], float))
     lum = _check_grid("luminance", answer["luminance"], (len(theta), len(phi)))
@@ -530,8 +530,15 @@ def conoscope_figure(answer: dict[str, Any]) -> Figure:
     bar.set_label("Luminance L (cd/m²)")
     flat = answer["flatness"]
     ratio = "—" if flat.get("min_max") is None else f"{flat['min_max']:.4g} ± {flat['min_max_stderr']:.2g}"
+    spread = answer.get("half_angle_deg")
+    if spread is not None and answer.get("half_angle_within_view"):
+        ax.plot(np.linspace(0.0, 2.0 * math.pi, 181), np.full(181, spread), color="white", ls="--", lw=1.2)
+        spread_text = f"{spread:.1f} ± {answer['half_angle_stderr']:.1f}°"
+    else:
+        spread_text = "—" if spread is None else f"≥ {spread:g}°"
     ax.set_title(f"Conoscopic view: luminance against viewing angle\non axis {answer['on_axis']:.4g} ± "
-                 f"{answer['on_axis_stderr']:.2g} cd/m² · min/max {ratio}", fontsize=9)
+                 f"{answer['on_axis_stderr']:.2g} cd/m² · half-luminance angle {spread_text} · min/max {ratio}",
+                 fontsize=9)
     fig.text(0.01, 0.005, f"polar angle from the normal, 0-{theta[-1]:g}°; azimuth from phi_zero; "
              f"{answer['aperture_deg']:g}° meters", fontsize=7, color="0.35")
     return fig

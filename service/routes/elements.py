@@ -285,16 +285,25 @@ class DesignRequest(PackRequest):
         min_length=1, max_length=3, description="one to three numbers of the element's body to vary: {name, values} "
                                                 "or {name, lo, hi, steps}; name as 'feature.height_mm', "
                                                 "'feature.apex_deg', 'layout.pitch_mm[0]', 'material.reflectance'")
-    objective: Literal["min_max", "min_mean", "mean"] = Field(
-        "min_max", description="what the loop raises: a uniformity of the grid's readings (min/max, min/mean) or "
-                               "their mean (on-axis luminance where the cells read luminance)")
+    objective: Literal["min_max", "min_mean", "mean", "half_angle"] = Field(
+        "min_max", description="what the loop tunes: a uniformity of the grid's readings (min/max, min/mean), their "
+                               "mean (on-axis luminance where the cells read luminance), or the viewing-angle spread "
+                               "half_angle: the polar angle, degrees, where the luminance of the grid's centre falls "
+                               "to half its on-axis value, read by a conoscopic view (0-80 degrees in 5-degree rings, "
+                               "8 azimuths; the reading's distance and aperture)")
+    goal: Literal["max", "min"] = Field(
+        "max", description="raise the objective (max) or lower it (min: a narrower spread, for a brightness film)")
     pack_map: bool = Field(False, description="pack the density map before and after the sweep (with target, "
                                               "figure, max_iterations, ...); false keeps the map as it is")
 
 
 DESIGN_EXAMPLES = {"guide": {"summary": "the dots' height for the most light out of the guide", "value": {
     "scene": "<scene id>", "assignment": "<element assignment id>", "sensor": "<grid sensor id>",
-    "parameters": [{"name": "feature.height_mm", "lo": 0.05, "hi": 0.25, "steps": 5}], "objective": "mean"}}}
+    "parameters": [{"name": "feature.height_mm", "lo": 0.05, "hi": 0.25, "steps": 5}], "objective": "mean"}},
+    "film": {"summary": "a prism film's apex for the narrowest viewing-angle spread", "value": {
+        "scene": "<scene id>", "assignment": "<element assignment id>", "sensor": "<grid sensor id>",
+        "parameters": [{"name": "feature.apex_deg", "values": [80, 90, 100, 110]}], "objective": "half_angle",
+        "goal": "min"}}}
 
 
 @router.post("/elements/{element_id}/design", status_code=202, responses={202: {"description": "the design job"}})

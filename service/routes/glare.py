@@ -15,8 +15,9 @@
 - ``POST /scenes/{id}/luminance/conoscope`` — a conoscopic view of one point of a lit face: the luminance it shows
   against viewing angle, read by meters on a polar grid (``rings`` polar angles from the face's normal up to
   ``theta_max_deg``, ``azimuths`` azimuths from ``phi_zero``), measured together; ``?format=png`` draws it as a
-  polar plot (what a conoscope shows), the on-axis luminance and the flatness min/max with their error bars in its
-  title (`tracer.sensors.luminance.conoscope`).
+  polar plot (what a conoscope shows), the on-axis luminance, the half-luminance angle (the view's spread,
+  `tracer.sensors.luminance.half_angle`) and the flatness min/max with their error bars in its title
+  (`tracer.sensors.luminance.conoscope`).
 """
 
 from __future__ import annotations
@@ -344,6 +345,13 @@ class ConoscopePublic(MetersRun):
     on_axis_stderr: float = Field(description="Its standard error, cd/m².")
     flatness: Uniformity = Field(description="min/max and min/mean over the view's distinct readings, with their "
                                              "standard errors (1 for a Lambertian face evenly lit).")
+    half_angle_deg: float | None = Field(description=(
+        "The viewing-angle spread: the polar angle, degrees, at which the luminance averaged over each ring's "
+        "azimuths first falls below half the on-axis value, interpolated between the rings around it; the view's "
+        "largest angle where it never does (half_angle_within_view false: at least that wide); null for a view dark "
+        "on its axis."))
+    half_angle_stderr: float | None = Field(description="Its standard error, degrees (0 where not within the view).")
+    half_angle_within_view: bool = Field(description="Whether the luminance falls to half within the view.")
     distance: float = Field(description="How far each meter stood from the point, m.")
 
 
@@ -358,7 +366,7 @@ async def luminance_conoscope(scene_id: SceneId, query: ConoscopeQuery, request:
                               ) -> Any:
     """A conoscopic view: the luminance a point of a lit face shows against viewing angle (polar angle from its
     normal, azimuth), read by meters on a polar grid in one run, each value with its standard error; the on-axis
-    luminance and the flatness (min/max, min/mean) over the view."""
+    luminance, the half-luminance angle (the view's spread) and the flatness (min/max, min/mean) over the view."""
     return await _answer_or_drawn(request, mode, format, "conoscope_png", _conoscope_query, scene_id, query)
 
 
@@ -374,18 +382,22 @@ def _conoscope_query(scene_id: str, query: ConoscopeQuery, request: Request) -> 
     hub.check_query(prepared, asked)
 
     def work(progress: Any = None, cancel: Any = None) -> dict[str, Any]:
-        from tracer.sensors.luminance import conoscope
+        from tracer.sensors.luminance import conoscope, half_angle
 
         with _refusals():
             views, res = conoscope(prepared.simulation, query.point, query.normal, query.theta_max_deg, query.rings,
                                    query.azimuths, query.distance, query.aperture_deg, query.phi_zero, query=asked,
                                    progress=progress, cancel=cancel)
         lum, err = np.asarray(res.luminance, float), np.asarray(res.stderr, float)
+        spread, spread_err, within = half_angle(views["theta_deg"], views["luminance"], views["stderr"])
         payload = {"point": list(query.point), "normal": views["normal"].tolist(),
                    "phi_zero": views["phi_zero"].tolist(), "theta_deg": views["theta_deg"].tolist(),
                    "phi_deg": views["phi_deg"].tolist(), "luminance": views["luminance"].tolist(),
                    "stderr": views["stderr"].tolist(), "on_axis": float(lum[0]), "on_axis_stderr": float(err[0]),
                    "flatness": _finite(uniformity(lum, err)), "distance": query.distance,
+                   "half_angle_deg": None if math.isnan(spread) else spread,
+                   "half_angle_stderr": None if math.isnan(spread_err) else spread_err,
+                   "half_angle_within_view": within,
                    **run_fields(res, prepared, query.aperture_deg)}
         if query.cost_targets:   # of the meters' own readings, the axis once
             flat = {**payload, "luminance": lum.tolist(), "stderr": err.tolist()}

@@ -81,6 +81,8 @@ def test_a_lambertian_face_is_flat_in_candela_per_square_metre(client: Any, floo
     flat = out["flatness"]
     assert flat["min_max"] == pytest.approx(readings.min() / readings.max())
     assert 0.0 < flat["min_max_stderr"] < 0.2
+    # flat: the luminance never falls to half within the view, so its spread is at least the view's 70 degrees
+    assert (out["half_angle_deg"], out["half_angle_stderr"], out["half_angle_within_view"]) == (70.0, 0.0, False)
 
 
 def test_the_view_as_a_polar_plot(client: Any, floor: str) -> None:

@@ -72,6 +72,7 @@ def test_the_design_job_finds_taller_domes_and_the_switched_scene_lets_out_more_
                      {"name": "feature.radius_mm", "lo": 0.3, "hi": 0.5, "steps": 9}]}, "81 combinations"),
     ({"parameters": []}, "parameters"),
     ({"objective": "brightest"}, "objective"),
+    ({"objective": "half_angle", "goal": "lowest"}, "goal"),
     ({"pack_map": True}, "only a 'density' layout"),
     ({"assignment": "nope"}, "assignment"),
 ])
@@ -114,3 +115,16 @@ def _check_picture(record: dict) -> None:
     assert f"gain {c['improvement']:.3g}" in ax.get_title()
     assert any(t.get_text().startswith(f"start {record['baseline']['objective']:.4g}")
                for t in ax.get_legend().get_texts())
+
+
+def test_a_spread_design_s_picture_names_the_angle_and_its_goal() -> None:
+    """A ``half_angle`` record drawn: its axis says the half-luminance angle in degrees, lower is better."""
+    from service.design import plot_figure
+
+    read = [{"values": {"feature.apex_deg": a}, "objective": o, "stderr": 0.5} for a, o in ((80, 41.0), (90, 35.5))]
+    record = {"candidates": read, "values": {"feature.apex_deg": 90}, "objective": "half_angle", "goal": "min",
+              "quantity": "luminance", "unit": "deg", "stopped": "done", "confirmation": None,
+              "baseline": {"objective": 41.0, "stderr": 0.5}}
+    ax = plot_figure(record).axes[0]
+    assert ax.get_ylabel() == "half-luminance viewing angle (°) · lower is better"
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["80", "90"]

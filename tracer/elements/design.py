@@ -3,8 +3,10 @@ a printed dot's reflectance, tuned together with the density map against what th
 
 An engineer names one to three numbers of the element's body (``"feature.height_mm"``, ``"feature.apex_deg"``,
 ``"layout.pitch_mm"``, ``"material.reflectance"``; a list's entry as ``"layout.pitch_mm[0]"``), each with the values
-to try (or ``lo``, ``hi`` and ``steps``), and an objective: a uniformity (``min_max``, ``min_mean``) or the ``mean``
-reading (on-axis luminance where the grid reads luminance). The loop
+to try (or ``lo``, ``hi`` and ``steps``), and an objective: a uniformity (``min_max``, ``min_mean``), the ``mean``
+reading (on-axis luminance where the grid reads luminance), or the viewing-angle spread ``half_angle`` (degrees: where
+the luminance falls to half its on-axis value in a conoscopic view of the grid's centre, `half_angle_of`), raised or,
+with ``goal="min"``, lowered (a brightness film narrows the spread, a diffuser widens it). The loop
 
 1. packs the density map at the starting parameters where asked (`tracer.elements.pack`, its own target and
    budget), or keeps the map as it is: the baseline;
@@ -14,9 +16,10 @@ reading (on-axis luminance where the grid reads luminance). The loop
    tighter their differences are than with independent seeds). A combination the element cannot take (a dome
    taller than its radius, a pitch below the feature) is listed as refused, with the reason, and skipped;
 3. packs the map again at the best combination, where asked;
-4. confirms: the baseline and the result read again with a seed no earlier reading took, the improvement and its
-   standard error (the two readings' errors combined as if independent: with shared random numbers the true
-   error of the difference is smaller, so the error bar is an upper bound), and whether it exceeds twice that.
+4. confirms: the baseline and the result read again with a seed no earlier reading took, the improvement (positive
+   where the result is better by the goal) and its standard error (the two readings' errors combined as if
+   independent: with shared random numbers the true error of the difference is smaller, so the error bar is an upper
+   bound), and whether it exceeds twice that.
 
 The answer keeps every candidate (values, objective ± error, photons, seconds), the packs' histories and the
 confirmation; progress is reported after each reading, and a cancel stops the loop at the next reading, keeping the
@@ -37,9 +40,13 @@ import numpy as np
 
 from tracer.elements.checks import ElementError
 from tracer.elements.microstructure import Microstructure, prepare
-from tracer.elements.pack import FIGURES, PackError, PackResult, Reading, figure_of, pack, read
+from tracer.elements.pack import FIGURES, PackError, PackResult, Reading, cell_centres, figure_of, pack, read
 
-OBJECTIVES = (*FIGURES, "mean")
+OBJECTIVES = (*FIGURES, "mean", "half_angle")
+GOALS = ("max", "min")
+#: the conoscopic view the ``half_angle`` objective reads at the grid's centre: polar angles 0 to 80 degrees in 5-degree
+#: rings, 8 azimuths (129 meters; the reading's distance and aperture)
+SPREAD_VIEW: dict[str, Any] = {"theta_max_deg": 80.0, "rings": 17, "azimuths": 8}
 MAX_PARAMETERS = 3
 MAX_CANDIDATES = 64
 SWEEP_SEED = 7919           # the sweep's seed is seed * SWEEP_SEED: every candidate reads with it
@@ -154,6 +161,7 @@ class DesignResult:
     values: dict[str, float]
     objective: str
     stopped: str                               # "done", "seconds", "cancelled"
+    goal: str = "max"
     candidates: list[Candidate] = field(default_factory=list)
     baseline: dict[str, Any] = field(default_factory=dict)   # values, objective, stderr (the sweep's reading)
     confirmation: dict[str, Any] | None = None
@@ -170,11 +178,32 @@ def objective_of(values: np.ndarray, err: np.ndarray, objective: str) -> tuple[f
     return u, s
 
 
-def check(start: Microstructure, parameters: list[Parameter], objective: str) -> None:
-    """Refuse a design that cannot run, naming the field: an unknown objective, no or too many parameters, one named
-    twice or absent from the element, too many combinations."""
+def half_angle_of(simulation: Any, sensor: dict, reading: Reading, photons: int, seed: int,
+                  cancel: Callable[[], bool] | None) -> tuple[float, float, int]:
+    """The ``half_angle`` objective: the conoscopic view (`SPREAD_VIEW`) of the grid's centre from its back side (where
+    a `Reading` of luminance stands), read with `photons` paths from the eye and `seed`, and its half-luminance angle
+    (`tracer.sensors.luminance.half_angle`): (degrees, standard error, paths traced). A view that stays above half
+    its axis reading reads the view's largest angle with error 0; a view dark on its axis is a `PackError`."""
+    from tracer.sensors.luminance import conoscope, half_angle
+
+    centres, front = cell_centres(sensor)
+    views, res = conoscope(simulation, centres.mean(axis=0), -front, distance=reading.distance,
+                           aperture_deg=reading.aperture_deg, max_photons=photons, seed=seed, estimator="backward",
+                           cancel=cancel, **SPREAD_VIEW)
+    deg, err, _ = half_angle(views["theta_deg"], views["luminance"], views["stderr"])
+    if math.isnan(deg) and not (cancel is not None and cancel()):
+        raise PackError("sensor: the grid's centre is dark seen straight on (0 cd/m² on the conoscope's axis): no "
+                        "viewing-angle spread to read")
+    return deg, err, int(res.photons)
+
+
+def check(start: Microstructure, parameters: list[Parameter], objective: str, goal: str = "max") -> None:
+    """Refuse a design that cannot run, naming the field: an unknown objective or goal, no or too many parameters,
+    one named twice or absent from the element, too many combinations."""
     if objective not in OBJECTIVES:
         raise PackError(f"objective must be one of {list(OBJECTIVES)}, got {objective!r}")
+    if goal not in GOALS:
+        raise PackError(f"goal must be one of {list(GOALS)} (raise or lower the objective), got {goal!r}")
     if not 1 <= len(parameters) <= MAX_PARAMETERS:
         raise PackError(f"parameters: name 1 to {MAX_PARAMETERS} numbers of the element to vary, got "
                         f"{len(parameters)}")
@@ -202,12 +231,22 @@ class _Bench:
     reading: Reading
     objective: str
     cancel: Callable[[], bool] | None
+    goal: str = "max"
+
+    def better(self, a: float, b: float) -> bool:
+        """Whether objective `a` is better than `b` by the goal."""
+        return a > b if self.goal == "max" else a < b
 
     def measure(self, model: Microstructure, seed: int) -> tuple[float, float, int] | None:
-        """Put `model` onto the part, commit, and read the grid with `seed`: (objective, its standard error,
-        photons); None where a cancel cut the reading short (a partial reading is not taken)."""
+        """Put `model` onto the part, commit, and read the grid (or, for ``half_angle``, the view of its centre) with
+        `seed`: (objective, its standard error, photons); None where a cancel cut the reading short (a partial reading
+        is not taken)."""
         self.scene.set_element(self.instance, model, **self.assign)
         self.scene.commit()
+        if self.objective == "half_angle":
+            got = half_angle_of(self.simulation(self.scene), self.sensor, self.reading, self.photons, seed,
+                                self.cancel)
+            return None if self.cancel is not None and self.cancel() else got
         values, err, traced = read(self.simulation(self.scene), self.sensor, self.reading, self.photons, seed, None,
                                    self.cancel)
         if self.cancel is not None and self.cancel():
@@ -237,37 +276,38 @@ class _Bench:
         if start is None or chosen is None:
             return None
         (b, eb, nb), (r, er, nr) = start, chosen
-        gain, gain_err = r - b, math.hypot(eb, er)
+        gain, gain_err = (r - b if self.goal == "max" else b - r), math.hypot(eb, er)
         return {"seed": fresh, "baseline": b, "baseline_stderr": eb, "objective": r, "stderr": er,
                 "improvement": gain, "improvement_stderr": gain_err, "improved": bool(gain > 2.0 * gain_err),
                 "photons": nb + nr}
 
 
 def design(scene: Any, instance: int, start: Microstructure, sensor: dict, simulation: Callable[[Any], Any], *,
-           assign: dict[str, Any], parameters: list[Parameter], objective: str = "min_max", photons: int = 100_000,
-           seed: int = 1, reading: Reading = Reading(), pack_options: dict[str, Any] | None = None,
+           assign: dict[str, Any], parameters: list[Parameter], objective: str = "min_max", goal: str = "max",
+           photons: int = 100_000, seed: int = 1, reading: Reading = Reading(),
+           pack_options: dict[str, Any] | None = None,
            max_seconds: float = 1800.0, progress: Callable[[dict[str, Any]], None] | None = None,
            cancel: Callable[[], bool] | None = None) -> DesignResult:
     """Tune `parameters` of `start` on `instance` of `scene` (a `tracer.Scene` the caller owns: the loop changes its
-    element, and leaves the chosen one on the part) against `objective` read on the grid sensor `sensor` (see the
-    module docstring); `simulation`, `assign` and `reading` as `tracer.elements.pack.pack` takes them;
-    `pack_options` (pack's keywords: target, figure, max_iterations, ...) packs the density map before and after
-    the sweep, None keeps it. `progress(state)` gets ``{"stage", "candidate", "candidates", "objective", "stderr",
-    "photons", "seconds"}`` after each reading (stage "baseline", "sweep" or "confirmed"; photons: read so far, the
-    packs' not counted).
+    element, and leaves the chosen one on the part) against `objective` read on the grid sensor `sensor`, raised (`goal`
+    "max") or lowered ("min") (see the module docstring); `simulation`, `assign` and `reading` as
+    `tracer.elements.pack.pack` takes them; `pack_options` (pack's keywords: target, figure, max_iterations, ...) packs
+    the density map before and after the sweep, None keeps it. `progress(state)` gets ``{"stage", "candidate",
+    "candidates", "objective", "stderr", "photons", "seconds"}`` after each reading (stage "baseline", "sweep" or
+    "confirmed"; photons: read so far, the packs' not counted).
 
     Raises
     ------
     PackError
         See `check`; a pack that cannot run; no light on the grid.
     """
-    check(start, parameters, objective)
+    check(start, parameters, objective, goal)
     if isinstance(photons, bool) or not isinstance(photons, int) or photons < 1000:
         raise PackError(f"photons must be an integer >= 1000, got {photons!r}")
     reading.check()
     t_start = time.perf_counter()
-    bench = _Bench(scene, instance, sensor, simulation, assign, int(photons), reading, objective, cancel)
-    out = DesignResult(start, {p.name: p.read_from(start.body) for p in parameters}, objective, "done",
+    bench = _Bench(scene, instance, sensor, simulation, assign, int(photons), reading, objective, cancel, goal)
+    out = DesignResult(start, {p.name: p.read_from(start.body) for p in parameters}, objective, "done", goal,
                        reading=reading)
     combos = list(itertools.product(*(p.values for p in parameters)))
     traced = [0]
@@ -342,6 +382,6 @@ def _sweep(bench: _Bench, base: Microstructure, parameters: list[Parameter], com
         c.objective, c.stderr, c.photons = got
         c.seconds = time.perf_counter() - t0
         say("sweep", k, c.objective, c.stderr, c.photons)
-        if c.objective > best:
+        if bench.better(c.objective, best):
             best, best_model, out.values = c.objective, model, dict(c.values)
     return best_model

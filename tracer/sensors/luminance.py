@@ -13,7 +13,8 @@ angle over the cone. The answer: `tracer.sensors.views.LuminanceResult` with sca
 (cd/m²). A meter looking at a Lambertian surface of reflectance ρ under illuminance E reads ρE/π.
 
 `meters` measures k meters in one run; `conoscope` places them on a polar grid around one point (luminance against
-viewing angle, ``POST /scenes/{id}/luminance/conoscope``).
+viewing angle, ``POST /scenes/{id}/luminance/conoscope``); `half_angle` reads a view's spread from it (the polar angle
+where the luminance falls to half its on-axis value).
 """
 
 from __future__ import annotations
@@ -161,3 +162,49 @@ def conoscope(sim, point, normal, theta_max_deg: float = 80.0, rings: int = 9, a
     grid[1:] = lum[1:].reshape(int(rings) - 1, int(azimuths))
     err[1:] = se[1:].reshape(int(rings) - 1, int(azimuths))
     return {**views, "luminance": grid, "stderr": err}, res
+
+
+def ring_means(luminance, stderr) -> tuple[np.ndarray, np.ndarray]:
+    """A conoscopic view's luminance averaged over each ring's azimuths, and its standard error: (rings,) cd/m² each,
+    from `conoscope`'s (rings, azimuths) grids (ring 0, the axis, is one reading repeated: its own error)."""
+    lum, err = np.asarray(luminance, float), np.asarray(stderr, float)
+    if lum.ndim != 2 or lum.shape != err.shape or lum.shape[0] < 2:
+        raise SimulationError(f"luminance and stderr must be (rings, azimuths) grids of the same shape with at least "
+                              f"2 rings, got {lum.shape} and {err.shape}")
+    mean = lum.mean(axis=1)
+    se = np.sqrt((err ** 2).sum(axis=1)) / lum.shape[1]
+    mean[0], se[0] = lum[0, 0], err[0, 0]
+    return mean, se
+
+
+def half_angle(theta_deg, luminance, stderr) -> tuple[float, float, bool]:
+    """The half-luminance viewing angle of a conoscopic view (what a display's viewing angle or a film's spread is
+    quoted as): the polar angle, degrees, at which the luminance averaged over each ring's azimuths (`ring_means`)
+    first falls below half its on-axis value, interpolated linearly between the two rings around it. Returns (angle,
+    its standard error, True); the error is the rings' errors carried through the interpolation to first order (the
+    rings are read by different meters: independent). Where no ring falls that far the angle is the view's largest,
+    its error 0 and the flag False: the spread is at least that wide. A view dark on its axis has none: (nan, nan,
+    False). `theta_deg` (rings,) ascending from 0; `luminance`, `stderr` (rings, azimuths) cd/m²."""
+    theta = np.asarray(theta_deg, float)
+    mean, se = ring_means(luminance, stderr)
+    if theta.shape != mean.shape or theta[0] != 0.0 or not (np.diff(theta) > 0).all():
+        raise SimulationError(f"theta_deg must be the rings' {mean.size} polar angles, ascending from 0, got "
+                              f"{theta.tolist()}")
+    if not mean[0] > 0.0:
+        return math.nan, math.nan, False
+    half = 0.5 * mean[0]
+    below = np.nonzero(mean[1:] < half)[0]
+    if below.size == 0:
+        return float(theta[-1]), 0.0, False
+    b = int(below[0]) + 1
+    a = b - 1
+    span, drop = theta[b] - theta[a], mean[a] - mean[b]
+    angle_deg = theta[a] + span * (mean[a] - half) / drop
+    d_a = span * (half - mean[b]) / drop ** 2     # ∂angle/∂L_a, ∂angle/∂L_b, ∂angle/∂L_0 (through the half)
+    d_b = span * (mean[a] - half) / drop ** 2
+    d_0 = -span / (2.0 * drop)
+    if a == 0:   # L_a is the axis reading itself
+        var = (d_a + d_0) ** 2 * se[0] ** 2 + d_b ** 2 * se[b] ** 2
+    else:
+        var = d_a ** 2 * se[a] ** 2 + d_b ** 2 * se[b] ** 2 + d_0 ** 2 * se[0] ** 2
+    return float(angle_deg), float(math.sqrt(var)), True

@@ -8,7 +8,7 @@ import math
 
 import pytest
 
-from tests.tracer.transport_scenes import box, scene_of
+from tests.tracer.transport_scenes import box, quad, scene_of
 from tracer.elements import prepare
 from tracer.elements.design import CONFIRM_SEED, SWEEP_SEED, Parameter, design
 from tracer.elements.pack import PackError
@@ -136,3 +136,59 @@ def test_a_parameter_body_that_cannot_be_read_is_refused_naming_it(body, words) 
     assert words in str(e.value)
     assert Parameter.from_body({"name": "feature.height_mm", "lo": 0.1, "hi": 0.2, "steps": 3}, 0).values == \
         pytest.approx((0.1, 0.15, 0.2))
+
+
+def test_a_goal_that_is_neither_max_nor_min_is_refused_and_changes_nothing() -> None:
+    s, part, make = guide()
+    with pytest.raises(PackError, match=r"goal must be one of \['max', 'min'\]"):
+        design(s, part, prepare(FLAT_DOMES), ABOVE, make, assign=ASSIGN, objective="mean", goal="lowest",
+               parameters=[Parameter("feature.height_mm", (0.1,))])
+    assert s.element_of(part) is None
+
+
+# a 40 mm PMMA film, domes on its top face, 1 mm over a Lambertian emitter (a backlight's diffuser); the grid 1 mm
+# above the film, its front side (u x v) down: the half_angle objective looks at its centre from above
+FILM_GRID = {"type": "grid", "origin": [0.01, 0.01, 0.0025], "u": [0.0, 0.02, 0.0], "v": [0.02, 0.0, 0.0], "nu": 2,
+             "nv": 2}
+LENSLETS = {"type": "microstructure", "feature": {"shape": "dome", "radius_mm": 0.1, "height_mm": 0.01},
+            "layout": {"type": "grid", "pitch_mm": [0.2, 0.2]}}
+
+
+def test_the_loop_lowers_the_viewing_angle_spread_read_by_a_conoscopic_view() -> None:
+    """``half_angle`` with ``goal="min"``: every candidate's objective is the half-luminance angle of the conoscopic
+    view of the grid's centre from above (`half_angle_of`, the same seed: the start candidate reads exactly the
+    baseline), the loop keeps the lowest, and its confirmation on a fresh seed counts a lower angle as the gain,
+    beyond twice its error bar."""
+    from tracer.elements.design import SPREAD_VIEW, half_angle_of
+    from tracer.elements.pack import Reading
+    from tracer.sensors.luminance import conoscope, half_angle
+
+    s, (film, emitter) = scene_of(box([0.0, 0.0, 0.0], [0.04, 0.04, 0.0015]),
+                                  quad([-0.03, -0.03, -0.001], [0.1, 0.0, 0.0], [0.0, 0.1, 0.0]))
+
+    def make(scene):
+        return Simulation(scene, {film: PMMA, emitter: {"type": "black"}},
+                          [{"type": "area", "instances": [emitter], "exitance_lm_m2": 1000.0}])
+
+    reading = Reading("luminance", distance=0.2, aperture_deg=1.0)
+    res = design(s, film, prepare(LENSLETS), FILM_GRID, make, assign={"facing": [0, 0, 1], "mm_per_unit": 1000.0},
+                 objective="half_angle", goal="min", photons=20_000, seed=2, reading=reading,
+                 parameters=[Parameter("feature.height_mm", (0.01, 0.1))])
+    assert res.stopped == "done" and res.goal == "min"
+    read = [c for c in res.candidates if not c.refused]
+    assert len(read) == 2 and all(0.0 < c.objective <= SPREAD_VIEW["theta_max_deg"] for c in read)
+    assert read[0].objective == res.baseline["objective"] and read[0].stderr == res.baseline["stderr"]
+    # hemispherical lenslets narrow the view (about 76 -> 48 degrees), far beyond the readings' errors (< 1 degree)
+    assert min(read, key=lambda c: c.objective) is read[1] and res.values == {"feature.height_mm": 0.1}
+    assert res.element.h == 0.1
+    c = res.confirmation
+    assert c is not None and math.isclose(c["improvement"], c["baseline"] - c["objective"])
+    assert c["improved"] and c["improvement"] > 2 * c["improvement_stderr"] > 0
+    # the objective is the conoscope's half angle at the grid's centre, seen from the grid's back side
+    s.set_element(film, prepare(LENSLETS), facing=[0, 0, 1], mm_per_unit=1000.0)
+    s.commit()
+    views, _ = conoscope(make(s), [0.02, 0.02, 0.0025], [0, 0, 1], distance=0.2, aperture_deg=1.0,
+                         max_photons=20_000, seed=2 * SWEEP_SEED, estimator="backward", **SPREAD_VIEW)
+    deg, err, _ = half_angle(views["theta_deg"], views["luminance"], views["stderr"])
+    assert (deg, err) == (res.baseline["objective"], res.baseline["stderr"])
+    assert half_angle_of(make(s), FILM_GRID, reading, 20_000, 2 * SWEEP_SEED, None)[:2] == (deg, err)
