@@ -49,8 +49,12 @@ def run(host: str = "127.0.0.1", port: int = 8000, data_dir: Path | str = "./var
     app = create_app(settings)
     # as uvicorn.run, with the pages' event streams ended when asked to stop (service.events.closing_server)
     server = closing_server(app, host=host, port=port, log_level="info", access_log=False, workers=1)
-    with contextlib.suppress(KeyboardInterrupt):
-        server.run()
+    try:
+        with contextlib.suppress(KeyboardInterrupt):
+            server.run()
+    finally:   # the kernels' warm-up children end with the service (they would end on their own within a second)
+        if app.state.kernels is not None:
+            app.state.kernels.stop()
     if not server.started:
         raise SystemExit(3)   # uvicorn's STARTUP_FAILURE: the port was taken, say
 

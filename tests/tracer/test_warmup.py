@@ -214,3 +214,35 @@ def test_without_a_usable_cache_directory_there_is_no_lock_and_no_error(tmp_path
     with warmup.compiling("forward", timeout=30):
         pass
     assert time.perf_counter() - t < 1.0
+
+
+def _running(pid: int) -> bool:
+    """Whether process `pid` exists and is not a zombie (an ended child its new parent has not reaped yet)."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (FileNotFoundError, ProcessLookupError):
+        return False
+    return state not in ("Z", "X")
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads process states from /proc (Linux)")
+def test_the_children_end_when_the_process_that_started_them_is_killed(tmp_path):
+    """A service killed outright (SIGKILL: nothing of it runs to stop them) leaves no child compiling: each sees
+    its parent gone within a second and ends, so a service started next has the cores to itself."""
+    code = ("import time\nfrom tracer.warmup import Background\nb = Background()\n"
+            "print(' '.join(str(p.pid) for p in b._procs), flush=True)\ntime.sleep(120)\n")
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path), "PYTHONPATH": str(ROOT)}
+    parent = subprocess.Popen([sys.executable, "-c", code], cwd=ROOT, env=env, stdout=subprocess.PIPE, text=True)
+    try:
+        assert parent.stdout is not None
+        pids = [int(p) for p in parent.stdout.readline().split()]
+        assert len(pids) == len(warmup.CHILDREN) and all(_running(p) for p in pids)
+        time.sleep(1.0)   # the children are importing or compiling
+        assert all(_running(p) for p in pids)
+    finally:
+        parent.kill()
+        parent.wait()
+    deadline = time.monotonic() + 10.0
+    while any(_running(p) for p in pids) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not any(_running(p) for p in pids), [p for p in pids if _running(p)]
