@@ -307,10 +307,15 @@ class Background:
         codes = [proc.wait(timeout) for proc in self._procs]
         return next((code for code in codes if code), 0)
 
-    def stop(self) -> None:
+    def stop(self, timeout: float = 10.0) -> None:
+        """Kill the children still compiling and wait (up to `timeout` s each) until they have ended, so that nothing
+        writes into numba's cache once this returns."""
         for proc in self._procs:
             if proc.poll() is None:
                 proc.kill()
+        for proc in self._procs:
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                proc.wait(timeout)
 
 
 _BACKGROUND: Background | None = None
