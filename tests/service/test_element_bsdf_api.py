@@ -146,3 +146,33 @@ def test_physics_left_out_says_how_far_the_table_is_from_the_exact_dots(client: 
     assert client.get(f"/scenes/{sid}/elements").json()[0]["model"] == "bsdf"
     bad = client.post(f"/scenes/{sid}/sensors/{sensor}/simulate", json={**ask, "physics_left_out": ["elements"]})
     assert bad.status_code == 422 and "element_geometry" in bad.text, bad.text
+
+
+def test_a_density_map_is_tabulated_by_fill_level_over_rest(client: Any) -> None:
+    """A density map of printed dots takes ``"model": "bsdf"`` (issue 53): its table is kept with one level per fill
+    (`tracer.elements.bsdf.LEVELS`), answers go through it, and its measured error names the fill level where it is
+    furthest off."""
+    sid = _scene(client)
+    printed = {"type": "microstructure", "feature": {"shape": "dome", "radius_mm": 0.3, "height_mm": 0.01},
+               "material": {"type": "lambertian", "reflectance": 0.8},
+               "layout": {"type": "density", "origin_mm": [0, 0], "size_mm": [20, 20], "fill": [[0.2, 0.7]],
+                          "pitch_mm": 1.0}}
+    eid = client.post("/elements", json=printed).json()["id"]
+    r = client.post(f"/scenes/{sid}/elements", json={"element": eid, "node": uid(1), "facing": [0, 0, 1],
+                                                     "model": "bsdf"})
+    assert r.status_code == 201, r.text
+    with np.load(client.data_dir / "elements" / f"{eid}.bsdf-1.49.npz") as kept:
+        table = bsdf.Table.from_arrays(kept)
+    assert table.levels == bsdf.LEVELS and table.cdf.shape == (bsdf.LEVELS * table.bins, table.bins)
+    sensor = client.post(f"/scenes/{sid}/sensors", json={
+        "type": "grid", "origin": [0.0, 0.0, -0.001], "u": [0.02, 0, 0], "v": [0, 0.02, 0], "nu": 1, "nv": 1}
+                         ).json()["id"]
+    client.post(f"/scenes/{sid}/lights", json={"type": "collimated", "origin": [0.01, 0.01, 0.005],
+                                               "direction": [0, 0, -1], "radius": 0.003, "illuminance_lx": 1000})
+    a = client.post(f"/scenes/{sid}/sensors/{sensor}/simulate", json={"max_photons": 2000, "seed": 1,
+                                                                        "estimator": "forward"})
+    assert a.status_code == 200, a.text
+    (element,) = a.json()["elements"]
+    assert element["model"] == "bsdf" and a.json()["lux"][0][0] > 0
+    assert {side: err["fill"] in (0.0, 0.25, 0.5, 0.75, 1.0) for side, err in element["model_error"].items()} == {
+        "air": True, "solid": True}

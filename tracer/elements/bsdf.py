@@ -25,6 +25,14 @@ internal reflection: the table's direction drawn uniformly over a bin moves ligh
 the exact model does not); from the solid's side, the share that leaves into the air. The worst probe's deviation
 (table − exact, a share of the flux meeting the element) and its standard error are kept with the table and carried
 by every answer that uses it (issue 54, item 11: a dotted plate transmitted 2.4 % more through its table).
+
+A density map's face varies from place to place, so its model is one table per fill level (`LEVELS`, evenly spaced
+from 0, a plain face, to 1), each traced on a patch of the same features placed at that uniform fill (the map's pitch,
+placement and seed); a photon meeting the support reads the map's fill f where it lands and scatters by the table of
+level k or k + 1 around f (k + 1 with probability f (K − 1) − k), so the face scatters as the mixture of its two
+nearest levels. Its error is the worst over the levels (``fill`` says which). Printed features (a material of their
+own, `tracer.elements.microstructure`) reflect diffusely with their reflectance and absorb the rest, as in the exact
+model; a photon they absorb leaves nothing, so a row's sum is the light that is not absorbed.
 """
 
 from __future__ import annotations
@@ -36,9 +44,10 @@ import numpy as np
 
 from tracer.elements import features as fx
 from tracer.elements.checks import ElementError
-from tracer.elements.microstructure import Microstructure
+from tracer.elements.microstructure import Microstructure, prepare
 
 N_MU, N_PHI, RAYS = 6, 8, 4000
+LEVELS = 5            # a density map's tables: fill 0, 0.25, 0.5, 0.75, 1
 MAX_BOUNCES = 64
 
 
@@ -46,7 +55,8 @@ MAX_BOUNCES = 64
 class Table:
     """A tabulated BSDF: ``cdf`` (nb, nb) float64 running sums of each arriving bin's row; its bins and index;
     ``error``: how far it is off, measured against the exact model when it was made (`model_error`: per side; None
-    for a table kept before it was measured)."""
+    for a table kept before it was measured); ``levels``: how many tables ``cdf`` stacks, one per fill level of a
+    density map (evenly spaced from 0 to 1), 1 for a periodic layout's."""
 
     ior: float
     n_mu: int
@@ -54,6 +64,7 @@ class Table:
     cdf: np.ndarray
     rays: int
     error: dict | None = None
+    levels: int = 1
 
     @property
     def bins(self) -> int:
@@ -65,24 +76,28 @@ class Table:
         return np.diff(self.cdf, axis=1, prepend=0.0)
 
     def arrays(self) -> dict[str, np.ndarray]:
-        out = {"cdf": self.cdf, "params": np.array([self.ior, self.n_mu, self.n_phi, self.rays], np.float64)}
+        out = {"cdf": self.cdf,
+               "params": np.array([self.ior, self.n_mu, self.n_phi, self.rays, self.levels], np.float64)}
         if self.error is not None:
             out["error"] = np.array([[e["deviation"], e["stderr"], SIDES.index(e["side"]), e["theta_deg"],
-                                      e["phi_deg"], e["probes"], e["probe_rays"], e["exact"]]
+                                      e["phi_deg"], e["probes"], e["probe_rays"], e["exact"], e.get("fill", np.nan)]
                                      for e in (self.error[side] for side in SIDES)], np.float64)
         return out
 
     @classmethod
     def from_arrays(cls, arrays) -> Table:
+        """The table `arrays` gave (as kept before levels and fills, too: one level, no fill)."""
         p = arrays["params"]
         error = None
         if "error" in getattr(arrays, "files", arrays):
             error = {}
             for row in np.asarray(arrays["error"], np.float64):
                 e = [float(x) for x in row]
+                fill = e[8] if len(e) > 8 and math.isfinite(e[8]) else None
                 error[SIDES[int(e[2])]] = _error_dict(e[0], e[1], SIDES[int(e[2])], e[3], e[4], int(e[5]), int(e[6]),
-                                                      e[7])
-        return cls(float(p[0]), int(p[1]), int(p[2]), np.asarray(arrays["cdf"], np.float64), int(p[3]), error)
+                                                      e[7], fill)
+        return cls(float(p[0]), int(p[1]), int(p[2]), np.asarray(arrays["cdf"], np.float64), int(p[3]), error,
+                   int(p[4]) if len(p) > 4 else 1)
 
 
 SIDES = ("air", "solid")
@@ -91,9 +106,12 @@ MEASURES = {"air": "share of a beam from the air that crosses the element and a 
 
 
 def _error_dict(dev: float, se: float, side: str, theta: float, phi: float, probes: int, rays: int,
-                exact: float) -> dict:
-    return {"deviation": dev, "stderr": se, "side": side, "theta_deg": theta, "phi_deg": phi, "probes": probes,
-            "probe_rays": rays, "exact": exact, "measure": MEASURES[side]}
+                exact: float, fill: float | None = None) -> dict:
+    out = {"deviation": dev, "stderr": se, "side": side, "theta_deg": theta, "phi_deg": phi, "probes": probes,
+           "probe_rays": rays, "exact": exact, "measure": MEASURES[side]}
+    if fill is not None:   # a density map's table: the fill level where it is furthest off
+        out["fill"] = fill
+    return out
 
 
 def bin_of(w: np.ndarray, n_mu: int, n_phi: int) -> np.ndarray:
@@ -132,15 +150,31 @@ MU_MIN = 0.02     # arriving directions within 1.1 degrees of grazing are taken 
 
 
 def _patch(e: Microstructure) -> tuple[float, float, float, float, float, float]:
-    """(u0, v0, su, sv) of the patch rays land on and (lu, lv) of the support, mm (periodic layouts only)."""
-    if e.layout not in (fx.GRID, fx.HEX):
-        raise ElementError("model: a tabulated BSDF is built for periodic layouts (grid, hex) for now; a density map "
-                           "or a point list varies over its face: use the exact model")
+    """(u0, v0, su, sv) of the patch rays land on and (lu, lv) of the support, mm (periodic layouts and density
+    maps: a density map's levels are placed over the whole support, `_level`)."""
+    if e.layout not in (fx.GRID, fx.HEX, fx.DENSITY):
+        raise ElementError("model: a tabulated BSDF is built for periodic layouts (grid, hex) and density maps; a "
+                           "point list or a close-packed layout is not one: use the exact model")
     cu, cv = e.cell
     k = max(20, int(math.ceil(0.5 / min(cu, cv))))     # at least 20 cells and 0.5 mm
     u0 = MARGIN_MM - math.fmod(MARGIN_MM, cu)            # a whole number of cells from the support's corner
     v0 = MARGIN_MM - math.fmod(MARGIN_MM, cv)
     return u0, v0, k * cu, k * cv, u0 + k * cu + MARGIN_MM, v0 + k * cv + MARGIN_MM
+
+
+def _level(e: Microstructure, fill: float, lu: float, lv: float) -> Microstructure:
+    """The density map's features placed at a uniform `fill` over a support lu x lv mm (its pitch, placement and
+    seed): what one level of its table is traced on."""
+    return prepare({**e.body, "layout": {**e.body["layout"], "origin_mm": [0.0, 0.0], "size_mm": [lu, lv],
+                                         "fill": [[float(fill)]]}})
+
+
+def _levels(e: Microstructure, lu: float, lv: float) -> list[tuple[float | None, Microstructure]]:
+    """(fill, patch element) of each table: the element itself (no fill) for a periodic layout, `LEVELS` uniform
+    fills from 0 to 1 for a density map."""
+    if e.layout != fx.DENSITY:
+        return [(None, e)]
+    return [(k / (LEVELS - 1), _level(e, k / (LEVELS - 1), lu, lv)) for k in range(LEVELS)]
 
 
 def _scene(e: Microstructure, lu: float, lv: float, depth: float):
@@ -155,15 +189,29 @@ def _scene(e: Microstructure, lu: float, lv: float, depth: float):
     return s
 
 
-def trace(s, ior: float, o: np.ndarray, d: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+def _diffuse(f: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Directions (k, 3) cosine-distributed about the unit normals `f` (k, 3): a Lambertian reflection."""
+    r1, r2 = rng.random(len(f)), rng.random(len(f))
+    t = np.where(np.abs(f[:, :1]) < 0.9, np.cross(f, [1.0, 0.0, 0.0]), np.cross(f, [0.0, 1.0, 0.0]))
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    b = np.cross(f, t)
+    sr, phi = np.sqrt(r1), 2.0 * math.pi * r2
+    return (sr * np.cos(phi))[:, None] * t + (sr * np.sin(phi))[:, None] * b + np.sqrt(1.0 - r1)[:, None] * f
+
+
+def trace(s, ior: float, o: np.ndarray, d: np.ndarray, rng: np.random.Generator,
+          surface: tuple[int, float] = (fx.MAT_PART, 0.0)) -> tuple[np.ndarray, np.ndarray]:
     """Leaving directions (k, 3) of photons from points ``o`` along ``d`` through scene `s` (`_scene`: mm, the
-    support's frame u, v, n = x, y, z, the face at z = 0 over a solid below), and whether each left (False: still
-    inside after MAX_BOUNCES). A photon leaves where it meets nothing (upwards, into the air) or the solid's other
-    faces (down into it); at the face and the features it is reflected or refracted (unpolarized Fresnel)."""
+    support's frame u, v, n = x, y, z, the face at z = 0 over a solid below), and whether each left (False: absorbed,
+    or still inside after MAX_BOUNCES). A photon leaves where it meets nothing (upwards, into the air) or the solid's
+    other faces (down into it); at the face it is reflected or refracted (unpolarized Fresnel), at the features too,
+    unless they have a `surface` of their own (``(features.MAT_LAMBERTIAN, reflectance)`` or ``MAT_BLACK``): then
+    reflected diffusely on the side it came from with that reflectance, absorbed otherwise."""
     o = o.copy()
     d = d.copy()
     alive = np.ones(len(o), bool)
     done = np.zeros(len(o), bool)
+    own, rho = int(surface[0]), float(surface[1]) if surface[0] == fx.MAT_LAMBERTIAN else 0.0
     for _ in range(MAX_BOUNCES):
         idx = np.flatnonzero(alive)
         if len(idx) == 0:
@@ -192,22 +240,23 @@ def trace(s, ior: float, o: np.ndarray, d: np.ndarray, rng: np.random.Generator)
         t = ~refl
         eta = (n1 / n2)[t]
         out[t] = eta[:, None] * dd[t] + (eta * np.abs(cos[t]) - cos_t[t])[:, None] * f[t]
+        printed = h.primitive[~leave] < -1 if own != fx.MAT_PART else np.zeros(len(k), bool)
+        if printed.any():   # a feature's own surface: diffuse reflection on the arriving side, or absorbed
+            kept = rng.random(len(k)) < rho
+            alive[k[printed & ~kept]] = False
+            refl = np.where(printed, True, refl)
+            out[printed] = _diffuse(f[printed], rng)
         out /= np.linalg.norm(out, axis=1, keepdims=True)
         d[k] = out
         o[k] = p[~leave] + np.where(refl, 1e-9, -1e-9)[:, None] * f   # on the side it goes on from
     return d, done
 
 
-def tabulate(e: Microstructure, ior: float, *, n_mu: int = N_MU, n_phi: int = N_PHI, rays: int | None = None,
-             seed: int = 0) -> Table:
-    """The element's BSDF on a solid of index `ior` in air, traced through its exact geometry (module docstring);
-    `rays` per arriving bin (default `RAYS`, read when called)."""
-    rays = RAYS if rays is None else int(rays)
-    if isinstance(ior, bool) or not (isinstance(ior, int | float) and math.isfinite(ior) and 1.0 <= ior <= 4.0):
-        raise ElementError(f"ior must be a number in [1, 4] for a tabulated BSDF, got {ior!r}")
-    rng = np.random.default_rng(seed)
-    u0, v0, su, sv, lu, lv = _patch(e)
-    s = _scene(e, lu, lv, 10.0 * e.h + 1.0)
+def _rows(e: Microstructure, s, ior: float, n_mu: int, n_phi: int, rays: int, rng: np.random.Generator,
+          patch: tuple[float, float, float, float]) -> np.ndarray:
+    """One table's running sums (nb, nb): `rays` photons per arriving bin over the `patch` (u0, v0, su, sv) of
+    element `e` on scene `s` (module docstring)."""
+    u0, v0, su, sv = patch
     nb = 2 * n_mu * n_phi
     counts = np.zeros((nb, nb))
     b_in = np.repeat(np.arange(nb), rays)
@@ -222,11 +271,28 @@ def tabulate(e: Microstructure, ior: float, *, n_mu: int = N_MU, n_phi: int = N_
     pv = v0 + rng.random(len(b_in)) * sv
     # start just off the face, back along d from a point of the patch's plane (it may meet a feature before it)
     o = np.column_stack([pu, pv, np.zeros(len(b_in))]) + (z / d[:, 2])[:, None] * d
-    out, left = trace(s, ior, o, d, rng)
+    out, left = trace(s, ior, o, d, rng, (e.material, e.reflectance))
     b_out = bin_of(out, n_mu, n_phi)
     np.add.at(counts, (b_in[left], b_out[left]), 1.0)
-    table = Table(float(ior), n_mu, n_phi, np.cumsum(counts / rays, axis=1), rays)
-    return Table(table.ior, n_mu, n_phi, table.cdf, rays, model_error(e, table, s=s, seed=seed + 1))
+    return np.cumsum(counts / rays, axis=1)
+
+
+def tabulate(e: Microstructure, ior: float, *, n_mu: int = N_MU, n_phi: int = N_PHI, rays: int | None = None,
+             seed: int = 0) -> Table:
+    """The element's BSDF on a solid of index `ior` in air, traced through its exact geometry (module docstring):
+    one table, or a density map's `LEVELS`; `rays` per arriving bin (default `RAYS`, read when called)."""
+    rays = RAYS if rays is None else int(rays)
+    if isinstance(ior, bool) or not (isinstance(ior, int | float) and math.isfinite(ior) and 1.0 <= ior <= 4.0):
+        raise ElementError(f"ior must be a number in [1, 4] for a tabulated BSDF, got {ior!r}")
+    rng = np.random.default_rng(seed)
+    u0, v0, su, sv, lu, lv = _patch(e)
+    levels = _levels(e, lu, lv)
+    scenes = [_scene(p, lu, lv, 10.0 * e.h + 1.0) for _, p in levels]
+    cdf = np.concatenate([_rows(p, s, float(ior), n_mu, n_phi, rays, rng, (u0, v0, su, sv))
+                          for (_, p), s in zip(levels, scenes, strict=True)])
+    table = Table(float(ior), n_mu, n_phi, cdf, rays, levels=len(levels))
+    return Table(table.ior, n_mu, n_phi, table.cdf, rays, model_error(e, table, s=scenes, seed=seed + 1),
+                 len(levels))
 
 
 PROBE_RAYS = 1000     # rays of each probe beam (`model_error`)
@@ -245,13 +311,30 @@ def model_error(e: Microstructure, table: Table, *, rays: int | None = None, see
     traced exactly and set against the table's row. Answers, per side (``{"air": ..., "solid": ...}``), the worst
     probe's ``deviation`` (table − exact, a share of the flux that meets the element) and its ``stderr`` (the exact
     probe's and the table row's Monte Carlo errors combined), with where (``side``, ``theta_deg``, ``phi_deg``),
-    ``probes``, ``probe_rays``, the ``exact`` share there and what was measured (``measure``)."""
+    ``probes``, ``probe_rays``, the ``exact`` share there and what was measured (``measure``); for a density map's
+    levels the worst over them, and its ``fill``. `s`: the patches' scenes, as `tabulate` made them (made here
+    where None)."""
     rays = PROBE_RAYS if rays is None else int(rays)
     rng = np.random.default_rng(seed)
-    n_mu, n_phi, ior = table.n_mu, table.n_phi, table.ior
     u0, v0, su, sv, lu, lv = _patch(e)
-    if s is None:
-        s = _scene(e, lu, lv, 10.0 * e.h + 1.0)
+    levels = _levels(e, lu, lv)
+    scenes = s if isinstance(s, list) else [s] if s is not None else [None] * len(levels)
+    nb = table.bins
+    worst: dict[str, dict] = {}
+    for k, ((fill, p), scene) in enumerate(zip(levels, scenes, strict=True)):
+        one = Table(table.ior, table.n_mu, table.n_phi, table.cdf[k * nb:(k + 1) * nb], table.rays)
+        scene = _scene(p, lu, lv, 10.0 * e.h + 1.0) if scene is None else scene
+        for side, err in _probe_error(p, one, scene, rays, rng, (u0, v0, su, sv), fill).items():
+            if side not in worst or abs(err["deviation"]) > abs(worst[side]["deviation"]):
+                worst[side] = err
+    return worst
+
+
+def _probe_error(e: Microstructure, table: Table, s, rays: int, rng: np.random.Generator,
+                 patch: tuple[float, float, float, float], fill: float | None) -> dict:
+    """`model_error` of one table (one element or one level) on its patch's scene `s`."""
+    n_mu, n_phi, ior = table.n_mu, table.n_phi, table.ior
+    u0, v0, su, sv = patch
     half = n_mu * n_phi
     # what each leaving bin is worth on each side's measure: through a plain face, the mean over the bin's |cos θ|
     # (its directions are drawn uniformly over the bin); into the air, 1
@@ -278,7 +361,7 @@ def model_error(e: Microstructure, table: Table, *, rays: int | None = None, see
     z = np.where(up, top, bottom)
     o = np.column_stack([u0 + rng.random(len(d)) * su, v0 + rng.random(len(d)) * sv, np.zeros(len(d))]) + (
         z / d[:, 2])[:, None] * d
-    w_out, left = trace(s, ior, o, d, rng)
+    w_out, left = trace(s, ior, o, d, rng, (e.material, e.reflectance))
     value = np.where(w_out[:, 2] < 0.0, _plain_exit(np.abs(w_out[:, 2]), ior), 0.0)   # into the solid, then out of it
     value = np.where(up, value, (w_out[:, 2] > 0.0).astype(float)) * left           # or out into the air
     per = value.reshape(k, rays)
@@ -297,5 +380,5 @@ def model_error(e: Microstructure, table: Table, *, rays: int | None = None, see
         j = idx[int(np.argmax(np.abs(dev[idx])))]
         _, m, f, _ = probes[j]
         out[name] = _error_dict(float(dev[j]), float(se[j]), name, math.degrees(math.acos(m)), math.degrees(f),
-                                len(idx), rays, float(exact[j]))
+                                len(idx), rays, float(exact[j]), fill)
     return out

@@ -53,7 +53,8 @@ SIGN = 23                                 # +1 bump, -1 pit
 FMAT, FRHO = 24, 25                       # the features' own surface (-1: the part's material; 0 black;
                                           # 1 Lambertian of reflectance FRHO)
 MASK_H = 26                               # the outline mask's cell, mm
-NF = 27
+FILL_U0, FILL_V0, FILL_DU, FILL_DV = 27, 28, 29, 30   # a tabulated density map's fill map: first cell corner, cell, mm
+NF = 31
 MAT_PART, MAT_BLACK, MAT_LAMBERTIAN = -1, 0, 1
 # el_i columns (int64)
 SHAPE, LAYOUT, NU, NV = 0, 1, 2, 3        # feature shape, layout kind, cells along u and v
@@ -65,7 +66,10 @@ MODEL, TAB, TAB_MU, TAB_PHI = 12, 13, 14, 15   # 0 exact, 1 bsdf, 2 grating: its
                                                # bins (bsdf); a grating's sizes are in its table (`diffraction`)
 FACE, NFACE = 16, 17                           # the feature's face planes: first row in el_face, count (a mesh's)
 MASK, MASK_NU, MASK_NV = 18, 19, 20            # a support that is not its u-v box: its kept cells' first byte in
-NI = 21                                        # el_bits and their count along u and v (0: no mask)
+                                               # el_bits and their count along u and v (0: no mask)
+LEVELS, FILL, FILL_NU, FILL_NV = 21, 22, 23, 24   # a tabulated BSDF's tables, one per fill level evenly spaced from 0
+                                                  # to 1 (1: a periodic layout's one table), and a density map's fill
+NI = 25                                           # map: its first entry in el_tab (row-major) and cells along u, v
 EXACT, BSDF, GRATING = 0, 1, 2
 
 NEAR = 1.0e300

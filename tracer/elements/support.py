@@ -140,6 +140,11 @@ class Row:
     mask: tuple[np.ndarray, int, int, float] | None = None   # the outline's kept cells (`outline.mask`)
 
 
+def fill_map(e: Microstructure) -> np.ndarray:
+    """A density map's fill, (rows along v, columns along u), as its body gives it."""
+    return np.asarray(e.body["layout"]["fill"], np.float64)
+
+
 def row_params(row: Row, support_index: int) -> tuple[np.ndarray, np.ndarray]:
     """The row's ``el_f`` (NF,) and ``el_i`` (NI,) (offsets left at zero for `Reliefs.pack` to fill); a grating's
     (`tracer.elements.grating.GratingTable`, no micro-geometry) the frame and its model only."""
@@ -163,6 +168,13 @@ def row_params(row: Row, support_index: int) -> tuple[np.ndarray, np.ndarray]:
         _, i[fx.MASK_NU], i[fx.MASK_NV], f[fx.MASK_H] = row.mask
     if row.table is not None:
         i[fx.MODEL], i[fx.TAB_MU], i[fx.TAB_PHI] = fx.BSDF, row.table.n_mu, row.table.n_phi
+        i[fx.LEVELS] = row.table.levels
+        if row.table.levels > 1:   # a density map's: the fill map the level is read from (`Reliefs.pack` places it)
+            fill = fill_map(e)
+            i[fx.FILL_NV], i[fx.FILL_NU] = fill.shape
+            lay = e.body["layout"]
+            f[fx.FILL_U0], f[fx.FILL_V0] = lay["origin_mm"]
+            f[fx.FILL_DU], f[fx.FILL_DV] = lay["size_mm"][0] / fill.shape[1], lay["size_mm"][1] / fill.shape[0]
     if e.layout in (fx.GRID, fx.HEX):
         nu = max(1, int(fr.lu // e.cell[0]) + (1 if e.layout == fx.HEX else 0))
         nv = max(1, int(fr.lv // e.cell[1]))

@@ -108,6 +108,7 @@ class Reliefs:
         n_tab = 0
         shared: dict[str, tuple[int, int, int, int, int]] = {}
         gratings: dict[str, int] = {}   # a grating's first row in el_tab
+        fills: list[tuple[int, np.ndarray]] = []   # (row, a density map's fill) of the tables read by fill level
         sizes = [0, 0, 0, 0, 0, 0]   # el_prim, el_bits, el_uv, el_bin, el_item, el_face so far
         for r, (_, row) in enumerate(sorted(self.rows.items())):
             ef[r], ei[r] = support.row_params(row, index_of(row.support))
@@ -146,7 +147,14 @@ class Reliefs:
                 ei[r, fx.TAB] = n_tab
                 tabs.append(row.table.cdf)
                 n_tab += len(row.table.cdf)
+                if row.table.levels > 1:   # its fill map, row-major, in rows of el_tab's width (known below)
+                    fills.append((r, support.fill_map(e).ravel()))
         width = max((len(t[0]) for t in tabs), default=0)
+        for r, fill in fills:
+            ei[r, fx.FILL] = n_tab * width
+            rows = -(-len(fill) // width)
+            tabs.append(np.pad(fill, (0, rows * width - len(fill))).reshape(rows, width))
+            n_tab += rows
         tab = np.zeros((n_tab, width))
         k = 0
         for t in tabs:

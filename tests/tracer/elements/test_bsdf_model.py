@@ -113,3 +113,71 @@ def test_physics_left_out_measures_the_table_against_the_exact_geometry_on_a_cop
     none = Simulation(plain, {plain_part: PMMA}, [light]).grid(*below, **ask, physics_left_out=["element_geometry"])
     assert not none.physics_left_out["element_geometry"]["ran"]
     assert np.all(none.physics_left_out["element_geometry"]["difference"] == 0)
+
+
+def _density(fill, material=None, height=0.04):
+    body = {"type": "microstructure", "feature": {"shape": "dome", "radius_mm": 0.08, "height_mm": height},
+            "layout": {"type": "density", "origin_mm": [0, 0], "size_mm": [10, 10], "fill": fill, "pitch_mm": 0.2}}
+    return prepare({**body, "material": material} if material else body)
+
+
+def _resolution(e, table, rays):
+    """The table's resolution error on a normal beam's transmitted share, as the test above takes it, the worst over a
+    density map's levels: the exact share's move over the arriving bin (mu 1 to its edge) on each level's patch, and
+    the Monte Carlo errors of the level's row and of those shares."""
+    u0, v0, su, sv, lu, lv = tab._patch(e)
+    rng = np.random.default_rng(9)
+    worst = 0.0
+    nb = table.bins
+    for level, (_, patch) in enumerate(tab._levels(e, lu, lv)):
+        s = tab._scene(patch, lu, lv, 10 * e.h + 1.0)
+        share = []
+        for mu in (1.0, 1.0 - 1.0 / table.n_mu):
+            k = 4000
+            d = np.tile([math.sqrt(1 - mu * mu), 0.0, -mu], (k, 1))
+            o = np.column_stack([u0 + rng.random(k) * su, v0 + rng.random(k) * sv, np.zeros(k)]) - (0.05 / mu) * d
+            w, left = tab.trace(s, table.ior, o, d, rng, (e.material, e.reflectance))
+            share.append(float(np.mean(left & (w[:, 2] < 0))))
+        row = level * nb + (table.n_mu - 1) * table.n_phi
+        p = float(table.probabilities[row, nb // 2:].sum())
+        worst = max(worst, abs(share[0] - share[1]) + 4 * math.sqrt(p * (1 - p) / rays)
+                    + 4 * math.sqrt(share[0] * (1 - share[0]) / 4000))
+    return worst
+
+
+@pytest.mark.parametrize("material", [None, {"type": "lambertian", "reflectance": 0.5}], ids=["domes", "printed"])
+def test_a_density_map_s_tables_by_fill_level_transmit_what_its_dots_transmit(material):
+    """A plate whose dots follow a 2 x 2 map (fills 0.1, 0.9, 0.6, 0.3: none a level but 0.9's neighbours) is
+    tabulated as five tables, fill 0 to 1; the photons meeting the support scatter by the two levels around the fill
+    where they land. A normal beam on one quadrant transmits the same flux through the tables as through the
+    placed dots, within 4 combined sigma plus the tables' resolution error (the test above's, the worst level).
+    Printed dots (Lambertian, reflectance 0.5, their own surface) absorb half of what meets them: their table's rows
+    hold less than 1, and the plate still transmits what its dots let through."""
+    dots = _density([[0.1, 0.9], [0.6, 0.3]], material, height=0.04 if material is None else 0.005)
+    rays = 1500
+    table = tab.tabulate(dots, 1.49, rays=rays, seed=1)
+    assert table.levels == tab.LEVELS and table.cdf.shape == (tab.LEVELS * table.bins, table.bins)
+    assert {side: "fill" in err for side, err in table.error.items()} == {"air": True, "solid": True}
+    back = tab.Table.from_arrays(table.arrays())
+    assert back.levels == tab.LEVELS and back.error == table.error and np.array_equal(back.cdf, table.cdf)
+    sums = table.probabilities.sum(axis=1).reshape(tab.LEVELS, table.bins)
+    assert np.allclose(sums[0], 1.0)   # fill 0: a plain face, lossless
+    if material is None:   # lossless but for a rare photon still inside after MAX_BOUNCES (full fill: 1 in 1500)
+        assert sums.min() > 0.998 and sums.mean() > 0.9999
+    else:   # the fuller the face, the more its dots absorb
+        assert np.all(np.diff(sums.mean(axis=1)) < 0) and sums[-1].mean() < 0.9
+    # a normal beam on the quadrant u > 5, v < 5 mm (the map's row 0, column 1: fill 0.9; the fill read at u, v the
+    # other way round would be 0.6's)
+    light = {"type": "collimated", "origin": [0.0075, 0.0025, 0.003], "direction": [0, 0, -1], "radius": 0.0022,
+             "illuminance_lx": 1000.0}
+    below = ([-0.05, -0.05, -0.001], [0.1, 0.0, 0.0], [0.0, 0.1, 0.0], 1, 1)
+    out = {}
+    for name, t in (("exact", None), ("bsdf", table)):
+        s, part = _plate(dots, t)
+        r = Simulation(s, {part: PMMA}, [light]).grid(*below, max_photons=60_000, seed=5, estimator="forward")
+        out[name] = (float(r.lux[0, 0]) * 0.01, float(r.stderr[0, 0]) * 0.01)
+    flux = 1000.0 * math.pi * 0.0022 ** 2
+    (a, sa), (b, sb) = out["exact"], out["bsdf"]
+    resolution = _resolution(dots, table, rays)
+    assert 0.3 * flux < a < flux
+    assert abs(a - b) <= 4 * math.hypot(sa, sb) + resolution * flux, (a, b, sa, sb, resolution * flux)

@@ -91,7 +91,7 @@ def values():
         "any_hit": True, "reverse": False, "from_outside": True,
     }
     for name in ("inst", "prim", "depth", "dim", "j", "mi", "col", "lo", "n", "first", "count", "row0", "slot", "g",
-                 "sp", "base", "r", "b", "tri0", "at", "si", "n_bins", "ra", "rb"):
+                 "sp", "base", "r", "b", "tri0", "at", "si", "n_bins", "ra", "rb", "level"):
         v[name] = i
     return v, f
 

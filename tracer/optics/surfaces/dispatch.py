@@ -29,6 +29,7 @@ from numba import types
 from tracer.elements import diffraction
 from tracer.elements import features as fx
 from tracer.jit import kind_table, njit
+from tracer.kinds import relief
 from tracer.optics import mie, spectra
 from tracer.optics.coating import Coating
 from tracer.optics.elements import diffuser, polarizer, retarder
@@ -335,11 +336,38 @@ def table_row(sa, inst, prim):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def bsdf_scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, pol):
+def table_level(sa, r, inst, prim, hu, hv, u):
+    """Which of a density map's tables (`tracer.elements.bsdf`: levels evenly spaced in fill from 0 to 1) scatters
+    a photon meeting the support of element row `r` at ``(prim, hu, hv)`` (its triangle of the part and barycentrics):
+    the map's fill f where it lands (0 off the map) gives the levels k and k + 1 around it; k + 1 with probability
+    f (K − 1) − k, drawn with the uniform number `u`."""
+    F = sa.el_f[r]
+    I = sa.el_i[r]
+    px, py, pz = relief.point(sa, inst, prim, hu, hv)
+    qx, qy, qz = px - F[fx.O_X], py - F[fx.O_X + 1], pz - F[fx.O_X + 2]
+    pu = F[fx.MM] * (qx * F[fx.U_X] + qy * F[fx.U_X + 1] + qz * F[fx.U_X + 2])
+    pv = F[fx.MM] * (qx * F[fx.V_X] + qy * F[fx.V_X + 1] + qz * F[fx.V_X + 2])
+    iu = int(math.floor((pu - F[fx.FILL_U0]) / F[fx.FILL_DU]))   # int(): a device's floor is a float
+    iv = int(math.floor((pv - F[fx.FILL_V0]) / F[fx.FILL_DV]))
+    fill = 0.0
+    if 0 <= iu < I[fx.FILL_NU] and 0 <= iv < I[fx.FILL_NV]:
+        j = I[fx.FILL] + iv * I[fx.FILL_NU] + iu
+        width = sa.el_tab.shape[1]
+        fill = sa.el_tab[j // width, j - (j // width) * width]
+    x = min(max(fill, 0.0), 1.0) * (I[fx.LEVELS] - 1)
+    k = min(int(x), I[fx.LEVELS] - 1)
+    if k < I[fx.LEVELS] - 1 and u < x - k:
+        k += 1
+    return k
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def bsdf_scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, pol, level):
     """Scatter a photon arriving along d on the support of element row `r` by its table (`tracer.elements.bsdf`:
     the arriving bin is the reversed direction's, in the support's frame; the leaving bin is drawn from the row's
-    running sums, the direction uniform over its solid angle). Crossing the face pushes or pops the part's medium;
-    the table is unpolarized, so the photon is depolarized."""
+    running sums, the direction uniform over its solid angle); `level`: which of a density map's tables
+    (`table_level`; 0 for a periodic layout's one). Crossing the face pushes or pops the part's medium; the table is
+    unpolarized, so the photon is depolarized."""
     F = sa.el_f[r]
     du, dv, dn, norm = diffraction.in_support(sa, r, inst, dx, dy, dz)
     n_mu = sa.el_i[r, fx.TAB_MU]
@@ -351,8 +379,8 @@ def bsdf_scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, pol):
     if phi < 0.0:
         phi += 2.0 * math.pi
     ip = min(int(phi / (2.0 * math.pi) * n_phi), n_phi - 1)
-    row = sa.el_i[r, fx.TAB] + side_in * half + im * n_phi + ip
     nb = 2 * half
+    row = sa.el_i[r, fx.TAB] + level * nb + side_in * half + im * n_phi + ip
     u = uniform(key, dim)
     if not u < sa.el_tab[row, nb - 1]:
         return ABSORBED, dx, dy, dz, 0.0, depth, dim + 1
@@ -397,7 +425,10 @@ def element_table_scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, 
     r = sa.inst_aux[inst]
     if sa.el_i[r, fx.MODEL] == fx.GRATING:
         return diffraction.scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, lam, pol)
-    return bsdf_scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, pol)
+    if sa.el_i[r, fx.LEVELS] > 1:   # a density map's: the table of the fill where the photon lands
+        level = table_level(sa, r, inst, prim, hu, hv, uniform(key, dim))
+        return bsdf_scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim + 1, pol, level)
+    return bsdf_scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, pol, 0)
 
 
 #: the kinds past the Lambertian one and the element tables, called through `MaterialArrays.scatter_at`
