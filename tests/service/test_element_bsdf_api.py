@@ -174,5 +174,6 @@ def test_a_density_map_is_tabulated_by_fill_level_over_rest(client: Any) -> None
     assert a.status_code == 200, a.text
     (element,) = a.json()["elements"]
     assert element["model"] == "bsdf" and a.json()["lux"][0][0] > 0
-    assert {side: err["fill"] in (0.0, 0.25, 0.5, 0.75, 1.0) for side, err in element["model_error"].items()} == {
+    # the worst of the five levels and of the four fills halfway between them
+    assert {side: err["fill"] in np.arange(9) / 8 for side, err in element["model_error"].items()} == {
         "air": True, "solid": True}

@@ -26,13 +26,14 @@ the exact model does not); from the solid's side, the share that leaves into the
 (table − exact, a share of the flux meeting the element) and its standard error are kept with the table and carried
 by every answer that uses it (issue 54, item 11: a dotted plate transmitted 2.4 % more through its table).
 
-A density map's face varies from place to place, so its model is one table per fill level (`LEVELS`, evenly spaced
-from 0, a plain face, to 1), each traced on a patch of the same features placed at that uniform fill (the map's pitch,
+A density map's face varies from place to place, so its model is one table per fill level (`LEVELS`, evenly spaced from
+0, a plain face, to 1), each traced on a patch of the same features placed at that uniform fill (the map's pitch,
 placement and seed); a photon meeting the support reads the map's fill f where it lands and scatters by the table of
-level k or k + 1 around f (k + 1 with probability f (K − 1) − k), so the face scatters as the mixture of its two
-nearest levels. Its error is the worst over the levels (``fill`` says which). Printed features (a material of their
-own, `tracer.elements.microstructure`) reflect diffusely with their reflectance and absorb the rest, as in the exact
-model; a photon they absorb leaves nothing, so a row's sum is the light that is not absorbed.
+level k or k + 1 around f (k + 1 with probability f (K − 1) − k), so the face scatters as the mixture of its two nearest
+levels. Its error is the worst over the levels and the fills halfway between them, where the mixture of the two tables
+around stands for the features placed at that fill (``fill`` says which). Printed features (a material of their own,
+`tracer.elements.microstructure`) reflect diffusely with their reflectance and absorb the rest, as in the exact model; a
+photon they absorb leaves nothing, so a row's sum is the light that is not absorbed.
 """
 
 from __future__ import annotations
@@ -312,17 +313,24 @@ def model_error(e: Microstructure, table: Table, *, rays: int | None = None, see
     probe's ``deviation`` (table − exact, a share of the flux that meets the element) and its ``stderr`` (the exact
     probe's and the table row's Monte Carlo errors combined), with where (``side``, ``theta_deg``, ``phi_deg``),
     ``probes``, ``probe_rays``, the ``exact`` share there and what was measured (``measure``); for a density map's
-    levels the worst over them, and its ``fill``. `s`: the patches' scenes, as `tabulate` made them (made here
-    where None)."""
+    levels and the fills halfway between them (the features placed at that fill, against the even mixture of the
+    two tables around it, as the transport draws them: how far the tables' reading of a fill between levels is off)
+    the worst over them all, and its ``fill``. `s`: the patches' scenes, as `tabulate` made them (made here where
+    None)."""
     rays = PROBE_RAYS if rays is None else int(rays)
     rng = np.random.default_rng(seed)
     u0, v0, su, sv, lu, lv = _patch(e)
     levels = _levels(e, lu, lv)
     scenes = s if isinstance(s, list) else [s] if s is not None else [None] * len(levels)
     nb = table.bins
+    cdfs = [table.cdf[k * nb:(k + 1) * nb] for k in range(len(levels))]
+    checks = [(fill, p, cdf, scene) for (fill, p), cdf, scene in zip(levels, cdfs, scenes, strict=True)]
+    for k in range(len(levels) - 1):   # a density map: halfway between two levels
+        mid = (k + 0.5) / (len(levels) - 1)
+        checks.append((mid, _level(e, mid, lu, lv), 0.5 * (cdfs[k] + cdfs[k + 1]), None))
     worst: dict[str, dict] = {}
-    for k, ((fill, p), scene) in enumerate(zip(levels, scenes, strict=True)):
-        one = Table(table.ior, table.n_mu, table.n_phi, table.cdf[k * nb:(k + 1) * nb], table.rays)
+    for fill, p, cdf, scene in checks:
+        one = Table(table.ior, table.n_mu, table.n_phi, cdf, table.rays)
         scene = _scene(p, lu, lv, 10.0 * e.h + 1.0) if scene is None else scene
         for side, err in _probe_error(p, one, scene, rays, rng, (u0, v0, su, sv), fill).items():
             if side not in worst or abs(err["deviation"]) > abs(worst[side]["deviation"]):
