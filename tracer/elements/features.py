@@ -54,7 +54,8 @@ FMAT, FRHO = 24, 25                       # the features' own surface (-1: the p
                                           # 1 Lambertian of reflectance FRHO)
 MASK_H = 26                               # the outline mask's cell, mm
 FILL_U0, FILL_V0, FILL_DU, FILL_DV = 27, 28, 29, 30   # a tabulated density map's fill map: first cell corner, cell, mm
-NF = 31
+TAB_MUC = 31                              # a tabulated BSDF's solid side: |cos| of its critical angle (TAB_SPLIT > 0)
+NF = 32
 MAT_PART, MAT_BLACK, MAT_LAMBERTIAN = -1, 0, 1
 # el_i columns (int64)
 SHAPE, LAYOUT, NU, NV = 0, 1, 2, 3        # feature shape, layout kind, cells along u and v
@@ -69,7 +70,9 @@ MASK, MASK_NU, MASK_NV = 18, 19, 20            # a support that is not its u-v b
                                                # el_bits and their count along u and v (0: no mask)
 LEVELS, FILL, FILL_NU, FILL_NV = 21, 22, 23, 24   # a tabulated BSDF's tables, one per fill level evenly spaced from 0
                                                   # to 1 (1: a periodic layout's one table), and a density map's fill
-NI = 25                                           # map: its first entry in el_tab (row-major) and cells along u, v
+                                                  # map: its first entry in el_tab (row-major) and cells along u, v
+TAB_SPLIT = 25                                    # its solid side's |cos| bins below TAB_MUC (0: uniform bins)
+NI = 26
 EXACT, BSDF, GRATING = 0, 1, 2
 
 NEAR = 1.0e300

@@ -181,3 +181,56 @@ def test_a_density_map_s_tables_by_fill_level_transmit_what_its_dots_transmit(ma
     resolution = _resolution(dots, table, rays)
     assert 0.3 * flux < a < flux
     assert abs(a - b) <= 4 * math.hypot(sa, sb) + resolution * flux, (a, b, sa, sb, resolution * flux)
+
+
+def test_the_solid_side_s_bins_split_at_the_critical_angle_and_the_transport_bins_as_the_table_does():
+    """The solid side's |cos θ| edges hold the critical angle's |cos| sqrt(1 − 1/n²) (n = 1.49: 0.7416), ``split``
+    bins below it, the air side's stay uniform; the transport's bin of a direction (`dispatch.mu_bin`) and its
+    direction drawn in a bin (`dispatch.mu_in_bin`) are the table's (`bin_of`, `sample_in_bin`)."""
+    from tracer.optics.surfaces.dispatch import mu_bin, mu_in_bin
+
+    n_mu, ior = 6, 1.49
+    k = tab.split_for(n_mu, ior)
+    solid = tab.mu_edges(n_mu, ior, k)
+    c = math.sqrt(1 - 1 / ior ** 2)
+    assert k == 4 and solid[k] == pytest.approx(c) and solid[0] == 0.0 and solid[-1] == 1.0
+    assert np.all(np.diff(solid) > 0) and np.allclose(tab.mu_edges(n_mu, ior, 0), np.linspace(0, 1, 7))
+    assert tab.split_for(n_mu, 1.0) == 0
+    rng = np.random.default_rng(3)
+    mu = rng.random(2000)
+    w = np.column_stack([np.sqrt(1 - mu * mu), np.zeros_like(mu), -mu])   # into the solid: side 1
+    bins = tab.bin_of(w, n_mu, 1, solid)
+    assert np.array_equal(bins - n_mu, [mu_bin(m, n_mu, k, c) for m in mu])
+    u = rng.random(2000)
+    drawn = tab.sample_in_bin(bins, n_mu, 1, u, np.zeros_like(u), solid)
+    assert np.allclose(-drawn[:, 2], [mu_in_bin(b - n_mu, x, n_mu, k, c) for b, x in zip(bins, u, strict=True)])
+    assert np.all(tab.bin_of(drawn, n_mu, 1, solid) == bins)   # a direction drawn in a bin is binned back there
+
+
+@pytest.mark.parametrize("deg", [44.0, 46.0])
+def test_light_trapped_by_total_internal_reflection_leaves_only_through_the_dots_in_the_table_too(deg):
+    """From inside the plate at 44° and 46° from the normal (beyond the critical angle, 42.2° for n = 1.49) the face
+    reflects totally between the dots, and only what the dots let out leaves (traced exactly: about a quarter). The
+    table reads the same within 4σ; with the solid side's bins uniform (``split=False``, as before 2026-12-08) the
+    bin holding these directions reached into the escape cone, and the table let 0.46 out, about 1.8 times too
+    much: a light guide's trapped light leaked between its dots."""
+    dots = prepare(DOTS)
+    u0, v0, su, sv, lu, lv = tab._patch(dots)
+    s = tab._scene(dots, lu, lv, 10 * dots.h + 1.0)
+    rng = np.random.default_rng(4)
+    mu, k = math.cos(math.radians(deg)), 8000
+    came_from = np.tile([math.sqrt(1 - mu * mu), 0.0, -mu], (k, 1))   # below the face, inside the solid
+    d = -came_from
+    start = np.column_stack([u0 + rng.random(k) * su, v0 + rng.random(k) * sv, np.zeros(k)])
+    o = start + (-1e-4 / d[:, 2])[:, None] * d   # just under the face
+    out, left = tab.trace(s, 1.49, o, d, rng)
+    exact = float(np.mean(left & (out[:, 2] > 0)))
+    rays = 1500
+    shares = {}
+    for split in (True, False):
+        t = tab.tabulate(dots, 1.49, rays=rays, seed=1, split=split)
+        row = tab.bin_of(came_from[:1], t.n_mu, t.n_phi, t.edges(1) if t.split else None)[0]
+        shares[split] = float(t.probabilities[row, :t.bins // 2].sum())   # into the air: side 0
+    sigma = math.sqrt(exact * (1 - exact) / k + shares[True] * (1 - shares[True]) / rays)
+    assert 0.15 < exact < 0.4 and abs(shares[True] - exact) <= 4 * sigma, (exact, shares, sigma)
+    assert shares[False] - exact > 0.15, (exact, shares)

@@ -335,6 +335,27 @@ def table_row(sa, inst, prim):
     return r
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def mu_bin(mu, n_mu, split, muc):
+    """The |cos θ| bin of `mu` on a tabulated BSDF's side (`tracer.elements.bsdf.mu_edges`): `n_mu` uniform bins
+    (`split` 0), or `split` uniform bins below the critical angle's |cos| `muc` and the rest above it."""
+    if split == 0:
+        return min(int(mu * n_mu), n_mu - 1)
+    if mu < muc:
+        return min(int(mu / muc * split), split - 1)
+    return min(split + int((mu - muc) / (1.0 - muc) * (n_mu - split)), n_mu - 1)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def mu_in_bin(j, u, n_mu, split, muc):
+    """The |cos θ| at fraction `u` of bin `j`'s width (`mu_bin`'s bins)."""
+    if split == 0:
+        return (j + u) / n_mu
+    if j < split:
+        return (j + u) / split * muc
+    return muc + (j - split + u) / (n_mu - split) * (1.0 - muc)
+
+
 @njit(cache=True, error_model="numpy", _nrt=False)
 def table_level(sa, r, inst, prim, hu, hv, u):
     """Which of a density map's tables (`tracer.elements.bsdf`: levels evenly spaced in fill from 0 to 1) scatters
@@ -372,9 +393,11 @@ def bsdf_scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, pol, level):
     du, dv, dn, norm = diffraction.in_support(sa, r, inst, dx, dy, dz)
     n_mu = sa.el_i[r, fx.TAB_MU]
     n_phi = sa.el_i[r, fx.TAB_PHI]
+    split = sa.el_i[r, fx.TAB_SPLIT]
+    muc = F[fx.TAB_MUC]
     half = n_mu * n_phi
     side_in = 1 if dn >= 0.0 else 0          # travelling out of the solid: it came from side 1
-    im = min(int(abs(dn) / norm * n_mu), n_mu - 1)
+    im = mu_bin(abs(dn) / norm, n_mu, split if side_in == 1 else 0, muc)
     phi = math.atan2(-dv, -du)
     if phi < 0.0:
         phi += 2.0 * math.pi
@@ -391,7 +414,7 @@ def bsdf_scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, pol, level):
     rest = b - side_out * half
     jm = rest // n_phi
     jp = rest - jm * n_phi
-    mu = (jm + uniform(key, dim + 1)) / n_mu
+    mu = mu_in_bin(jm, uniform(key, dim + 1), n_mu, split if side_out == 1 else 0, muc)
     ph = (jp + uniform(key, dim + 2)) / n_phi * 2.0 * math.pi
     st = math.sqrt(max(0.0, 1.0 - mu * mu))
     wu = st * math.cos(ph)
