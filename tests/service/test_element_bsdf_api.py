@@ -40,6 +40,17 @@ def _scene(client: Any) -> str:
     return sid
 
 
+def _beam_through(client: Any, sid: str) -> Any:
+    """A grid cell under the plate, a normal beam onto it, and the cell simulated with 2000 forward photons."""
+    sensor = client.post(f"/scenes/{sid}/sensors", json={
+        "type": "grid", "origin": [0.0, 0.0, -0.001], "u": [0.02, 0, 0], "v": [0, 0.02, 0], "nu": 1, "nv": 1}
+                         ).json()["id"]
+    client.post(f"/scenes/{sid}/lights", json={"type": "collimated", "origin": [0.01, 0.01, 0.005],
+                                               "direction": [0, 0, -1], "radius": 0.003, "illuminance_lx": 1000})
+    return client.post(f"/scenes/{sid}/sensors/{sensor}/simulate", json={"max_photons": 2000, "seed": 1,
+                                                                           "estimator": "forward"})
+
+
 def test_a_bsdf_assignment_is_tabulated_once_beside_the_element_and_answers_name_it(client: Any) -> None:
     sid = _scene(client)
     eid = client.post("/elements", json=DOTS).json()["id"]
@@ -49,13 +60,7 @@ def test_a_bsdf_assignment_is_tabulated_once_beside_the_element_and_answers_name
     assert r.json()["model"] == "bsdf" and r.json()["applied"]
     tables = sorted(p.name for p in (client.data_dir / "elements").glob(f"{eid}.bsdf-*.npz"))
     assert tables == [f"{eid}.bsdf-1.49.npz"]
-    sensor = client.post(f"/scenes/{sid}/sensors", json={
-        "type": "grid", "origin": [0.0, 0.0, -0.001], "u": [0.02, 0, 0], "v": [0, 0.02, 0], "nu": 1, "nv": 1}
-                         ).json()["id"]
-    client.post(f"/scenes/{sid}/lights", json={"type": "collimated", "origin": [0.01, 0.01, 0.005],
-                                               "direction": [0, 0, -1], "radius": 0.003, "illuminance_lx": 1000})
-    a = client.post(f"/scenes/{sid}/sensors/{sensor}/simulate", json={"max_photons": 2000, "seed": 1,
-                                                                        "estimator": "forward"})
+    a = _beam_through(client, sid)
     assert a.status_code == 200, a.text
     assert [e["model"] for e in a.json()["elements"]] == ["bsdf"]
     assert a.json()["lux"][0][0] > 0
@@ -164,13 +169,7 @@ def test_a_density_map_is_tabulated_by_fill_level_over_rest(client: Any) -> None
     with np.load(client.data_dir / "elements" / f"{eid}.bsdf-1.49.npz") as kept:
         table = bsdf.Table.from_arrays(kept)
     assert table.levels == bsdf.LEVELS and table.cdf.shape == (bsdf.LEVELS * table.bins, table.bins)
-    sensor = client.post(f"/scenes/{sid}/sensors", json={
-        "type": "grid", "origin": [0.0, 0.0, -0.001], "u": [0.02, 0, 0], "v": [0, 0.02, 0], "nu": 1, "nv": 1}
-                         ).json()["id"]
-    client.post(f"/scenes/{sid}/lights", json={"type": "collimated", "origin": [0.01, 0.01, 0.005],
-                                               "direction": [0, 0, -1], "radius": 0.003, "illuminance_lx": 1000})
-    a = client.post(f"/scenes/{sid}/sensors/{sensor}/simulate", json={"max_photons": 2000, "seed": 1,
-                                                                        "estimator": "forward"})
+    a = _beam_through(client, sid)
     assert a.status_code == 200, a.text
     (element,) = a.json()["elements"]
     assert element["model"] == "bsdf" and a.json()["lux"][0][0] > 0

@@ -49,37 +49,28 @@ def _plate(dots, table=None):
     return s, part
 
 
-def test_a_dotted_plate_transmits_the_same_flux_through_its_table_as_through_its_dots():
-    dots = prepare(DOTS)
-    rays = 1500
-    table = tab.tabulate(dots, 1.49, rays=rays, seed=1)
-    light = {"type": "collimated", "origin": [0.005, 0.005, 0.003], "direction": [0, 0, -1], "radius": 0.002,
+def _through(dots, table, centre, radius, photons):
+    """The flux (lm) a normal collimated beam of 1000 lx and `radius` m on the plate at `centre` (x, y m) sends into
+    a cell under it, through the exact dots and through `table`: ``({"exact": (flux, err), "bsdf": ...}, the beam's
+    flux)``."""
+    light = {"type": "collimated", "origin": [*centre, 0.003], "direction": [0, 0, -1], "radius": radius,
              "illuminance_lx": 1000.0}
     below = ([-0.05, -0.05, -0.001], [0.1, 0.0, 0.0], [0.0, 0.1, 0.0], 1, 1)
     out = {}
     for name, t in (("exact", None), ("bsdf", table)):
         s, part = _plate(dots, t)
-        r = Simulation(s, {part: PMMA}, [light]).grid(*below, max_photons=30_000, seed=5, estimator="forward")
+        r = Simulation(s, {part: PMMA}, [light]).grid(*below, max_photons=photons, seed=5, estimator="forward")
         out[name] = (float(r.lux[0, 0]) * 0.01, float(r.stderr[0, 0]) * 0.01)
-    flux = 1000.0 * math.pi * 0.002 ** 2
-    # the table's resolution error on this quantity: how much the exact first crossing's transmitted share moves
-    # over the beam's arriving bin (mu from 1 down to its edge), and the table row's own Monte Carlo error
-    n_mu = table.n_mu
-    u0, v0, su, sv, lu, lv = tab._patch(dots)
-    s = tab._scene(dots, lu, lv, 10 * dots.h + 1.0)
-    rng = np.random.default_rng(9)
-    share = []
-    for mu in (1.0, 1.0 - 1.0 / n_mu):
-        k = 4000
-        d = np.tile([math.sqrt(1 - mu * mu), 0.0, -mu], (k, 1))
-        o = np.column_stack([u0 + rng.random(k) * su, v0 + rng.random(k) * sv, np.zeros(k)]) - (0.05 / mu) * d
-        w, left = tab.trace(s, 1.49, o, d, rng)
-        share.append(float(np.mean(left & (w[:, 2] < 0))))
-    row = (n_mu - 1) * table.n_phi
-    p = float(table.probabilities[row, table.bins // 2:].sum())
-    resolution = abs(share[0] - share[1]) + 4 * math.sqrt(p * (1 - p) / rays) + 4 * math.sqrt(
-        share[0] * (1 - share[0]) / 4000)
+    return out, 1000.0 * math.pi * radius ** 2
+
+
+def test_a_dotted_plate_transmits_the_same_flux_through_its_table_as_through_its_dots():
+    dots = prepare(DOTS)
+    rays = 1500
+    table = tab.tabulate(dots, 1.49, rays=rays, seed=1)
+    out, flux = _through(dots, table, (0.005, 0.005), 0.002, 30_000)
     (a, sa), (b, sb) = out["exact"], out["bsdf"]
+    resolution = _resolution(dots, table, rays)
     assert 0.5 * flux < a < flux
     assert abs(a - b) <= 4 * math.hypot(sa, sb) + resolution * flux, (a, b, sa, sb, resolution * flux)
 
@@ -122,9 +113,9 @@ def _density(fill, material=None, height=0.04):
 
 
 def _resolution(e, table, rays):
-    """The table's resolution error on a normal beam's transmitted share, as the test above takes it, the worst over a
-    density map's levels: the exact share's move over the arriving bin (mu 1 to its edge) on each level's patch, and
-    the Monte Carlo errors of the level's row and of those shares."""
+    """The table's resolution error on a normal beam's transmitted share, the worst over a density map's levels (a
+    periodic layout's one table): the exact share's move over the beam's arriving bin (mu from 1 down to its edge)
+    on each level's patch, and the Monte Carlo errors of the level's row and of those shares."""
     u0, v0, su, sv, lu, lv = tab._patch(e)
     rng = np.random.default_rng(9)
     worst = 0.0
@@ -168,15 +159,7 @@ def test_a_density_map_s_tables_by_fill_level_transmit_what_its_dots_transmit(ma
         assert np.all(np.diff(sums.mean(axis=1)) < 0) and sums[-1].mean() < 0.9
     # a normal beam on the quadrant u > 5, v < 5 mm (the map's row 0, column 1: fill 0.9; the fill read at u, v the
     # other way round would be 0.6's)
-    light = {"type": "collimated", "origin": [0.0075, 0.0025, 0.003], "direction": [0, 0, -1], "radius": 0.0022,
-             "illuminance_lx": 1000.0}
-    below = ([-0.05, -0.05, -0.001], [0.1, 0.0, 0.0], [0.0, 0.1, 0.0], 1, 1)
-    out = {}
-    for name, t in (("exact", None), ("bsdf", table)):
-        s, part = _plate(dots, t)
-        r = Simulation(s, {part: PMMA}, [light]).grid(*below, max_photons=60_000, seed=5, estimator="forward")
-        out[name] = (float(r.lux[0, 0]) * 0.01, float(r.stderr[0, 0]) * 0.01)
-    flux = 1000.0 * math.pi * 0.0022 ** 2
+    out, flux = _through(dots, table, (0.0075, 0.0025), 0.0022, 60_000)
     (a, sa), (b, sb) = out["exact"], out["bsdf"]
     resolution = _resolution(dots, table, rays)
     assert 0.3 * flux < a < flux
