@@ -210,12 +210,15 @@ def _level(e: Microstructure, fill: float, lu: float, lv: float) -> Microstructu
                                          "fill": [[float(fill)]]}})
 
 
+def _fills(e: Microstructure) -> list[float | None]:
+    """The fill of each table: none for a periodic layout's one, `LEVELS` uniform fills from 0 to 1 for a density
+    map's."""
+    return [None] if e.layout != fx.DENSITY else [k / (LEVELS - 1) for k in range(LEVELS)]
+
+
 def _levels(e: Microstructure, lu: float, lv: float) -> list[tuple[float | None, Microstructure]]:
-    """(fill, patch element) of each table: the element itself (no fill) for a periodic layout, `LEVELS` uniform
-    fills from 0 to 1 for a density map."""
-    if e.layout != fx.DENSITY:
-        return [(None, e)]
-    return [(k / (LEVELS - 1), _level(e, k / (LEVELS - 1), lu, lv)) for k in range(LEVELS)]
+    """(fill, patch element) of each table (`_fills`): the element itself for a periodic layout."""
+    return [(fill, e if fill is None else _level(e, fill, lu, lv)) for fill in _fills(e)]
 
 
 def _scene(e: Microstructure, lu: float, lv: float, depth: float):
@@ -362,19 +365,20 @@ def model_error(e: Microstructure, table: Table, *, rays: int | None = None, see
     rays = PROBE_RAYS if rays is None else int(rays)
     rng = np.random.default_rng(seed)
     u0, v0, su, sv, lu, lv = _patch(e)
-    levels = _levels(e, lu, lv)
-    scenes = s if isinstance(s, list) else [s] if s is not None else [None] * len(levels)
+    fills = _fills(e)
+    scenes = s if isinstance(s, list) else [s] if s is not None else [None] * len(fills)
     nb = table.bins
-    cdfs = [table.cdf[k * nb:(k + 1) * nb] for k in range(len(levels))]
-    checks = [(fill, p, cdf, scene) for (fill, p), cdf, scene in zip(levels, cdfs, scenes, strict=True)]
-    for k in range(len(levels) - 1):   # a density map: halfway between two levels
-        mid = (k + 0.5) / (len(levels) - 1)
-        checks.append((mid, _level(e, mid, lu, lv), 0.5 * (cdfs[k] + cdfs[k + 1]), None))
+    cdfs = [table.cdf[k * nb:(k + 1) * nb] for k in range(len(fills))]
+    checks = list(zip(fills, cdfs, scenes, strict=True))
+    for k in range(len(fills) - 1):   # a density map: halfway between two levels
+        checks.append(((k + 0.5) / (len(fills) - 1), 0.5 * (cdfs[k] + cdfs[k + 1]), None))
     worst: dict[str, dict] = {}
-    for fill, p, cdf, scene in checks:
+    for fill, cdf, scene in checks:
         one = Table(table.ior, table.n_mu, table.n_phi, cdf, table.rays, split=table.split)
-        scene = _scene(p, lu, lv, 10.0 * e.h + 1.0) if scene is None else scene
-        for side, err in _probe_error(p, one, scene, rays, rng, (u0, v0, su, sv), fill).items():
+        if scene is None:   # the patch's features placed (a level's made by `tabulate` are passed in `s`)
+            scene = _scene(e if fill is None else _level(e, fill, lu, lv), lu, lv, 10.0 * e.h + 1.0)
+        # a level's features are `e`'s (its feature, relief and material), placed at another fill
+        for side, err in _probe_error(e, one, scene, rays, rng, (u0, v0, su, sv), fill).items():
             if side not in worst or abs(err["deviation"]) > abs(worst[side]["deviation"]):
                 worst[side] = err
     return worst

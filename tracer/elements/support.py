@@ -169,7 +169,8 @@ def row_params(row: Row, support_index: int) -> tuple[np.ndarray, np.ndarray]:
     if row.table is not None:
         i[fx.MODEL], i[fx.TAB_MU], i[fx.TAB_PHI] = fx.BSDF, row.table.n_mu, row.table.n_phi
         i[fx.LEVELS], i[fx.TAB_SPLIT] = row.table.levels, row.table.split
-        f[fx.TAB_MUC] = math.sqrt(max(0.0, 1.0 - 1.0 / row.table.ior ** 2))   # `tracer.elements.bsdf.critical_mu`
+        # `tracer.elements.bsdf.critical_mu`, written out: bsdf builds scenes, which hold this module (no import circle)
+        f[fx.TAB_MUC] = math.sqrt(max(0.0, 1.0 - 1.0 / row.table.ior ** 2))
         if row.table.levels > 1:   # a density map's: the fill map the level is read from (`Reliefs.pack` places it)
             fill = fill_map(e)
             i[fx.FILL_NV], i[fx.FILL_NU] = fill.shape
