@@ -182,15 +182,11 @@ class Assignments:
     @_retried
     def add_element(self, scene_id: str, body: dict) -> dict[str, Any]:
         """Put a library element onto a node's support faces (`service.elements`); 422 where it cannot go (checked
-        first), 409 where the node carries an element already, with nothing changed."""
+        first), 409 where its support shares a triangle with another element's on the node, with nothing changed."""
         body = dict(body)
         with self.scenes.current(scene_id) as state:
             check_assignment(body, self.scenes.elements, state)
             check_support(body, state)   # a bad body is its 422 whether or not the node carries an element already
-            for aid, other in state.elements.items():
-                if other["node"] == body["node"]:
-                    raise Conflict(f"node {body['node']} already carries element assignment {aid}: delete it first",
-                                   node=body["node"])
             aid = str(uuidlib.uuid4())
             state.elements[aid] = body
             try:
@@ -199,8 +195,13 @@ class Assignments:
                 self.scenes.forget(scene_id)
                 raise
             problem = state.element_problems.pop(aid, None)
+            taken = state.element_taken.pop(aid, None)
             if problem is not None:   # the tracer refused it before changing anything
                 del state.elements[aid]
+                if taken is not None:
+                    raise Conflict(f"node {body['node']} already carries element assignment {taken} on some of these "
+                                   f"faces: one element a face; select other faces, or delete {taken} first",
+                                   node=body["node"], assignment=taken)
                 raise Invalid(f"the element cannot go onto node {body['node']}: {problem}", node=body["node"])
             try:
                 state.last_commit = self.scenes.commit(state)
@@ -259,7 +260,8 @@ class Assignments:
 
     @_retried
     def delete_element(self, scene_id: str, aid: str) -> None:
-        """Take an element off its part (the part is plain again: its own faces, instance and material)."""
+        """Take an element off its part (its support is the part's own faces again; the part keeps its instance,
+        material and any other element it carries)."""
         with self.scenes.current(scene_id) as state:
             if aid not in state.elements:
                 raise NotFound(f"no element assignment {aid} in scene {scene_id}")

@@ -6,10 +6,11 @@ written before the row, so a row always has its file. The same body gives the sa
 never needed: a second scene, or a restarted service, loads the file (`ElementLibrary.get`).
 
 An assignment (``POST /scenes/{id}/elements``: ``{"element", "node", "facing" | "faces"}``) is stored like a light
-(`service.store.TABLES`, orphaned with its node) and applied to the tracer scene by `sync`, after every change of
-the tree or of the assignments: the node's instance becomes the tracer's relief kind (`tracer.Scene.set_element`),
-keeping its instance id, transform and material. A support that a push made unusable (no longer planar, say) is no
-failed push: the assignment stays, inactive, and says why (`problems`).
+(`service.store.TABLES`, orphaned with its node) and applied to the tracer scene by `sync`, after every change of the
+tree or of the assignments: the node's instance becomes the tracer's relief kind (`tracer.Scene.set_element`), keeping
+its instance id, transform and material. A node carries several elements on supports that share no triangle (dots
+underneath a light guide, prisms on top); one whose support overlaps another's is refused (409). A support that a push
+made unusable (no longer planar, say) is no failed push: the assignment stays, inactive, and says why (`problems`).
 
 A grating (``{"type": "grating", ...}``, `tracer.elements.grating`, issue 52) is solved by RCWA when posted: its body
 is checked and its cost bounded first (a 422, nothing stored), then it is prepared in the request and kept like the
@@ -316,8 +317,10 @@ def _ior(state: Any, node: str) -> float | None:
 
 def sync(state: Any, library: ElementLibrary) -> None:
     """Make the tracer scene's elements those of ``state.elements`` on the nodes present (call before commit):
-    an element is put on where its node's instance does not carry it yet, taken off where it no longer applies.
-    Where a support cannot carry it, ``state.element_problems[aid]`` says why and the part stays plain."""
+    an element is put on (keyed by its assignment id: a part carries one per support) where its node's instance does
+    not carry it yet, taken off where it no longer applies. Where a support cannot carry it, ``state.element_problems
+    [aid]`` says why (and ``state.element_taken[aid]`` names the assignment whose support it overlaps) and the part
+    stays as it was."""
     want = {}
     for aid, body in state.elements.items():
         inst = state.instances.get(body["node"])
@@ -326,11 +329,12 @@ def sync(state: Any, library: ElementLibrary) -> None:
     alive = set(state.instances.values())
     for aid, inst in list(state.element_instances.items()):
         if want.get(aid) != inst:
-            if inst in alive and inst not in want.values():
-                state.tracer.set_element(inst, None)
+            if inst in alive:
+                state.tracer.set_element(inst, None, key=aid)
             del state.element_instances[aid]
     mm = state.tree.scale * 1000.0
     from tracer.elements import ElementError
+    from tracer.elements.checks import SupportTaken
 
     for aid, inst in want.items():
         body = state.elements[aid]
@@ -344,17 +348,20 @@ def sync(state: Any, library: ElementLibrary) -> None:
                     raise ElementError(NO_IOR)
                 table = library.bsdf(body["element"], ior)
             state.tracer.set_element(inst, library.get(body["element"]), facing=body.get("facing"),
-                                     faces=body.get("faces"), mm_per_unit=mm, table=table,
+                                     faces=body.get("faces"), mm_per_unit=mm, table=table, key=aid,
                                      face_ids=state.face_ids.get(state.tracer.instance_geometry(inst)))
         except (ElementError, NotFound) as exc:
             state.element_problems[aid] = str(getattr(exc, "detail", exc))
+            if isinstance(exc, SupportTaken):
+                state.element_taken[aid] = exc.key
             if state.element_instances.pop(aid, None) is not None:
-                state.tracer.set_element(inst, None)
+                state.tracer.set_element(inst, None, key=aid)
             continue
         state.element_instances[aid] = inst
         state.element_ior[aid] = ior
         state.element_model_error[aid] = None if table is None else table.error
         state.element_problems.pop(aid, None)
+        state.element_taken.pop(aid, None)
 
 
 def public(state: Any, aid: str, body: dict) -> dict[str, Any]:
@@ -363,7 +370,7 @@ def public(state: Any, aid: str, body: dict) -> dict[str, Any]:
     return {"id": aid, "body": body, "orphaned": not state.has_node(body["node"]),
             "applied": inst is not None, "problem": state.element_problems.get(aid),
             "model": body.get("model", "exact"),
-            "support": None if inst is None else state.tracer.element_support(inst)}
+            "support": None if inst is None else state.tracer.element_support(inst, key=aid)}
 
 
 def describe(state: Any) -> list[dict[str, Any]]:

@@ -94,7 +94,8 @@ def setup(manager: Any, hub: Any, element_id: str, req: dict[str, Any], checks: 
     if reading.quantity == "luminance":   # what paths from the eye cannot follow here is said now, not in the job
         _luminance_pilot(sim, sensor, reading, int(req["seed"]))
     mm = own.tree.scale * 1000.0
-    assign = {"facing": assignment.get("facing"), "faces": assignment.get("faces"), "mm_per_unit": mm}
+    assign = {"facing": assignment.get("facing"), "faces": assignment.get("faces"), "mm_per_unit": mm,
+              "key": req["assignment"]}
     return Run(library, start_model, scene_id, own, own.element_instances[req["assignment"]], assign, sensor,
                reading, simulation, rebuild_seconds, {k: sensor[k] for k in ("origin", "u", "v")})
 

@@ -70,6 +70,7 @@ class SceneState:
     elements: dict[str, dict] = field(default_factory=dict)  # element assignment id -> body
     element_instances: dict[str, int] = field(default_factory=dict)  # element assignment id -> instance carrying it
     element_problems: dict[str, str] = field(default_factory=dict)  # element assignment id -> why it is not applied
+    element_taken: dict[str, str] = field(default_factory=dict)  # ... -> the assignment whose support it overlaps
     element_ior: dict[str, Any] = field(default_factory=dict)  # element assignment id -> its BSDF table's ior
     element_model_error: dict[str, Any] = field(default_factory=dict)  # ... -> its BSDF table's measured error
     last_commit: dict[str, Any] = field(default_factory=dict)

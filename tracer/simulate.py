@@ -492,7 +492,7 @@ def refined(sim: Simulation) -> Simulation:
         done: dict[str, str] = {}
         for s in sim._curved:
             i = s.instance
-            if i < 0 or scene.element_of(i) is not None:
+            if i < 0 or scene.elements_on(i):
                 continue
             gid = scene.instance_geometry(i)
             if gid not in done:

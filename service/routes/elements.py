@@ -173,6 +173,8 @@ def get_element(element_id: ElementId, manager: Manager) -> dict[str, Any]:
 @router.post("/scenes/{scene_id}/elements", status_code=201, response_model=ElementAssignment)
 def assign_element(scene_id: SceneId, body: Annotated[ElementAssign, Body(openapi_examples=ASSIGN_EXAMPLES)],
                    manager: Manager) -> dict[str, Any]:
+    """Put a library element onto a part's faces. A part carries up to 8 elements on faces that share no triangle
+    (dots underneath a light guide, prisms on top); faces another assignment of the node holds are a 409 naming it."""
     clean = body.model_dump(exclude_none=True)
     if not paths.is_uuid(clean["node"]):
         clean["node"] = paths.resolve(manager.nodes(scene_id), clean["node"], scene_id)

@@ -185,7 +185,8 @@ def test_an_assignment_that_cannot_go_is_a_422_and_nothing_changes(client: Any) 
 
 def test_a_bad_body_for_a_part_that_carries_an_element_is_its_422_not_the_409(client: Any) -> None:
     """Issue 54, item 5: the body is checked against the part's mesh before the conflict, so a bad `facing` or
-    `faces` says what is wrong (it answered 409 "already carries"); a good body still gets the 409; nothing changes."""
+    `faces` says what is wrong (it answered 409 "already carries"); a good body for the same faces still gets the
+    409, naming the assignment that holds them; nothing changes."""
     sid = _guide(client)
     eid = client.post("/elements", json=DOTS).json()["id"]
     first = client.post(f"/scenes/{sid}/elements", json={"element": eid, "node": uid(1), "facing": [0, 0, -1]})
@@ -196,9 +197,38 @@ def test_a_bad_body_for_a_part_that_carries_an_element_is_its_422_not_the_409(cl
         r = client.post(f"/scenes/{sid}/elements", json={"element": eid, "node": uid(1), **body})
         assert r.status_code == 422, (body, r.text)
         assert words in r.json()["detail"], (body, r.text)
-    r = client.post(f"/scenes/{sid}/elements", json={"element": eid, "node": uid(1), "facing": [0, 0, 1]})
-    assert r.status_code == 409 and "already carries element assignment" in r.json()["detail"], r.text
+    r = client.post(f"/scenes/{sid}/elements", json={"element": eid, "node": uid(1), "facing": [0, 0, -1]})
+    assert r.status_code == 409, r.text
+    assert f"already carries element assignment {first.json()['id']}" in r.json()["detail"], r.text
     assert (client.get(f"/scenes/{sid}").json(), client.get(f"/scenes/{sid}/elements").json()) == before
+
+
+def test_a_guide_carries_dots_underneath_and_prisms_on_top_and_loses_one_without_the_other(client: Any) -> None:
+    """Issue 53: two assignments on one node, on its bottom and its top faces, are both applied (each with its own
+    support); the light above differs from that of the dots alone; deleting the prisms gives back the dots' answer
+    on the same seed, bit for bit."""
+    sid = _guide(client)
+    sensor = client.post(f"/scenes/{sid}/sensors", json=ABOVE).json()["id"]
+    dots = client.post("/elements", json=DOTS).json()["id"]
+    prisms = client.post("/elements", json={"type": "microstructure", "feature": {"shape": "prism", "base_mm": 0.1,
+                                                                                  "apex_deg": 100},
+                                            "layout": {"type": "grid", "pitch_mm": [0.1, 0.1]}}).json()["id"]
+    under = client.post(f"/scenes/{sid}/elements", json={"element": dots, "node": uid(1), "facing": [0, 0, -1]})
+    assert under.status_code == 201, under.text
+    alone = _above(client, sid, sensor)
+    on_top = client.post(f"/scenes/{sid}/elements", json={"element": prisms, "node": uid(1), "facing": [0, 0, 1]})
+    assert on_top.status_code == 201 and on_top.json()["applied"], on_top.text
+    listed = {x["id"]: x for x in client.get(f"/scenes/{sid}/elements").json()}
+    assert all(x["applied"] for x in listed.values()) and len(listed) == 2
+    assert [listed[a.json()["id"]]["support"]["normal"] for a in (under, on_top)] == [[0, 0, -1], [0, 0, 1]]
+    both = _above(client, sid, sensor)
+    a, b = np.array(alone["lux"]), np.array(both["lux"])
+    sigma = np.sqrt(np.array(alone["stderr"]) ** 2 + np.array(both["stderr"]) ** 2)
+    assert np.abs(a - b).max() > 5 * sigma.max() > 0   # the prisms turn what the dots let out
+    assert client.delete(f"/scenes/{sid}/elements/{on_top.json()['id']}").status_code == 204
+    assert [x["id"] for x in client.get(f"/scenes/{sid}/elements").json()] == [under.json()["id"]]
+    again = _above(client, sid, sensor)
+    assert again["lux"] == alone["lux"] and again["stderr"] == alone["stderr"]
 
 
 def test_the_docs_example_names_its_element_by_the_id_its_body_gets() -> None:

@@ -62,12 +62,12 @@ class SceneArrays(NamedTuple):
     (:func:`tracer.accel.rows4.pack_rows`); leaves index ``*_items``. ``top_rec`` (4 n,) i8: the solid items'
     :func:`tracer.accel.tlas.instance_records` (what entering each one needs, in leaf order).
 
-    Elements with an inside (:mod:`tracer.kinds.relief`, packed by :mod:`tracer.elements.support`): ``inst_aux``
-    (I,) i4 — an instance's row in them (-1: none); per row ``el_f`` (R, NF) f8 and ``el_i`` (R, NI) i8 (the columns
-    of :mod:`tracer.elements.features`); shared tables ``el_prim`` i4 (triangle maps), ``el_bits`` u1 (kept lattice
-    sites), ``el_uv`` (P, 2) f4 (listed feature centres, mm), ``el_bin`` i4 and ``el_item`` i4 (their cells),
-    ``el_tab`` (T, B) f8 (the rows of the tabulated BSDFs of elements used through their ``bsdf`` model:
-    :mod:`tracer.elements.bsdf`), ``el_face`` (Q, 4) f8 (the face planes of mesh features:
+    Elements with an inside (:mod:`tracer.kinds.relief`, packed by :mod:`tracer.elements.support`): ``inst_aux`` (I,) i4
+    — an instance's first row in them (-1: none; a part's rows are consecutive); per row ``el_f`` (R, NF) f8 and
+    ``el_i`` (R, NI) i8 (the columns of :mod:`tracer.elements.features`); shared tables ``el_prim`` i4 (triangle maps),
+    ``el_bits`` u1 (kept lattice sites), ``el_uv`` (P, 2) f4 (listed feature centres, mm), ``el_bin`` i4 and ``el_item``
+    i4 (their cells), ``el_tab`` (T, B) f8 (the rows of the tabulated BSDFs of elements used through their ``bsdf``
+    model: :mod:`tracer.elements.bsdf`), ``el_face`` (Q, 4) f8 (the face planes of mesh features:
     :mod:`tracer.elements.shapes.mesh`).
     """
 

@@ -13,6 +13,14 @@ class ElementError(TracerError):
     """An element body that cannot be prepared; the message names the field and what to do."""
 
 
+class SupportTaken(ElementError):
+    """A support that shares triangles with another element of the same part (`key`: that element's key)."""
+
+    def __init__(self, message: str, key: object) -> None:
+        super().__init__(message)
+        self.key = key
+
+
 def number(x: Any, where: str, *, lo: float = 0.0, lo_open: bool = True, hi: float = math.inf) -> float:
     """`x` as a float in ``(lo, hi]`` (``[lo, hi]`` where not `lo_open`); `where` names the field."""
     if isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x):

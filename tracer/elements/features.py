@@ -72,8 +72,14 @@ LEVELS, FILL, FILL_NU, FILL_NV = 21, 22, 23, 24   # a tabulated BSDF's tables, o
                                                   # to 1 (1: a periodic layout's one table), and a density map's fill
                                                   # map: its first entry in el_tab (row-major) and cells along u, v
 TAB_SPLIT = 25                                    # its solid side's |cos| bins below TAB_MUC (0: uniform bins)
-NI = 26
+PART_N, PART_K, S_START = 26, 27, 28              # the part's rows (its elements, consecutive rows from
+                                                  # `inst_aux`), this row's place among them, its support's first
+                                                  # triangle in the part's supports taken in row order (MAP_INV)
+NI = 29
 EXACT, BSDF, GRATING = 0, 1, 2
+#: The most elements one part carries (on disjoint supports). A feature hit's slot is ``-2 - (f * PART_ROWS + k)``:
+#: feature ``f`` of the part's row ``k`` (`tracer.kinds.relief`).
+PART_ROWS = 8
 
 NEAR = 1.0e300
 

@@ -300,7 +300,7 @@ def _place(scene: Any, instance: int, start: Microstructure, fill: np.ndarray, p
     scene.set_element(instance, model, **assign)
     scene.commit()
     sim = simulation(scene)
-    placed = scene.element_of(instance)
+    placed = scene.element_of(instance, assign.get("key", 0))
     if placed is None:   # pragma: no cover - set_element raised otherwise
         raise PackError("the element did not go onto the part")
     return model, sim, placed
@@ -373,14 +373,14 @@ def pack(scene: Any, instance: int, start: Microstructure, sensor: dict, simulat
          max_fill: float = 1.0, pitch_mm: float | None = None, seed: int = 1, reading: Reading = Reading(),
          progress: Callable[[dict[str, Any]], None] | None = None,
          cancel: Callable[[], bool] | None = None) -> PackResult:
-    """Pack `start`'s fill map on `instance` of `scene` (a `tracer.Scene` the caller owns: the pack changes its
-    element) against the grid sensor body `sensor` (world units); `simulation(scene)` makes a
-    `tracer.simulate.Simulation` of the committed scene; `assign` holds `Scene.set_element`'s keywords (facing or
-    faces, mm_per_unit); `reading` says what the grid's cells read (illuminance, or luminance as a viewer sees
-    it). See the module docstring. `progress(state)` gets ``{"iteration", "photons", "measured",
-    "uniformity", "stderr", "seconds"}`` between photon rounds and after each iteration: "iteration" is the one
-    running, "uniformity" ± "stderr" that of iteration "measured" (the one before while an iteration measures, None
-    before the first has); `cancel()` is polled between rounds.
+    """Pack `start`'s fill map on `instance` of `scene` (a `tracer.Scene` the caller owns: the pack changes its element)
+    against the grid sensor body `sensor` (world units); `simulation(scene)` makes a `tracer.simulate.Simulation` of the
+    committed scene; `assign` holds `Scene.set_element`'s keywords (facing or faces, mm_per_unit, and the element's key
+    where the part carries several); `reading` says what the grid's cells read (illuminance, or luminance as a viewer
+    sees it). See the module docstring. `progress(state)` gets ``{"iteration", "photons", "measured", "uniformity",
+    "stderr", "seconds"}`` between photon rounds and after each iteration: "iteration" is the one running, "uniformity"
+    ± "stderr" that of iteration "measured" (the one before while an iteration measures, None before the first has);
+    `cancel()` is polled between rounds.
 
     Raises
     ------

@@ -8,8 +8,9 @@ placed (`tracer.elements.outline`). The part's mesh is split once per assignment
 level, so a ray that misses every feature meets the same triangles with the same test as without the element:
 bit-exact) and the rest.
 
-`Reliefs` is the scene's table: one row per instance that carries an element, packed at commit into the
-`SceneArrays` ``el_*`` fields that :mod:`tracer.kinds.relief` reads.
+`Reliefs` is the scene's table: one row per element, a part's rows consecutive (up to `features.PART_ROWS` elements
+on disjoint supports of one part), packed at commit into the `SceneArrays` ``el_*`` fields that
+:mod:`tracer.kinds.relief` reads.
 """
 
 from __future__ import annotations
@@ -126,15 +127,12 @@ def frame(vertices: np.ndarray, triangles: np.ndarray, prims: np.ndarray, mm_per
 
 @dataclass(frozen=True)
 class Row:
-    """One instance's element: the model, its frame, the part's geometry split into the rest and the support,
-    and the maps between the split triangles and the part's own indices."""
+    """One element on a part: the model, its frame, its support triangles (a geometry of their own) and their indices
+    in the part."""
 
     element: Any             # a `Microstructure`, or a `tracer.elements.grating.GratingTable`
     frame: Frame
-    full: str                 # the part's geometry id
-    rest: str                 # the part without the support, its own geometry id
     support: str              # the support's triangles, their own geometry id
-    rest_prims: np.ndarray    # rest triangle -> part triangle
     support_prims: np.ndarray  # support triangle -> part triangle
     table: Any = None         # a `tracer.elements.bsdf.Table`: the element used through its tabulated model
     mask: tuple[np.ndarray, int, int, float] | None = None   # the outline's kept cells (`outline.mask`)

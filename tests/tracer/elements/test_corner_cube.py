@@ -19,6 +19,7 @@ import pytest
 
 from tests.tracer.transport_scenes import box
 from tracer.elements import ElementError, prepare
+from tracer.elements import features as fx
 from tracer.scene import Scene
 from tracer.simulate import Simulation
 
@@ -227,7 +228,7 @@ def test_a_turned_corner_cube_returns_light_as_an_upright_one_through_its_own_ax
     o = np.column_stack([p * 1e-3, np.full(n, PLATE[2] / 2)])
     d = np.tile([0.0, 0.0, 1.0], (n, 1))
     first = s.intersect(o, d)
-    f = -2 - first.primitive
+    f = (-2 - first.primitive) // fx.PART_ROWS   # the feature (the plate carries one element: row 0)
     nu = int(PLATE[0] * 1e3 // (SIDE / 2)) - 1
     i, j = f % nu, f // nu
     turned = (i + j) % 2 == 1

@@ -305,8 +305,8 @@ def bind(sa, M):
 def feature_surface(sa, inst, prim):
     """``(kind, reflectance)`` of a hit on an element's feature that has a surface of its own (`fx.MAT_BLACK`,
     `fx.MAT_LAMBERTIAN`: a printed dot); ``(fx.MAT_PART, 0)`` where the hit takes the instance's material."""
-    if prim < -1:
-        r = sa.inst_aux[inst]
+    if prim < -1 and sa.inst_aux[inst] >= 0:
+        r, _ = relief.feature_row(sa, inst, prim)
         if r >= 0:
             k = int(sa.el_f[r, fx.FMAT])
             if k >= 0:
@@ -327,10 +327,10 @@ def surface_flags(sa, M, inst, prim):
 def table_row(sa, inst, prim):
     """The element row of a hit on the support of an element used through a table (its tabulated BSDF, `fx.BSDF`,
     or a grating's orders, `fx.GRATING`), -1 for any other hit."""
-    if prim < 0 or inst >= sa.inst_aux.shape[0]:
+    if prim < 0 or inst >= sa.inst_aux.shape[0] or sa.inst_aux[inst] < 0:
         return -1
-    r = sa.inst_aux[inst]
-    if r < 0 or sa.el_i[r, fx.MODEL] == fx.EXACT or sa.el_prim[sa.el_i[r, fx.MAP_INV] + prim] >= 0:
+    r, _ = relief.part_row(sa, inst, prim)
+    if r < 0 or sa.el_i[r, fx.MODEL] == fx.EXACT:
         return -1
     return r
 
@@ -445,7 +445,7 @@ def element_table_scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, 
     signature, so that it is called through `scatter_by_address` like one: compiled on its own, only in a process
     whose scenes hold such an element, and in no kernel): a grating's orders (`tracer.elements.diffraction`) or a
     tabulated BSDF (`bsdf_scatter`)."""
-    r = sa.inst_aux[inst]
+    r = table_row(sa, inst, prim)
     if sa.el_i[r, fx.MODEL] == fx.GRATING:
         return diffraction.scatter(sa, r, inst, dx, dy, dz, med, depth, key, dim, lam, pol)
     if sa.el_i[r, fx.LEVELS] > 1:   # a density map's: the table of the fill where the photon lands
