@@ -10,8 +10,9 @@ Three camera scenes, each image judged against its reference:
    mirrored share (12-25 % of each pixel) paths from the eye find only by hitting the small emitter through the
    mirror.
 3. The demo light guide (`lumenlink.guide_demo`'s, dots 0.08 mm high) seen from 0.3 m: its LED lights the face
-   only through the guide, where no diffuse vertex can be joined to the eye but the reflector's rim: the pilot
-   should leave the area light to the paths from the eye. Reference: a long run.
+   only through the guide; light tracing joins the reflector sheet under it to the eye through the guide's two flat
+   faces (`tracer.transport.through_flat`, since 2026-12-08: before, only the reflector's rim could be joined).
+   Reference: a long run.
 
 For each, at each budget (seconds), the image with paths from the eye alone (``AREA_LIGHT_TRACING`` off, the code
 before this bench) and as a query now runs: the median and 95th percentile pixel error |L - L_ref| / L_ref, the

@@ -4,21 +4,23 @@ eye at their diffuse vertices, for the light paths from the eye miss or find bad
 Light tracing (`trace_light`, where `light_paths` says the scene needs it: a specular surface, or a collimated or
 rayfile light). Photons leave the traced lights in proportion to their flux and follow the scene by `scatter`, as the
 forward photons do. Each diffuse vertex x of an eligible photon is joined to the eye (`join_eye`, pbrt-v3's
-`LightTracer` with the camera's `Sample_Wi`): the photon's flux Φ × ρ/π × cosθ_x / d² × W goes to the view that sees
-x unoccluded, W the view's importance (1/Ω for a meter's cone, 1/(cos³θ × film area) for the pixel x projects to,
-through a lens point where the camera has a lens). Eligible: every photon of a collimated or rayfile light (no shadow
-ray reaches them); a photon of a point-like or area light once its first bounce was specular. So the two strategies
-split the paths: paths from the eye take those whose vertex next to the light scatters diffusely (the shadow ray,
-and, for an area light, the BSDF sample that hits it, by MIS), light tracing those whose vertex next to the light
-scatters specularly and whose vertex next to the eye diffusely; a photon whose first bounce is diffuse ends there,
-and a path from the eye whose first vertex was diffuse adds nothing where it meets a traced area light after a
-specular vertex (`traced_area`: light tracing has it). Both are unbiased, and a batch's value of a view is their
-sum, so the batch means' standard error holds for both. An area light seen from a diffuse wall only through glass
-(an LED behind a lamp's lens) is light tracing's: the shadow ray stops at the glass, and a BSDF sample finds the
-small emitter rarely. Area lights are traced only where a pilot of photons reaches the views (`light_paths`'s
-`area`): behind a light guide's top face, say, no diffuse vertex can be joined to the eye, and their photons would
-only cost time. What neither finds: light from a point-like or collimated source whose vertex next to the eye
-is specular too (a lamp, or its caustic, seen in a mirror or through glass); `through_specular` still flags the
+`LightTracer` with the camera's `Sample_Wi`): the photon's flux Φ × ρ/π × cosθ_x / d² × W goes to the view that sees x
+unoccluded, W the view's importance (1/Ω for a meter's cone, 1/(cos³θ × film area) for the pixel x projects to, through
+a lens point where the camera has a lens). Eligible: every photon of a collimated or rayfile light (no shadow ray
+reaches them); a photon of a point-like or area light once its first bounce was specular. So the two strategies split
+the paths: paths from the eye take those whose vertex next to the light scatters diffusely (the shadow ray, and, for an
+area light, the BSDF sample that hits it, by MIS), light tracing those whose vertex next to the light scatters
+specularly and whose vertex next to the eye diffusely; a photon whose first bounce is diffuse ends there, and a path
+from the eye whose first vertex was diffuse adds nothing where it meets a traced area light after a specular vertex
+(`traced_area`: light tracing has it). Both are unbiased, and a batch's value of a view is their sum, so the batch
+means' standard error holds for both. An area light seen from a diffuse wall only through glass (an LED behind a lamp's
+lens) is light tracing's: the shadow ray stops at the glass, and a BSDF sample finds the small emitter rarely. Where the
+join to the eye itself is blocked by glass, it goes through flat parallel faces by the path Snell's law allows
+(`tracer.transport.through_flat`: a reflector sheet or a printed dot under a light guide, seen through it), and a path
+from the eye that crossed those faces first leaves that path to light tracing too. Area lights are traced only where a
+pilot of photons reaches the views (`light_paths`'s `area`): where no diffuse vertex can be joined to the eye, their
+photons would only cost time. What neither finds: light from a point-like or collimated source whose vertex next to the
+eye is specular too (a lamp, or its caustic, seen in a mirror or through glass); `through_specular` still flags the
 views that may miss it. (An area light is found there, by paths from the eye hitting it.)
 
 The radiance kernel's counters (`COUNTERS`) live here, as both halves count into them.
@@ -42,6 +44,7 @@ from tracer.optics.lights.dispatch import LIGHT_FLAGS
 from tracer.optics.surfaces.base import CONTINUES, DIFFUSE, STACK_FULL, arrival_normal, reflect_specular
 from tracer.optics.surfaces.dispatch import scatter, surface_albedo, surface_flags
 from tracer.rng import path_key, uniform
+from tracer.transport.through_flat import through_flat
 
 MAX_BOUNCES = 10_000    # a longer path (from the eye or from a light) is cut and counted
 COUNTERS = ("rejected", "truncated", "stack_overflow", "caustic_paths", "light_paths", "light_splats", "view_rays",
@@ -61,7 +64,10 @@ class LightPaths(NamedTuple):
     (collimated, rayfile): its photons join the eye at every diffuse vertex; 0 for a point-like or area light: only
     the photons whose first bounce was specular do. flux (1,): the traced lights' flux (lm). photons (1,) int64:
     photons a batch (0: no light tracing). width (1,) int64: a camera's columns (its pixels a row-major grid of
-    the same eye, film and lens); 0 for meters (cones), each joined on its own.
+    the same eye, film and lens); 0 for meters (cones), each joined on its own. flat (2,) int64: [1 where the scene
+    has glass, so that a diffuse vertex is joined through one flat face of it where the straight segment is blocked
+    (`tracer.transport.through_flat`); 1 where area lights are traced too, so that a path from the eye entering
+    such a face leaves them to light tracing as it would after a diffuse first vertex].
     """
 
     cdf: np.ndarray
@@ -69,6 +75,7 @@ class LightPaths(NamedTuple):
     flux: np.ndarray
     photons: np.ndarray
     width: np.ndarray
+    flat: np.ndarray
 
 
 #: trace area lights too where the scene has a specular surface and a pilot says light tracing reaches the views
@@ -79,7 +86,8 @@ AREA_LIGHT_TRACING = True
 def no_light_paths(n_lights: int) -> LightPaths:
     """A `LightPaths` that traces nothing."""
     n = max(n_lights, 1)
-    return LightPaths(np.ones(n), np.zeros(n, np.int64), np.zeros(1), np.zeros(1, np.int64), np.zeros(1, np.int64))
+    return LightPaths(np.ones(n), np.zeros(n, np.int64), np.zeros(1), np.zeros(1, np.int64), np.zeros(1, np.int64),
+                      np.zeros(2, np.int64))
 
 
 def light_paths(L, effects, photons: int, width: int, area: bool = False, others: bool = True) -> LightPaths:
@@ -101,7 +109,9 @@ def light_paths(L, effects, photons: int, width: int, area: bool = False, others
     flux = float(pick[traced].sum())
     cdf = np.cumsum(np.where(traced, pick, 0.0)) / flux
     cdf[-1] = 1.0
-    return LightPaths(cdf, always, np.array([flux]), np.array([photons], np.int64), np.array([width], np.int64))
+    glass = "fresnel" in effects
+    flat = np.array([glass, glass and bool((traced & is_area).any())], np.int64)
+    return LightPaths(cdf, always, np.array([flux]), np.array([photons], np.int64), np.array([width], np.int64), flat)
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
@@ -115,75 +125,112 @@ def traced_area(P, E, inst):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def join_eye(sa, V, P, lum, x, y, z, nx, ny, nz, value, u0, u1, stack, tstack):
+def lens_point(V, u0, u1):
+    """A camera's eye point: its pinhole, or with a thin lens the point `u0`, `u1` pick, uniform on the lens."""
+    ox, oy, oz = V.o[0, 0], V.o[0, 1], V.o[0, 2]
+    if V.lens[0] <= 0.0:
+        return ox, oy, oz
+    r = V.lens[0] * math.sqrt(u0)
+    phi = 2.0 * math.pi * u1
+    ia = 1.0 / math.sqrt(V.a[0, 0] ** 2 + V.a[0, 1] ** 2 + V.a[0, 2] ** 2)
+    ib = 1.0 / math.sqrt(V.b[0, 0] ** 2 + V.b[0, 1] ** 2 + V.b[0, 2] ** 2)
+    ca, sb = r * math.cos(phi) * ia, r * math.sin(phi) * ib
+    return (ox + ca * V.a[0, 0] + sb * V.b[0, 0], oy + ca * V.a[0, 1] + sb * V.b[0, 1],
+            oz + ca * V.a[0, 2] + sb * V.b[0, 2])
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def film_pixel(V, P, ex, ey, ez, sx, sy, sz):
+    """The pixel of a camera that sees along -s from its eye point E (s: from the point seen, or a point on the ray to
+    it, to E): the one holding the film point (unit distance along the axis) whose pinhole ray meets the ray E → point
+    on the plane of focus (for a pinhole: the ray itself); -1 off the film."""
+    along = -(sx * V.axis[0, 0] + sy * V.axis[0, 1] + sz * V.axis[0, 2])   # (x − eye) · axis
+    if along <= 0.0:
+        return -1
+    ox, oy, oz = V.o[0, 0], V.o[0, 1], V.o[0, 2]
+    if V.lens[0] > 0.0:
+        k = V.focus[0] / along
+        f = 1.0 / V.focus[0]
+        fx = (ex - k * sx - ox) * f
+        fy = (ey - k * sy - oy) * f
+        fz = (ez - k * sz - oz) * f
+    else:
+        fx, fy, fz = -sx / along, -sy / along, -sz / along
+    fx, fy, fz = fx - V.c[0, 0], fy - V.c[0, 1], fz - V.c[0, 2]
+    a2 = V.a[0, 0] ** 2 + V.a[0, 1] ** 2 + V.a[0, 2] ** 2
+    b2 = V.b[0, 0] ** 2 + V.b[0, 1] ** 2 + V.b[0, 2] ** 2
+    s = (fx * V.a[0, 0] + fy * V.a[0, 1] + fz * V.a[0, 2]) / a2
+    t = (fx * V.b[0, 0] + fy * V.b[0, 1] + fz * V.b[0, 2]) / b2
+    width = P.width[0]
+    height = V.kind.shape[0] // width
+    if not (0.0 <= s < width and 0.0 <= t < height):
+        return -1
+    return int(t) * width + int(s)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def join_eye(sa, M, V, P, lum, x, y, z, nx, ny, nz, value, u0, u1, med, depth, chain, stack, tstack):
     """Join a diffuse vertex x (off its surface; n its unit normal on the side the photon came from) to the views'
     eyes: `value` = the photon's flux × ρ/π (lm/sr, the radiant intensity per unit projected area that its diffuse
     reflection gives each direction × area) adds value × cosθ_x / d² × W to each view that sees x unoccluded, W the
     view's importance: 1/Ω for a cone that holds the direction, 1/(cos³θ × film area) for the pixel it falls in
-    (θ from the camera axis; with a thin lens through the lens point u0, u1 picks, uniform on the lens). Returns
-    the number of views joined."""
+    (θ from the camera axis; with a thin lens through the lens point u0, u1 picks, uniform on the lens). Where
+    `P.flat` says the scene has glass, a segment the glass blocks is joined through it where it crosses flat, parallel
+    faces only (`tracer.transport.through_flat`: cosθ_x T / J in place of cosθ_x / d², W that of the refracted ray
+    at the eye; `chain` its scratch, `through_flat.CHAIN_SHAPE`). Returns the number of views joined."""
     joined = 0
-    if P.width[0] > 0:     # a camera: the views are one grid, from one eye
-        ox, oy, oz = V.o[0, 0], V.o[0, 1], V.o[0, 2]
-        ex, ey, ez = ox, oy, oz
-        if V.lens[0] > 0.0:
-            r = V.lens[0] * math.sqrt(u0)
-            phi = 2.0 * math.pi * u1
-            ia = 1.0 / math.sqrt(V.a[0, 0] ** 2 + V.a[0, 1] ** 2 + V.a[0, 2] ** 2)
-            ib = 1.0 / math.sqrt(V.b[0, 0] ** 2 + V.b[0, 1] ** 2 + V.b[0, 2] ** 2)
-            ca, sb = r * math.cos(phi) * ia, r * math.sin(phi) * ib
-            ex = ox + ca * V.a[0, 0] + sb * V.b[0, 0]
-            ey = oy + ca * V.a[0, 1] + sb * V.b[0, 1]
-            ez = oz + ca * V.a[0, 2] + sb * V.b[0, 2]
+    for q in range(V.kind.shape[0] if P.width[0] == 0 else 1):   # a camera: its views are one grid, from one eye
+        if P.width[0] > 0:
+            ex, ey, ez = lens_point(V, u0, u1)
+        else:
+            ex, ey, ez = V.o[q, 0], V.o[q, 1], V.o[q, 2]
         sx, sy, sz = ex - x, ey - y, ez - z     # from the vertex to the eye (or the lens point)
         d2 = sx * sx + sy * sy + sz * sz
         dist = math.sqrt(d2)
         cos_x = (sx * nx + sy * ny + sz * nz) / dist
-        along = -(sx * V.axis[0, 0] + sy * V.axis[0, 1] + sz * V.axis[0, 2])   # (x − eye) · axis
-        if cos_x <= 0.0 or along <= 0.0:
-            return 0
-        # the film point (unit distance along the axis) whose pinhole ray meets the ray eye → x on the plane of
-        # focus (for a pinhole: the ray itself)
-        if V.lens[0] > 0.0:
-            k = V.focus[0] / along
-            f = 1.0 / V.focus[0]
-            fx = (ex - k * sx - ox) * f
-            fy = (ey - k * sy - oy) * f
-            fz = (ez - k * sz - oz) * f
-        else:
-            fx, fy, fz = -sx / along, -sy / along, -sz / along
-        fx, fy, fz = fx - V.c[0, 0], fy - V.c[0, 1], fz - V.c[0, 2]
-        a2 = V.a[0, 0] ** 2 + V.a[0, 1] ** 2 + V.a[0, 2] ** 2
-        b2 = V.b[0, 0] ** 2 + V.b[0, 1] ** 2 + V.b[0, 2] ** 2
-        s = (fx * V.a[0, 0] + fy * V.a[0, 1] + fz * V.a[0, 2]) / a2
-        t = (fx * V.b[0, 0] + fy * V.b[0, 1] + fz * V.b[0, 2]) / b2
-        width = P.width[0]
-        height = V.kind.shape[0] // width
-        if not (0.0 <= s < width and 0.0 <= t < height):
-            return 0
-        q = int(t) * width + int(s)
-        if any_with_stacks(sa, x, y, z, sx, sy, sz, 1.0, stack, tstack):
-            return 0
-        cos_c = along / dist
-        lum[q] += value * cos_x / d2 / (cos_c ** 3 * V.size[q])
-        return 1
-    for q in range(V.kind.shape[0]):   # meters: each cone on its own
-        sx, sy, sz = V.o[q, 0] - x, V.o[q, 1] - y, V.o[q, 2] - z
-        d2 = sx * sx + sy * sy + sz * sz
-        dist = math.sqrt(d2)
-        cos_x = (sx * nx + sy * ny + sz * nz) / dist
-        cos_c = -(sx * V.axis[q, 0] + sy * V.axis[q, 1] + sz * V.axis[q, 2]) / dist
-        if cos_x <= 0.0 or cos_c < V.cos_max[q] or cos_c <= 0.0:
+        view = _view_of(V, P, q, ex, ey, ez, sx, sy, sz) if cos_x > 0.0 else -1
+        if view < 0 and P.flat[0] == 0:   # neither the straight segment nor glass (none) joins x here
             continue
-        if any_with_stacks(sa, x, y, z, sx, sy, sz, 1.0, stack, tstack):
+        if not any_with_stacks(sa, x, y, z, sx, sy, sz, 1.0, stack, tstack):
+            if view >= 0:
+                lum[view] += value * cos_x / d2 / _per_importance(V, P, view, sx, sy, sz)
+                joined += 1
             continue
-        lum[q] += value * cos_x / d2 / V.size[q]
-        joined += 1
+        if P.flat[0] == 0:
+            continue
+        faces, px, py, pz, factor = through_flat(sa, M, x, y, z, nx, ny, nz, ex, ey, ez, med, depth, chain, stack,
+                                                 tstack)
+        if faces == 0:
+            continue
+        sx, sy, sz = ex - px, ey - py, ez - pz    # the refracted ray that reaches the eye, from the face
+        view = _view_of(V, P, q, ex, ey, ez, sx, sy, sz)
+        if view >= 0:
+            lum[view] += value * factor / _per_importance(V, P, view, sx, sy, sz)
+            joined += 1
     return joined
 
 
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _view_of(V, P, q, ex, ey, ez, sx, sy, sz):
+    """The view that sees along -s from its eye point E: the camera's pixel, or meter q where its cone holds the
+    direction; -1 for none."""
+    if P.width[0] > 0:
+        return film_pixel(V, P, ex, ey, ez, sx, sy, sz)
+    cos_c = -(sx * V.axis[q, 0] + sy * V.axis[q, 1] + sz * V.axis[q, 2]) / math.sqrt(sx * sx + sy * sy + sz * sz)
+    return q if cos_c >= V.cos_max[q] and cos_c > 0.0 else -1
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _per_importance(V, P, view, sx, sy, sz):
+    """1/W of the view for a ray arriving along -s: cos³θ × film area for a pixel (θ from the axis), Ω for a cone."""
+    if P.width[0] > 0:
+        cos_c = -(sx * V.axis[0, 0] + sy * V.axis[0, 1] + sz * V.axis[0, 2]) / math.sqrt(sx * sx + sy * sy + sz * sz)
+        return cos_c ** 3 * V.size[view]
+    return V.size[view]
+
+
 @njit(cache=True, error_model="numpy", _nrt=False)
-def trace_light(sa, M, L, V, P, seed, batch, first, lum, counters, med, pol, stack, tstack):
+def trace_light(sa, M, L, V, P, seed, batch, first, lum, counters, med, pol, chain, stack, tstack):
     """Light tracing, one batch: `P.photons` photons from the lights of `P.cdf` through the scene (`scatter`, as
     the forward photons go), each diffuse vertex of an eligible photon joined to the eyes (`join_eye`), the sum
     divided by the photon count added to lum (k,). Eligible: a photon of a light in `P.always`, or one whose first
@@ -223,8 +270,9 @@ def trace_light(sa, M, L, V, P, seed, batch, first, lum, counters, med, pol, sta
             if eligible and rho > 0.0:
                 sx, sy, sz = offset_ray_origin(px, py, pz, ngx, ngy, ngz, fx, fy, fz)
                 counters[C_LIGHT_RAYS] += 1 if P.width[0] > 0 else V.kind.shape[0]
-                counters[C_LIGHT_SPLATS] += join_eye(sa, V, P, lum, sx, sy, sz, fx, fy, fz, w * rho / math.pi,
-                                                     uniform(key, dim), uniform(key, dim + 1), stack, tstack)
+                counters[C_LIGHT_SPLATS] += join_eye(sa, M, V, P, lum, sx, sy, sz, fx, fy, fz, w * rho / math.pi,
+                                                     uniform(key, dim), uniform(key, dim + 1), med, depth, chain,
+                                                     stack, tstack)
                 dim += 2
             status, ux, uy, uz, f, depth, dim = scatter(sa, M, inst, prim, hu, hv, dx, dy, dz, ngx, ngy, ngz, med,
                                                         depth, key, dim, 0.0, pol)

@@ -66,6 +66,7 @@ from tracer.transport.light_tracing import (
     trace_light,
     traced_area,
 )
+from tracer.transport.through_flat import CHAIN_SHAPE, flat_face, same_join
 
 RR_DEPTH = 3            # diffuse bounces before Russian roulette (as `tracer.transport.backward`)
 MEDIUM_DEPTH = 8        # nested solids a path may be inside
@@ -287,11 +288,12 @@ def seen_point_lights(sa, L, V, q, stack, tstack):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def trace_view(sa, M, L, V, E, P, q, key, counters, med, pol, stack, tstack):
+def trace_view(sa, M, L, V, E, P, q, key, counters, med, pol, chain, stack, tstack):
     """One path from the eye of view q: (an unbiased estimate of the luminance the paths find, cd/m²; 1.0 where
     the view ray met a specular surface (or took a specular lobe) before any diffuse one, else 0.0). A traced area
-    light met after a specular vertex by a path whose first vertex was diffuse adds nothing: light tracing (`P`)
-    has that path (module docstring)."""
+    light met after a specular vertex by a path whose first vertex was diffuse, or whose first diffuse vertex came
+    after flat faces only that light tracing joins it back through (`through_flat.same_join`), adds nothing: light
+    tracing (`P`) has that path (module docstring)."""
     dx, dy, dz = view_direction(V, q, uniform(key, 0), uniform(key, 1))
     x, y, z = V.o[q, 0], V.o[q, 1], V.o[q, 2]
     dim = 2
@@ -300,6 +302,9 @@ def trace_view(sa, M, L, V, E, P, q, key, counters, med, pol, stack, tstack):
         x, y, z, dx, dy, dz = lens_ray(V, q, dx, dy, dz, uniform(key, 2), uniform(key, 3))
         dim = 4
         lum += lens_point_lights(sa, L, V, q, x, y, z, stack, tstack)
+    x0, y0, z0 = x, y, z      # the eye point (on the lens)
+    n_flat = 0                # flat faces (`through_flat`) the view ray crossed before anything else, the first at
+    x1, y1, z1 = x, y, z      # (x1, y1, z1)
     w = 1.0
     pb_scale = 0.0    # > 0: d was drawn from a diffuse lobe with density pb_scale × cos_prev (MIS on emission)
     cos_prev = 0.0
@@ -341,6 +346,8 @@ def trace_view(sa, M, L, V, E, P, q, key, counters, med, pol, stack, tstack):
                                                     uniform(key, dim + 3), stack, tstack)
             counters[C_VIEW_RAYS] += 1
             dim += 4
+        joined_back = n_flat > 0 and bounce == n_flat and rho > 0.0 and same_join(
+            sa, M, sx, sy, sz, fx, fy, fz, x0, y0, z0, n_flat, x1, y1, z1, med, depth, chain, stack, tstack)
         if lambertian:
             w *= rho
             if w <= 0.0:
@@ -350,7 +357,7 @@ def trace_view(sa, M, L, V, E, P, q, key, counters, med, pol, stack, tstack):
             dim += 2
             pb_scale, cos_prev = 1.0 / math.pi, dx * fx + dy * fy + dz * fz
             x, y, z = sx, sy, sz
-            eye_diffuse = eye_diffuse or bounce == 0
+            eye_diffuse = eye_diffuse or bounce == 0 or joined_back
             from_eye = False
             diffuse_bounces += 1
             if diffuse_bounces >= RR_DEPTH:
@@ -374,6 +381,11 @@ def trace_view(sa, M, L, V, E, P, q, key, counters, med, pol, stack, tstack):
         if status != CONTINUES:
             truncated = False
             break
+        if P.flat[1] != 0 and n_flat == bounce and ox * fx + oy * fy + oz * fz < 0.0 and \
+                flat_face(sa, M, inst, prim, hu, hv, ngx, ngy, ngz):   # through a flat face, as from the eye so far
+            n_flat += 1
+            if bounce == 0:
+                x1, y1, z1 = px, py, pz
         w *= f
         # which lobe drew the new direction: a diffuse one (MIS applies) unless it is the mirror direction
         diffuse_lobe = False
@@ -382,7 +394,7 @@ def trace_view(sa, M, L, V, E, P, q, key, counters, med, pol, stack, tstack):
             diffuse_lobe = not (mx == ox and my == oy and mz == oz)
         if diffuse_lobe:
             pb_scale, cos_prev = rho / math.pi, ox * fx + oy * fy + oz * fz
-            eye_diffuse = eye_diffuse or bounce == 0
+            eye_diffuse = eye_diffuse or bounce == 0 or joined_back
             from_eye = False
         else:
             pb_scale = 0.0
@@ -404,7 +416,7 @@ def trace_view(sa, M, L, V, E, P, q, key, counters, med, pol, stack, tstack):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def radiance_batch(sa, M, L, V, E, P, seed, batch, paths, lum, share, counters, med, pol, stack, tstack):
+def radiance_batch(sa, M, L, V, E, P, seed, batch, paths, lum, share, counters, med, pol, chain, stack, tstack):
     """Batch `batch`: `paths` paths per view and `P.photons` light paths (`trace_light`); each view's luminance
     estimate (cd/m²) into lum (k,), its share of paths through a specular chain from the eye into share (k,), the
     counters into counters (`COUNTERS`). With no paths (a pilot's light tracing alone) lum holds light tracing's
@@ -414,13 +426,14 @@ def radiance_batch(sa, M, L, V, E, P, seed, batch, paths, lum, share, counters, 
         spec = 0.0
         for i in range(paths):
             key = path_key(seed, batch, q * paths + i)
-            v, s = trace_view(sa, M, L, V, E, P, q, key, counters, med, pol, stack, tstack)
+            v, s = trace_view(sa, M, L, V, E, P, q, key, counters, med, pol, chain, stack, tstack)
             acc += v
             spec += s
         lum[q] = acc / paths + seen_point_lights(sa, L, V, q, stack, tstack)
         share[q] = spec / paths
     if P.photons[0] > 0:
-        trace_light(sa, M, L, V, P, seed, batch, V.kind.shape[0] * paths, lum, counters, med, pol, stack, tstack)
+        trace_light(sa, M, L, V, P, seed, batch, V.kind.shape[0] * paths, lum, counters, med, pol, chain, stack,
+                    tstack)
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -436,8 +449,10 @@ def radiance_batches(sa, M, L, V, E, P, seed, batch0, n_batches, paths):
     cnt = np.zeros((n_batches, len(COUNTERS)), np.int64)
     med = np.empty(MEDIUM_DEPTH, np.int64)
     pol = np.zeros(N_POL)
+    chain = np.empty(CHAIN_SHAPE)
     for b in range(n_batches):
         stack, tstack = new_stacks()
         row = out[b]
-        radiance_batch(sa, M, L, V, E, P, seed, batch0 + b, paths, row[:k], row[k:], cnt[b], med, pol, stack, tstack)
+        radiance_batch(sa, M, L, V, E, P, seed, batch0 + b, paths, row[:k], row[k:], cnt[b], med, pol, chain, stack,
+                       tstack)
     return out, cnt
