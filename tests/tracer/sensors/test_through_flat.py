@@ -135,14 +135,14 @@ def test_an_area_light_through_the_faces_is_counted_once_whichever_strategy_find
         return {**found, "traced": True, "per_batch": 4096}, None
 
     monkeypatch.setattr(rounds, "area_light_pilot", traced_anyway)
-    both = slab_sim({"type": "area", "exitance_lm_m2": 1000.0}, below).run(meter(40.0), max_photons=60_000, seed=5)
+    both = slab_sim({"type": "area", "exitance_lm_m2": 1000.0}, below).run(meter(40.0), max_photons=24_000, seed=5)
     assert "area lights traced" in both.strategy, both.strategy
     assert both.counters["left_to_light_tracing"] > 0 and both.counters["light_splats"] > 0
     monkeypatch.setattr(rounds, "area_light_pilot", pilot)
     monkeypatch.setattr(light_tracing, "AREA_LIGHT_TRACING", False)
-    alone = slab_sim({"type": "area", "exitance_lm_m2": 1000.0}, below).run(meter(40.0), max_photons=60_000,
+    alone = slab_sim({"type": "area", "exitance_lm_m2": 1000.0}, below).run(meter(40.0), max_photons=24_000,
                                                                             seed=6)
     assert "light tracing" not in alone.strategy
     sigma = math.hypot(both.stderr, alone.stderr)
     assert abs(both.luminance - alone.luminance) <= Z * sigma, (both.luminance, alone.luminance, sigma)
-    assert sigma < 0.05 * alone.luminance
+    assert sigma < 0.08 * alone.luminance   # a path counted twice: light tracing's half again, 6 sigma or more
