@@ -162,6 +162,10 @@ def run_kernel(kernel_id: KernelId, scene: tuple, query: tuple, batch0: int, n_b
         from tracer.transport.radiance import radiance_batches
 
         views, emit, traced, seed = query
+        if traced.flat[0]:   # joins through flat glass: their function's address in this process
+            from tracer.transport.through_flat import bind as bind_joins
+
+            traced = traced._replace(join_at=bind_joins(sa, mats))
         return radiance_batches(sa, mats, lights, views, emit, traced, seed, batch0, n_batches, size)
     raise ValueError(f"unknown kernel {kernel_id!r}")
 

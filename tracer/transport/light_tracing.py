@@ -44,7 +44,7 @@ from tracer.optics.lights.dispatch import LIGHT_FLAGS
 from tracer.optics.surfaces.base import CONTINUES, DIFFUSE, STACK_FULL, arrival_normal, reflect_specular
 from tracer.optics.surfaces.dispatch import scatter, surface_albedo, surface_flags
 from tracer.rng import path_key, uniform
-from tracer.transport.through_flat import through_flat
+from tracer.transport.through_flat import through_flat_at
 
 MAX_BOUNCES = 10_000    # a longer path (from the eye or from a light) is cut and counted
 COUNTERS = ("rejected", "truncated", "stack_overflow", "caustic_paths", "light_paths", "light_splats", "view_rays",
@@ -67,7 +67,8 @@ class LightPaths(NamedTuple):
     the same eye, film and lens); 0 for meters (cones), each joined on its own. flat (2,) int64: [1 where the scene
     has glass, so that a diffuse vertex is joined through one flat face of it where the straight segment is blocked
     (`tracer.transport.through_flat`); 1 where area lights are traced too, so that a path from the eye entering
-    such a face leaves them to light tracing as it would after a diffuse first vertex].
+    such a face leaves them to light tracing as it would after a diffuse first vertex]. join_at (1,) int64:
+    `through_flat`'s address in the process that runs the kernel (`through_flat.bind`; 0 until bound).
     """
 
     cdf: np.ndarray
@@ -76,6 +77,7 @@ class LightPaths(NamedTuple):
     photons: np.ndarray
     width: np.ndarray
     flat: np.ndarray
+    join_at: np.ndarray
 
 
 #: trace area lights too where the scene has a specular surface and a pilot says light tracing reaches the views
@@ -87,7 +89,7 @@ def no_light_paths(n_lights: int) -> LightPaths:
     """A `LightPaths` that traces nothing."""
     n = max(n_lights, 1)
     return LightPaths(np.ones(n), np.zeros(n, np.int64), np.zeros(1), np.zeros(1, np.int64), np.zeros(1, np.int64),
-                      np.zeros(2, np.int64))
+                      np.zeros(2, np.int64), np.zeros(1, np.int64))
 
 
 def light_paths(L, effects, photons: int, width: int, area: bool = False, others: bool = True) -> LightPaths:
@@ -111,7 +113,8 @@ def light_paths(L, effects, photons: int, width: int, area: bool = False, others
     cdf[-1] = 1.0
     glass = "fresnel" in effects
     flat = np.array([glass, glass and bool((traced & is_area).any())], np.int64)
-    return LightPaths(cdf, always, np.array([flux]), np.array([photons], np.int64), np.array([width], np.int64), flat)
+    return LightPaths(cdf, always, np.array([flux]), np.array([photons], np.int64), np.array([width], np.int64), flat,
+                      np.zeros(1, np.int64))
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
@@ -198,8 +201,8 @@ def join_eye(sa, M, V, P, lum, x, y, z, nx, ny, nz, value, u0, u1, med, depth, c
             continue
         if P.flat[0] == 0:
             continue
-        faces, px, py, pz, factor = through_flat(sa, M, x, y, z, nx, ny, nz, ex, ey, ez, med, depth, chain, stack,
-                                                 tstack)
+        faces, px, py, pz, factor = through_flat_at(P.join_at, 0, (sa, M, x, y, z, nx, ny, nz, ex, ey, ez, med, depth,
+                                                                    chain, stack, tstack))
         if faces == 0:
             continue
         sx, sy, sz = ex - px, ey - py, ez - pz    # the refracted ray that reaches the eye, from the face

@@ -347,7 +347,7 @@ def trace_view(sa, M, L, V, E, P, q, key, counters, med, pol, chain, stack, tsta
             counters[C_VIEW_RAYS] += 1
             dim += 4
         joined_back = n_flat > 0 and bounce == n_flat and rho > 0.0 and same_join(
-            sa, M, sx, sy, sz, fx, fy, fz, x0, y0, z0, n_flat, x1, y1, z1, med, depth, chain, stack, tstack)
+            sa, M, sx, sy, sz, fx, fy, fz, x0, y0, z0, n_flat, x1, y1, z1, med, depth, chain, stack, tstack, P.join_at)
         if lambertian:
             w *= rho
             if w <= 0.0:

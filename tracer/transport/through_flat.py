@@ -27,9 +27,13 @@ from __future__ import annotations
 
 import math
 
+import numba
+import numpy as np
+from numba import types
+
 from tracer.accel.spawn import offset_ray_origin
 from tracer.accel.traverse import any_with_stacks, closest_with_stacks
-from tracer.jit import njit
+from tracer.jit import kind_table, njit
 from tracer.optics.surfaces.base import specular_normal
 from tracer.optics.surfaces.dielectric import ALPHA
 from tracer.optics.surfaces.dispatch import DIELECTRIC, table_row
@@ -176,11 +180,38 @@ def through_flat(sa, M, x, y, z, nx, ny, nz, ex, ey, ez, med, depth, chain, stac
     return faces, sx, sy, sz, cos_x * transmit / spread
 
 
+def _join_signature(head):
+    """The argument types `through_flat` is compiled for, from those of the scene's and the materials' tuples."""
+    f8 = types.float64
+    return (head[0], head[1], *[f8] * 9, types.int64[::1], types.int64, types.float64[:, ::1], types.int64[::1],
+            types.float64[::1])
+
+
+#: `through_flat` called at its address (`tracer.jit.kind_table`): compiled on its own, once, in a process whose
+#: query needs it (`bind`), and in no kernel. Compiled into the luminance kernel it added 7.4 s to its cold compile
+#: (25.3 → 32.7 s); so 25.7 s, and a first query that joins through glass waits 6.6 s more, once
+#: (`bench/bench_luminance_compile.py`, empty caches, 2026-12-08)
+through_flat_at = kind_table("through_flat_at", {0: through_flat}, _join_signature,
+                             types.Tuple((types.int64, *[types.float64] * 4)))
+_TABLES: dict = {}
+
+
+def bind(sa, M) -> np.ndarray:
+    """A table holding `through_flat`'s address in this process for the types of `sa` and `M` (compiled, or loaded
+    from numba's cache, on the first call): what the luminance kernel needs before it runs where its `LightPaths`
+    join through glass (`tracer.backends.run_kernel`)."""
+    head = (numba.typeof(sa), numba.typeof(M))
+    bound = _TABLES.setdefault(head, np.zeros(1, np.int64))
+    through_flat_at.bind(bound, head, [0])
+    return bound
+
+
 @njit(cache=True, error_model="numpy", _nrt=False)
-def same_join(sa, M, x, y, z, nx, ny, nz, ex, ey, ez, faces, sx, sy, sz, med, depth, chain, stack, tstack):
+def same_join(sa, M, x, y, z, nx, ny, nz, ex, ey, ez, faces, sx, sy, sz, med, depth, chain, stack, tstack, join_at):
     """Whether light tracing joins the diffuse vertex x back to the eye E through the `faces` flat faces a path from
     E crossed first, crossing the last of them at S (the path's first hit from E): then that path is light
-    tracing's (module docstring)."""
-    k, px, py, pz, _ = through_flat(sa, M, x, y, z, nx, ny, nz, ex, ey, ez, med, depth, chain, stack, tstack)
+    tracing's (module docstring). `join_at`: `through_flat`'s address (`bind`)."""
+    k, px, py, pz, _ = through_flat_at(join_at, 0, (sa, M, x, y, z, nx, ny, nz, ex, ey, ez, med, depth, chain, stack,
+                                                    tstack))
     span = math.sqrt((ex - x) ** 2 + (ey - y) ** 2 + (ez - z) ** 2)
     return k == faces and math.sqrt((px - sx) ** 2 + (py - sy) ** 2 + (pz - sz) ** 2) <= SAME_POINT * span
