@@ -21,8 +21,9 @@ reports each on its standard output as it ends ("STAGE SECONDS KERNEL ...", the 
 - ``backward``: the backward kernel (`tracer.transport.backward.backward_batches`);
 - ``scene``: the builders of a small room scene (what a later first push needs);
 - ``radiance``: the luminance kernel (`tracer.transport.radiance`: paths from the eye, light tracing), by running a
-  luminance meter in that room, at the lowest CPU priority (`LOW_PRIORITY`): about 50 s of a core cold, which a
-  first luminance meter or camera would otherwise wait for.
+  luminance meter in that room (its block glass, so that light tracing's join through glass, compiled on its own, is
+  compiled too), at the lowest CPU priority (`LOW_PRIORITY`): about 50 s of a core cold, which a first luminance
+  meter or camera would otherwise wait for.
 
 Child 1 compiles probe, optics, forward, kinds; child 2 scene, kinds, optics, backward, radiance (`CHILDREN`). Both
 compile the kinds and the optics, from opposite ends of the lists: each kernel the other child has already compiled is
@@ -199,7 +200,10 @@ def _compile_stage(stage: str, reverse: bool) -> None:
         if stage == "radiance":   # run, not typed: its arguments are built per query (views, emitters, light paths)
             from tracer.simulate import Simulation
 
-            sim = Simulation(scene, {i: {"type": "lambertian", "reflectance": 0.5} for i in ids},
+            # the block is glass: light tracing joins through it, so its join (`tracer.transport.through_flat`,
+            # called at its address) is compiled here too
+            sim = Simulation(scene, {ids[0]: {"type": "lambertian", "reflectance": 0.5},
+                                     ids[1]: {"type": "dielectric", "ior": 1.5}},
                              [{"type": "point", "position": [2.0, 2.0, 2.5], "intensity_cd": 100.0}])
             sim.run({"type": "luminance", "position": [3.5, 3.5, 1.5], "direction": [-1.0, -1.0, -1.0]},
                     max_photons=200)
