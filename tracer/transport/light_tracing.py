@@ -64,10 +64,10 @@ class LightPaths(NamedTuple):
     (collimated, rayfile): its photons join the eye at every diffuse vertex; 0 for a point-like or area light: only
     the photons whose first bounce was specular do. flux (1,): the traced lights' flux (lm). photons (1,) int64:
     photons a batch (0: no light tracing). width (1,) int64: a camera's columns (its pixels a row-major grid of
-    the same eye, film and lens); 0 for meters (cones), each joined on its own. flat (2,) int64: [1 where the scene
-    has glass, so that a diffuse vertex is joined through one flat face of it where the straight segment is blocked
-    (`tracer.transport.through_flat`); 1 where area lights are traced too, so that a path from the eye entering
-    such a face leaves them to light tracing as it would after a diffuse first vertex]. join_at (1,) int64:
+    the same eye, film and lens); 0 for meters (cones), each joined on its own. flat (1,) int64: 1 where the scene
+    has glass, so that a diffuse vertex is joined through its flat faces where the straight segment is blocked
+    (`tracer.transport.through_flat`), and a path from the eye that crossed them first to a vertex so joined neither
+    counts as seeing through a specular chain nor, for a traced area light, keeps that path. join_at (1,) int64:
     `through_flat`'s address in the process that runs the kernel (`through_flat.bind`; 0 until bound).
     """
 
@@ -89,7 +89,7 @@ def no_light_paths(n_lights: int) -> LightPaths:
     """A `LightPaths` that traces nothing."""
     n = max(n_lights, 1)
     return LightPaths(np.ones(n), np.zeros(n, np.int64), np.zeros(1), np.zeros(1, np.int64), np.zeros(1, np.int64),
-                      np.zeros(2, np.int64), np.zeros(1, np.int64))
+                      np.zeros(1, np.int64), np.zeros(1, np.int64))
 
 
 def light_paths(L, effects, photons: int, width: int, area: bool = False, others: bool = True) -> LightPaths:
@@ -111,8 +111,7 @@ def light_paths(L, effects, photons: int, width: int, area: bool = False, others
     flux = float(pick[traced].sum())
     cdf = np.cumsum(np.where(traced, pick, 0.0)) / flux
     cdf[-1] = 1.0
-    glass = "fresnel" in effects
-    flat = np.array([glass, glass and bool((traced & is_area).any())], np.int64)
+    flat = np.array(["fresnel" in effects], np.int64)
     return LightPaths(cdf, always, np.array([flux]), np.array([photons], np.int64), np.array([width], np.int64), flat,
                       np.zeros(1, np.int64))
 

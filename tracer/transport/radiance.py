@@ -293,7 +293,7 @@ def trace_view(sa, M, L, V, E, P, q, key, counters, med, pol, chain, stack, tsta
     the view ray met a specular surface (or took a specular lobe) before any diffuse one, else 0.0). A traced area
     light met after a specular vertex by a path whose first vertex was diffuse, or whose first diffuse vertex came
     after flat faces only that light tracing joins it back through (`through_flat.same_join`), adds nothing: light
-    tracing (`P`) has that path (module docstring)."""
+    tracing (`P`) has that path (module docstring); such a path does not count as seeing through a specular chain."""
     dx, dy, dz = view_direction(V, q, uniform(key, 0), uniform(key, 1))
     x, y, z = V.o[q, 0], V.o[q, 1], V.o[q, 2]
     dim = 2
@@ -348,6 +348,8 @@ def trace_view(sa, M, L, V, E, P, q, key, counters, med, pol, chain, stack, tsta
             dim += 4
         joined_back = n_flat > 0 and bounce == n_flat and rho > 0.0 and same_join(
             sa, M, sx, sy, sz, fx, fy, fz, x0, y0, z0, n_flat, x1, y1, z1, med, depth, chain, stack, tstack, P.join_at)
+        if joined_back:   # light tracing joins this vertex through the faces: its light is not missing
+            through_specular = 0.0
         if lambertian:
             w *= rho
             if w <= 0.0:
@@ -381,7 +383,7 @@ def trace_view(sa, M, L, V, E, P, q, key, counters, med, pol, chain, stack, tsta
         if status != CONTINUES:
             truncated = False
             break
-        if P.flat[1] != 0 and n_flat == bounce and ox * fx + oy * fy + oz * fz < 0.0 and \
+        if P.flat[0] != 0 and n_flat == bounce and ox * fx + oy * fy + oz * fz < 0.0 and \
                 flat_face(sa, M, inst, prim, hu, hv, ngx, ngy, ngz):   # through a flat face, as from the eye so far
             n_flat += 1
             if bounce == 0:
