@@ -119,25 +119,29 @@ def _digest(h: Any, obj: Any) -> None:
         h.update(repr(obj).encode())
 
 
-_BOUND: list = []   # [(sa, mats, lights, bound mats, bound lights)], the most recent first: the next rounds of the
-_BOUND_KEEP = 4     # queries running now (a pool thread takes their chunks in turn: one entry would bind at each)
-_BOUND_LOCK = threading.Lock()
+_BOUND: list = []   # [[sa, mats, lights, bound mats, bound lights, join table or None]], the most recent first: the
+_BOUND_KEEP = 4     # next rounds of the queries running now (a pool thread takes their chunks in turn: one entry
+_BOUND_LOCK = threading.Lock()   # would bind at each)
 
 
-def _bound(sa, mats, lights) -> tuple:
-    """The materials and lights with this process's kind addresses (`tracer.jit.kind_table`); a query's later rounds
-    reuse its first round's (binding types the tuples: about a millisecond a call)."""
+def _bound(sa, mats, lights, joins: bool = False) -> tuple:
+    """The materials and lights with this process's kind addresses (`tracer.jit.kind_table`), and with `joins` the
+    table of the join through glass (`tracer.transport.through_flat.bind`; else None); a query's later rounds reuse
+    its first round's (binding types the tuples: about a millisecond a call)."""
     from tracer.optics.lights.dispatch import bind as bind_lights
     from tracer.optics.surfaces.dispatch import bind
 
     with _BOUND_LOCK:
-        for entry in _BOUND:
-            if entry[0] is sa and entry[1] is mats and entry[2] is lights:
-                return entry[3], entry[4]
-    bound = bind(sa, mats), bind_lights(lights)
-    with _BOUND_LOCK:
-        _BOUND[:] = [(sa, mats, lights, *bound), *_BOUND[:_BOUND_KEEP - 1]]
-    return bound
+        entry = next((e for e in _BOUND if e[0] is sa and e[1] is mats and e[2] is lights), None)
+    if entry is None:
+        entry = [sa, mats, lights, bind(sa, mats), bind_lights(lights), None]
+        with _BOUND_LOCK:
+            _BOUND[:] = [entry, *_BOUND[:_BOUND_KEEP - 1]]
+    if joins and entry[5] is None:
+        from tracer.transport.through_flat import bind as bind_joins
+
+        entry[5] = bind_joins(sa, entry[3])
+    return entry[3], entry[4], entry[5]
 
 
 def run_kernel(kernel_id: KernelId, scene: tuple, query: tuple, batch0: int, n_batches: int, size: int):
@@ -147,7 +151,8 @@ def run_kernel(kernel_id: KernelId, scene: tuple, query: tuple, batch0: int, n_b
     same scene and query = (view arrays, emitters, light paths, seed) (`tracer.transport.radiance`). Module-level,
     so a Dask worker runs it by import; the kernel is compiled once per process (numba's dispatcher and disk cache)."""
     sa, mats, lights = scene
-    mats, lights = _bound(sa, mats, lights)
+    joins = kernel_id[0] == "radiance" and bool(query[2].flat[0])   # light tracing joins through flat glass
+    mats, lights, join_at = _bound(sa, mats, lights, joins)
     if kernel_id[0] == "forward":
         from tracer.transport.forward import forward_kernel
 
@@ -162,10 +167,8 @@ def run_kernel(kernel_id: KernelId, scene: tuple, query: tuple, batch0: int, n_b
         from tracer.transport.radiance import radiance_batches
 
         views, emit, traced, seed = query
-        if traced.flat[0]:   # joins through flat glass: their function's address in this process
-            from tracer.transport.through_flat import bind as bind_joins
-
-            traced = traced._replace(join_at=bind_joins(sa, mats))
+        if joins:   # the join's function's address in this process
+            traced = traced._replace(join_at=join_at)
         return radiance_batches(sa, mats, lights, views, emit, traced, seed, batch0, n_batches, size)
     raise ValueError(f"unknown kernel {kernel_id!r}")
 

@@ -307,10 +307,9 @@ def feature_surface(sa, inst, prim):
     `fx.MAT_LAMBERTIAN`: a printed dot); ``(fx.MAT_PART, 0)`` where the hit takes the instance's material."""
     if prim < -1 and sa.inst_aux[inst] >= 0:
         r, _ = relief.feature_row(sa, inst, prim)
-        if r >= 0:
-            k = int(sa.el_f[r, fx.FMAT])
-            if k >= 0:
-                return k, sa.el_f[r, fx.FRHO]
+        k = int(sa.el_f[r, fx.FMAT])
+        if k >= 0:
+            return k, sa.el_f[r, fx.FRHO]
     return fx.MAT_PART, 0.0
 
 
